@@ -1,0 +1,117 @@
+#pragma once
+// The incremental smoother: iSAM (Kaess et al., T-RO 2008) over several robot
+// trajectories joined by anchor nodes (Kim et al., ICRA 2010). ALGORITHM.md 4-6.
+//
+// Usage: AddPose / AddBetween / AddEncounter queue variables and measurements; Update()
+// folds them into the square-root information matrix R by Givens rotations (or runs a
+// batch step) and solves. Estimates and covariances are read between updates.
+// Single-threaded: callers serialise access (the server runs it on its event loop).
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/solver/keys.h"
+#include "common/solver/smoother_options.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+// What one Update() did.
+struct UpdateResult {
+  Status status = Status::Ok();  // numerical trouble (e.g. an unconstrained variable) lands here
+  int64_t update = 0;            // update number, 1, 2, ...
+  bool batch_step = false;       // true when this update relinearised and reordered
+  int iterations = 0;            // nonlinear iterations of the batch step (0 if incremental)
+  int factors_added = 0;
+  int anchors_created = 0;
+  int groups_merged = 0;         // encounters that joined two anchored groups
+  int rows_backsubstituted = 0;  // block rows recomputed by back-substitution
+  double seconds = 0.0;
+};
+
+// Cumulative counters, for benchmarks and the server's status line.
+struct SmootherStats {
+  int64_t updates = 0;
+  int64_t batch_steps = 0;
+  int64_t batch_steps_on_clock = 0;
+  int64_t batch_steps_on_fill = 0;
+  int64_t batch_steps_on_merge = 0;
+  int64_t batch_iterations = 0;          // summed over batch steps
+  int64_t iterations_to_convergence = 0; // batch iterations until the step fell below convergence_step
+  int64_t givens_block_eliminations = 0;
+  int64_t rows_backsubstituted = 0;
+  int64_t variables = 0;
+  int64_t factors = 0;
+  int64_t nnz_r = 0;  // scalar non-zeros of R (upper triangle)
+};
+
+class Smoother {
+ public:
+  explicit Smoother(const SmootherOptions& options = {});
+  ~Smoother();
+  Smoother(Smoother&&) noexcept;
+  Smoother& operator=(Smoother&&) noexcept;
+
+  const SmootherOptions& options() const;
+
+  // Adds pose `key` with an initial guess in its trajectory's local frame. Index 0 starts
+  // a new trajectory, whose local frame gets a gauge prior at that pose; later indices
+  // must follow an existing pose of the trajectory (any order of indices is allowed, but
+  // each key only once).
+  Status AddPose(PoseKey key, const Pose2& initial_T_local_pose);
+
+  // A measurement of pose `to` in the frame of pose `from`, both of one trajectory
+  // (odometry, or a loop closure). Covariance: symmetric positive definite, (x, y, theta).
+  Status AddBetween(PoseKey from, PoseKey to, const Pose2& measured_T_from_to,
+                    const Eigen::Matrix3d& covariance);
+
+  // An encounter: pose b measured in the frame of pose a, from two different trajectories
+  // (direct or indirect). In the relative formulation this creates anchors at the first
+  // encounter of a trajectory and merges anchor groups (dropping one gauge prior).
+  Status AddEncounter(PoseKey a, PoseKey b, const Pose2& measured_T_a_b,
+                      const Eigen::Matrix3d& covariance);
+
+  // Folds everything added since the last call into the solution.
+  UpdateResult Update();
+  // Forces a batch step now (relinearise, reorder, refactor, iterate to convergence).
+  UpdateResult BatchOptimize();
+
+  // --- Estimates (valid after Update()) ---
+  bool HasPose(PoseKey key) const;
+  int NumPoses(TrajectoryId trajectory) const;
+  std::vector<TrajectoryId> Trajectories() const;  // in order of creation
+  // The pose in its trajectory's local frame (relative formulation) or in the shared
+  // frame of its group (global formulations).
+  Pose2 LocalPose(PoseKey key) const;
+  // The pose in the global frame: Anchor (+) LocalPose once anchored; LocalPose before.
+  Pose2 GlobalPose(PoseKey key) const;
+  bool IsAnchored(TrajectoryId trajectory) const;
+  // T_global_local of an anchored trajectory (relative formulation); nullopt otherwise.
+  std::optional<Pose2> Anchor(TrajectoryId trajectory) const;
+  // The trajectory whose gauge defines the frame this trajectory's group is expressed in.
+  TrajectoryId GroupRoot(TrajectoryId trajectory) const;
+
+  // --- Covariances (ALGORITHM.md section 6; from R, never a dense inverse) ---
+  // Marginal 3x3 covariance of one variable, (x, y, theta) of the variable's own
+  // coordinates. Memoised until the next Update().
+  Eigen::Matrix3d MarginalCovariance(const Key& key);
+  // Joint covariance of several variables, 3k x 3k, blocks in the order given.
+  Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+
+  // Sum of squared whitened residuals of every factor at the current estimate.
+  double Chi2() const;
+  const SmootherStats& stats() const;
+  // Each trajectory's poses in the global frame, in index order (convenience for outputs).
+  std::vector<Pose2> GlobalTrajectory(TrajectoryId trajectory) const;
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,75 @@
+#pragma once
+// Options of the incremental smoother (one source of defaults; see Validate()).
+
+#include <optional>
+#include <string>
+
+namespace anchormap {
+
+// How trajectories are tied into one map (ALGORITHM.md sections 3 and 4).
+enum class Formulation {
+  // Each trajectory in its own local frame plus an anchor T_global_local, created at its
+  // first encounter (the thesis' method).
+  kRelative,
+  // All poses in one global frame; each trajectory starts with a prior at the origin
+  // that is removed when its first encounter joins it to another group (the baseline).
+  kGlobal,
+  // As kGlobal, but the joining group is first moved rigidly to agree with the encounter
+  // (an O(poses) re-initialisation that anchors make unnecessary).
+  kGlobalMoved,
+};
+
+enum class NonlinearMethod {
+  kGaussNewton,
+  kDogLeg,  // Powell's dog-leg with a trust region, in batch steps
+};
+
+struct SmootherOptions {
+  Formulation formulation = Formulation::kRelative;
+  NonlinearMethod method = NonlinearMethod::kGaussNewton;
+
+  // A batch step (relinearise every factor, reorder with CCOLAMD, refactor with CHOLMOD,
+  // iterate to convergence) every this many updates. 0 = never on a clock (batch steps
+  // still happen at group merges and on evidence, see below). 1 = pure batch.
+  int batch_every_updates = 100;
+
+  // Batch on evidence: when the number of non-zeros of R has grown by this factor since
+  // the last reordering (fill-in from incremental updates). 0 disables.
+  double batch_when_fill_grows = 4.0;
+
+  // Back-substitution after each incremental update recomputes only rows whose inputs
+  // changed; a change of a variable below this (max-abs of its 3-vector) does not
+  // propagate further (iSAM2's wildfire threshold). 0 = exact full back-substitution.
+  double backsubstitution_threshold = 0.0;
+
+  // Batch-step convergence: stop iterating when the largest component of the step is
+  // below this (metres / radians) or after max_batch_iterations.
+  double convergence_step = 1e-4;
+  int max_batch_iterations = 50;
+
+  // Dog-leg trust region, initial radius (in whitened step units).
+  double dogleg_initial_radius = 1.0;
+
+  // Standard deviation of the gauge priors (trajectory origins, first anchor of a group):
+  // metres for x and y, radians for theta. Small: they fix the gauge, not a measurement.
+  double gauge_prior_sigma = 1e-3;
+
+  // Returns a readable error for an inconsistent setting.
+  std::optional<std::string> Validate() const {
+    if (batch_every_updates < 0) return "batch_every_updates must be >= 0";
+    if (batch_when_fill_grows != 0 && batch_when_fill_grows <= 1.0) {
+      return "batch_when_fill_grows must be 0 (off) or > 1";
+    }
+    if (backsubstitution_threshold < 0) return "backsubstitution_threshold must be >= 0";
+    if (!(convergence_step > 0)) return "convergence_step must be > 0";
+    if (max_batch_iterations < 1) return "max_batch_iterations must be >= 1";
+    if (!(dogleg_initial_radius > 0)) return "dogleg_initial_radius must be > 0";
+    if (!(gauge_prior_sigma > 0)) return "gauge_prior_sigma must be > 0";
+    return std::nullopt;
+  }
+};
+
+const char* ToString(Formulation formulation);
+std::optional<Formulation> ParseFormulation(const std::string& text);
+
+}  // namespace anchormap
