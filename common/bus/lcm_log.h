@@ -1,0 +1,63 @@
+#pragma once
+// Reading and writing LCM log files (the format of lcm-logger / lcm-logplayer) with
+// typed messages. Used by the offline server, the simulator, the importer and the tools.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct LogEvent {
+  int64_t utime = 0;
+  std::string channel;
+  std::vector<uint8_t> data;
+};
+
+class LcmLogWriter {
+ public:
+  LcmLogWriter();
+  ~LcmLogWriter();
+  Status Open(const std::string& path);  // truncates
+  Status WriteRaw(const std::string& channel, int64_t utime, const void* data, size_t size);
+  // T is an lcm-gen C++ type.
+  template <typename T>
+  Status Write(const std::string& channel, int64_t utime, const T& message) {
+    std::vector<uint8_t> buffer(message.getEncodedSize());
+    message.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    return WriteRaw(channel, utime, buffer.data(), buffer.size());
+  }
+  void Close();
+
+ private:
+  struct File;
+  std::unique_ptr<File> file_;
+};
+
+class LcmLogReader {
+ public:
+  LcmLogReader();
+  ~LcmLogReader();
+  Status Open(const std::string& path);
+  // The next event, or nullopt at the end of the file.
+  std::optional<LogEvent> Next();
+
+ private:
+  struct File;
+  std::unique_ptr<File> file_;
+};
+
+// Decodes an event's payload as T; nullopt when it does not decode (wrong type, truncated).
+template <typename T>
+std::optional<T> DecodeAs(const LogEvent& event) {
+  T message;
+  const int used = message.decode(event.data.data(), 0, static_cast<int>(event.data.size()));
+  if (used < 0 || used != static_cast<int>(event.data.size())) return std::nullopt;
+  return message;
+}
+
+}  // namespace anchormap
