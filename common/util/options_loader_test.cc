@@ -1,0 +1,166 @@
+#include "common/util/options_loader.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace anchormap {
+namespace {
+
+struct DemoOptions {
+  double max_distance_m = 0.5;
+  int max_keyframes = 10;
+  int64_t trajectory_id = 0;
+  bool verbose = false;
+  std::string robot;
+};
+
+class OptionsLoaderTest : public ::testing::Test {
+ protected:
+  OptionsLoaderTest() : loader_("demo", "[options]", "A demo.") {
+    loader_.Add("keyframer.max_distance_m", "keyframe-distance-m", &options_.max_distance_m,
+                "distance between keyframes");
+    loader_.Add("keyframer.max_keyframes", "", &options_.max_keyframes, "a count");
+    loader_.Add("trajectory_id", "", &options_.trajectory_id, "an id");
+    loader_.Add("verbose", "", &options_.verbose, "talk more");
+    loader_.Add("robot", "", &options_.robot, "robot name", /*required=*/true);
+  }
+
+  ParseOutcome Run(std::vector<std::string> args) {
+    args.insert(args.begin(), "demo");
+    std::vector<const char*> argv;
+    for (const auto& a : args) argv.push_back(a.c_str());
+    testing::internal::CaptureStderr();
+    testing::internal::CaptureStdout();
+    ParseOutcome outcome = loader_.Parse(static_cast<int>(argv.size()), argv.data());
+    stderr_ = testing::internal::GetCapturedStderr();
+    stdout_ = testing::internal::GetCapturedStdout();
+    return outcome;
+  }
+
+  std::string WriteConfig(const std::string& text) {
+    const auto path = std::filesystem::temp_directory_path() /
+                      ("options_loader_test_" + std::to_string(getpid()) + ".cfg");
+    std::ofstream(path) << text;
+    files_.push_back(path.string());
+    return path.string();
+  }
+
+  void TearDown() override {
+    for (const auto& f : files_) std::filesystem::remove(f);
+  }
+
+  DemoOptions options_;
+  OptionsLoader loader_;
+  std::string stderr_, stdout_;
+  std::vector<std::string> files_;
+};
+
+TEST_F(OptionsLoaderTest, FlagsSetFields) {
+  const auto outcome =
+      Run({"--robot", "R2", "--keyframe-distance-m", "1.25", "--keyframer-max-keyframes=7",
+           "--trajectory-id", "1700000000000000", "--verbose"});
+  ASSERT_TRUE(outcome.run) << stderr_;
+  EXPECT_EQ(options_.robot, "R2");
+  EXPECT_DOUBLE_EQ(options_.max_distance_m, 1.25);
+  EXPECT_EQ(options_.max_keyframes, 7);
+  EXPECT_EQ(options_.trajectory_id, 1700000000000000);
+  EXPECT_TRUE(options_.verbose);
+  EXPECT_TRUE(loader_.WasSet("keyframer.max_distance_m"));
+  EXPECT_FALSE(loader_.WasSet("nonexistent"));
+}
+
+TEST_F(OptionsLoaderTest, ConfigFileWithSectionsAndFlagsOverrideIt) {
+  const std::string path =
+      WriteConfig("# comment\nrobot = R3\n[keyframer]\nmax_distance_m = 2.5\nmax_keyframes = 4\n");
+  const auto outcome = Run({"--config", path, "--keyframer-max-keyframes", "9"});
+  ASSERT_TRUE(outcome.run) << stderr_;
+  EXPECT_EQ(options_.robot, "R3");
+  EXPECT_DOUBLE_EQ(options_.max_distance_m, 2.5);
+  EXPECT_EQ(options_.max_keyframes, 9);  // flag wins over the file
+}
+
+TEST_F(OptionsLoaderTest, UnknownConfigKeyIsRefusedWithItsName) {
+  const std::string path = WriteConfig("robot = R1\n[keyframer]\nmax_distanse_m = 2\n");
+  const auto outcome = Run({"--config", path});
+  EXPECT_FALSE(outcome.run);
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_NE(outcome.error.find("keyframer.max_distanse_m"), std::string::npos) << outcome.error;
+  EXPECT_NE(stderr_.find("keyframer.max_distanse_m"), std::string::npos);
+}
+
+TEST_F(OptionsLoaderTest, UnknownFlagMalformedValueAndPositionalAreUsageErrors) {
+  auto outcome = Run({"--robot", "R1", "--keyframe-distanse-m", "1"});
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_NE(outcome.error.find("keyframe-distanse-m"), std::string::npos) << outcome.error;
+
+  outcome = Run({"--robot", "R1", "--keyframe-distance-m", "1.5x"});
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_NE(outcome.error.find("--keyframe-distance-m"), std::string::npos) << outcome.error;
+
+  outcome = Run({"--robot", "R1", "--keyframe-distance-m", "nan"});
+  EXPECT_EQ(outcome.exit_code, 2);
+
+  outcome = Run({"--robot", "R1", "--keyframer-max-keyframes", "99999999999"});
+  EXPECT_EQ(outcome.exit_code, 2);
+
+  outcome = Run({"--robot", "R1", "stray"});
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_FALSE(outcome.run);
+}
+
+TEST_F(OptionsLoaderTest, MissingRequiredOptionIsAUsageError) {
+  const auto outcome = Run({"--verbose", "false"});
+  EXPECT_FALSE(outcome.run);
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_NE(outcome.error.find("--robot"), std::string::npos) << outcome.error;
+  EXPECT_FALSE(options_.verbose);
+}
+
+TEST_F(OptionsLoaderTest, HelpListsEveryOptionWithDefaultAndKey) {
+  const auto outcome = Run({"--help"});
+  EXPECT_FALSE(outcome.run);
+  EXPECT_EQ(outcome.exit_code, 0);
+  EXPECT_NE(stdout_.find("--keyframe-distance-m <number> (default: 0.5)"), std::string::npos)
+      << stdout_;
+  EXPECT_NE(stdout_.find("[config key: keyframer.max_distance_m]"), std::string::npos);
+  EXPECT_NE(stdout_.find("--robot <text> (required)"), std::string::npos);
+}
+
+TEST_F(OptionsLoaderTest, EffectiveConfigAndMarkdownComeFromTheSameList) {
+  ASSERT_TRUE(Run({"--robot", "R1", "--keyframe-distance-m", "0.75"}).run);
+  const std::string config = loader_.EffectiveConfig();
+  EXPECT_NE(config.find("keyframer.max_distance_m = 0.75\n"), std::string::npos) << config;
+  EXPECT_NE(config.find("robot = R1\n"), std::string::npos);
+  const std::string table = loader_.MarkdownTable();
+  EXPECT_NE(table.find("| `--keyframe-distance-m` | `keyframer.max_distance_m` | `0.5` |"),
+            std::string::npos)
+      << table;
+}
+
+TEST(ParseNumberTest, StrictConversions) {
+  double d = 0;
+  EXPECT_TRUE(ParseDouble("-1.5e-3", &d));
+  EXPECT_DOUBLE_EQ(d, -1.5e-3);
+  EXPECT_FALSE(ParseDouble("", &d));
+  EXPECT_FALSE(ParseDouble("1.0 ", &d));
+  EXPECT_FALSE(ParseDouble("inf", &d));
+  int64_t i = 0;
+  EXPECT_TRUE(ParseInt64("-42", &i));
+  EXPECT_EQ(i, -42);
+  EXPECT_FALSE(ParseInt64("4.2", &i));
+  EXPECT_FALSE(ParseInt64("99999999999999999999", &i));
+  bool b = false;
+  EXPECT_TRUE(ParseBool("on", &b));
+  EXPECT_TRUE(b);
+  EXPECT_FALSE(ParseBool("maybe", &b));
+  EXPECT_EQ(FormatDouble(0.001), "0.001");
+}
+
+}  // namespace
+}  // namespace anchormap
