@@ -1,0 +1,120 @@
+#pragma once
+// Helpers shared by codec.cc and map_codec.cc (not part of the public codec API).
+
+#include <cmath>
+#include <exception>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/bus/codec.h"
+#include "common/bus/wire_check.h"
+
+namespace anchormap::codec_internal {
+
+template <typename T>
+std::vector<uint8_t> Encode(const T& message) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(message.getEncodedSize()));
+  message.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+// Runs the pre-flight size check, then lcm-gen's decode; exceptions (a string length
+// the check did not foresee) become decode failures.
+template <typename T, typename Check>
+std::optional<WireProblem> SafeDecode(const void* data, size_t size, Check check, T* message) {
+  if (auto problem = check(data, size)) return problem;
+  try {
+    const int used = message->decode(data, 0, static_cast<int>(size));
+    if (used < 0 || static_cast<size_t>(used) != size) {
+      return WireProblem{RejectReason::kDecodeFailed,
+                         "does not decode as " + std::string(T::getTypeName())};
+    }
+  } catch (const std::exception& error) {
+    return WireProblem{RejectReason::kDecodeFailed, error.what()};
+  }
+  return std::nullopt;
+}
+
+inline bool AllFinite(const double* values, int n) {
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(values[i])) return false;
+  }
+  return true;
+}
+
+inline Eigen::Matrix3d MatrixFromRowMajor(const double values[9]) {
+  Eigen::Matrix3d m;
+  m << values[0], values[1], values[2], values[3], values[4], values[5], values[6], values[7],
+      values[8];
+  return m;
+}
+
+inline void MatrixToRowMajor(const Eigen::Matrix3d& m, double values[9]) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) values[3 * r + c] = m(r, c);
+  }
+}
+
+inline void PoseToArray(const Pose2& pose, double values[3]) {
+  values[0] = pose.x();
+  values[1] = pose.y();
+  values[2] = pose.theta();
+}
+
+inline Pose2 PoseFromArray(const double values[3]) {
+  return Pose2(values[0], values[1], values[2]);
+}
+
+// Empty, overlong or non-printable names are refused.
+inline std::optional<WireProblem> CheckName(const std::string& name, const char* field) {
+  if (name.empty())
+    return WireProblem{RejectReason::kEmptyRobotName, std::string(field) + " is empty"};
+  for (char ch : name) {
+    if (ch <= ' ' || ch > '~') {
+      return WireProblem{RejectReason::kInvalidValue,
+                         std::string(field) + " has a non-printable character"};
+    }
+  }
+  return std::nullopt;
+}
+
+inline std::optional<WireProblem> CheckScanGeometry(float rad0, float radstep, size_t nranges) {
+  if (!std::isfinite(rad0) || !std::isfinite(radstep)) {
+    return WireProblem{RejectReason::kNotFinite, "rad0 or radstep is not finite"};
+  }
+  if (nranges > 1 && radstep == 0.0f) {
+    return WireProblem{RejectReason::kInvalidValue, "radstep is 0"};
+  }
+  if (std::abs(static_cast<double>(radstep)) * (static_cast<double>(nranges) - 1.0) >
+      2.0 * kPi + 1e-3) {
+    return WireProblem{RejectReason::kInvalidValue, "scan covers more than 360 degrees"};
+  }
+  return std::nullopt;
+}
+
+inline std::optional<WireProblem> CheckRanges(const std::vector<float>& ranges) {
+  for (size_t i = 0; i < ranges.size(); ++i) {
+    if (!std::isfinite(ranges[i])) {
+      return WireProblem{RejectReason::kNotFinite, "range " + std::to_string(i) + " is not finite"};
+    }
+  }
+  return std::nullopt;
+}
+
+template <typename T>
+Decoded<T> FromProblem(const WireProblem& problem) {
+  return Decoded<T>::Fail(problem.reason, problem.detail);
+}
+
+template <typename T>
+Decoded<T> Success(T value) {
+  Decoded<T> d;
+  d.value = std::move(value);
+  return d;
+}
+
+}  // namespace anchormap::codec_internal

@@ -1,0 +1,250 @@
+#include "common/bus/codec.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "common/bus/map_codec.h"
+
+namespace anchormap {
+namespace {
+
+LaserScan MakeScan(int n) {
+  LaserScan scan;
+  scan.utime = 1'000'000;
+  scan.rad0 = static_cast<float>(-kPi / 2);
+  scan.radstep = static_cast<float>(kPi / (n - 1));
+  scan.max_range = 30.0f;
+  for (int i = 0; i < n; ++i) scan.ranges.push_back(1.0f + 0.01f * static_cast<float>(i));
+  scan.T_body_sensor = Pose2(0.2, 0.0, 0.1);
+  return scan;
+}
+
+Keyframe MakeKeyframe() {
+  Keyframe k;
+  k.robot = "R2";
+  k.trajectory_id = 1'700'000'000'000'000;
+  k.seq = 7;
+  k.utime = 5'000'000;
+  k.T_local_pose = Pose2(1.5, -2.0, 0.3);
+  k.T_previous_pose = Pose2(0.5, 0.01, 0.02);
+  k.delta_covariance = Eigen::Vector3d(0.01, 0.02, 0.003).asDiagonal();
+  k.delta_covariance(0, 1) = k.delta_covariance(1, 0) = 0.001;
+  k.scan = MakeScan(181);
+  k.scan.utime = k.utime;
+  return k;
+}
+
+// Writes a big-endian int32 at `offset` (to forge length fields).
+void PatchInt32(std::vector<uint8_t>* bytes, size_t offset, int32_t value) {
+  const auto v = static_cast<uint32_t>(value);
+  (*bytes)[offset] = static_cast<uint8_t>(v >> 24);
+  (*bytes)[offset + 1] = static_cast<uint8_t>(v >> 16);
+  (*bytes)[offset + 2] = static_cast<uint8_t>(v >> 8);
+  (*bytes)[offset + 3] = static_cast<uint8_t>(v);
+}
+
+TEST(CodecTest, OdometryRoundTripsYawThroughTheQuaternion) {
+  const auto bytes = EncodeOdometry({123, Pose2(1.0, -2.0, 2.5)});
+  const auto decoded = DecodeOdometry(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.detail;
+  EXPECT_EQ(decoded.value->utime, 123);
+  EXPECT_DOUBLE_EQ(decoded.value->T_odom_body.x(), 1.0);
+  EXPECT_DOUBLE_EQ(decoded.value->T_odom_body.y(), -2.0);
+  EXPECT_NEAR(decoded.value->T_odom_body.theta(), 2.5, 1e-12);
+  double q[4];
+  YawToQuaternion(-3.0, q);
+  EXPECT_NEAR(QuaternionToYaw(q), -3.0, 1e-12);
+  EXPECT_NEAR(q[0], std::cos(-1.5), 1e-15);
+}
+
+TEST(CodecTest, OdometryRejectsNanBadQuaternionTruncationAndWrongType) {
+  auto bytes = EncodeOdometry({1, Pose2(std::numeric_limits<double>::quiet_NaN(), 0, 0)});
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).reason, RejectReason::kNotFinite);
+
+  bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
+  // orientation[0] (w) sits after hash 8 + utime 8 + pos 24 + vel 24: make it 0.
+  for (size_t i = 64; i < 72; ++i) bytes[i] = 0;
+  const auto zero_quaternion = DecodeOdometry(bytes.data(), bytes.size());
+  EXPECT_FALSE(zero_quaternion.ok());
+  EXPECT_EQ(zero_quaternion.reason, RejectReason::kInvalidValue);
+
+  bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size() - 1).reason, RejectReason::kDecodeFailed);
+  const auto laser = EncodeLaser(MakeScan(10));
+  const auto wrong = DecodeOdometry(laser.data(), laser.size());
+  EXPECT_EQ(wrong.reason, RejectReason::kDecodeFailed);
+  EXPECT_NE(wrong.detail.find("fingerprint"), std::string::npos) << wrong.detail;
+  EXPECT_EQ(DecodeOdometry(nullptr, 0).reason, RejectReason::kDecodeFailed);
+}
+
+TEST(CodecTest, LaserRoundTripsWithCallerMaxRangeAndOffset) {
+  const LaserScan scan = MakeScan(361);
+  const auto bytes = EncodeLaser(scan);
+  const auto decoded = DecodeLaser(bytes.data(), bytes.size(), 25.0f, Pose2(0.1, 0.2, 0.3));
+  ASSERT_TRUE(decoded.ok()) << decoded.detail;
+  EXPECT_EQ(decoded.value->ranges, scan.ranges);
+  EXPECT_EQ(decoded.value->utime, scan.utime);
+  EXPECT_FLOAT_EQ(decoded.value->radstep, scan.radstep);
+  EXPECT_FLOAT_EQ(decoded.value->max_range, 25.0f);
+  EXPECT_DOUBLE_EQ(decoded.value->T_body_sensor.y(), 0.2);
+}
+
+TEST(CodecTest, LaserRejectsNanRangeZeroStepAndAbsurdCountWithoutAllocating) {
+  LaserScan scan = MakeScan(50);
+  scan.ranges[17] = std::numeric_limits<float>::quiet_NaN();
+  auto bytes = EncodeLaser(scan);
+  auto decoded = DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2());
+  EXPECT_EQ(decoded.reason, RejectReason::kNotFinite);
+  EXPECT_NE(decoded.detail.find("range 17"), std::string::npos);
+
+  scan = MakeScan(50);
+  scan.radstep = 0.0f;
+  bytes = EncodeLaser(scan);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
+            RejectReason::kInvalidValue);
+
+  // nranges sits after hash 8 + utime 8. 2^31 - 1 ranges would be an 8 GB resize inside
+  // lcm-gen's decoder; the pre-flight check refuses it first.
+  bytes = EncodeLaser(MakeScan(3));
+  PatchInt32(&bytes, 16, std::numeric_limits<int32_t>::max());
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
+            RejectReason::kAbsurdSize);
+  PatchInt32(&bytes, 16, -5);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
+            RejectReason::kAbsurdSize);
+  PatchInt32(&bytes, 16, 5000);  // plausible count, but the bytes are not there
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
+            RejectReason::kDecodeFailed);
+  scan = MakeScan(CodecLimits::kMaxRanges + 1);
+  scan.radstep = 1e-4f;
+  bytes = EncodeLaser(scan);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
+            RejectReason::kAbsurdSize);
+}
+
+TEST(CodecTest, KeyframeRoundTripsEveryField) {
+  const Keyframe k = MakeKeyframe();
+  const auto bytes = EncodeKeyframe(k);
+  const auto decoded = DecodeKeyframe(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.detail;
+  const Keyframe& d = *decoded.value;
+  EXPECT_EQ(d.robot, "R2");
+  EXPECT_EQ(d.trajectory_id, k.trajectory_id);
+  EXPECT_EQ(d.seq, 7);
+  EXPECT_EQ(d.utime, 5'000'000);
+  EXPECT_DOUBLE_EQ(d.T_local_pose.y(), -2.0);
+  EXPECT_DOUBLE_EQ(d.T_previous_pose.theta(), 0.02);
+  EXPECT_DOUBLE_EQ(d.delta_covariance(1, 0), 0.001);
+  EXPECT_DOUBLE_EQ(d.delta_covariance(2, 2), 0.003);
+  EXPECT_EQ(d.scan.ranges, k.scan.ranges);
+  EXPECT_EQ(d.scan.utime, k.utime);
+  EXPECT_FLOAT_EQ(d.scan.max_range, 30.0f);
+  EXPECT_DOUBLE_EQ(d.scan.T_body_sensor.x(), 0.2);
+}
+
+TEST(CodecTest, KeyframeRejectsEachKindOfBadContent) {
+  Keyframe k = MakeKeyframe();
+  k.robot = "";
+  auto bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kEmptyRobotName);
+
+  k = MakeKeyframe();
+  k.seq = -1;
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kBadSequence);
+
+  k = MakeKeyframe();
+  k.delta_covariance(2, 2) = -0.1;
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+
+  k = MakeKeyframe();
+  k.delta_covariance(0, 2) = 0.5;  // not symmetric
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+
+  k = MakeKeyframe();
+  k.T_local_pose = Pose2(std::numeric_limits<double>::infinity(), 0, 0);
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kNotFinite);
+
+  k = MakeKeyframe();
+  k.robot = std::string(200, 'R');
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kAbsurdSize);
+
+  // The robot string's length field (after hash 8 + utime 8) forged to 0 and to -3.
+  bytes = EncodeKeyframe(MakeKeyframe());
+  PatchInt32(&bytes, 16, 0);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+  PatchInt32(&bytes, 16, -3);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+
+  bytes = EncodeKeyframe(MakeKeyframe());
+  bytes.push_back(0);  // trailing garbage
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+}
+
+TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
+  Encounter e;
+  e.utime = 42;
+  e.observer = "R1";
+  e.observer_trajectory_id = 99;
+  e.observed = "R3";
+  e.T_observer_observed = Pose2(2.0, 0.5, -0.4);
+  e.covariance = Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal();
+  auto bytes = EncodeEncounter(e);
+  auto decoded = DecodeEncounter(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.detail;
+  EXPECT_EQ(decoded.value->observer, "R1");
+  EXPECT_EQ(decoded.value->observed, "R3");
+  EXPECT_EQ(decoded.value->observer_trajectory_id, 99);
+  EXPECT_DOUBLE_EQ(decoded.value->T_observer_observed.theta(), -0.4);
+  EXPECT_DOUBLE_EQ(decoded.value->covariance(2, 2), 0.01);
+
+  Encounter self = e;
+  self.observed = "R1";
+  bytes = EncodeEncounter(self);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kSelfEncounter);
+
+  Encounter bad = e;
+  bad.covariance.setZero();
+  bytes = EncodeEncounter(bad);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+
+  Encounter unnamed = e;
+  unnamed.observed = "";
+  bytes = EncodeEncounter(unnamed);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kEmptyRobotName);
+}
+
+// Mutated and truncated messages of every input type: decoding must return (a value or a
+// reason), never crash or throw; ASan builds check the memory side.
+TEST(CodecTest, RandomCorruptionNeverCrashes) {
+  std::mt19937 rng(7);
+  const std::vector<std::vector<uint8_t>> originals = {
+      EncodeKeyframe(MakeKeyframe()), EncodeLaser(MakeScan(90)),
+      EncodeOdometry({5, Pose2(1, 2, 3)}),
+      EncodeEncounter(Encounter{1, "A", 0, "B", Pose2(), Eigen::Matrix3d::Identity()})};
+  int rejected = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    std::vector<uint8_t> bytes = originals[trial % originals.size()];
+    std::uniform_int_distribution<size_t> position(0, bytes.size() - 1);
+    const int flips = 1 + trial % 4;
+    for (int f = 0; f < flips; ++f) bytes[position(rng)] = static_cast<uint8_t>(rng());
+    if (trial % 5 == 0) bytes.resize(position(rng));
+    const bool ok = DecodeKeyframe(bytes.data(), bytes.size()).ok() |
+                    DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).ok() |
+                    DecodeOdometry(bytes.data(), bytes.size()).ok() |
+                    DecodeEncounter(bytes.data(), bytes.size()).ok();
+    if (!ok) ++rejected;
+  }
+  // Flipping bytes inside float payloads often leaves a valid message; most are refused.
+  EXPECT_GT(rejected, 1000);
+}
+
+}  // namespace
+}  // namespace anchormap

@@ -1,0 +1,171 @@
+#include "common/bus/map_codec.h"
+
+#include "anchormap/anchor_covariances_t.hpp"
+#include "anchormap/grid_tile_t.hpp"
+#include "anchormap/merged_map_t.hpp"
+#include "anchormap/server_status_t.hpp"
+#include "common/bus/codec_internal.h"
+
+namespace anchormap {
+
+using namespace codec_internal;  // NOLINT
+
+std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
+  anchormap::merged_map_t m;
+  m.utime = map.utime;
+  m.update = map.update;
+  m.num_trajectories = static_cast<int32_t>(map.trajectories.size());
+  for (const MergedTrajectory& t : map.trajectories) {
+    anchormap::trajectory_t out;
+    out.robot = t.robot;
+    out.trajectory_id = t.trajectory_id;
+    out.anchored = t.anchored;
+    PoseToArray(t.T_global_local, out.anchor);
+    out.num_poses = static_cast<int32_t>(t.poses.size());
+    out.pose_utimes = t.pose_utimes;
+    out.pose_utimes.resize(t.poses.size(), 0);
+    out.poses.resize(t.poses.size());
+    for (size_t i = 0; i < t.poses.size(); ++i) {
+      out.poses[i] = {t.poses[i].x(), t.poses[i].y(), t.poses[i].theta()};
+    }
+    m.trajectories.push_back(std::move(out));
+  }
+  m.num_encounters = static_cast<int32_t>(map.encounters.size());
+  for (const EncounterLink& link : map.encounters) {
+    anchormap::encounter_link_t out;
+    out.trajectory_a = link.trajectory_a;
+    out.index_a = link.index_a;
+    out.trajectory_b = link.trajectory_b;
+    out.index_b = link.index_b;
+    m.encounters.push_back(out);
+  }
+  return Encode(m);
+}
+
+Decoded<MergedMap> DecodeMergedMap(const void* data, size_t size) {
+  anchormap::merged_map_t m;
+  if (auto p = SafeDecode(data, size, CheckMergedMapWire, &m)) return FromProblem<MergedMap>(*p);
+  MergedMap map;
+  map.utime = m.utime;
+  map.update = m.update;
+  for (const anchormap::trajectory_t& t : m.trajectories) {
+    MergedTrajectory out;
+    out.robot = t.robot;
+    out.trajectory_id = t.trajectory_id;
+    out.anchored = t.anchored;
+    out.T_global_local = PoseFromArray(t.anchor);
+    out.pose_utimes = t.pose_utimes;
+    for (const auto& p : t.poses) out.poses.emplace_back(p[0], p[1], p[2]);
+    map.trajectories.push_back(std::move(out));
+  }
+  for (const anchormap::encounter_link_t& link : m.encounters) {
+    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+  }
+  return Success(std::move(map));
+}
+
+std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors) {
+  anchormap::anchor_covariances_t m;
+  m.utime = anchors.utime;
+  m.update = anchors.update;
+  m.num_anchors = static_cast<int32_t>(anchors.anchors.size());
+  for (const AnchorCovariance& a : anchors.anchors) {
+    anchormap::anchor_covariance_t out;
+    out.robot = a.robot;
+    out.trajectory_id = a.trajectory_id;
+    PoseToArray(a.T_global_local, out.anchor);
+    MatrixToRowMajor(a.covariance, out.covariance);
+    m.anchors.push_back(std::move(out));
+  }
+  return Encode(m);
+}
+
+Decoded<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size) {
+  anchormap::anchor_covariances_t m;
+  if (auto p = SafeDecode(data, size, CheckAnchorCovariancesWire, &m)) {
+    return FromProblem<AnchorCovariances>(*p);
+  }
+  AnchorCovariances anchors;
+  anchors.utime = m.utime;
+  anchors.update = m.update;
+  for (const anchormap::anchor_covariance_t& a : m.anchors) {
+    anchors.anchors.push_back(
+        {a.robot, a.trajectory_id, PoseFromArray(a.anchor), MatrixFromRowMajor(a.covariance)});
+  }
+  return Success(std::move(anchors));
+}
+
+std::vector<uint8_t> EncodeGridTile(const GridTile& tile) {
+  anchormap::grid_tile_t m;
+  m.utime = tile.utime;
+  m.update = tile.update;
+  m.resolution = tile.resolution_m;
+  m.tile_x = tile.tile_x;
+  m.tile_y = tile.tile_y;
+  m.width = tile.width;
+  m.height = tile.height;
+  m.cells.assign(static_cast<size_t>(tile.height),
+                 std::vector<int8_t>(static_cast<size_t>(tile.width), -1));
+  for (int32_t r = 0; r < tile.height; ++r) {
+    for (int32_t c = 0; c < tile.width; ++c) {
+      const size_t i =
+          static_cast<size_t>(r) * static_cast<size_t>(tile.width) + static_cast<size_t>(c);
+      if (i < tile.cells.size()) m.cells[r][c] = tile.cells[i];
+    }
+  }
+  return Encode(m);
+}
+
+Decoded<GridTile> DecodeGridTile(const void* data, size_t size) {
+  anchormap::grid_tile_t m;
+  if (auto p = SafeDecode(data, size, CheckGridTileWire, &m)) return FromProblem<GridTile>(*p);
+  GridTile tile;
+  tile.utime = m.utime;
+  tile.update = m.update;
+  tile.resolution_m = m.resolution;
+  tile.tile_x = m.tile_x;
+  tile.tile_y = m.tile_y;
+  tile.width = m.width;
+  tile.height = m.height;
+  for (const auto& row : m.cells) tile.cells.insert(tile.cells.end(), row.begin(), row.end());
+  return Success(std::move(tile));
+}
+
+std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
+  anchormap::server_status_t m;
+  m.utime = s.utime;
+  m.update = s.update;
+  m.num_robots = s.num_robots;
+  m.num_trajectories = s.num_trajectories;
+  m.num_anchored = s.num_anchored;
+  m.keyframes = s.keyframes;
+  m.encounters = s.encounters;
+  m.last_update_ms = s.last_update_ms;
+  m.num_reasons = static_cast<int32_t>(s.rejections.size());
+  for (const auto& [reason, count] : s.rejections) {
+    m.rejection_reasons.push_back(reason);
+    m.rejection_counts.push_back(count);
+  }
+  return Encode(m);
+}
+
+Decoded<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
+  anchormap::server_status_t m;
+  if (auto p = SafeDecode(data, size, CheckServerStatusWire, &m))
+    return FromProblem<ServerStatus>(*p);
+  ServerStatus s;
+  s.utime = m.utime;
+  s.update = m.update;
+  s.num_robots = m.num_robots;
+  s.num_trajectories = m.num_trajectories;
+  s.num_anchored = m.num_anchored;
+  s.keyframes = m.keyframes;
+  s.encounters = m.encounters;
+  s.last_update_ms = m.last_update_ms;
+  for (size_t i = 0; i < m.rejection_reasons.size(); ++i) {
+    s.rejections.emplace_back(m.rejection_reasons[i], m.rejection_counts[i]);
+  }
+  return Success(std::move(s));
+}
+
+}  // namespace anchormap

@@ -1,0 +1,24 @@
+#pragma once
+// Wire bytes <-> the mapping server's output values (merged map, anchor covariances, grid
+// tiles, status), with the same pre-flight size checks as codec.h. The server encodes;
+// tests and tools (render, eval) decode.
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "common/bus/codec.h"
+#include "common/types/map_outputs.h"
+
+namespace anchormap {
+
+std::vector<uint8_t> EncodeMergedMap(const MergedMap& map);
+Decoded<MergedMap> DecodeMergedMap(const void* data, size_t size);
+std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors);
+Decoded<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size);
+std::vector<uint8_t> EncodeGridTile(const GridTile& tile);
+Decoded<GridTile> DecodeGridTile(const void* data, size_t size);
+std::vector<uint8_t> EncodeServerStatus(const ServerStatus& status);
+Decoded<ServerStatus> DecodeServerStatus(const void* data, size_t size);
+
+}  // namespace anchormap

@@ -1,0 +1,190 @@
+#include "common/bus/wire_check.h"
+
+#include "anchormap/anchor_covariances_t.hpp"
+#include "anchormap/encounter_t.hpp"
+#include "anchormap/grid_tile_t.hpp"
+#include "anchormap/keyframe_t.hpp"
+#include "anchormap/merged_map_t.hpp"
+#include "anchormap/server_status_t.hpp"
+#include "bot_core/planar_lidar_t.hpp"
+#include "bot_core/pose_t.hpp"
+#include "common/bus/codec.h"
+
+namespace anchormap {
+namespace {
+
+WireProblem Truncated(const char* where) {
+  return {RejectReason::kDecodeFailed, std::string("truncated message at ") + where};
+}
+
+// The 8-byte fingerprint at the start of every message must be T's.
+template <typename T>
+std::optional<WireProblem> CheckHash(WireCursor* cursor) {
+  uint64_t hash = 0;
+  if (!cursor->ReadUint64(&hash)) return Truncated("fingerprint");
+  if (hash != static_cast<uint64_t>(T::getHash())) {
+    return WireProblem{RejectReason::kDecodeFailed,
+                       std::string("fingerprint is not ") + T::getTypeName()};
+  }
+  return std::nullopt;
+}
+
+#define WIRE_SKIP(cursor, n, where) \
+  if (!(cursor).Skip(n)) return Truncated(where)
+#define WIRE_TRY(expr) \
+  if (auto problem = (expr)) return problem
+
+}  // namespace
+
+bool WireCursor::Skip(size_t n) {
+  if (n > remaining()) return false;
+  position_ += n;
+  return true;
+}
+
+bool WireCursor::ReadInt32(int32_t* value) {
+  if (remaining() < 4) return false;
+  const uint8_t* b = bytes_ + position_;
+  *value = static_cast<int32_t>((uint32_t{b[0]} << 24) | (uint32_t{b[1]} << 16) |
+                                (uint32_t{b[2]} << 8) | uint32_t{b[3]});
+  position_ += 4;
+  return true;
+}
+
+bool WireCursor::ReadUint64(uint64_t* value) {
+  if (remaining() < 8) return false;
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | bytes_[position_ + i];
+  *value = v;
+  position_ += 8;
+  return true;
+}
+
+std::optional<WireProblem> WireCursor::SkipString(const char* field, size_t max_length) {
+  int32_t length_with_nul = 0;
+  if (!ReadInt32(&length_with_nul)) return Truncated(field);
+  if (length_with_nul < 1) {
+    return WireProblem{RejectReason::kDecodeFailed,
+                       std::string(field) + " has an invalid string length"};
+  }
+  if (static_cast<size_t>(length_with_nul) - 1 > max_length) {
+    return WireProblem{RejectReason::kAbsurdSize,
+                       std::string(field) + " is " + std::to_string(length_with_nul - 1) +
+                           " bytes long (limit " + std::to_string(max_length) + ")"};
+  }
+  if (!Skip(static_cast<size_t>(length_with_nul))) return Truncated(field);
+  return std::nullopt;
+}
+
+std::optional<WireProblem> WireCursor::ReadCount(const char* field, int32_t max_count,
+                                                 size_t min_element_bytes, int32_t* count) {
+  if (!ReadInt32(count)) return Truncated(field);
+  if (*count < 0 || *count > max_count) {
+    return WireProblem{RejectReason::kAbsurdSize, std::string(field) + " = " +
+                                                      std::to_string(*count) + " (limit " +
+                                                      std::to_string(max_count) + ")"};
+  }
+  if (static_cast<size_t>(*count) * min_element_bytes > remaining()) return Truncated(field);
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckPlanarLidarWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<bot_core::planar_lidar_t>(&c));
+  WIRE_SKIP(c, 8, "utime");
+  int32_t n = 0;
+  WIRE_TRY(c.ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
+  WIRE_SKIP(c, 4 * static_cast<size_t>(n), "ranges");
+  WIRE_TRY(c.ReadCount("nintensities", CodecLimits::kMaxRanges, 4, &n));
+  WIRE_SKIP(c, 4 * static_cast<size_t>(n), "intensities");
+  WIRE_SKIP(c, 8, "rad0/radstep");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckPoseWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<bot_core::pose_t>(&c));
+  WIRE_SKIP(c, 8 + 8 * (3 + 3 + 4 + 3 + 3), "pose fields");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckKeyframeWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::keyframe_t>(&c));
+  WIRE_SKIP(c, 8, "utime");
+  WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
+  WIRE_SKIP(c, 8 + 4 + 8 * (3 + 3 + 9 + 3) + 4 * 3, "keyframe fields");
+  int32_t n = 0;
+  WIRE_TRY(c.ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
+  WIRE_SKIP(c, 4 * static_cast<size_t>(n), "ranges");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckEncounterWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::encounter_t>(&c));
+  WIRE_SKIP(c, 8, "utime");
+  WIRE_TRY(c.SkipString("observer", CodecLimits::kMaxNameLength));
+  WIRE_SKIP(c, 8, "observer_trajectory_id");
+  WIRE_TRY(c.SkipString("observed", CodecLimits::kMaxNameLength));
+  WIRE_SKIP(c, 8 * (3 + 9), "relative_pose/covariance");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckMergedMapWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::merged_map_t>(&c));
+  WIRE_SKIP(c, 16, "utime/update");
+  int32_t trajectories = 0;
+  // A trajectory takes at least 4 + 1 + 8 + 1 + 24 + 4 bytes.
+  WIRE_TRY(c.ReadCount("num_trajectories", CodecLimits::kMaxTrajectories, 42, &trajectories));
+  for (int32_t t = 0; t < trajectories; ++t) {
+    WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
+    WIRE_SKIP(c, 8 + 1 + 24, "trajectory fields");
+    int32_t poses = 0;
+    WIRE_TRY(c.ReadCount("num_poses", CodecLimits::kMaxPosesPerTrajectory, 32, &poses));
+    WIRE_SKIP(c, 32 * static_cast<size_t>(poses), "poses");
+  }
+  int32_t encounters = 0;
+  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 24, &encounters));
+  WIRE_SKIP(c, 24 * static_cast<size_t>(encounters), "encounters");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckAnchorCovariancesWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::anchor_covariances_t>(&c));
+  WIRE_SKIP(c, 16, "utime/update");
+  int32_t anchors = 0;
+  WIRE_TRY(c.ReadCount("num_anchors", CodecLimits::kMaxTrajectories, 4 + 1 + 8 + 96, &anchors));
+  for (int32_t a = 0; a < anchors; ++a) {
+    WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
+    WIRE_SKIP(c, 8 + 24 + 72, "anchor fields");
+  }
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckGridTileWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::grid_tile_t>(&c));
+  WIRE_SKIP(c, 8 + 8 + 8 + 4 + 4, "tile header");
+  int32_t width = 0, height = 0;
+  WIRE_TRY(c.ReadCount("width", 4096, 0, &width));
+  WIRE_TRY(c.ReadCount("height", 4096, 0, &height));
+  const size_t cells = static_cast<size_t>(width) * static_cast<size_t>(height);
+  WIRE_SKIP(c, cells, "cells");
+  return std::nullopt;
+}
+
+std::optional<WireProblem> CheckServerStatusWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckHash<anchormap::server_status_t>(&c));
+  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8, "status fields");
+  int32_t reasons = 0;
+  WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));
+  for (int32_t r = 0; r < reasons; ++r) WIRE_TRY(c.SkipString("reason", 256));
+  WIRE_SKIP(c, 8 * static_cast<size_t>(reasons), "rejection_counts");
+  return std::nullopt;
+}
+
+}  // namespace anchormap

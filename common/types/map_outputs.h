@@ -1,0 +1,83 @@
+#pragma once
+// The mapping server's outputs as plain values (no LCM): the merged map, the anchors'
+// covariances, occupancy-grid tiles and the status. The codec turns them into
+// anchormap.merged_map_t, anchor_covariances_t, grid_tile_t and server_status_t.
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+
+namespace anchormap {
+
+// One trajectory of the merged map.
+struct MergedTrajectory {
+  std::string robot;
+  int64_t trajectory_id = 0;  // the agent's id (not the solver's)
+  bool anchored = false;      // false until the trajectory's first encounter
+  Pose2 T_global_local;       // identity while unanchored
+  std::vector<int64_t> pose_utimes;
+  // Keyframe poses in the global frame (the local frame while unanchored).
+  std::vector<Pose2> poses;
+};
+
+// An encounter in the map: the two keyframes it joins (agent trajectory ids, keyframe
+// indices in pose order of the merged map).
+struct EncounterLink {
+  int64_t trajectory_a = 0;
+  int32_t index_a = 0;
+  int64_t trajectory_b = 0;
+  int32_t index_b = 0;
+};
+
+struct MergedMap {
+  int64_t utime = 0;   // time of the newest input the map includes (data time)
+  int64_t update = 0;  // solver update number
+  std::vector<MergedTrajectory> trajectories;
+  std::vector<EncounterLink> encounters;
+};
+
+struct AnchorCovariance {
+  std::string robot;
+  int64_t trajectory_id = 0;
+  Pose2 T_global_local;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // (x, y, theta), global frame
+};
+
+struct AnchorCovariances {
+  int64_t utime = 0;
+  int64_t update = 0;
+  std::vector<AnchorCovariance> anchors;  // anchored trajectories only
+};
+
+// One square tile of the occupancy grid; the tile's lower-left corner is at
+// (tile_x * width * resolution_m, tile_y * height * resolution_m); cells row-major with
+// row 0 at the bottom; occupancy 0..100, -1 unknown (ROS map convention).
+struct GridTile {
+  int64_t utime = 0;
+  int64_t update = 0;
+  double resolution_m = 0.05;
+  int32_t tile_x = 0;
+  int32_t tile_y = 0;
+  int32_t width = 0;
+  int32_t height = 0;
+  std::vector<int8_t> cells;
+};
+
+struct ServerStatus {
+  int64_t utime = 0;
+  int64_t update = 0;
+  int32_t num_robots = 0;
+  int32_t num_trajectories = 0;
+  int32_t num_anchored = 0;
+  int64_t keyframes = 0;
+  int64_t encounters = 0;  // encounters added to the graph
+  double last_update_ms = 0.0;
+  std::vector<std::pair<std::string, int64_t>> rejections;  // reason -> count (non-zero)
+};
+
+}  // namespace anchormap
