@@ -1,0 +1,185 @@
+#include "common/scan/occupancy_grid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace anchormap {
+namespace {
+
+int64_t FloorDiv(int64_t a, int64_t b) {
+  int64_t q = a / b;
+  if ((a % b != 0) && ((a < 0) != (b < 0))) --q;
+  return q;
+}
+
+int8_t OccupancyFromLogOdds(double log_odds) {
+  const double p = 1.0 - 1.0 / (1.0 + std::exp(log_odds));
+  return static_cast<int8_t>(std::lround(100.0 * p));
+}
+
+}  // namespace
+
+std::optional<std::string> OccupancyGridOptions::Validate() const {
+  if (!(resolution_m > 0)) return "grid resolution_m must be > 0";
+  if (tile_size_cells < 8 || tile_size_cells > 4096) return "grid tile_size_cells must be 8..4096";
+  if (!(log_odds_hit > 0)) return "grid log_odds_hit must be > 0";
+  if (!(log_odds_miss < 0)) return "grid log_odds_miss must be < 0";
+  if (!(log_odds_min < 0) || !(log_odds_max > 0)) return "grid log_odds_min < 0 < log_odds_max";
+  if (!(max_ray_length_m > 0)) return "grid max_ray_length_m must be > 0";
+  if (max_ray_length_m / resolution_m > 1e6)
+    return "grid max_ray_length_m / resolution_m too large";
+  return std::nullopt;
+}
+
+OccupancyGrid::OccupancyGrid(const OccupancyGridOptions& options) : options_(options) {}
+
+uint64_t OccupancyGrid::TileKey(int64_t tile_x, int64_t tile_y) {
+  return (static_cast<uint64_t>(static_cast<uint32_t>(tile_x)) << 32) |
+         static_cast<uint64_t>(static_cast<uint32_t>(tile_y));
+}
+
+std::pair<int64_t, int64_t> OccupancyGrid::CellOf(const Eigen::Vector2d& p_map) const {
+  return {static_cast<int64_t>(std::floor(p_map.x() / options_.resolution_m)),
+          static_cast<int64_t>(std::floor(p_map.y() / options_.resolution_m))};
+}
+
+void OccupancyGrid::UpdateCell(int64_t cell_x, int64_t cell_y, double delta) {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t tile_x = FloorDiv(cell_x, size), tile_y = FloorDiv(cell_y, size);
+  Tile& tile = tiles_[TileKey(tile_x, tile_y)];
+  if (tile.log_odds.empty()) {
+    tile.log_odds.assign(static_cast<size_t>(size * size), std::numeric_limits<float>::quiet_NaN());
+  }
+  const size_t index =
+      static_cast<size_t>((cell_y - tile_y * size) * size + (cell_x - tile_x * size));
+  float& value = tile.log_odds[index];
+  const double old = std::isnan(value) ? 0.0 : value;
+  value = static_cast<float>(std::clamp(old + delta, options_.log_odds_min, options_.log_odds_max));
+}
+
+std::optional<double> OccupancyGrid::LogOdds(int64_t cell_x, int64_t cell_y) const {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t tile_x = FloorDiv(cell_x, size), tile_y = FloorDiv(cell_y, size);
+  const auto it = tiles_.find(TileKey(tile_x, tile_y));
+  if (it == tiles_.end()) return std::nullopt;
+  const float value = it->second.log_odds[static_cast<size_t>((cell_y - tile_y * size) * size +
+                                                              (cell_x - tile_x * size))];
+  if (std::isnan(value)) return std::nullopt;
+  return value;
+}
+
+int8_t OccupancyGrid::Occupancy(int64_t cell_x, int64_t cell_y) const {
+  const auto log_odds = LogOdds(cell_x, cell_y);
+  return log_odds ? OccupancyFromLogOdds(*log_odds) : int8_t{-1};
+}
+
+void OccupancyGrid::InsertRay(const Eigen::Vector2d& from_map, const Eigen::Vector2d& to_map,
+                              bool hit) {
+  const auto [x0, y0] = CellOf(from_map);
+  const auto [x1, y1] = CellOf(to_map);
+  const auto cells = BresenhamLine(x0, y0, x1, y1);
+  for (size_t i = 0; i + 1 < cells.size(); ++i) {
+    UpdateCell(cells[i].first, cells[i].second, options_.log_odds_miss);
+  }
+  UpdateCell(x1, y1, hit ? options_.log_odds_hit : options_.log_odds_miss);
+}
+
+void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
+  // Each cell is updated at most once per scan (a hit wins over a miss), so that the
+  // beam density near the sensor does not count as repeated evidence.
+  const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
+  const Eigen::Vector2d origin = T_map_sensor.translation();
+  const auto [x0, y0] = CellOf(origin);
+  std::vector<uint64_t> hits, misses;
+  auto trace = [&, x0 = x0, y0 = y0](const Eigen::Vector2d& end, bool hit) {
+    const auto [x1, y1] = CellOf(end);
+    const auto cells = BresenhamLine(x0, y0, x1, y1);
+    for (size_t i = 0; i + 1 < cells.size(); ++i)
+      misses.push_back(TileKey(cells[i].first, cells[i].second));
+    (hit ? hits : misses).push_back(TileKey(x1, y1));
+  };
+  for (size_t i = 0; i < scan.ranges.size(); ++i) {
+    const double angle = scan.Angle(i);
+    const Eigen::Vector2d direction(std::cos(angle), std::sin(angle));
+    if (scan.IsReturn(i)) {
+      const double range = scan.ranges[i];
+      const double length = std::min<double>(range, options_.max_ray_length_m);
+      trace(T_map_sensor.TransformPoint(length * direction), range <= options_.max_ray_length_m);
+    } else if (options_.no_return_as_free) {
+      trace(T_map_sensor.TransformPoint(options_.max_ray_length_m * direction), false);
+    }
+  }
+  std::sort(hits.begin(), hits.end());
+  hits.erase(std::unique(hits.begin(), hits.end()), hits.end());
+  std::sort(misses.begin(), misses.end());
+  misses.erase(std::unique(misses.begin(), misses.end()), misses.end());
+  // Cell coordinates are packed like tile keys (two 32-bit halves).
+  auto unpack = [](uint64_t key) {
+    return std::make_pair(
+        static_cast<int64_t>(static_cast<int32_t>(static_cast<uint32_t>(key >> 32))),
+        static_cast<int64_t>(static_cast<int32_t>(static_cast<uint32_t>(key))));
+  };
+  for (uint64_t key : hits) {
+    const auto [x, y] = unpack(key);
+    UpdateCell(x, y, options_.log_odds_hit);
+  }
+  for (uint64_t key : misses) {
+    if (std::binary_search(hits.begin(), hits.end(), key)) continue;
+    const auto [x, y] = unpack(key);
+    UpdateCell(x, y, options_.log_odds_miss);
+  }
+}
+
+std::vector<GridTile> OccupancyGrid::Tiles(int64_t utime, int64_t update) const {
+  std::vector<std::pair<std::pair<int32_t, int32_t>, const Tile*>> sorted;
+  for (const auto& [key, tile] : tiles_) {
+    const auto tile_x = static_cast<int32_t>(static_cast<uint32_t>(key >> 32));
+    const auto tile_y = static_cast<int32_t>(static_cast<uint32_t>(key & 0xffffffffu));
+    sorted.push_back({{tile_y, tile_x}, &tile});
+  }
+  std::sort(sorted.begin(), sorted.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<GridTile> out;
+  out.reserve(sorted.size());
+  for (const auto& [index, tile] : sorted) {
+    GridTile t;
+    t.utime = utime;
+    t.update = update;
+    t.resolution_m = options_.resolution_m;
+    t.tile_x = index.second;
+    t.tile_y = index.first;
+    t.width = t.height = options_.tile_size_cells;
+    t.cells.reserve(tile->log_odds.size());
+    for (float value : tile->log_odds) {
+      t.cells.push_back(std::isnan(value) ? int8_t{-1} : OccupancyFromLogOdds(value));
+    }
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+std::vector<std::pair<int64_t, int64_t>> BresenhamLine(int64_t x0, int64_t y0, int64_t x1,
+                                                       int64_t y1) {
+  std::vector<std::pair<int64_t, int64_t>> cells;
+  const int64_t dx = std::abs(x1 - x0), dy = -std::abs(y1 - y0);
+  const int64_t sx = x0 < x1 ? 1 : -1, sy = y0 < y1 ? 1 : -1;
+  cells.reserve(static_cast<size_t>(std::max(dx, -dy) + 1));
+  int64_t error = dx + dy;
+  while (true) {
+    cells.emplace_back(x0, y0);
+    if (x0 == x1 && y0 == y1) break;
+    const int64_t e2 = 2 * error;
+    if (e2 >= dy) {
+      error += dy;
+      x0 += sx;
+    }
+    if (e2 <= dx) {
+      error += dx;
+      y0 += sy;
+    }
+  }
+  return cells;
+}
+
+}  // namespace anchormap
