@@ -16,6 +16,7 @@
 #include "common/types/encounter.h"
 #include "common/types/keyframe.h"
 #include "common/types/laser_scan.h"
+#include "common/types/odometry.h"
 #include "common/util/reject_counter.h"
 
 namespace anchormap {
@@ -42,12 +43,6 @@ struct CodecLimits {
   static constexpr int32_t kMaxTrajectories = 10000;
   static constexpr int32_t kMaxPosesPerTrajectory = 10000000;
   static constexpr int32_t kMaxTileCells = 4096 * 4096;
-};
-
-// An odometry reading: the robot body's pose in its odometry frame.
-struct OdometrySample {
-  int64_t utime = 0;
-  Pose2 T_odom_body;
 };
 
 // bot_core.pose_t: position (x, y, -), orientation quaternion (w, x, y, z) of a yaw.

@@ -1,0 +1,87 @@
+#pragma once
+// The agent's logic, one per robot, with no bus: odometry readings and laser scans in,
+// keyframes out (LAYOUT.md "a keyframe's path", steps 1-2). Each scan gets the odometry
+// pose at its own time; the Keyframer picks the scans that become keyframes; each keyframe
+// carries its pose in the trajectory's local (odometry) frame and the odometry delta from
+// the previous keyframe with a covariance from the noise model. Direct encounters the robot
+// observed are relayed with its trajectory id, and a keyframe is forced at the next scan so
+// the server finds one near the encounter's time.
+// Memory is bounded: the odometry history, a few scans waiting for odometry, one pose.
+
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "agent/agent_options.h"
+#include "agent/keyframer.h"
+#include "agent/odometry_buffer.h"
+#include "common/types/encounter.h"
+#include "common/types/keyframe.h"
+#include "common/types/laser_scan.h"
+#include "common/types/odometry.h"
+#include "common/util/reject_counter.h"
+
+namespace anchormap {
+
+// What one input produced, in order.
+struct AgentOutput {
+  std::vector<Keyframe> keyframes;
+  std::vector<Encounter> encounters;
+  // Earlier inputs refused later (a waiting scan the odometry never covered, or pushed
+  // out of the full waiting list); the caller counts them like direct refusals.
+  std::vector<RejectReason> late_rejections;
+};
+
+struct AgentStats {
+  int64_t odometry_readings = 0;
+  int64_t scans = 0;
+  int64_t keyframes = 0;
+  int64_t encounters_relayed = 0;
+  int64_t forced_keyframes = 0;
+};
+
+// The delta covariance of the noise model (see OdometryNoiseOptions).
+Eigen::Matrix3d OdometryDeltaCovariance(const OdometryNoiseOptions& noise,
+                                        const Pose2& T_previous_pose);
+
+class Agent {
+ public:
+  // `options` must be valid (Validate()), with trajectory_id already chosen.
+  explicit Agent(const AgentOptions& options);
+
+  // Each returns the reason when the input is refused (the caller counts it).
+  std::optional<RejectReason> OnOdometry(const OdometrySample& sample, AgentOutput* out);
+  // Scans must come in increasing time. A scan newer than the newest odometry waits (up
+  // to max_pending_scans) until odometry covers its time.
+  std::optional<RejectReason> OnScan(const LaserScan& scan, AgentOutput* out);
+  // An encounter this robot observed (its sensor channel): observer must be this robot.
+  std::optional<RejectReason> OnEncounter(const Encounter& encounter, AgentOutput* out);
+  // An encounter seen on the server's channel: if this robot is the observed one, a
+  // keyframe is forced near its time too.
+  void OnRelayedEncounter(const Encounter& encounter);
+
+  const AgentStats& stats() const { return stats_; }
+  size_t pending_scans() const { return pending_scans_.size(); }
+  int64_t trajectory_id() const { return options_.trajectory_id; }
+
+ private:
+  // Turns a scan whose pose is known into a keyframe when the Keyframer says so.
+  void ProcessScan(const LaserScan& scan, const Pose2& T_odom_body, AgentOutput* out);
+  // Processes waiting scans that the odometry now covers; drops those it never will.
+  void DrainPendingScans(AgentOutput* out);
+
+  AgentOptions options_;
+  Pose2 T_body_sensor_;
+  OdometryBuffer odometry_;
+  Keyframer keyframer_;
+  std::deque<LaserScan> pending_scans_;
+  int64_t last_scan_utime_ = -1;
+  int32_t next_seq_ = 0;
+  std::optional<Pose2> last_keyframe_pose_;
+  AgentStats stats_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,52 @@
+#include "agent/odometry_buffer.h"
+
+#include <gtest/gtest.h>
+
+namespace anchormap {
+namespace {
+
+TEST(OdometryBufferTest, InterpolatesBetweenReadingsAndIsExactAtThem) {
+  OdometryBuffer buffer;
+  ASSERT_FALSE(buffer.Add({1'000'000, Pose2(0, 0, 0)}));
+  ASSERT_FALSE(buffer.Add({1'020'000, Pose2(0.02, 0.01, 0.04)}));
+  const auto exact = buffer.PoseAt(1'020'000);
+  ASSERT_TRUE(exact);
+  EXPECT_DOUBLE_EQ(exact->x(), 0.02);
+  const auto middle = buffer.PoseAt(1'005'000);  // a quarter of the way
+  ASSERT_TRUE(middle);
+  EXPECT_DOUBLE_EQ(middle->x(), 0.005);
+  EXPECT_DOUBLE_EQ(middle->y(), 0.0025);
+  EXPECT_DOUBLE_EQ(middle->theta(), 0.01);
+  EXPECT_FALSE(buffer.PoseAt(999'999));
+  EXPECT_FALSE(buffer.PoseAt(1'020'001));
+}
+
+TEST(OdometryBufferTest, InterpolatesThetaTheShortWayAcrossPi) {
+  const Pose2 mid = InterpolatePose(Pose2(0, 0, 3.1), Pose2(0, 0, -3.1), 0.5);
+  EXPECT_NEAR(std::abs(mid.theta()), kPi, 1e-9);
+}
+
+TEST(OdometryBufferTest, RefusesOutOfOrderAndDuplicateTimes) {
+  OdometryBuffer buffer;
+  ASSERT_FALSE(buffer.Add({100, Pose2()}));
+  EXPECT_EQ(buffer.Add({100, Pose2(1, 0, 0)}), RejectReason::kOutOfOrder);
+  EXPECT_EQ(buffer.Add({50, Pose2(1, 0, 0)}), RejectReason::kOutOfOrder);
+  EXPECT_EQ(buffer.size(), 1u);
+}
+
+TEST(OdometryBufferTest, IsBoundedAndRefusesLongGaps) {
+  OdometryBufferOptions options;
+  options.capacity = 10;
+  options.max_gap_s = 0.5;
+  OdometryBuffer buffer(options);
+  for (int i = 0; i < 25; ++i) ASSERT_FALSE(buffer.Add({i * 20'000, Pose2(0.01 * i, 0, 0)}));
+  EXPECT_EQ(buffer.size(), 10u);
+  EXPECT_EQ(buffer.oldest_utime(), 15 * 20'000);
+  EXPECT_FALSE(buffer.PoseAt(0));                         // dropped from the history
+  ASSERT_FALSE(buffer.Add({2'000'000, Pose2(5, 0, 0)}));  // 1.52 s after the last one
+  EXPECT_FALSE(buffer.PoseAt(1'000'000));
+  EXPECT_TRUE(buffer.PoseAt(2'000'000));
+}
+
+}  // namespace
+}  // namespace anchormap
