@@ -1,0 +1,118 @@
+#pragma once
+// The server's record of robot trajectories: (robot, agent trajectory id) -> the solver's
+// TrajectoryId, each trajectory's accepted keyframes (time, odometry pose, scan) in
+// solver-index order, and the sequence-number checks that decide when a keyframe may
+// enter the graph.
+//
+// Sequence rules: seq must be new for its trajectory (a seen seq is refused as
+// kDuplicateSequence). The next expected seq enters at once; a later one waits (the bus
+// may reorder or lose one) until the gap fills, or until the waiting list spans more than
+// max_hold_s of keyframe time or holds max_held keyframes: then the gap is bridged, the
+// odometry poses of the two keyframes around it giving the measurement and the waiting
+// keyframe's delta covariance scaled by the number of missing steps giving its noise. A
+// trajectory first seen at seq > 0 (a server started late) starts at its lowest seq.
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/solver/keys.h"
+#include "common/types/keyframe.h"
+#include "common/util/reject_counter.h"
+
+namespace anchormap {
+
+struct TrajectoryTableOptions {
+  // Bounds on keyframes waiting for a missing sequence number (per trajectory).
+  int max_held = 100;
+  double max_hold_s = 2.0;
+  // A bridged gap's covariance: the delta covariance times (missing steps + 1) times this.
+  double gap_covariance_scale = 2.0;
+
+  std::optional<std::string> Validate() const {
+    if (max_held < 1) return "table.max_held must be >= 1";
+    if (!(max_hold_s >= 0)) return "table.max_hold_s must be >= 0";
+    if (!(gap_covariance_scale >= 1)) return "table.gap_covariance_scale must be >= 1";
+    return std::nullopt;
+  }
+};
+
+// One trajectory's accepted keyframes, index i = solver PoseKey index i.
+struct TrajectoryRecord {
+  std::string robot;
+  int64_t agent_trajectory_id = 0;
+  TrajectoryId solver_id = 0;
+  std::vector<int32_t> seqs;
+  std::vector<int64_t> utimes;
+  std::vector<Pose2> odometry_poses;  // T_local_pose as the agent sent it
+  std::vector<LaserScan> scans;
+
+  int num_keyframes() const { return static_cast<int>(utimes.size()); }
+  // The index whose time is nearest to `utime` (precondition: at least one keyframe).
+  int NearestIndex(int64_t utime) const;
+  // The odometry pose at `utime`, interpolated between the keyframes around it (linear in
+  // x, y, shortest in theta); the end keyframe's pose outside the covered time.
+  Pose2 OdometryPoseAt(int64_t utime) const;
+};
+
+// A keyframe cleared to enter the graph, with the between factor to add (none for the
+// first keyframe of a trajectory).
+struct AdmittedKeyframe {
+  PoseKey key;
+  Pose2 T_local_pose;
+  std::optional<PoseKey> previous;
+  Pose2 measured_T_previous_this;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  bool bridged_gap = false;
+  int missing_steps = 0;
+  bool new_trajectory = false;
+};
+
+class TrajectoryTable {
+ public:
+  explicit TrajectoryTable(const TrajectoryTableOptions& options = {}) : options_(options) {}
+
+  // Offers a keyframe; returns the keyframes (this one and/or waiting ones) that may now
+  // enter the graph, in order, already recorded here; or the reason for refusing it.
+  std::optional<RejectReason> Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
+  // Admits every waiting keyframe, bridging gaps (end of input).
+  void FlushHeld(std::vector<AdmittedKeyframe>* out);
+
+  const TrajectoryRecord* Find(const std::string& robot, int64_t agent_trajectory_id) const;
+  const TrajectoryRecord* FindBySolverId(TrajectoryId solver_id) const;
+  // The robot's trajectory (session) at `utime`: the latest one that started at or before
+  // `utime`, else its earliest; nullptr for a robot never seen.
+  const TrajectoryRecord* TrajectoryOfRobotAt(const std::string& robot, int64_t utime) const;
+
+  const std::deque<TrajectoryRecord>& records() const { return records_; }
+  int num_robots() const;
+  int64_t num_keyframes() const { return num_keyframes_; }
+  int64_t num_bridged_gaps() const { return num_bridged_gaps_; }
+  size_t num_held() const;
+
+ private:
+  struct Pending {
+    int32_t next_seq = 0;
+    bool started = false;  // at least one keyframe admitted
+    std::map<int32_t, Keyframe> held;
+  };
+  TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool* created);
+  // Moves waiting keyframes into the graph while possible (or forced).
+  void Drain(size_t record_index, Pending* pending, bool force, std::vector<AdmittedKeyframe>* out);
+  void Admit(TrajectoryRecord* record, Pending* pending, const Keyframe& keyframe,
+             std::vector<AdmittedKeyframe>* out);
+
+  TrajectoryTableOptions options_;
+  std::deque<TrajectoryRecord> records_;  // stable addresses; solver id = position
+  std::vector<Pending> pending_;          // parallel to records_
+  std::map<std::pair<std::string, int64_t>, size_t> index_;
+  int64_t num_keyframes_ = 0;
+  int64_t num_bridged_gaps_ = 0;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,134 @@
+#include "server/trajectory_table.h"
+
+#include <gtest/gtest.h>
+
+namespace anchormap {
+namespace {
+
+// Keyframe `seq` of a robot driving along x at 1 m/s, one keyframe every 0.5 s.
+Keyframe MakeKeyframe(const std::string& robot, int64_t trajectory, int32_t seq,
+                      int64_t start_utime = 0) {
+  Keyframe k;
+  k.robot = robot;
+  k.trajectory_id = trajectory;
+  k.seq = seq;
+  k.utime = start_utime + seq * 500'000;
+  k.T_local_pose = Pose2(0.5 * seq, 0.0, 0.0);
+  if (seq > 0) {
+    k.T_previous_pose = Pose2(0.5, 0.0, 0.0);
+    k.delta_covariance = Eigen::Vector3d(1e-3, 1e-3, 1e-4).asDiagonal();
+  }
+  k.scan.ranges = {1.0f};
+  return k;
+}
+
+TEST(TrajectoryTableTest, InOrderKeyframesEnterAtOnceWithTheirOdometryFactor) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 900, 0), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R2", 901, 0), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 900, 1), &out));
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_TRUE(out[0].new_trajectory);
+  EXPECT_EQ(out[0].key, (PoseKey{0, 0}));
+  EXPECT_FALSE(out[0].previous);
+  EXPECT_EQ(out[1].key, (PoseKey{1, 0}));
+  EXPECT_EQ(out[2].key, (PoseKey{0, 1}));
+  ASSERT_TRUE(out[2].previous);
+  EXPECT_EQ(*out[2].previous, (PoseKey{0, 0}));
+  EXPECT_DOUBLE_EQ(out[2].measured_T_previous_this.x(), 0.5);
+  EXPECT_DOUBLE_EQ(out[2].covariance(0, 0), 1e-3);
+  EXPECT_FALSE(out[2].bridged_gap);
+  EXPECT_EQ(table.num_robots(), 2);
+  EXPECT_EQ(table.num_keyframes(), 3);
+  ASSERT_TRUE(table.Find("R1", 900));
+  EXPECT_EQ(table.Find("R1", 900)->num_keyframes(), 2);
+  EXPECT_EQ(table.Find("R2", 900), nullptr);
+}
+
+TEST(TrajectoryTableTest, ReusedSequenceNumbersAreRefused) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 0), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 1), &out));
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 1), &out), RejectReason::kDuplicateSequence);
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 0), &out), RejectReason::kDuplicateSequence);
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 3), &out));  // waits for 2
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 3), &out), RejectReason::kDuplicateSequence);
+  EXPECT_EQ(out.size(), 2u);
+  EXPECT_EQ(table.num_held(), 1u);
+  // The same seq in another session is a different keyframe.
+  EXPECT_FALSE(table.Offer(MakeKeyframe("R1", 2, 0), &out));
+}
+
+TEST(TrajectoryTableTest, ReorderedKeyframesWaitForTheMissingOne) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 0), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 2), &out));
+  EXPECT_EQ(out.size(), 1u);
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 1), &out));
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(out[1].key.index, 1);
+  EXPECT_EQ(out[2].key.index, 2);
+  EXPECT_FALSE(out[2].bridged_gap);
+  EXPECT_EQ(table.Find("R1", 1)->seqs, (std::vector<int32_t>{0, 1, 2}));
+}
+
+TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
+  TrajectoryTableOptions options;
+  options.max_hold_s = 1.2;
+  options.gap_covariance_scale = 2.0;
+  TrajectoryTable table(options);
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 0), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 2), &out));  // seq 1 is lost
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 3), &out));  // 1.5 s after seq 0
+  ASSERT_EQ(out.size(), 3u);
+  const AdmittedKeyframe& bridged = out[1];
+  EXPECT_TRUE(bridged.bridged_gap);
+  EXPECT_EQ(bridged.missing_steps, 1);
+  EXPECT_EQ(bridged.key.index, 1);                              // solver indices stay dense
+  EXPECT_DOUBLE_EQ(bridged.measured_T_previous_this.x(), 1.0);  // from the odometry poses
+  EXPECT_DOUBLE_EQ(bridged.covariance(0, 0), 1e-3 * 2 * 2.0);
+  EXPECT_FALSE(out[2].bridged_gap);
+  EXPECT_EQ(table.num_bridged_gaps(), 1);
+}
+
+TEST(TrajectoryTableTest, LateStartBeginsAtTheLowestSeqAndFlushAdmitsTheRest) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R3", 5, 7), &out));
+  ASSERT_FALSE(table.Offer(MakeKeyframe("R3", 5, 8), &out));
+  EXPECT_TRUE(out.empty());  // seq 0..6 might still come
+  table.FlushHeld(&out);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_TRUE(out[0].new_trajectory);
+  EXPECT_FALSE(out[0].previous);
+  EXPECT_DOUBLE_EQ(out[0].T_local_pose.x(), 3.5);
+  EXPECT_FALSE(out[1].bridged_gap);
+}
+
+TEST(TrajectoryTableTest, FindsTheSessionOfARobotAtATimeAndInterpolates) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  for (int s = 0; s < 4; ++s) ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 10, s), &out));
+  for (int s = 0; s < 4; ++s) {
+    ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 20, s, 10'000'000), &out));  // a restart
+  }
+  EXPECT_EQ(table.TrajectoryOfRobotAt("R1", 1'000'000)->agent_trajectory_id, 10);
+  EXPECT_EQ(table.TrajectoryOfRobotAt("R1", 11'000'000)->agent_trajectory_id, 20);
+  EXPECT_EQ(table.TrajectoryOfRobotAt("R1", -5)->agent_trajectory_id, 10);
+  EXPECT_EQ(table.TrajectoryOfRobotAt("R9", 0), nullptr);
+
+  const TrajectoryRecord& r = *table.Find("R1", 10);  // keyframes at 0, 0.5, 1.0, 1.5 s
+  EXPECT_EQ(r.NearestIndex(700'000), 1);
+  EXPECT_EQ(r.NearestIndex(800'000), 2);
+  EXPECT_EQ(r.NearestIndex(-1), 0);
+  EXPECT_EQ(r.NearestIndex(9'000'000), 3);
+  EXPECT_DOUBLE_EQ(r.OdometryPoseAt(600'000).x(), 0.6);
+  EXPECT_DOUBLE_EQ(r.OdometryPoseAt(9'000'000).x(), 1.5);
+}
+
+}  // namespace
+}  // namespace anchormap
