@@ -1,0 +1,68 @@
+#pragma once
+// The interface of a pluggable encounter source. A source turns evidence that two
+// trajectories met (a direct observation reported on the bus now; scan matching in a
+// later issue) into encounter constraints between two keyframes, which MappingServer adds
+// to the smoother. Sources are called on the server's single thread; a source that needs
+// heavy work (scan matching) runs it on workers and hands results back in Poll().
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/solver/keys.h"
+#include "common/types/encounter.h"
+#include "common/util/reject_counter.h"
+#include "server/trajectory_table.h"
+
+namespace anchormap {
+
+class Smoother;
+
+// An encounter tied to two keyframes: pose b measured in the frame of pose a.
+struct EncounterConstraint {
+  PoseKey a;
+  PoseKey b;
+  Pose2 measured_T_a_b;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int64_t utime = 0;   // when it was observed
+  std::string source;  // the source's name, for logs and statistics
+};
+
+// What a source produced in one call.
+struct EncounterSourceOutput {
+  std::vector<EncounterConstraint> constraints;
+  std::vector<std::pair<RejectReason, std::string>> rejections;  // (reason, detail)
+};
+
+// Read-only view of the graph handed to sources.
+struct GraphView {
+  const TrajectoryTable& table;
+  const Smoother& smoother;  // current estimates (valid after the last Update())
+};
+
+class EncounterSource {
+ public:
+  virtual ~EncounterSource() = default;
+  virtual std::string name() const = 0;
+
+  // A direct encounter from the bus (sources that do not use them ignore it).
+  virtual void OnEncounterMessage(const Encounter& /*encounter*/, const GraphView& /*graph*/,
+                                  EncounterSourceOutput* /*out*/) {}
+  // A keyframe entered the graph (a scan matcher searches for candidates here).
+  virtual void OnKeyframeAdded(PoseKey /*key*/, const GraphView& /*graph*/,
+                               EncounterSourceOutput* /*out*/) {}
+  // Data time advanced to `now_utime` (called after every input): time-outs, results of
+  // background work.
+  virtual void Poll(int64_t /*now_utime*/, const GraphView& /*graph*/,
+                    EncounterSourceOutput* /*out*/) {}
+  // End of input: resolve what can be resolved, refuse the rest.
+  virtual void Flush(const GraphView& /*graph*/, EncounterSourceOutput* /*out*/) {}
+  // Items waiting inside the source (for the status line).
+  virtual size_t pending() const { return 0; }
+};
+
+}  // namespace anchormap
