@@ -1,0 +1,109 @@
+#pragma once
+// The mapping server's logic, with no bus (LAYOUT.md "a keyframe's path", steps 6-7):
+// keyframes and encounters in, the incremental smoother updated after each, outputs as
+// plain values. One pose graph per trajectory in its own local frame (the agent's
+// odometry frame); a trajectory's anchor appears at its first encounter (the smoother's
+// relative formulation, ALGORITHM.md section 4). Encounter sources are pluggable
+// (EncounterSource); the direct-encounter source is always present. Tests drive this class
+// directly; ServerNode connects it to bytes and server_main.cc to LCM.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/solver/smoother.h"
+#include "common/types/encounter.h"
+#include "common/types/keyframe.h"
+#include "common/types/map_outputs.h"
+#include "common/util/reject_counter.h"
+#include "server/direct_encounters.h"
+#include "server/encounter_source.h"
+#include "server/map_publisher.h"
+#include "server/trajectory_table.h"
+
+namespace anchormap {
+
+struct MappingServerOptions {
+  SmootherOptions smoother;
+  TrajectoryTableOptions table;
+  DirectEncounterOptions direct;
+  MapPublisherOptions publish;
+
+  std::optional<std::string> Validate() const {
+    if (auto e = smoother.Validate()) return "smoother: " + *e;
+    if (auto e = table.Validate()) return e;
+    if (auto e = direct.Validate()) return e;
+    return publish.Validate();
+  }
+};
+
+struct MappingServerStats {
+  int64_t keyframes_received = 0;
+  int64_t encounters_received = 0;
+  int64_t encounters_added = 0;
+  int64_t updates = 0;
+  int64_t solver_problems = 0;  // updates whose status was not ok
+  double last_update_ms = 0.0;
+  double total_update_ms = 0.0;
+};
+
+class MappingServer {
+ public:
+  explicit MappingServer(const MappingServerOptions& options = {});
+  ~MappingServer();
+
+  // Adds another encounter source (e.g. scan matching, later); called on every input.
+  void AddEncounterSource(std::unique_ptr<EncounterSource> source);
+
+  // Each returns the reason when the input is refused (already counted). Accepted inputs
+  // update the smoother before returning. Cost: one incremental update.
+  std::optional<RejectReason> OnKeyframe(const Keyframe& keyframe);
+  std::optional<RejectReason> OnEncounter(const Encounter& encounter);
+  // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
+  // encounters, updates, and finishes with a batch step (the converged solution).
+  void Flush();
+  // Counts a refusal that happened before the logic (e.g. in the codec).
+  void CountRejection(RejectReason reason, const std::string& context, const std::string& detail);
+
+  // Outputs from the current estimate, stamped with the newest input time.
+  MergedMap BuildMergedMap() const;
+  AnchorCovariances BuildAnchorCovariances();
+  std::vector<GridTile> BuildGridTiles() const;
+  ServerStatus BuildStatus() const;
+  // One line: robots, trajectories, anchored, keyframes, encounters, updates, last update
+  // time, waiting items, rejections by reason.
+  std::string StatusLine() const;
+
+  int64_t update_count() const { return stats_.updates; }
+  int64_t data_utime() const { return data_utime_; }
+  const MappingServerStats& stats() const { return stats_; }
+  const Smoother& smoother() const { return smoother_; }
+  Smoother& mutable_smoother() { return smoother_; }
+  const TrajectoryTable& table() const { return table_; }
+  const RejectCounter& rejects() const { return rejects_; }
+  const std::vector<EncounterLink>& encounter_links() const { return links_; }
+  MapPublisher& publisher() { return publisher_; }
+  int num_anchored() const;
+
+ private:
+  // Adds admitted keyframes to the smoother and tells the sources.
+  void AddKeyframes(const std::vector<AdmittedKeyframe>& admitted, EncounterSourceOutput* found);
+  // Adds the sources' constraints, counts their refusals, updates the smoother if anything
+  // changed.
+  void Commit(const EncounterSourceOutput& found, bool changed, const std::string& context);
+
+  MappingServerOptions options_;
+  Smoother smoother_;
+  TrajectoryTable table_;
+  MapPublisher publisher_;
+  std::vector<std::unique_ptr<EncounterSource>> sources_;
+  std::vector<EncounterLink> links_;
+  RejectCounter rejects_;
+  OncePerKindLog solver_log_;
+  MappingServerStats stats_;
+  int64_t data_utime_ = 0;
+};
+
+}  // namespace anchormap

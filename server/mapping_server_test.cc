@@ -1,0 +1,311 @@
+#include "server/mapping_server.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <random>
+#include <set>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "common/util/log.h"
+
+namespace anchormap {
+namespace {
+
+// Three robots driving arcs in a world frame; keyframes every 0.5 s with noisy odometry
+// deltas; direct encounters at keyframe times with noisy relative poses.
+struct Scenario {
+  struct Input {
+    std::optional<Keyframe> keyframe;
+    std::optional<Encounter> encounter;
+  };
+  std::vector<Input> inputs;                              // in time order
+  std::map<std::string, std::vector<Pose2>> truth_world;  // per robot, per keyframe
+  std::map<std::string, Pose2> start_world;
+
+  static Pose2 WorldPose(int robot, double t) {
+    const Pose2 starts[] = {Pose2(0, 0, 0), Pose2(8, 1, kPi / 2), Pose2(2, 9, -kPi / 2)};
+    const double turn_rate[] = {0.15, -0.1, 0.05};
+    // Constant speed 1 m/s and turn rate: an arc.
+    const double w = turn_rate[robot];
+    const Pose2 arc(std::sin(w * t) / w, (1 - std::cos(w * t)) / w, w * t);
+    return Compose(starts[robot], arc);
+  }
+
+  Scenario(double duration_s, const std::vector<std::tuple<double, int, int>>& encounters,
+           uint32_t seed = 3) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const std::string names[] = {"R1", "R2", "R3"};
+    std::vector<Pose2> odometry(3);
+    for (int r = 0; r < 3; ++r) start_world[names[r]] = WorldPose(r, 0);
+    const int steps = static_cast<int>(duration_s / 0.5);
+    for (int s = 0; s <= steps; ++s) {
+      const double t = 0.5 * s;
+      for (int r = 0; r < 3; ++r) {
+        Keyframe k;
+        k.robot = names[r];
+        k.trajectory_id = 1000 + r;
+        k.seq = s;
+        k.utime = static_cast<int64_t>(t * 1e6) + 1'000'000;
+        if (s > 0) {
+          const Pose2 true_delta = Between(WorldPose(r, t - 0.5), WorldPose(r, t));
+          k.T_previous_pose =
+              Pose2(true_delta.x() + 0.02 * normal(rng), true_delta.y() + 0.02 * normal(rng),
+                    true_delta.theta() + 0.01 * normal(rng));
+          k.delta_covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
+          odometry[r] = Compose(odometry[r], k.T_previous_pose);
+        }
+        k.T_local_pose = odometry[r];
+        k.scan.rad0 = -1.5f;
+        k.scan.radstep = 0.01f;
+        k.scan.max_range = 30.0f;
+        k.scan.ranges.assign(300, 5.0f);
+        truth_world[names[r]].push_back(WorldPose(r, t));
+        inputs.push_back({k, std::nullopt});
+      }
+      for (const auto& [time, observer, observed] : encounters) {
+        if (std::abs(time - t) > 1e-9) continue;
+        Encounter e;
+        e.utime = static_cast<int64_t>(t * 1e6) + 1'000'000;
+        e.observer = names[observer];
+        e.observer_trajectory_id = 1000 + observer;
+        e.observed = names[observed];
+        const Pose2 truth = Between(WorldPose(observer, t), WorldPose(observed, t));
+        e.T_observer_observed =
+            Pose2(truth.x() + 0.05 * normal(rng), truth.y() + 0.05 * normal(rng),
+                  truth.theta() + 0.02 * normal(rng));
+        e.covariance = Eigen::Vector3d(2.5e-3, 2.5e-3, 4e-4).asDiagonal();
+        inputs.push_back({std::nullopt, e});
+      }
+    }
+  }
+};
+
+// Feeds one input; true when it was accepted.
+bool Feed(MappingServer* server, const Scenario::Input& input) {
+  if (input.keyframe) return !server->OnKeyframe(*input.keyframe);
+  return !server->OnEncounter(*input.encounter);
+}
+
+MappingServerOptions ExactTieOptions() {
+  MappingServerOptions options;
+  // Keyframes sit exactly at the encounter times: no correction, and no inflation, so the
+  // constraint equals the measurement and a direct solve can use it unchanged.
+  options.direct.inflation_xy_base_m = 0;
+  options.direct.inflation_theta_base_rad = 0;
+  options.publish.grid.resolution_m = 0.2;
+  return options;
+}
+
+class MappingServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override { SetMinLogLevel(LogLevel::kWarning); }
+  void TearDown() override { SetMinLogLevel(LogLevel::kInfo); }
+};
+
+TEST_F(MappingServerTest, AnchorsAppearExactlyAtFirstEncounters) {
+  // R1 meets R2 at 5 s; R3 meets R2 at 10 s; R1 meets R2 again at 15 s.
+  const Scenario scenario(20.0, {{5.0, 0, 1}, {10.0, 2, 1}, {15.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  std::set<std::string> met;
+  int encounters_seen = 0;
+  for (const auto& input : scenario.inputs) {
+    if (input.keyframe) {
+      ASSERT_FALSE(server.OnKeyframe(*input.keyframe));
+    } else {
+      ASSERT_FALSE(server.OnEncounter(*input.encounter));
+      met.insert(input.encounter->observer);
+      met.insert(input.encounter->observed);
+      ++encounters_seen;
+      EXPECT_EQ(server.stats().encounters_added, encounters_seen);
+    }
+    // After every input: anchored exactly the robots that have met someone.
+    const MergedMap map = server.BuildMergedMap();
+    ASSERT_EQ(map.trajectories.size(), server.table().records().size());
+    for (const MergedTrajectory& t : map.trajectories) {
+      EXPECT_EQ(t.anchored, met.count(t.robot) > 0) << t.robot << " at " << map.utime;
+      if (!t.anchored) {
+        // Unanchored: published in its own local frame (poses = the agent's odometry).
+        EXPECT_NEAR(t.T_global_local.x(), 0.0, 0.0);
+      }
+    }
+    EXPECT_EQ(server.num_anchored(), static_cast<int>(met.size()));
+  }
+  EXPECT_EQ(server.stats().encounters_added, 3);
+  EXPECT_EQ(server.encounter_links().size(), 3u);
+  EXPECT_EQ(server.encounter_links()[1].trajectory_a, 1002);  // R3's session id
+  EXPECT_EQ(server.encounter_links()[1].index_a, 20);         // its keyframe at 10 s
+  EXPECT_EQ(server.stats().updates, static_cast<int64_t>(scenario.inputs.size()));
+}
+
+TEST_F(MappingServerTest, MergedPosesAndAnchorCovariancesMatchADirectSolve) {
+  const Scenario scenario(25.0, {{4.0, 0, 1}, {9.0, 1, 2}, {14.0, 2, 0}, {20.0, 0, 1}});
+  MappingServerOptions options = ExactTieOptions();
+  // iSAM relinearises at batch steps only; between them the incremental estimate carries
+  // linearisation error (measured here: 2.6 cm after 57 incremental updates with the
+  // solver's default of 100). With a batch step every 10 updates it stays below 1e-5.
+  options.smoother.batch_every_updates = 10;
+  MappingServer server(options);
+  // The direct solve: the same factors, built by hand, one batch optimisation.
+  Smoother direct;
+  std::map<std::string, TrajectoryId> ids;
+  for (const auto& input : scenario.inputs) {
+    if (input.keyframe) {
+      const Keyframe& k = *input.keyframe;
+      ASSERT_FALSE(server.OnKeyframe(k));
+      const TrajectoryId id =
+          ids.emplace(k.robot, static_cast<TrajectoryId>(ids.size())).first->second;
+      ASSERT_TRUE(direct.AddPose({id, k.seq}, k.T_local_pose).ok());
+      if (k.seq > 0) {
+        ASSERT_TRUE(
+            direct.AddBetween({id, k.seq - 1}, {id, k.seq}, k.T_previous_pose, k.delta_covariance)
+                .ok());
+      }
+    } else {
+      const Encounter& e = *input.encounter;
+      ASSERT_FALSE(server.OnEncounter(e));
+      const int index = static_cast<int>((e.utime - 1'000'000) / 500'000);
+      ASSERT_TRUE(direct
+                      .AddEncounter({ids.at(e.observer), index}, {ids.at(e.observed), index},
+                                    e.T_observer_observed, e.covariance)
+                      .ok());
+    }
+  }
+  direct.BatchOptimize();
+  ASSERT_EQ(server.num_anchored(), 3);
+
+  double max_error_m = 0, max_error_rad = 0, max_truth_error_m = 0;
+  const MergedMap map = server.BuildMergedMap();
+  // Ground truth in R1's start frame (the first anchor's frame is the global one).
+  const Pose2 T_world_global = scenario.start_world.at("R1");
+  for (const MergedTrajectory& t : map.trajectories) {
+    const TrajectoryId id = ids.at(t.robot);
+    ASSERT_EQ(t.poses.size(), 51u);
+    for (size_t i = 0; i < t.poses.size(); ++i) {
+      const Eigen::Vector3d e =
+          PoseError(t.poses[i], direct.GlobalPose({id, static_cast<int32_t>(i)}));
+      max_error_m = std::max(max_error_m, e.head<2>().norm());
+      max_error_rad = std::max(max_error_rad, std::abs(e.z()));
+      const Pose2 truth = Between(T_world_global, scenario.truth_world.at(t.robot)[i]);
+      max_truth_error_m =
+          std::max(max_truth_error_m, (t.poses[i].translation() - truth.translation()).norm());
+    }
+  }
+  // Incremental (relinearised only at batch steps) versus a converged batch solve.
+  EXPECT_LT(max_error_m, 1e-5);
+  EXPECT_LT(max_error_rad, 1e-6);
+  // A frame mistake would put poses metres off the truth; odometry drift over 25 m of
+  // 2 cm + 0.01 rad per step (and no loop closures) leaves 0.86 m here.
+  EXPECT_LT(max_truth_error_m, 1.5);
+
+  const AnchorCovariances anchors = server.BuildAnchorCovariances();
+  ASSERT_EQ(anchors.anchors.size(), 3u);
+  for (const AnchorCovariance& a : anchors.anchors) {
+    const TrajectoryId id = ids.at(a.robot);
+    // Exactly the server's own solver marginal ...
+    const Eigen::Matrix3d own = server.mutable_smoother().MarginalCovariance(Key(AnchorKey{id}));
+    EXPECT_TRUE(a.covariance.isApprox(own, 1e-12)) << a.robot;
+    // ... and the direct solve's, up to the difference in linearisation point.
+    const Eigen::Matrix3d reference = direct.MarginalCovariance(Key(AnchorKey{id}));
+    EXPECT_LT((a.covariance - reference).norm(), 1e-3 * reference.norm() + 1e-9) << a.robot;
+    EXPECT_LT(PoseError(a.T_global_local, *direct.Anchor(id)).norm(), 1e-3);
+  }
+}
+
+TEST_F(MappingServerTest, AnchorCovarianceShrinksAsEncountersAccumulate) {
+  const Scenario scenario(25.0, {{5.0, 0, 1}, {10.0, 0, 1}, {15.0, 1, 0}, {20.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  std::vector<double> traces;
+  for (const auto& input : scenario.inputs) {
+    if (input.keyframe) {
+      ASSERT_FALSE(server.OnKeyframe(*input.keyframe));
+      continue;
+    }
+    ASSERT_FALSE(server.OnEncounter(*input.encounter));
+    for (const AnchorCovariance& a : server.BuildAnchorCovariances().anchors) {
+      if (a.robot == "R2") traces.push_back(a.covariance.trace());
+    }
+  }
+  ASSERT_EQ(traces.size(), 4u);
+  // Each encounter adds information, so the marginal can only shrink (0.0731, 0.0713,
+  // 0.0711, 0.0692 here: later encounters reach the anchor through longer odometry chains,
+  // so they add less than the first).
+  for (size_t i = 1; i < traces.size(); ++i) EXPECT_LT(traces[i], traces[i - 1]) << i;
+  EXPECT_LT(traces.back(), 0.97 * traces.front());
+}
+
+TEST_F(MappingServerTest, BadInputsAreCountedAndChangeNothing) {
+  const Scenario scenario(5.0, {{3.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&server, input));
+  const int64_t keyframes = server.table().num_keyframes();
+  const MergedMap before = server.BuildMergedMap();
+  Encounter encounter;
+  for (const auto& input : scenario.inputs) {
+    if (input.encounter) encounter = *input.encounter;
+  }
+  ASSERT_EQ(encounter.observer, "R1");
+
+  Keyframe reused = *scenario.inputs[3].keyframe;  // R1 seq 1, again
+  reused.T_local_pose = Pose2(100, 100, 0);
+  EXPECT_EQ(server.OnKeyframe(reused), RejectReason::kDuplicateSequence);
+  Encounter self = encounter;
+  self.observed = self.observer;
+  EXPECT_EQ(server.OnEncounter(self), RejectReason::kSelfEncounter);
+  server.CountRejection(RejectReason::kNotFinite, "ANCHORMAP_KEYFRAMES", "from the codec");
+  Encounter ghost = encounter;
+  ghost.observed = "R9";
+  EXPECT_FALSE(server.OnEncounter(ghost));  // waits for R9 ...
+  server.Flush();                           // ... which never comes
+  EXPECT_EQ(server.rejects().count(RejectReason::kDuplicateSequence), 1);
+  EXPECT_EQ(server.rejects().count(RejectReason::kSelfEncounter), 1);
+  EXPECT_EQ(server.rejects().count(RejectReason::kNotFinite), 1);
+  EXPECT_EQ(server.rejects().count(RejectReason::kUnknownRobot), 1);
+  EXPECT_EQ(server.table().num_keyframes(), keyframes);  // nothing was added
+  EXPECT_EQ(server.stats().encounters_added, 1);
+  const MergedMap after = server.BuildMergedMap();
+  ASSERT_EQ(after.trajectories.size(), before.trajectories.size());
+  EXPECT_DOUBLE_EQ(after.trajectories[0].poses[1].x(), before.trajectories[0].poses[1].x());
+  const ServerStatus status = server.BuildStatus();
+  EXPECT_EQ(status.num_robots, 3);
+  EXPECT_EQ(status.num_anchored, 2);
+  EXPECT_EQ(status.keyframes, 33);
+  EXPECT_EQ(status.encounters, 1);
+  EXPECT_EQ(status.rejections.size(), 4u);
+  EXPECT_NE(server.StatusLine().find("duplicate_sequence=1"), std::string::npos)
+      << server.StatusLine();
+}
+
+TEST_F(MappingServerTest, GridCoversTheLargestGroupAndTilesAreRateLimited) {
+  const Scenario scenario(6.0, {{3.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&server, input));
+  const auto members = server.publisher().GridTrajectories(server.smoother(), server.table());
+  EXPECT_EQ(members, (std::vector<TrajectoryId>{0, 1}));  // R1 + R2, not the lone R3
+  const std::vector<GridTile> tiles = server.BuildGridTiles();
+  ASSERT_FALSE(tiles.empty());
+  int occupied = 0;
+  for (const GridTile& tile : tiles) {
+    EXPECT_DOUBLE_EQ(tile.resolution_m, 0.2);
+    for (int8_t c : tile.cells) occupied += c > 50 ? 1 : 0;
+  }
+  EXPECT_GT(occupied, 50);
+
+  MapPublisher& publisher = server.publisher();  // map every 0.5 s, grid every 5 s
+  EXPECT_TRUE(publisher.MapDue(0, 1));
+  publisher.MarkMapPublished(0, 1);
+  EXPECT_FALSE(publisher.MapDue(100'000, 2));  // too soon
+  EXPECT_FALSE(publisher.MapDue(600'000, 1));  // nothing new
+  EXPECT_TRUE(publisher.MapDue(600'000, 2));
+  EXPECT_TRUE(publisher.GridDue(0, 1));
+  publisher.MarkGridPublished(0, 1);
+  EXPECT_FALSE(publisher.GridDue(4'900'000, 5));
+  EXPECT_TRUE(publisher.GridDue(5'000'000, 5));
+}
+
+}  // namespace
+}  // namespace anchormap
