@@ -15,7 +15,7 @@ TEST(KeyframerTest, FirstScanThenDistanceAngleAndTimeThresholds) {
   EXPECT_TRUE(keyframer.ShouldMake(Pose2(), 0));
   keyframer.Accept(Pose2(1, 1, 0.5), 0);
   EXPECT_FALSE(keyframer.ShouldMake(Pose2(1.3, 1.3, 0.5), 100'000));  // 0.42 m
-  EXPECT_TRUE(keyframer.ShouldMake(Pose2(1.3, 1.5, 0.5), 100'000));    // 0.58 m
+  EXPECT_TRUE(keyframer.ShouldMake(Pose2(1.3, 1.5, 0.5), 100'000));   // 0.58 m
   EXPECT_FALSE(keyframer.ShouldMake(Pose2(1, 1, 0.79), 100'000));     // 0.29 rad
   EXPECT_TRUE(keyframer.ShouldMake(Pose2(1, 1, 0.2), 100'000));       // -0.3 rad
   EXPECT_FALSE(keyframer.ShouldMake(Pose2(1, 1, 0.5), 1'999'999));

@@ -1,0 +1,131 @@
+// anchormap-agent: runs on each robot. Subscribes to the robot's odometry and laser (and
+// its encounter channel), publishes keyframes and relays encounters to the server.
+
+#include <chrono>
+#include <iostream>
+#include <sstream>
+
+#include "agent/agent_node.h"
+#include "agent/agent_options.h"
+#include "common/bus/lcm_loop.h"
+#include "common/util/log.h"
+#include "common/util/options_loader.h"
+
+namespace anchormap {
+namespace {
+
+void Register(OptionsLoader* l, AgentOptions* o) {
+  l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
+  l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
+         "this session's trajectory id (0: wall-clock microseconds at start, a new one per run)");
+  l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  l->Add("max_range_m", "max-range-m", &o->max_range_m,
+         "ranges at or beyond this are no-returns (planar_lidar_t carries no max range), m");
+  l->Add("sensor.x_m", "sensor-x-m", &o->sensor_x_m, "laser position on the robot, forward (m)");
+  l->Add("sensor.y_m", "sensor-y-m", &o->sensor_y_m, "laser position on the robot, left (m)");
+  l->Add("sensor.theta_rad", "sensor-theta-rad", &o->sensor_theta_rad,
+         "laser heading on the robot (rad)");
+  l->Add("keyframer.max_distance_m", "keyframe-distance-m", &o->keyframer.max_distance_m,
+         "new keyframe after this much travel (m)");
+  l->Add("keyframer.max_angle_rad", "keyframe-angle-rad", &o->keyframer.max_angle_rad,
+         "new keyframe after this much rotation (rad)");
+  l->Add("keyframer.max_interval_s", "keyframe-interval-s", &o->keyframer.max_interval_s,
+         "new keyframe after this long without one (s; 0 = off)");
+  l->Add("noise.xy_base_m", "noise-xy-base-m", &o->noise.xy_base_m,
+         "odometry sigma_xy = base + per_m * distance (m)");
+  l->Add("noise.xy_per_m", "noise-xy-per-m", &o->noise.xy_per_m,
+         "odometry sigma_xy growth per metre");
+  l->Add("noise.theta_base_rad", "noise-theta-base-rad", &o->noise.theta_base_rad,
+         "odometry sigma_theta = base + per_rad * |angle| + per_m * distance (rad)");
+  l->Add("noise.theta_per_rad", "noise-theta-per-rad", &o->noise.theta_per_rad,
+         "sigma_theta growth per radian turned");
+  l->Add("noise.theta_per_m", "noise-theta-per-m", &o->noise.theta_per_m,
+         "sigma_theta growth per metre (rad/m)");
+  l->Add("odometry.capacity", "odometry-capacity", &o->odometry.capacity, "odometry readings kept");
+  l->Add("odometry.max_gap_s", "odometry-max-gap-s", &o->odometry.max_gap_s,
+         "no interpolation across a longer odometry gap (s)");
+  l->Add("max_pending_scans", "max-pending-scans", &o->max_pending_scans,
+         "scans waiting for odometry to reach their time");
+  l->Add("status_period_s", "status-period-s", &o->status_period_s,
+         "status line period (s; 0 = off)");
+  l->Add("log_level", "log-level", &o->log_level, "debug, info, warning or error");
+  l->Add("channels.odometry", "odometry-channel", &o->channels.odometry,
+         "pose_t input (empty: <ROBOT>_ODOMETRY)");
+  l->Add("channels.laser", "laser-channel", &o->channels.laser,
+         "planar_lidar_t input (empty: <ROBOT>_LASER)");
+  l->Add("channels.encounter", "encounter-channel", &o->channels.encounter,
+         "encounter_t input from the robot's detector (empty: <ROBOT>_ENCOUNTER)");
+  l->Add("channels.keyframes", "keyframes-channel", &o->channels.keyframes, "keyframe_t output");
+  l->Add("channels.encounters", "encounters-channel", &o->channels.encounters,
+         "encounter_t output (relays; also read, to see this robot being observed)");
+}
+
+int Main(int argc, char** argv) {
+  AgentOptions options;
+  OptionsLoader loader("anchormap-agent", "--robot R1 [--lcm-url URL] [--config FILE] [options]",
+                       "The anchormap agent (one per robot): turns odometry and laser scans into\n"
+                       "keyframes for anchormap-server and relays the robot's direct encounters.");
+  Register(&loader, &options);
+  const ParseOutcome outcome = loader.Parse(argc, argv);
+  if (!outcome.run) return outcome.exit_code;
+  LogLevel level = LogLevel::kInfo;
+  std::optional<std::string> problem = options.Validate();
+  if (!ParseLogLevel(options.log_level, &level))
+    problem = "--log-level: '" + options.log_level + "'";
+  if (problem) {
+    std::cerr << "anchormap-agent: " << *problem << "\n(see anchormap-agent --help)\n";
+    return 2;
+  }
+  if (options.trajectory_id == 0) {
+    options.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count();
+  }
+  options = WithDefaultChannels(options);
+  SetMinLogLevel(level);
+  SetLogComponent("anchormap-agent " + options.robot);
+  std::istringstream config(loader.EffectiveConfig());
+  LogInfo("effective configuration (trajectory id " + std::to_string(options.trajectory_id) + "):");
+  for (std::string line; std::getline(config, line);) LogInfo("  " + line);
+
+  std::string error;
+  auto loop = LcmLoop::Create(options.lcm_url, &error);
+  if (!loop) {
+    LogError(error);
+    return 1;
+  }
+  LcmLoop* bus = loop.get();
+  AgentNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    const Status status = bus->Publish(channel, bytes);
+    if (!status.ok()) LogWarning(status.message());
+  });
+  for (const std::string& channel : node.InputChannels()) {
+    const Status status = loop->Subscribe(
+        channel,
+        [&node](const std::string& c, const uint8_t* data, size_t size) {
+          node.OnMessage(c, data, size);
+        },
+        1000);
+    if (!status.ok()) {
+      LogError(status.message());
+      return 1;
+    }
+  }
+  if (options.status_period_s > 0) {
+    loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
+                [&node] { LogInfo(node.StatusLine()); });
+  }
+  loop->StopOnSignals(
+      [](int number) { LogInfo("signal " + std::to_string(number) + ": stopping"); });
+  LogInfo("listening on " + options.channels.odometry + ", " + options.channels.laser + ", " +
+          options.channels.encounter);
+  loop->Run();
+  LogInfo("final: " + node.StatusLine() + " | lcm max burst " +
+          std::to_string(bus->stats().max_burst));
+  return 0;
+}
+
+}  // namespace
+}  // namespace anchormap
+
+int main(int argc, char** argv) { return anchormap::Main(argc, argv); }

@@ -1,0 +1,52 @@
+#pragma once
+// The agent between bytes and logic: decodes odometry, laser and encounter messages with
+// the codec (refusals counted per channel, logged once per kind), feeds Agent, and encodes
+// the keyframes and relayed encounters for a publish callback (LCM in agent_main.cc, a
+// memq:// bus in tests). No LCM header here: bytes only.
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "agent/agent.h"
+#include "agent/agent_options.h"
+#include "common/util/reject_counter.h"
+
+namespace anchormap {
+
+class AgentNode {
+ public:
+  using Publish =
+      std::function<void(const std::string& channel, const std::vector<uint8_t>& bytes)>;
+
+  // `options` must be valid with a trajectory id chosen; empty input channels are
+  // derived from the robot name.
+  AgentNode(const AgentOptions& options, Publish publish);
+
+  // The channels to subscribe to: odometry, laser, the robot's encounter channel, and
+  // the server's encounter channel (to force a keyframe when this robot is observed).
+  std::vector<std::string> InputChannels() const;
+  // One message; returns false for a channel that is not an input.
+  bool OnMessage(const std::string& channel, const uint8_t* data, size_t size);
+  // "R1 trajectory 17...: odometry 5000 scans 1000 keyframes 120 relayed 3 rejected: none"
+  std::string StatusLine() const;
+
+  const Agent& agent() const { return agent_; }
+  const RejectCounter& rejects() const { return rejects_; }
+  const AgentOptions& options() const { return options_; }
+
+ private:
+  void Emit(const AgentOutput& out, const std::string& context);
+
+  AgentOptions options_;
+  Publish publish_;
+  Agent agent_;
+  RejectCounter rejects_;
+};
+
+// The options with empty channel names filled from the robot name.
+AgentOptions WithDefaultChannels(AgentOptions options);
+
+}  // namespace anchormap

@@ -1,0 +1,231 @@
+// anchormap-server: the mapping server on the base station. Online: subscribes to every
+// robot's keyframes and encounters over LCM and publishes the merged map, the anchors'
+// covariances, the occupancy grid and its status. Offline (--log IN --output OUT): reads
+// keyframes and encounters from an LCM log as fast as it can, writes the same outputs to
+// another log (stamped with data time, so equal inputs give equal outputs) and exits.
+
+#include <chrono>
+#include <csignal>
+#include <iostream>
+#include <sstream>
+
+#include "common/bus/lcm_log.h"
+#include "common/bus/lcm_loop.h"
+#include "common/util/log.h"
+#include "common/util/options_loader.h"
+#include "server/server_node.h"
+#include "server/server_options.h"
+
+namespace anchormap {
+namespace {
+
+volatile std::sig_atomic_t g_offline_stop = 0;
+void OnOfflineSignal(int) { g_offline_stop = 1; }
+
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
+  MappingServerOptions& s = o->server;
+  l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  l->Add("log", "log", &o->log_input, "offline: read keyframes/encounters from this LCM log");
+  l->Add("output", "output", &o->log_output, "offline: write the outputs to this LCM log");
+  l->Add(
+      "publish.map_period_s", "publish-period-s", &s.publish.map_period_s,
+      "merged map + anchor covariances after an update, at most this often (s; 0 = every update)");
+  l->Add("publish.grid_period_s", "grid-period-s", &s.publish.grid_period_s,
+         "occupancy grid tiles at most this often (s; 0 = only at the end of an offline run)");
+  l->Add("status_period_s", "status-period-s", &o->status_period_s,
+         "status line and status message period (s; 0 = off)");
+  l->Add("queue_capacity", "queue-capacity", &o->queue_capacity,
+         "LCM receive queue per subscription, messages");
+  l->Add("log_level", "log-level", &o->log_level, "debug, info, warning or error");
+  l->Add("channels.keyframes", "keyframes-channel", &o->channels.keyframes, "keyframe_t input");
+  l->Add("channels.encounters", "encounters-channel", &o->channels.encounters, "encounter_t input");
+  l->Add("channels.merged_map", "merged-map-channel", &o->channels.merged_map,
+         "merged_map_t output");
+  l->Add("channels.anchor_covariances", "anchor-covariances-channel",
+         &o->channels.anchor_covariances, "anchor_covariances_t output");
+  l->Add("channels.grid_tiles", "grid-tiles-channel", &o->channels.grid_tiles,
+         "grid_tile_t output");
+  l->Add("channels.status", "status-channel", &o->channels.status, "server_status_t output");
+  l->Add("smoother.formulation", "formulation", formulation,
+         "relative (anchors), global or global-moved (baselines)");
+  l->Add("smoother.batch_every_updates", "batch-every-updates", &s.smoother.batch_every_updates,
+         "batch step (relinearise, reorder) every N updates; between them the estimate carries "
+         "linearisation error");
+  l->Add("smoother.batch_when_fill_grows", "batch-when-fill-grows",
+         &s.smoother.batch_when_fill_grows, "batch step when nnz(R) grew by this factor (0 = off)");
+  l->Add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
+         "sigma of the gauge priors (m, rad)");
+  l->Add("table.max_held", "max-held-keyframes", &s.table.max_held,
+         "keyframes held per trajectory waiting for a missing sequence number");
+  l->Add("table.max_hold_s", "max-hold-s", &s.table.max_hold_s,
+         "keyframe time a gap may stay open before it is bridged (s)");
+  l->Add("table.gap_covariance_scale", "gap-covariance-scale", &s.table.gap_covariance_scale,
+         "bridged gap covariance = delta covariance x (missing + 1) x this");
+  l->Add("direct.max_wait_s", "encounter-max-wait-s", &s.direct.max_wait_s,
+         "longest wait (data time) for an encounter's keyframes or an unknown robot (s)");
+  l->Add("direct.max_time_offset_s", "encounter-max-time-offset-s", &s.direct.max_time_offset_s,
+         "an encounter's nearest keyframes must be this close in time (s)");
+  l->Add("direct.inflation_xy_base_m", "encounter-inflation-xy-base-m",
+         &s.direct.inflation_xy_base_m, "sigma added to an encounter for clock offsets (m)");
+  l->Add("direct.inflation_xy_per_m", "encounter-inflation-xy-per-m", &s.direct.inflation_xy_per_m,
+         "sigma added per metre of time correction");
+  l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
+         &s.direct.inflation_theta_base_rad, "heading sigma added for clock offsets (rad)");
+  l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
+  l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
+         "cells per tile side");
+  l->Add("grid.max_ray_length_m", "grid-max-ray-m", &s.publish.grid.max_ray_length_m,
+         "beams are traced at most this far (m)");
+  l->Add("grid.no_return_as_free", "grid-no-return-as-free", &s.publish.grid.no_return_as_free,
+         "trace no-return beams as free space up to the ray limit");
+}
+
+int RunOnline(const ServerOptions& options) {
+  std::string error;
+  auto loop = LcmLoop::Create(options.lcm_url, &error);
+  if (!loop) {
+    LogError(error);
+    return 1;
+  }
+  LcmLoop* bus = loop.get();
+  ServerNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    const Status status = bus->Publish(channel, bytes);
+    if (!status.ok()) LogWarning(status.message());
+  });
+  auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
+    node.OnMessage(channel, data, size);
+    node.PublishDue(WallUtime());
+  };
+  for (const std::string& channel : {options.channels.keyframes, options.channels.encounters}) {
+    const Status status = loop->Subscribe(channel, handler, options.queue_capacity);
+    if (!status.ok()) {
+      LogError(status.message());
+      return 1;
+    }
+  }
+  // Updates that arrived within a map period of the last publication go out from here.
+  loop->Every(std::chrono::milliseconds(100), [&node] { node.PublishDue(WallUtime()); });
+  auto status_line = [&node, bus] {
+    const LcmLoopStats& s = bus->stats();
+    return node.server().StatusLine() + " | lcm messages " + std::to_string(s.messages_handled) +
+           " max burst " + std::to_string(s.max_burst);
+  };
+  if (options.status_period_s > 0) {
+    loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
+                [&node, status_line] {
+                  LogInfo(status_line());
+                  node.PublishStatus();
+                });
+  }
+  loop->StopOnSignals(
+      [](int number) { LogInfo("signal " + std::to_string(number) + ": stopping"); });
+  LogInfo("listening on " + options.channels.keyframes + " and " + options.channels.encounters +
+          " (" + (options.lcm_url.empty() ? std::string("default LCM URL") : options.lcm_url) +
+          ")");
+  loop->Run();
+  node.PublishDue(WallUtime());
+  LogInfo("final: " + status_line());
+  return 0;
+}
+
+int RunOffline(const ServerOptions& options) {
+  LcmLogReader reader;
+  if (Status s = reader.Open(options.log_input); !s.ok()) {
+    LogError(s.message());
+    return 1;
+  }
+  LcmLogWriter writer;
+  if (Status s = writer.Open(options.log_output); !s.ok()) {
+    LogError(s.message());
+    return 1;
+  }
+  std::signal(SIGINT, OnOfflineSignal);
+  std::signal(SIGTERM, OnOfflineSignal);
+  ServerNode* node_pointer = nullptr;
+  int64_t write_failures = 0;
+  ServerNode node(options, [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    if (!writer.WriteRaw(channel, node_pointer->server().data_utime(), bytes.data(), bytes.size())
+             .ok()) {
+      ++write_failures;
+    }
+  });
+  node_pointer = &node;
+  const auto start = std::chrono::steady_clock::now();
+  int64_t events = 0, used = 0, next_status_utime = 0;
+  while (!g_offline_stop) {
+    const std::optional<LogEvent> event = reader.Next();
+    if (!event) break;
+    ++events;
+    if (!node.OnMessage(event->channel, event->data.data(), event->data.size())) continue;
+    ++used;
+    const int64_t now = node.server().data_utime();
+    node.PublishDue(now);
+    if (options.status_period_s > 0 && now >= next_status_utime) {
+      if (next_status_utime > 0) {
+        LogInfo(node.server().StatusLine());
+        node.PublishStatus();
+      }
+      next_status_utime = now + static_cast<int64_t>(1e6 * options.status_period_s);
+    }
+  }
+  if (g_offline_stop) LogWarning("interrupted: writing the outputs of what was read so far");
+  node.server().Flush();
+  node.PublishAll();
+  writer.Close();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  LogInfo("final: " + node.server().StatusLine());
+  std::ostringstream summary;
+  summary << "read " << events << " events (" << used << " keyframes/encounters) in " << seconds
+          << " s; wrote " << node.published_maps() << " maps, " << node.published_grids()
+          << " grids to " << options.log_output;
+  LogInfo(summary.str());
+  if (write_failures > 0) {
+    LogError(std::to_string(write_failures) + " writes to " + options.log_output + " failed");
+    return 1;
+  }
+  return 0;
+}
+
+int Main(int argc, char** argv) {
+  ServerOptions options;
+  std::string formulation = ToString(options.server.smoother.formulation);
+  OptionsLoader loader(
+      "anchormap-server",
+      "[--lcm-url URL] [--config FILE] [options]\n   or: anchormap-server --log IN.lcmlog --output "
+      "OUT.lcmlog [options]",
+      "The anchormap mapping server: merges every robot's keyframes into one map with anchor\n"
+      "nodes (one pose graph per trajectory, joined at encounters) and publishes it over LCM.");
+  Register(&loader, &options, &formulation);
+  const ParseOutcome outcome = loader.Parse(argc, argv);
+  if (!outcome.run) return outcome.exit_code;
+  const auto parsed_formulation = ParseFormulation(formulation);
+  LogLevel level = LogLevel::kInfo;
+  std::optional<std::string> problem = options.Validate();
+  if (!parsed_formulation)
+    problem = "--formulation: '" + formulation + "' is not relative, global or global-moved";
+  if (!ParseLogLevel(options.log_level, &level))
+    problem = "--log-level: '" + options.log_level + "'";
+  if (problem) {
+    std::cerr << "anchormap-server: " << *problem << "\n(see anchormap-server --help)\n";
+    return 2;
+  }
+  options.server.smoother.formulation = *parsed_formulation;
+  SetMinLogLevel(level);
+  SetLogComponent("anchormap-server");
+  std::istringstream config(loader.EffectiveConfig());
+  LogInfo("effective configuration:");
+  for (std::string line; std::getline(config, line);) LogInfo("  " + line);
+  return options.log_input.empty() ? RunOnline(options) : RunOffline(options);
+}
+
+}  // namespace
+}  // namespace anchormap
+
+int main(int argc, char** argv) { return anchormap::Main(argc, argv); }

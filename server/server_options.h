@@ -1,0 +1,44 @@
+#pragma once
+// Options of anchormap-server: one source of defaults. The flags, config keys, --help and
+// the table in docs/DAEMONS.md come from the registration in server_main.cc.
+
+#include <optional>
+#include <string>
+
+#include "server/mapping_server.h"
+
+namespace anchormap {
+
+struct ServerChannels {
+  std::string keyframes = "ANCHORMAP_KEYFRAMES";
+  std::string encounters = "ANCHORMAP_ENCOUNTERS";
+  std::string merged_map = "ANCHORMAP_MERGED_MAP";
+  std::string anchor_covariances = "ANCHORMAP_ANCHOR_COVARIANCES";
+  std::string grid_tiles = "ANCHORMAP_GRID_TILES";
+  std::string status = "ANCHORMAP_SERVER_STATUS";
+};
+
+struct ServerOptions {
+  std::string lcm_url;  // empty: LCM's default ($LCM_DEFAULT_URL or the udpm default)
+  // Offline: read keyframes and encounters from this LCM log as fast as possible and
+  // write the outputs to log_output (both or neither).
+  std::string log_input;
+  std::string log_output;
+  // Status line and status message period (0 = off). Offline: in data time.
+  double status_period_s = 5.0;
+  // Receive queue per subscription (LCM's default of 30 drops bursts silently).
+  int queue_capacity = 10000;
+  std::string log_level = "info";
+  MappingServerOptions server;
+  ServerChannels channels;
+
+  std::optional<std::string> Validate() const {
+    if (log_input.empty() != log_output.empty()) return "--log and --output go together";
+    if (!log_input.empty() && log_input == log_output) return "--output must differ from --log";
+    if (!(status_period_s >= 0)) return "status_period_s must be >= 0";
+    if (queue_capacity < 30) return "queue_capacity must be >= 30";
+    return server.Validate();
+  }
+};
+
+}  // namespace anchormap
