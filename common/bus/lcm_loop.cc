@@ -175,6 +175,12 @@ bool LcmLoop::RunUntil(const std::function<bool()>& done, std::chrono::milliseco
 
 void LcmLoop::Stop() { impl_->io.stop(); }
 
+int64_t LcmLoop::HandlePending(int64_t max_messages) {
+  int64_t handled = 0;
+  while (handled < max_messages && lcm_handle_timeout(impl_->lcm, 0) > 0) ++handled;
+  return handled;
+}
+
 const LcmLoopStats& LcmLoop::stats() const { return impl_->stats; }
 
 }  // namespace anchormap

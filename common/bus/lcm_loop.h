@@ -63,6 +63,10 @@ class LcmLoop {
   // Returns done(). For tests and bounded waits.
   bool RunUntil(const std::function<bool()>& done, std::chrono::milliseconds timeout);
   void Stop();
+  // Dispatches every message already waiting (including those its handlers publish) on
+  // the calling thread, up to `max_messages`; returns how many. For tests over memq://
+  // and deterministic draining; never call it from inside a handler.
+  int64_t HandlePending(int64_t max_messages = 1'000'000);
 
   const LcmLoopStats& stats() const;
 

@@ -83,6 +83,26 @@ TEST(LcmLoopTest, HandlerExceptionsAreContained) {
   EXPECT_TRUE(loop->RunUntil([&] { return calls == 2; }, std::chrono::seconds(5)));
 }
 
+TEST(LcmLoopTest, HandlePendingDrainsChainsOfMessages) {
+  std::string error;
+  auto loop = LcmLoop::Create("memq://", &error);
+  ASSERT_TRUE(loop) << error;
+  int pings = 0, pongs = 0;
+  ASSERT_TRUE(loop->Subscribe("PING",
+                              [&](const std::string&, const uint8_t*, size_t) {
+                                ++pings;
+                                ASSERT_TRUE(loop->Publish("PONG", {1}).ok());
+                              })
+                  .ok());
+  ASSERT_TRUE(
+      loop->Subscribe("PONG", [&](const std::string&, const uint8_t*, size_t) { ++pongs; }).ok());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(loop->Publish("PING", {0}).ok());
+  EXPECT_EQ(loop->HandlePending(), 6);
+  EXPECT_EQ(pings, 3);
+  EXPECT_EQ(pongs, 3);
+  EXPECT_EQ(loop->HandlePending(), 0);
+}
+
 TEST(LcmLoopTest, BadUrlIsAnErrorNotACrash) {
   std::string error;
   auto loop = LcmLoop::Create("nosuchprovider://", &error);
