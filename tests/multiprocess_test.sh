@@ -1,0 +1,113 @@
+#!/usr/bin/env bash
+# Multi-process integration test (issue 3). In a private network namespace (multicast on
+# loopback only, ttl=0: nothing leaves the namespace):
+#   anchormap-sim (3 robots, direct encounters) -> sim.lcmlog
+#   lcm-logplayer --speed 5 -> 3 x anchormap-agent -> anchormap-server -> lcm-logger
+# then anchormap-test-check-server-output reads the recording: every robot anchored after
+# (never before) its first encounter, merged keyframes within the bounds below of ground
+# truth after a rigid fit, anchor covariances published and not growing; and this script
+# checks that no keyframe was lost on the bus and that every daemon exits 0 on SIGINT.
+# Without network namespaces: the same checks on agents + server in one process over
+# memq:// (anchormap-replay), then exit 77 (ctest SKIP_RETURN_CODE) since the
+# multi-process part did not run.
+#
+# usage: multiprocess_test.sh BUILD_DIR      (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
+set -uo pipefail
+
+BUILD=${1:?usage: multiprocess_test.sh BUILD_DIR}
+BIN=$BUILD/bin
+SKIP=77
+ROBOTS=3
+DURATION_S=60
+SPEED=5
+URL="udpm://239.255.76.67:7667?ttl=0"
+# Stated bounds: odometry-only trajectories (no loop closures) drift; 60 s of the sim's
+# default odometry noise leaves about 0.4 m RMSE after alignment (seed 1: 0.39 m, max 1.1 m).
+MAX_RMSE_M=0.8
+MAX_ERROR_M=2.0
+
+log() { echo "multiprocess_test: $*"; }
+
+
+inside_namespace() {
+  local work=$1
+  ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
+  local pids=()
+  # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
+  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger.log" 2>&1 &
+  local logger=$!
+  "$BIN/anchormap-server" --lcm-url "$URL" --status-period-s 2 >"$work/server.log" 2>&1 &
+  local server=$!
+  for i in $(seq 1 $ROBOTS); do
+    "$BIN/anchormap-agent" --robot "R$i" --lcm-url "$URL" --status-period-s 5 >"$work/agent_R$i.log" 2>&1 &
+    pids+=($!)
+  done
+  sleep 1
+  log "replaying $DURATION_S s of $ROBOTS robots at ${SPEED}x"
+  lcm-logplayer --speed=$SPEED -l "$URL" "$work/sim.lcmlog" || { log "lcm-logplayer failed"; return 1; }
+  sleep 2  # the last keyframes reach the server; rate-limited maps go out
+  local status=0
+  for pid in "${pids[@]}"; do
+    kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
+  done
+  kill -INT "$server"; wait "$server" || { log "the server did not exit cleanly"; status=1; }
+  sleep 0.5
+  kill -INT "$logger"; wait "$logger"
+  return $status
+}
+
+run_checks() {
+  local work=$1
+  "$BIN/anchormap-test-check-server-output" --map "$work/out.lcmlog" --truth "$work/sim.lcmlog" \
+    --min-robots $ROBOTS --max-rmse-m $MAX_RMSE_M --max-error-m $MAX_ERROR_M
+}
+
+main() {
+  for tool in anchormap-sim anchormap-agent anchormap-server anchormap-replay anchormap-test-check-server-output; do
+    [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
+  done
+  local work
+  work=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-multiprocess.XXXXXX")
+  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
+    log "files in $work"
+  else
+    trap 'rm -rf "$work"' EXIT
+  fi
+  "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
+    >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+  cat "$work/sim.txt"
+
+  if ! unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
+      >/dev/null 2>&1; then
+    log "network namespaces unavailable: running agents + server in one process over memq:// instead"
+    "$BIN/anchormap-replay" --log "$work/sim.lcmlog" --output "$work/out.lcmlog" --log-level warning \
+      || { log "anchormap-replay failed"; exit 1; }
+    run_checks "$work" || exit 1
+    log "in-process fallback passed; the multi-process part was skipped"
+    exit $SKIP
+  fi
+
+  export -f inside_namespace log
+  export BIN URL ROBOTS DURATION_S SPEED
+  unshare -n bash -c "inside_namespace '$work'"
+  local status=$?
+  for f in "$work"/agent_R*.log "$work/server.log"; do
+    log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"
+  done
+  [ $status -eq 0 ] || { log "daemons failed (status $status)"; tail -20 "$work/server.log"; exit 1; }
+
+  # Zero keyframes lost: what the agents sent is what the server holds.
+  local sent=0 received
+  for f in "$work"/agent_R*.log; do
+    sent=$((sent + $(grep 'final:' "$f" | sed -E 's/.* scans [0-9]+ keyframes ([0-9]+) .*/\1/')))
+  done
+  received=$(grep 'final:' "$work/server.log" | sed -E 's/.* anchored [0-9]+ keyframes ([0-9]+) .*/\1/')
+  log "keyframes sent $sent, held by the server $received"
+  [ "$sent" = "$received" ] || { log "keyframes were lost"; exit 1; }
+  grep 'final:' "$work/server.log" | grep -q 'rejected: none' || { log "the server rejected inputs"; exit 1; }
+
+  run_checks "$work" || exit 1
+  log "PASS"
+}
+
+main "$@"

@@ -1,0 +1,163 @@
+// anchormap-replay: runs one anchormap-agent per robot and anchormap-server in ONE process
+// over an in-memory LCM bus (memq://), fed from a raw-sensor LCM log (anchormap-sim,
+// anchormap-import-carmen), and writes the server's outputs to another log. The same code
+// paths as the daemons (AgentNode, ServerNode, the codec), deterministic and as fast as
+// the CPU allows: for demos, evaluation runs, and the multi-process test's fallback where
+// network namespaces are unavailable. Times are data times (the input log's utimes).
+
+#include <iostream>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include "agent/agent_node.h"
+#include "common/bus/lcm_log.h"
+#include "common/bus/lcm_loop.h"
+#include "common/util/log.h"
+#include "common/util/options_loader.h"
+#include "server/server_node.h"
+
+namespace anchormap {
+namespace {
+
+struct ReplayOptions {
+  std::string input;
+  std::string output;
+  std::string robots;  // comma-separated; empty: every <R>_ODOMETRY channel in the input
+  double max_range_m = 30.0;
+  double keyframe_distance_m = 0.5;
+  double keyframe_angle_rad = 0.35;
+  std::string log_level = "info";
+  ServerOptions server;
+};
+
+std::set<std::string> RobotsInLog(const std::string& path) {
+  std::set<std::string> robots;
+  LcmLogReader reader;
+  if (!reader.Open(path).ok()) return robots;
+  const std::string suffix = "_ODOMETRY";
+  while (auto event = reader.Next()) {
+    const std::string& c = event->channel;
+    if (c.size() > suffix.size() &&
+        c.compare(c.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      robots.insert(c.substr(0, c.size() - suffix.size()));
+    }
+  }
+  return robots;
+}
+
+int Run(const ReplayOptions& options) {
+  std::set<std::string> robots;
+  if (options.robots.empty()) {
+    robots = RobotsInLog(options.input);
+  } else {
+    std::stringstream list(options.robots);
+    for (std::string robot; std::getline(list, robot, ',');) {
+      if (!robot.empty()) robots.insert(robot);
+    }
+  }
+  if (robots.empty()) {
+    LogError("no robots: no <ROBOT>_ODOMETRY channel in " + options.input + " and no --robots");
+    return 1;
+  }
+  LcmLogReader reader;
+  LcmLogWriter writer;
+  if (Status s = reader.Open(options.input); !s.ok()) return LogError(s.message()), 1;
+  if (Status s = writer.Open(options.output); !s.ok()) return LogError(s.message()), 1;
+  std::string error;
+  auto loop = LcmLoop::Create("memq://", &error);
+  if (!loop) return LogError(error), 1;
+
+  auto publish = [&loop](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    (void)loop->Publish(channel, bytes);
+  };
+  std::vector<std::unique_ptr<AgentNode>> agents;
+  int64_t trajectory_id = 1;
+  for (const std::string& robot : robots) {
+    AgentOptions agent_options;
+    agent_options.robot = robot;
+    agent_options.trajectory_id = trajectory_id++;  // deterministic ids
+    agent_options.max_range_m = options.max_range_m;
+    agent_options.keyframer.max_distance_m = options.keyframe_distance_m;
+    agent_options.keyframer.max_angle_rad = options.keyframe_angle_rad;
+    if (auto problem = agent_options.Validate()) return LogError(*problem), 2;
+    agents.push_back(std::make_unique<AgentNode>(agent_options, publish));
+    AgentNode* agent = agents.back().get();
+    for (const std::string& channel : agent->InputChannels()) {
+      (void)loop->Subscribe(channel, [agent](const std::string& c, const uint8_t* d, size_t n) {
+        agent->OnMessage(c, d, n);
+      });
+    }
+  }
+  ServerNode* server_pointer = nullptr;
+  ServerNode server(options.server,
+                    [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
+                      (void)writer.WriteRaw(channel, server_pointer->server().data_utime(),
+                                            bytes.data(), bytes.size());
+                    });
+  server_pointer = &server;
+  for (const std::string& channel :
+       {options.server.channels.keyframes, options.server.channels.encounters}) {
+    (void)loop->Subscribe(channel, [&server](const std::string& c, const uint8_t* d, size_t n) {
+      server.OnMessage(c, d, n);
+      server.PublishDue(server.server().data_utime());
+    });
+  }
+  int64_t events = 0;
+  while (auto event = reader.Next()) {
+    ++events;
+    if (!loop->Publish(event->channel, event->data).ok()) continue;
+    loop->HandlePending();
+  }
+  server.server().Flush();
+  server.PublishAll();
+  writer.Close();
+  for (const auto& agent : agents) LogInfo(agent->StatusLine());
+  LogInfo("server: " + server.server().StatusLine());
+  LogInfo("replayed " + std::to_string(events) + " events; wrote " +
+          std::to_string(server.published_maps()) + " maps to " + options.output);
+  return 0;
+}
+
+int Main(int argc, char** argv) {
+  ReplayOptions options;
+  OptionsLoader loader("anchormap-replay", "--log SIM.lcmlog --output OUT.lcmlog [--robots R1,R2]",
+                       "Agents and server in one process over memq://, fed from a raw-sensor log.");
+  loader.Add("log", "log", &options.input, "raw-sensor LCM log to replay", true);
+  loader.Add("output", "output", &options.output, "LCM log for the server's outputs", true);
+  loader.Add("robots", "robots", &options.robots,
+             "robots to run agents for (empty: all in the log)");
+  loader.Add("max_range_m", "max-range-m", &options.max_range_m, "agents' laser max range (m)");
+  loader.Add("keyframe_distance_m", "keyframe-distance-m", &options.keyframe_distance_m,
+             "agents' keyframe distance (m)");
+  loader.Add("keyframe_angle_rad", "keyframe-angle-rad", &options.keyframe_angle_rad,
+             "agents' keyframe angle (rad)");
+  loader.Add("publish.map_period_s", "publish-period-s",
+             &options.server.server.publish.map_period_s, "server map period (data time, s)");
+  loader.Add("publish.grid_period_s", "grid-period-s", &options.server.server.publish.grid_period_s,
+             "server grid period (data time, s)");
+  loader.Add("smoother.batch_every_updates", "batch-every-updates",
+             &options.server.server.smoother.batch_every_updates,
+             "server: batch step every N updates (1 = pure batch)");
+  loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
+  const ParseOutcome outcome = loader.Parse(argc, argv);
+  if (!outcome.run) return outcome.exit_code;
+  LogLevel level = LogLevel::kInfo;
+  std::optional<std::string> problem = options.server.Validate();
+  if (!ParseLogLevel(options.log_level, &level))
+    problem = "--log-level: '" + options.log_level + "'";
+  if (options.input == options.output) problem = "--output must differ from --log";
+  if (problem) {
+    std::cerr << "anchormap-replay: " << *problem << "\n(see anchormap-replay --help)\n";
+    return 2;
+  }
+  SetMinLogLevel(level);
+  SetLogComponent("anchormap-replay");
+  return Run(options);
+}
+
+}  // namespace
+}  // namespace anchormap
+
+int main(int argc, char** argv) { return anchormap::Main(argc, argv); }
