@@ -228,8 +228,10 @@ std::string OptionsLoader::MarkdownTable() const {
   out << "| flag | config key | default | meaning |\n|---|---|---|---|\n";
   for (const Entry& e : entries_) {
     out << "| `--" << e.flag << "` | `" << e.key << "` | "
-        << (e.required ? std::string("(required)") : "`" + e.default_text + "`") << " | " << e.help
-        << " |\n";
+        << (e.required               ? std::string("(required)")
+            : e.default_text.empty() ? std::string("(empty)")
+                                     : "`" + e.default_text + "`")
+        << " | " << e.help << " |\n";
   }
   return out.str();
 }
