@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/solver/factor.h"
 #include "common/solver/keys.h"
 #include "common/solver/smoother_options.h"
 #include "common/util/status.h"
@@ -49,6 +50,8 @@ struct SmootherStats {
   int64_t variables = 0;
   int64_t factors = 0;
   int64_t nnz_r = 0;  // scalar non-zeros of R (upper triangle)
+  double batch_seconds = 0.0;        // time spent in batch steps
+  double incremental_seconds = 0.0;  // time spent in incremental updates
 };
 
 class Smoother {
@@ -103,6 +106,12 @@ class Smoother {
   Eigen::Matrix3d MarginalCovariance(const Key& key);
   // Joint covariance of several variables, 3k x 3k, blocks in the order given.
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+
+  // The current estimate of any variable (pose: local frame; anchor: T_global_local).
+  Pose2 Value(const Key& key) const;
+  bool HasVariable(const Key& key) const;
+  // Every active factor (gauge priors included), for exports, journals and test oracles.
+  std::vector<Factor> ActiveFactors() const;
 
   // Sum of squared whitened residuals of every factor at the current estimate.
   double Chi2() const;
