@@ -25,11 +25,12 @@
 
 namespace anchormap {
 
-// The smoother's defaults with a batch step every 10 updates instead of 100: between batch
-// steps the incremental estimate and the covariances read from R drift from the converged
-// ones (measured on a 3-robot simulation: anchor covariance traces 6-35 % low after a few
-// incremental encounter updates, back to the batch value at the next batch step), and the
-// server publishes both after every update. Each batch step on ~300 poses costs ~2 ms.
+// The smoother's defaults with a batch step every 10 updates instead of 100: iSAM
+// relinearises only at batch steps, and the server publishes estimates and covariances after
+// every update. Measured on a 3-robot, 60 s simulation (anchormap-replay): with 100, an
+// anchor's covariance trace read from R fell to 7.4 m^2 between batch steps while the
+// converged value stayed 10.86 m^2 (over-confident by a third); with 10 it stays within
+// 0.5 %. A batch step on ~300 poses costs about 2 ms.
 inline SmootherOptions DefaultServerSmootherOptions() {
   SmootherOptions options;
   options.batch_every_updates = 10;
