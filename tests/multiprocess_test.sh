@@ -71,7 +71,7 @@ main() {
   if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
     log "files in $work"
   else
-    trap 'rm -rf "$work"' EXIT
+    trap "rm -rf '$work'" EXIT
   fi
   "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
     >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
