@@ -175,6 +175,11 @@ int RunOffline(const ServerOptions& options) {
     }
   }
   if (g_offline_stop) LogWarning("interrupted: writing the outputs of what was read so far");
+  if (used == 0) {
+    LogWarning("no " + options.channels.keyframes + " / " + options.channels.encounters +
+               " messages in " + options.log_input +
+               " (a raw-sensor log? anchormap-replay runs the agents too)");
+  }
   node.server().Flush();
   node.PublishAll();
   writer.Close();
