@@ -388,9 +388,7 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
       rows.blocks.emplace_back(position, lin.jacobians[j]);
       rows.rhs += lin.jacobians[j] * delta_[position];
     }
-    const size_t before = touched.size();
     R.Eliminate(std::move(rows), &touched);
-    stats_.givens_block_eliminations += static_cast<int64_t>(touched.size() - before);
   }
   result->factors_added = static_cast<int>(ready.size());
   TakeOutOfPending(ready);
@@ -653,6 +651,8 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   result.anchors_created = CountAnchors() - anchors_before;
   stats_.rows_backsubstituted += result.rows_backsubstituted;
   stats_.nnz_r = r_->NonZeros();
+  stats_.givens_block_rows = r_->eliminated_block_rows();
+  stats_.givens_block_columns = r_->eliminated_block_columns();
   result.seconds = Seconds(start);
   return result;
 }

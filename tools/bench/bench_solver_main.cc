@@ -184,6 +184,7 @@ int Run(const Flags& flags) {
         "\"chi2_after_final_batch\": %.6f, \"chi2_batch_optimum\": %.6f, "
         "\"chi2_relative_difference\": %.3e, \"nnz_per_column\": %.3f, "
         "\"iterations_to_1e-4\": %lld, \"rows_backsubstituted_per_step\": %.1f, "
+        "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
         static_cast<long long>(stats.factors), replay.num_edges(), replay.num_encounters(),
@@ -198,6 +199,8 @@ int Run(const Flags& flags) {
         relative_difference, nnz_per_column,
         static_cast<long long>(stats.iterations_to_convergence),
         static_cast<double>(stats.rows_backsubstituted) / std::max<size_t>(1, step_ms.size()),
+        static_cast<long long>(stats.givens_block_rows),
+        static_cast<long long>(stats.givens_block_columns),
         failures, first_failure.c_str());
   } else {
     std::printf("graph %s: %d poses, %d edges (%d encounters), %d robot(s), %s formulation\n",
