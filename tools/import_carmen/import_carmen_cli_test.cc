@@ -7,6 +7,8 @@
 #include <map>
 #include <sstream>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include "bot_core/pose_t.hpp"
@@ -31,9 +33,14 @@ std::string ReadText(const std::string& path) {
   return text.str();
 }
 
+// A temporary path unique to this process (ctest runs the tests of this file in parallel).
+std::string TempPath(const std::string& name) {
+  return (fs::temp_directory_path() / (std::to_string(getpid()) + "_" + name)).string();
+}
+
 RunResult RunImporter(const std::string& arguments) {
-  const std::string out = (fs::temp_directory_path() / "am_import_cli.out").string();
-  const std::string err = (fs::temp_directory_path() / "am_import_cli.err").string();
+  const std::string out = TempPath("am_import_cli.out");
+  const std::string err = TempPath("am_import_cli.err");
   const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/anchormap-import-carmen " +
                               arguments + " >" + out + " 2>" + err;
   const int status = std::system(command.c_str());
@@ -41,11 +48,9 @@ RunResult RunImporter(const std::string& arguments) {
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   result.out = ReadText(out);
   result.err = ReadText(err);
+  fs::remove(out);
+  fs::remove(err);
   return result;
-}
-
-std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / name).string();
 }
 
 std::map<std::string, int64_t> CountChannels(const std::string& lcm_log) {
