@@ -80,6 +80,13 @@ class EvalCliTest : public ::testing::Test {
       t.num_poses = 5;
       map.trajectories.push_back(t);
     }
+    for (int i = 0; i <= 8; ++i) {  // R2's odometry, every 0.5 s, in a frame of its own
+      bot_core::pose_t odometry{};
+      odometry.utime = 500000LL * i;
+      odometry.pos[0] = 100.0 + 0.5 * i;
+      odometry.orientation[0] = 1.0;
+      ASSERT_TRUE(truth.Write("R2_ODOMETRY", odometry.utime, odometry).ok());
+    }
     map.num_trajectories = 2;
     map.encounters.push_back({1, 0, 2, 0});
     map.num_encounters = 1;
@@ -124,6 +131,25 @@ TEST_F(EvalCliTest, RelationsOnOneRobot) {
       << result.out;
   EXPECT_NE(result.out.find("\"rotation_rad\": {\"count\": 2, \"mean\": 0.05,"), std::string::npos)
       << result.out;
+  fs::remove(relations);
+}
+
+TEST_F(EvalCliTest, RelationsBetweenKeyframesNeedTheOdometry) {
+  // 0.5 s and 2.5 s are no keyframe times. With the odometry: X(0.5) = keyframe 0 + 0.5 m,
+  // X(2.5) = keyframe 2 + 0.5 m, 2 m apart; the relation claims 2.2 m: error 0.2.
+  const std::string relations = TempPath("am_eval_cli_between.relations");
+  std::ofstream(relations) << "0.5 2.5 2.2 0 0 0 0 0\n";
+  const std::string common = "--relations " + relations + " --map " + map_ + " --robot R2 --json";
+  const RunResult keyframes_only = RunEval(common);
+  EXPECT_EQ(keyframes_only.exit_code, 1);
+  EXPECT_NE(keyframes_only.out.find("\"no_pose_near\": 1"), std::string::npos)
+      << keyframes_only.out;
+  const RunResult completed = RunEval(common + " --odometry " + truth_);
+  ASSERT_EQ(completed.exit_code, 0) << completed.err;
+  EXPECT_NE(completed.out.find("\"completed_trajectories\": 1"), std::string::npos);
+  EXPECT_NE(completed.out.find("\"translation_m\": {\"count\": 1, \"mean\": 0.2,"),
+            std::string::npos)
+      << completed.out;
   fs::remove(relations);
 }
 

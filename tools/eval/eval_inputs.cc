@@ -143,6 +143,32 @@ double YawOfQuaternion(double w, double x, double y, double z) {
   return std::atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
 }
 
+Status ReadPoseChannels(const std::string& path, const std::string& suffix,
+                        std::map<std::string, StampedTrajectory>* by_robot, int64_t* undecodable) {
+  by_robot->clear();
+  LcmLogReader reader;
+  if (Status s = reader.Open(path); !s.ok()) return s;
+  while (auto event = reader.Next()) {
+    const std::string& channel = event->channel;
+    if (channel.size() <= suffix.size() ||
+        channel.compare(channel.size() - suffix.size(), suffix.size(), suffix) != 0) {
+      continue;
+    }
+    const auto pose = DecodeAs<bot_core::pose_t>(*event);
+    const Pose2 pose2 = pose ? Pose2(pose->pos[0], pose->pos[1],
+                                     YawOfQuaternion(pose->orientation[0], pose->orientation[1],
+                                                     pose->orientation[2], pose->orientation[3]))
+                             : Pose2();
+    if (!pose || !pose2.IsFinite()) {
+      ++*undecodable;
+      continue;
+    }
+    (*by_robot)[channel.substr(0, channel.size() - suffix.size())].push_back({pose->utime, pose2});
+  }
+  for (auto& [robot, poses] : *by_robot) SortByTime(&poses);
+  return Status::Ok();
+}
+
 Status ReadReferences(const std::string& path, const std::string& tum_robot,
                       ReferenceSet* references) {
   *references = ReferenceSet();
@@ -156,35 +182,16 @@ Status ReadReferences(const std::string& path, const std::string& tum_robot,
     references->source_by_robot[tum_robot] = path;
     return Status::Ok();
   }
-  LcmLogReader reader;
-  if (Status s = reader.Open(path); !s.ok()) return s;
   static const char* const kSuffixes[2] = {"_GROUND_TRUTH", "_REFERENCE"};  // preference order
-  std::map<std::string, StampedTrajectory> by_channel[2];
-  while (auto event = reader.Next()) {
-    for (int k = 0; k < 2; ++k) {
-      const std::string suffix = kSuffixes[k];
-      const std::string& channel = event->channel;
-      if (channel.size() <= suffix.size() ||
-          channel.compare(channel.size() - suffix.size(), suffix.size(), suffix) != 0) {
-        continue;
-      }
-      const auto pose = DecodeAs<bot_core::pose_t>(*event);
-      const Pose2 pose2 = pose ? Pose2(pose->pos[0], pose->pos[1],
-                                       YawOfQuaternion(pose->orientation[0], pose->orientation[1],
-                                                       pose->orientation[2], pose->orientation[3]))
-                               : Pose2();
-      if (!pose || !pose2.IsFinite()) {
-        ++references->undecodable;
-        break;
-      }
-      by_channel[k][channel.substr(0, channel.size() - suffix.size())].push_back(
-          {pose->utime, pose2});
-      break;
+  std::map<std::string, StampedTrajectory> by_suffix[2];
+  for (int k = 0; k < 2; ++k) {
+    if (Status s = ReadPoseChannels(path, kSuffixes[k], &by_suffix[k], &references->undecodable);
+        !s.ok()) {
+      return s;
     }
   }
   for (int k = 1; k >= 0; --k) {  // ground truth overwrites reference
-    for (auto& [robot, poses] : by_channel[k]) {
-      SortByTime(&poses);
+    for (auto& [robot, poses] : by_suffix[k]) {
       references->by_robot[robot] = std::move(poses);
       references->source_by_robot[robot] = robot + kSuffixes[k];
     }

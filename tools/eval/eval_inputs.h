@@ -58,6 +58,11 @@ struct ReferenceSet {
 // Yaw of a unit quaternion (w, x, y, z) (bot_core.pose_t's orientation).
 double YawOfQuaternion(double w, double x, double y, double z);
 
+// Every channel <ROBOT><suffix> of an LCM log decoded as bot_core.pose_t, per robot, sorted by
+// time; messages that do not decode or carry non-finite poses are counted in *undecodable.
+Status ReadPoseChannels(const std::string& path, const std::string& suffix,
+                        std::map<std::string, StampedTrajectory>* by_robot, int64_t* undecodable);
+
 // Reads references from an LCM log (<ROBOT>_GROUND_TRUTH preferred over <ROBOT>_REFERENCE
 // when a log has both) or from a TUM file as robot `tum_robot`. Fails when nothing is found.
 Status ReadReferences(const std::string& path, const std::string& tum_robot,

@@ -8,6 +8,7 @@
 // nothing could be evaluated, 2 bad command line.
 
 #include <iostream>
+#include <map>
 #include <string>
 
 #include <boost/program_options.hpp>
@@ -24,7 +25,8 @@ namespace {
 
 const char* kUsage =
     "Usage: anchormap-eval --map OUT.lcmlog --truth SIM.lcmlog [--json]\n"
-    "       anchormap-eval --relations FILE.relations --map OUT.lcmlog [--robot R1] [--json]\n"
+    "       anchormap-eval --relations FILE.relations --map OUT.lcmlog [--robot R1]\n"
+    "                      [--odometry RAW.lcmlog] [--json]\n"
     "The estimate is the last merged map (anchormap.merged_map_t) of a server output log, or a\n"
     "TUM trajectory file. The reference is every <R>_GROUND_TRUTH or <R>_REFERENCE channel of a\n"
     "raw log (simulator, CARMEN importer), or a TUM trajectory file.\n";
@@ -37,7 +39,8 @@ int Fail(const std::string& message, int code) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string map_path, truth_path, relations_path, robot, map_channel = "ANCHORMAP_MERGED_MAP";
+  std::string map_path, truth_path, relations_path, robot, odometry_path;
+  std::string map_channel = "ANCHORMAP_MERGED_MAP";
   RelationsOptions relations_options;
   bool json = false;
   po::options_description visible("Options");
@@ -53,6 +56,9 @@ int main(int argc, char** argv) {
       "an estimated pose and a reference pose or relation time match when this close in time")(
       "map-channel", po::value(&map_channel)->default_value(map_channel),
       "channel of the merged map in the server's output log")(
+      "odometry", po::value(&odometry_path),
+      "relations: the raw log (<R>_ODOMETRY); poses at the relations' times are then the "
+      "nearest keyframe plus the odometry motion since it, instead of keyframes only")(
       "json", po::bool_switch(&json), "print one JSON object instead of a table");
   po::variables_map vm;
   try {
@@ -103,8 +109,24 @@ int main(int argc, char** argv) {
   if (Status s = ReadRelationsFile(relations_path, &relations); !s.ok()) {
     return Fail(s.message(), 1);
   }
+  std::map<std::string, StampedTrajectory> odometry_by_robot;
+  OdometryCompletion completion;
+  int completed_trajectories = 0;
+  if (!odometry_path.empty()) {
+    int64_t undecodable = 0;
+    if (Status s = ReadPoseChannels(odometry_path, "_ODOMETRY", &odometry_by_robot, &undecodable);
+        !s.ok()) {
+      return Fail(s.message(), 1);
+    }
+    if (odometry_by_robot.empty()) return Fail(odometry_path + ": no <R>_ODOMETRY channel", 1);
+    completion.odometry_by_robot = &odometry_by_robot;
+    completion.relations = &relations;
+    completion.max_time_gap_s = relations_options.max_time_gap_s;
+    completion.completed_trajectories = &completed_trajectories;
+  }
   RelationsEstimate relations_estimate;
-  if (Status s = BuildRelationsEstimate(estimate, robot, &relations_estimate); !s.ok()) {
+  if (Status s = BuildRelationsEstimate(estimate, robot, completion, &relations_estimate);
+      !s.ok()) {
     return Fail(map_path + ": " + s.message(), 1);
   }
   RelationsReport report;
@@ -115,6 +137,8 @@ int main(int argc, char** argv) {
   report.estimate_poses = static_cast<int64_t>(relations_estimate.poses.size());
   report.max_time_gap_s = relations_options.max_time_gap_s;
   report.result = EvaluateRelations(relations, relations_estimate, relations_options);
+  report.odometry_path = odometry_path;
+  report.completed_trajectories = completed_trajectories;
   std::cout << (json ? FormatRelationsJson(report) : FormatRelationsTable(report));
   if (report.result.evaluated == 0) return Fail("no relation could be evaluated", 1);
   return 0;

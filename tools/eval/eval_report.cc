@@ -144,7 +144,13 @@ std::string FormatRelationsTable(const RelationsReport& r) {
       x.translation_m.min, x.translation_m.max, x.translation_sq_mean_m2, x.rotation_rad.mean,
       x.rotation_rad.std, x.rotation_rad.min, x.rotation_rad.max, x.rotation_sq_mean_rad2,
       x.rotation_rad.mean * 180.0 / M_PI, x.rotation_rad.std * 180.0 / M_PI);
-  return buffer;
+  std::string text = buffer;
+  if (!r.odometry_path.empty()) {
+    text += "poses at the relation times: nearest keyframe + odometry motion from " +
+            r.odometry_path + " (" + std::to_string(r.completed_trajectories) +
+            " trajectories completed)\n";
+  }
+  return text;
 }
 
 std::string FormatRelationsJson(const RelationsReport& r) {
@@ -154,8 +160,10 @@ std::string FormatRelationsJson(const RelationsReport& r) {
       << ", \"map\": " << JsonString(r.map_path)
       << ", \"robot\": " << (r.robot.empty() ? "null" : JsonString(r.robot))
       << ", \"map_update\": " << r.map_update << ", \"estimate_poses\": " << r.estimate_poses
-      << ", \"max_time_gap_s\": " << Number(r.max_time_gap_s) << ", \"relations\": " << x.relations
-      << ", \"evaluated\": " << x.evaluated
+      << ", \"max_time_gap_s\": " << Number(r.max_time_gap_s)
+      << ", \"odometry\": " << (r.odometry_path.empty() ? "null" : JsonString(r.odometry_path))
+      << ", \"completed_trajectories\": " << r.completed_trajectories
+      << ", \"relations\": " << x.relations << ", \"evaluated\": " << x.evaluated
       << ", \"skipped\": {\"outside_span\": " << x.skipped_outside_span
       << ", \"no_pose_near\": " << x.skipped_no_pose_near
       << ", \"across_frames\": " << x.skipped_across_frames

@@ -39,6 +39,8 @@ struct RelationsReport {
   int64_t map_update = -1;
   int64_t estimate_poses = 0;
   double max_time_gap_s = 0.0;
+  std::string odometry_path;       // "" = keyframes only
+  int completed_trajectories = 0;  // trajectories completed with odometry
   RelationsResult result;
 };
 

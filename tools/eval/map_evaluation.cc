@@ -1,5 +1,7 @@
 #include "tools/eval/map_evaluation.h"
 
+#include "tools/eval/odometry_completion.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -67,7 +69,23 @@ AteReport EvaluateAgainstReferences(const MapEstimate& estimate, const Reference
 
 Status BuildRelationsEstimate(const MapEstimate& estimate, const std::string& robot,
                               RelationsEstimate* relations_estimate) {
+  return BuildRelationsEstimate(estimate, robot, OdometryCompletion(), relations_estimate);
+}
+
+Status BuildRelationsEstimate(const MapEstimate& estimate, const std::string& robot,
+                              const OdometryCompletion& completion,
+                              RelationsEstimate* relations_estimate) {
   *relations_estimate = RelationsEstimate();
+  std::vector<int64_t> query_utimes;
+  if (completion.odometry_by_robot && completion.relations) {
+    for (const Relation& r : *completion.relations) {
+      query_utimes.push_back(std::llround(r.t1_s * 1e6));
+      query_utimes.push_back(std::llround(r.t2_s * 1e6));
+    }
+  }
+  const int64_t tolerance_us = std::llround(completion.max_time_gap_s * 1e6);
+  constexpr int64_t kMaxOdometrySampleGapUs = 1000000;
+  if (completion.completed_trajectories) *completion.completed_trajectories = 0;
   std::vector<std::pair<StampedPose2, int>> tagged;
   std::string robots;
   for (size_t i = 0; i < estimate.trajectories.size(); ++i) {
@@ -77,7 +95,18 @@ Status BuildRelationsEstimate(const MapEstimate& estimate, const std::string& ro
     // Groups are 0..G-1; unanchored trajectories get frames G, G+1, ... of their own.
     const int frame =
         t.anchored && t.group >= 0 ? t.group : estimate.num_groups + static_cast<int>(i);
-    for (const StampedPose2& pose : t.poses) tagged.push_back({pose, frame});
+    const StampedTrajectory* poses = &t.poses;
+    StampedTrajectory completed;
+    if (!query_utimes.empty()) {
+      const auto odometry = completion.odometry_by_robot->find(t.robot);
+      if (odometry != completion.odometry_by_robot->end()) {
+        completed = CompleteWithOdometry(t.poses, odometry->second, query_utimes, tolerance_us,
+                                         kMaxOdometrySampleGapUs);
+        poses = &completed;
+        if (completion.completed_trajectories) ++*completion.completed_trajectories;
+      }
+    }
+    for (const StampedPose2& pose : *poses) tagged.push_back({pose, frame});
   }
   if (tagged.empty()) {
     return Status::Error(robot.empty() ? "the estimate has no poses"
