@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
       "relations: evaluate this robot's trajectories only (default: all); also the robot name "
       "of a TUM file (default R1)")(
       "max-time-gap-s",
-      po::value(&relations_options.max_time_gap_s)->default_value(relations_options.max_time_gap_s),
+      po::value(&relations_options.max_time_gap_s)
+          ->default_value(relations_options.max_time_gap_s, "0.05"),
       "an estimated pose and a reference pose or relation time match when this close in time")(
       "map-channel", po::value(&map_channel)->default_value(map_channel),
       "channel of the merged map in the server's output log")(

@@ -111,9 +111,9 @@ int main(int argc, char** argv) {
       "robot name; with --split N the pieces are named from it (R1 -> R1..RN)")(
       "split", po::value(&options.split)->default_value(options.split),
       "cut the log by time into N consecutive pieces, each its own robot whose odometry starts "
-      "at the origin")("gap-fraction",
-                       po::value(&options.gap_fraction)->default_value(options.gap_fraction),
-                       "with --split: fraction of the log's duration dropped around each cut")(
+      "at the origin")(
+      "gap-fraction", po::value(&options.gap_fraction)->default_value(options.gap_fraction, "0.02"),
+      "with --split: fraction of the log's duration dropped around each cut")(
       "gap-s", po::value(&options.gap_s),
       "with --split: seconds dropped around each cut (overrides --gap-fraction)")(
       "lenient", po::bool_switch(&options.lenient),
