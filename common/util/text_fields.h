@@ -21,7 +21,8 @@ bool ParseFiniteDouble(std::string_view text, double* value);
 // Parses the whole of `text` as a decimal integer.
 bool ParseInt64(std::string_view text, int64_t* value);
 
-// `text` cut to at most `max_chars` characters with "..." appended when cut: for messages.
+// `text` for an error message: at most `max_chars` characters ("..." appended when cut),
+// bytes outside printable ASCII written as \xNN.
 std::string Abbreviate(std::string_view text, size_t max_chars = 32);
 
 }  // namespace anchormap

@@ -49,6 +49,7 @@ TEST(ParseInt64Test, AcceptsWholeIntegersOnly) {
 TEST(AbbreviateTest, CutsLongText) {
   EXPECT_EQ(Abbreviate("short"), "short");
   EXPECT_EQ(Abbreviate("abcdefgh", 3), "abc...");
+  EXPECT_EQ(Abbreviate(std::string("1\0\x0b\xff", 4)), "1\\x00\\x0b\\xff");
 }
 
 }  // namespace

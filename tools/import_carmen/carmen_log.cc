@@ -253,6 +253,9 @@ Status ParseCarmenLine(std::string_view line, CarmenRecord* record) {
 
 struct CarmenLogReader::File {
   gzFile gz = nullptr;
+  std::string buffer;  // decompressed bytes not yet returned, from `position` on
+  size_t position = 0;
+  bool at_end = false;
 };
 
 CarmenLogReader::CarmenLogReader() : file_(std::make_unique<File>()) {}
@@ -263,6 +266,7 @@ CarmenLogReader::~CarmenLogReader() {
 
 Status CarmenLogReader::Open(const std::string& path) {
   if (file_->gz) gzclose(file_->gz);
+  *file_ = File();
   path_ = path;
   line_number_ = 0;
   errno = 0;
@@ -272,36 +276,56 @@ Status CarmenLogReader::Open(const std::string& path) {
                             "': " + (errno ? std::strerror(errno) : "out of memory"));
     return status_;
   }
-  gzbuffer(file_->gz, 256 * 1024);
   status_ = Status::Ok();
   return status_;
 }
 
+// Reads with gzread into a buffer and splits at '\n' itself: gzgets would cut a line at an
+// embedded NUL byte and merge the rest with the next line, shifting every later line number.
 bool CarmenLogReader::ReadLine(std::string* line) {
   line->clear();
   if (!file_->gz || !status_.ok()) return false;
-  char chunk[64 * 1024];
-  bool got_any = false;
-  while (gzgets(file_->gz, chunk, sizeof(chunk)) != nullptr) {
-    got_any = true;
-    const size_t length = std::strlen(chunk);
-    line->append(chunk, length);
-    if (length > 0 && chunk[length - 1] == '\n') break;
-    if (line->size() > kMaxLineBytes) {
-      status_ = Status::Error(path_ + ":" + std::to_string(line_number_ + 1) +
-                              ": line longer than 64 MiB");
-      return false;
-    }
-  }
-  int error = Z_OK;
-  const char* message = gzerror(file_->gz, &error);
-  if (error != Z_OK && error != Z_STREAM_END) {
-    status_ = Status::Error(path_ + ":" + std::to_string(line_number_ + 1) +
-                            ": read error: " + (error == Z_ERRNO ? std::strerror(errno) : message));
+  const auto fail = [&](const std::string& reason) {
+    status_ = Status::Error(path_ + ":" + std::to_string(line_number_ + 1) + ": " + reason);
     return false;
+  };
+  for (;;) {
+    const size_t newline = file_->buffer.find('\n', file_->position);
+    if (newline != std::string::npos) {
+      line->assign(file_->buffer, file_->position, newline - file_->position);
+      file_->position = newline + 1;
+      break;
+    }
+    if (file_->at_end) {
+      if (file_->position >= file_->buffer.size()) return false;
+      line->assign(file_->buffer, file_->position, std::string::npos);  // no final newline
+      file_->position = file_->buffer.size();
+      break;
+    }
+    if (file_->buffer.size() - file_->position > kMaxLineBytes) {
+      return fail("line longer than 64 MiB");
+    }
+    file_->buffer.erase(0, file_->position);
+    file_->position = 0;
+    char chunk[256 * 1024];
+    const int read = gzread(file_->gz, chunk, sizeof(chunk));
+    if (read < 0) {
+      int error = Z_OK;
+      const char* message = gzerror(file_->gz, &error);
+      return fail(std::string("read error: ") +
+                  (error == Z_ERRNO ? std::strerror(errno) : message));
+    }
+    if (read == 0) {
+      int error = Z_OK;
+      const char* message = gzerror(file_->gz, &error);
+      if (error != Z_OK && error != Z_STREAM_END) {
+        return fail(std::string("read error: ") +
+                    (error == Z_ERRNO ? std::strerror(errno) : message));
+      }
+      file_->at_end = true;
+    }
+    file_->buffer.append(chunk, static_cast<size_t>(read));
   }
-  if (!got_any) return false;
-  if (!line->empty() && line->back() == '\n') line->pop_back();
   if (!line->empty() && line->back() == '\r') line->pop_back();
   ++line_number_;
   return true;

@@ -196,6 +196,20 @@ TEST(CarmenLogReaderTest, PlainAndGzipGiveTheSameLines) {
   }
 }
 
+TEST(CarmenLogReaderTest, NulBytesStayInsideTheirLine) {
+  const std::string path = TempPath("am_carmen_nul.log");
+  WriteFile(path, std::string("ODOM 0 0\0 0 0 0 0 1 h 1\nODOM 0 0 0 0 0 0 2 h 2\n", 47), false);
+  Status status = Status::Ok();
+  const std::vector<std::string> lines = ReadAllLines(path, &status);
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_EQ(lines[0].size(), 23u);
+  EXPECT_EQ(lines[1], "ODOM 0 0 0 0 0 0 2 h 2");
+  CarmenRecord record;
+  EXPECT_EQ(ParseCarmenLine(lines[0], &record).message(),
+            "ODOM: y '0\\x00' is not a finite number");
+  std::filesystem::remove(path);
+}
+
 TEST(CarmenLogReaderTest, TruncatedGzipIsAReadErrorNotASilentEnd) {
   std::string text;
   for (int i = 0; i < 20000; ++i) text += "ODOM " + std::to_string(i) + " 0 0 0 0 0 1 h 1\n";
