@@ -2,8 +2,8 @@
 
 #include <random>
 
-#include <Eigen/Dense>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 namespace anchormap {
 namespace {
@@ -42,7 +42,8 @@ TEST(CovarianceRecoveryTest, EveryBlockEqualsTheDenseInverse) {
   }
   for (int i = 0; i < n; ++i) {
     for (int l = 0; l < n; ++l) {
-      EXPECT_LT((recovery.Block(i, l) - sigma.block<3, 3>(3 * i, 3 * l)).cwiseAbs().maxCoeff(), 1e-9)
+      EXPECT_LT((recovery.Block(i, l) - sigma.block<3, 3>(3 * i, 3 * l)).cwiseAbs().maxCoeff(),
+                1e-9)
           << i << "," << l;
     }
   }

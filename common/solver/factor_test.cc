@@ -47,7 +47,9 @@ void ExpectJacobiansMatchNumeric(const Factor& factor, std::vector<Pose2> values
   const auto numeric = NumericJacobian(f, x, 1e-7);
   for (int k = 0; k < n; ++k) {
     EXPECT_LT((numeric.block<3, 3>(0, 3 * k) - J[k]).cwiseAbs().maxCoeff(), 1e-5)
-        << "key " << k << "\nanalytic\n" << J[k] << "\nnumeric\n" << numeric.block<3, 3>(0, 3 * k);
+        << "key " << k << "\nanalytic\n"
+        << J[k] << "\nnumeric\n"
+        << numeric.block<3, 3>(0, 3 * k);
   }
 }
 
@@ -63,7 +65,8 @@ TEST(FactorTest, AllJacobiansEqualNumericDifferences) {
   const PoseKey a{0, 3}, b{1, 5};
   for (int trial = 0; trial < 50; ++trial) {
     const Pose2 z = RandomPoses(&rng, 1)[0];
-    ExpectJacobiansMatchNumeric(PriorFactor{a, z, Eigen::Matrix3d::Identity()}, RandomPoses(&rng, 1));
+    ExpectJacobiansMatchNumeric(PriorFactor{a, z, Eigen::Matrix3d::Identity()},
+                                RandomPoses(&rng, 1));
     ExpectJacobiansMatchNumeric(BetweenFactor{a, {0, 4}, z, Eigen::Matrix3d::Identity()},
                                 RandomPoses(&rng, 2));
     ExpectJacobiansMatchNumeric(GlobalEncounterFactor{a, b, z, Eigen::Matrix3d::Identity()},

@@ -61,7 +61,7 @@ class Smoother::Impl {
   Status AddPose(PoseKey key, const Pose2& initial);
   Status AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov);
   Status AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov);
-  UpdateResult Update(bool force_batch);
+  UpdateResult Update(bool force_batch, double convergence_step);
 
   bool Has(const Key& key) const { return index_.count(key) > 0; }
   int NumPoses(TrajectoryId t) const {
@@ -142,6 +142,7 @@ class Smoother::Impl {
   std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
   std::vector<TrajectoryId> trajectory_order_;
   bool merge_pending_ = false;
+  double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
   int64_t nonzeros_after_batch_ = 0;
   SmootherStats stats_;
@@ -387,9 +388,7 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
       rows.blocks.emplace_back(position, lin.jacobians[j]);
       rows.rhs += lin.jacobians[j] * delta_[position];
     }
-    const size_t before = touched.size();
     R.Eliminate(std::move(rows), &touched);
-    stats_.givens_block_eliminations += static_cast<int64_t>(touched.size() - before);
   }
   result->factors_added = static_cast<int>(ready.size());
   TakeOutOfPending(ready);
@@ -502,8 +501,8 @@ void Smoother::Impl::BatchStep(bool converge, UpdateResult* result) {
   updates_since_batch_ = 0;
 }
 
-void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
-                                           int max_iterations, UpdateResult* result) {
+void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
+                                           UpdateResult* result) {
   // R stays linearised at the last point; the final delta is kept (not folded into the
   // linearisation point) so that incremental updates continue consistently from R.
   for (int it = 0; it < max_iterations; ++it) {
@@ -515,7 +514,7 @@ void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
     }
     if (!FactorAll(included, result)) return;
     ++result->iterations;
-    if (MaxAbs(delta_) < options_.convergence_step) break;
+    if (MaxAbs(delta_) < tolerance_) break;
   }
   stats_.iterations_to_convergence += result->iterations;
 }
@@ -604,14 +603,14 @@ void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, int 
         chi2 = new_chi2;
       }
     }
-    if (!accepted || MaxAbs(h) < options_.convergence_step) break;
+    if (!accepted || MaxAbs(h) < tolerance_) break;
   }
   stats_.iterations_to_convergence += result->iterations;
   // Leave R linearised at the final point, with its Gauss-Newton solution as delta.
   FactorAll(included, result);
 }
 
-UpdateResult Smoother::Impl::Update(bool force_batch) {
+UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   const auto start = std::chrono::steady_clock::now();
   UpdateResult result;
   result.update = ++stats_.updates;
@@ -634,6 +633,7 @@ UpdateResult Smoother::Impl::Update(bool force_batch) {
     }
     const bool converge = force_batch || merge_pending_ || options_.converge_periodic_batches;
     merge_pending_ = false;
+    tolerance_ = convergence_step > 0 ? convergence_step : options_.convergence_step;
     BatchStep(converge, &result);
     stats_.batch_seconds += Seconds(start);
     ++stats_.batch_steps;
@@ -651,6 +651,8 @@ UpdateResult Smoother::Impl::Update(bool force_batch) {
   result.anchors_created = CountAnchors() - anchors_before;
   stats_.rows_backsubstituted += result.rows_backsubstituted;
   stats_.nnz_r = r_->NonZeros();
+  stats_.givens_block_rows = r_->eliminated_block_rows();
+  stats_.givens_block_columns = r_->eliminated_block_columns();
   result.seconds = Seconds(start);
   return result;
 }
@@ -709,8 +711,10 @@ Status Smoother::AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eige
 Status Smoother::AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov) {
   return impl_->AddEncounter(a, b, z, cov);
 }
-UpdateResult Smoother::Update() { return impl_->Update(false); }
-UpdateResult Smoother::BatchOptimize() { return impl_->Update(true); }
+UpdateResult Smoother::Update() { return impl_->Update(false, 0.0); }
+UpdateResult Smoother::BatchOptimize(double convergence_step) {
+  return impl_->Update(true, convergence_step);
+}
 bool Smoother::HasPose(PoseKey key) const { return impl_->Has(key); }
 int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t); }
 std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }

@@ -45,11 +45,12 @@ struct SmootherStats {
   int64_t batch_iterations = 0;  // summed over batch steps
   int64_t iterations_to_convergence =
       0;  // batch iterations until the step fell below convergence_step
-  int64_t givens_block_eliminations = 0;
+  int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations
+  int64_t givens_block_columns = 0;  // block columns they spanned (the elimination work)
   int64_t rows_backsubstituted = 0;
   int64_t variables = 0;
   int64_t factors = 0;
-  int64_t nnz_r = 0;  // scalar non-zeros of R (upper triangle)
+  int64_t nnz_r = 0;                 // scalar non-zeros of R (upper triangle)
   double batch_seconds = 0.0;        // time spent in batch steps
   double incremental_seconds = 0.0;  // time spent in incremental updates
 };
@@ -82,8 +83,9 @@ class Smoother {
 
   // Folds everything added since the last call into the solution.
   UpdateResult Update();
-  // Forces a batch step now (relinearise, reorder, refactor, iterate to convergence).
-  UpdateResult BatchOptimize();
+  // Forces a batch step now (relinearise, reorder, refactor, iterate until the largest step
+  // component is below `convergence_step`; <= 0 means options().convergence_step).
+  UpdateResult BatchOptimize(double convergence_step = 0.0);
 
   // --- Estimates (valid after Update()) ---
   bool HasPose(PoseKey key) const;

@@ -23,17 +23,22 @@ PoseGraph AddRandomTrajectory(Smoother* smoother, TrajectoryId t, int poses, uin
   const PoseGraph graph = testing::RandomGraph(options);
   for (int i = 0; i < poses; ++i) {
     Pose2 initial;
-    if (i > 0) initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+    if (i > 0)
+      initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
     EXPECT_TRUE(smoother->AddPose({t, i}, initial).ok());
     if (i > 0) {
-      EXPECT_TRUE(smoother->AddBetween({t, i - 1}, {t, i}, graph.edges[i - 1].measured_T_from_to,
-                                       graph.edges[i - 1].information.inverse()).ok());
+      EXPECT_TRUE(smoother
+                      ->AddBetween({t, i - 1}, {t, i}, graph.edges[i - 1].measured_T_from_to,
+                                   graph.edges[i - 1].information.inverse())
+                      .ok());
     }
     for (size_t e = poses - 1; e < graph.edges.size(); ++e) {
       if (graph.edges[e].to == i) {
-        EXPECT_TRUE(smoother->AddBetween({t, static_cast<int32_t>(graph.edges[e].from)}, {t, i},
-                                         graph.edges[e].measured_T_from_to,
-                                         graph.edges[e].information.inverse()).ok());
+        EXPECT_TRUE(smoother
+                        ->AddBetween({t, static_cast<int32_t>(graph.edges[e].from)}, {t, i},
+                                     graph.edges[e].measured_T_from_to,
+                                     graph.edges[e].information.inverse())
+                        .ok());
       }
     }
     if (update_each_step) {
@@ -53,10 +58,12 @@ Values CurrentValues(const Smoother& smoother) {
 
 TEST(SmootherTest, RejectsBadInputWithReasons) {
   Smoother smoother;
-  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2()).message(), "trajectory 0 must start with pose index 0");
+  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2()).message(),
+            "trajectory 0 must start with pose index 0");
   ASSERT_TRUE(smoother.AddPose({0, 0}, Pose2()).ok());
   EXPECT_EQ(smoother.AddPose({0, 0}, Pose2()).message(), "pose pose(0,0) exists already");
-  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2(std::nan(""), 0, 0)).message(), "initial pose is not finite");
+  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2(std::nan(""), 0, 0)).message(),
+            "initial pose is not finite");
   ASSERT_TRUE(smoother.AddPose({0, 1}, Pose2()).ok());
   Eigen::Matrix3d bad = kCovariance;
   bad(2, 2) = -1;
@@ -101,7 +108,8 @@ TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
       const DenseOracle oracle(smoother.ActiveFactors());
       const Values optimum = oracle.Solve(CurrentValues(smoother));
       for (const auto& [key, value] : optimum) {
-        EXPECT_LT(PoseError(smoother.Value(key), value).cwiseAbs().maxCoeff(), 1e-6) << key.ToString();
+        EXPECT_LT(PoseError(smoother.Value(key), value).cwiseAbs().maxCoeff(), 1e-6)
+            << key.ToString();
       }
       EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-6 * oracle.Chi2(optimum));
     }
@@ -119,12 +127,15 @@ TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   ASSERT_TRUE(smoother.BatchOptimize().status.ok());
   const DenseOracle oracle(smoother.ActiveFactors());
   const Values values = CurrentValues(smoother);
-  const std::vector<Key> keys = {AnchorKey{0}, AnchorKey{1}, PoseKey{0, 10}, PoseKey{1, 3}, PoseKey{0, 0}};
+  const std::vector<Key> keys = {AnchorKey{0}, AnchorKey{1}, PoseKey{0, 10}, PoseKey{1, 3},
+                                 PoseKey{0, 0}};
   const Eigen::MatrixXd expected = oracle.Covariance(values, keys);
   const Eigen::MatrixXd joint = smoother.JointCovariance(keys);
   EXPECT_LT((joint - expected).cwiseAbs().maxCoeff(), 1e-9 * expected.cwiseAbs().maxCoeff());
   for (size_t k = 0; k < keys.size(); ++k) {
-    EXPECT_LT((smoother.MarginalCovariance(keys[k]) - expected.block<3, 3>(3 * k, 3 * k)).cwiseAbs().maxCoeff(),
+    EXPECT_LT((smoother.MarginalCovariance(keys[k]) - expected.block<3, 3>(3 * k, 3 * k))
+                  .cwiseAbs()
+                  .maxCoeff(),
               1e-9 * expected.cwiseAbs().maxCoeff());
   }
   EXPECT_THROW(smoother.MarginalCovariance(PoseKey{7, 0}), std::invalid_argument);

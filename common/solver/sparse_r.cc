@@ -75,6 +75,8 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
       }
     }
     const int m = static_cast<int>(columns.size());
+    ++eliminated_block_rows_;
+    eliminated_block_columns_ += m + 1;
     if (W.cols() < 3 + 3 * m + 1) W.resize(6, 2 * (3 + 3 * m + 1));  // amortised growth
     const int width = 3 + 3 * m + 1;
     W.leftCols(width).setZero();

@@ -54,6 +54,10 @@ class SparseR {
   // Block rows that have a block in column q (q excluded), for propagation and covariances.
   const std::vector<int>& RowsReferencing(int q) const { return column_rows_[q]; }
 
+  // Work counters: block rows met by Eliminate, and the block columns they spanned.
+  int64_t eliminated_block_rows() const { return eliminated_block_rows_; }
+  int64_t eliminated_block_columns() const { return eliminated_block_columns_; }
+
   // Scalar non-zeros of R (6 per diagonal block, 9 per off-diagonal block).
   int64_t NonZeros() const { return nonzeros_; }
   // Smallest |diagonal entry| of R: near zero means an unconstrained variable.
@@ -70,6 +74,8 @@ class SparseR {
   std::vector<int> scratch_columns_;
   std::vector<char> scratch_dirty_;
   int64_t nonzeros_ = 0;
+  int64_t eliminated_block_rows_ = 0;
+  int64_t eliminated_block_columns_ = 0;
 };
 
 // Solves R^T y = g by block forward substitution, R given by its block rows and g indexed

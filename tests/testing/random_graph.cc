@@ -1,5 +1,6 @@
 #include "tests/testing/random_graph.h"
 
+#include <cmath>
 #include <random>
 
 namespace anchormap::testing {
@@ -20,7 +21,13 @@ PoseGraph RandomGraph(const RandomGraphOptions& options) {
   };
   for (int i = 0; i < options.poses; ++i) {
     graph.vertices.push_back({i, pose});
-    const Pose2 step(1.0, 0.0, turn(rng));
+    // Steer back towards the origin beyond the arena radius, so the walk revisits places.
+    double heading_change = turn(rng);
+    if (pose.translation().norm() > options.arena_radius_m) {
+      const double home = std::atan2(-pose.y(), -pose.x());
+      heading_change = 0.5 * AngleDifference(home, pose.theta());
+    }
+    const Pose2 step(1.0, 0.0, heading_change);
     if (i + 1 < options.poses) {
       graph.edges.push_back({i, i + 1, noisy(step), information});
       pose = Compose(pose, step);

@@ -9,9 +9,10 @@ namespace anchormap::testing {
 
 struct RandomGraphOptions {
   int poses = 100;
-  int loop_closures = 20;         // between random earlier poses within max_loop_distance_m
+  int loop_closures = 20;  // between random earlier poses within max_loop_distance_m
   double max_loop_distance_m = 3.0;
-  double sigma_xy_m = 0.05;       // measurement noise
+  double arena_radius_m = 10.0;  // the walk turns home beyond this distance from its start
+  double sigma_xy_m = 0.05;      // measurement noise
   double sigma_theta_rad = 0.02;
   uint32_t seed = 1;
 };

@@ -77,14 +77,16 @@ Flags ParseFlags(int argc, char** argv) {
     } else if (arg == "--formulation") {
       const std::string text = value();
       auto formulation = ParseFormulation(text);
-      if (!formulation) Fail("--formulation must be relative, global or global-moved, got '" + text + "'");
+      if (!formulation)
+        Fail("--formulation must be relative, global or global-moved, got '" + text + "'");
       flags.smoother.formulation = *formulation;
     } else if (arg == "--batch-every") {
       flags.smoother.batch_every_updates = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--method") {
       const std::string method = value();
       if (method != "gn" && method != "dogleg") Fail("--method must be gn or dogleg");
-      flags.smoother.method = method == "gn" ? NonlinearMethod::kGaussNewton : NonlinearMethod::kDogLeg;
+      flags.smoother.method =
+          method == "gn" ? NonlinearMethod::kGaussNewton : NonlinearMethod::kDogLeg;
     } else if (arg == "--threshold") {
       flags.smoother.backsubstitution_threshold = ParseNumber(arg, value());
     } else if (arg == "--fill-factor") {
@@ -182,18 +184,23 @@ int Run(const Flags& flags) {
         "\"chi2_after_final_batch\": %.6f, \"chi2_batch_optimum\": %.6f, "
         "\"chi2_relative_difference\": %.3e, \"nnz_per_column\": %.3f, "
         "\"iterations_to_1e-4\": %lld, \"rows_backsubstituted_per_step\": %.1f, "
+        "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
-        flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method,
-        replay.num_poses(), static_cast<long long>(stats.factors), replay.num_edges(),
-        replay.num_encounters(), replay.robots(), flags.smoother.batch_every_updates,
+        flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
+        static_cast<long long>(stats.factors), replay.num_edges(), replay.num_encounters(),
+        replay.robots(), flags.smoother.batch_every_updates,
         flags.smoother.backsubstitution_threshold, total_s, Percentile(step_ms, 0.5),
         Percentile(step_ms, 0.99), Percentile(step_ms, 1.0), stats.batch_seconds,
-        stats.incremental_seconds, static_cast<long long>(stats.batch_steps), static_cast<long long>(stats.batch_steps_on_clock),
+        stats.incremental_seconds, static_cast<long long>(stats.batch_steps),
+        static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
         static_cast<long long>(stats.batch_iterations), chi2, chi2_final_batch, chi2_reference,
-        relative_difference, nnz_per_column, static_cast<long long>(stats.iterations_to_convergence),
+        relative_difference, nnz_per_column,
+        static_cast<long long>(stats.iterations_to_convergence),
         static_cast<double>(stats.rows_backsubstituted) / std::max<size_t>(1, step_ms.size()),
+        static_cast<long long>(stats.givens_block_rows),
+        static_cast<long long>(stats.givens_block_columns),
         failures, first_failure.c_str());
   } else {
     std::printf("graph %s: %d poses, %d edges (%d encounters), %d robot(s), %s formulation\n",
@@ -206,19 +213,21 @@ int Run(const Flags& flags) {
       std::printf(", step median %.3f ms, p99 %.3f ms, max %.3f ms", Percentile(step_ms, 0.5),
                   Percentile(step_ms, 0.99), Percentile(step_ms, 1.0));
     }
-    std::printf("\ntime in batch steps %.3f s, in incremental steps %.3f s\n",
-                stats.batch_seconds, stats.incremental_seconds);
-    std::printf("batch steps %lld (clock %lld, fill %lld, merge %lld), iterations %lld, "
-                "iterations to 1e-4: %lld\n",
-                static_cast<long long>(stats.batch_steps),
-                static_cast<long long>(stats.batch_steps_on_clock),
-                static_cast<long long>(stats.batch_steps_on_fill),
-                static_cast<long long>(stats.batch_steps_on_merge),
-                static_cast<long long>(stats.batch_iterations),
-                static_cast<long long>(stats.iterations_to_convergence));
-    std::printf("chi2 %.4f, after a final batch step %.4f, batch optimum %.4f (relative "
-                "difference %.2e); nnz/column of R %.2f\n",
-                chi2, chi2_final_batch, chi2_reference, relative_difference, nnz_per_column);
+    std::printf("\ntime in batch steps %.3f s, in incremental steps %.3f s\n", stats.batch_seconds,
+                stats.incremental_seconds);
+    std::printf(
+        "batch steps %lld (clock %lld, fill %lld, merge %lld), iterations %lld, "
+        "iterations to 1e-4: %lld\n",
+        static_cast<long long>(stats.batch_steps),
+        static_cast<long long>(stats.batch_steps_on_clock),
+        static_cast<long long>(stats.batch_steps_on_fill),
+        static_cast<long long>(stats.batch_steps_on_merge),
+        static_cast<long long>(stats.batch_iterations),
+        static_cast<long long>(stats.iterations_to_convergence));
+    std::printf(
+        "chi2 %.4f, after a final batch step %.4f, batch optimum %.4f (relative "
+        "difference %.2e); nnz/column of R %.2f\n",
+        chi2, chi2_final_batch, chi2_reference, relative_difference, nnz_per_column);
     if (failures) std::printf("%d failure(s), first: %s\n", failures, first_failure.c_str());
   }
   return failures == 0 ? 0 : 1;

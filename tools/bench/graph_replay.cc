@@ -20,6 +20,10 @@ GraphReplay::GraphReplay(const PoseGraph& graph, int robots) : robots_(std::max(
   for (int r = 0; r < robots_; ++r) longest = std::max<int>(longest, starts_[r + 1] - starts_[r]);
   steps_.resize(longest);
 
+  if (graph.vertices.size() == static_cast<size_t>(num_poses_)) {
+    vertices_.resize(num_poses_);
+    for (const GraphVertex& v : graph.vertices) vertices_[v.id] = v.pose;
+  }
   std::vector<const GraphEdge*> odometry_of(num_poses_, nullptr);
   for (const GraphEdge& e : graph.edges) {
     const PoseKey a = KeyOf(e.from), b = KeyOf(e.to);
@@ -43,25 +47,29 @@ GraphReplay::GraphReplay(const PoseGraph& graph, int robots) : robots_(std::max(
 }
 
 PoseKey GraphReplay::KeyOf(int64_t id) const {
-  const int r = static_cast<int>(std::upper_bound(starts_.begin(), starts_.end(), id) -
-                                 starts_.begin()) - 1;
+  const int r =
+      static_cast<int>(std::upper_bound(starts_.begin(), starts_.end(), id) - starts_.begin()) - 1;
   return PoseKey{r, static_cast<int32_t>(id - starts_[r])};
 }
 
-Status GraphReplay::AddStep(int k, Smoother* smoother) const {
+Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertices) const {
   const Step& step = steps_[k];
   for (size_t n = 0; n < step.new_poses.size(); ++n) {
     const PoseKey key = KeyOf(step.new_poses[n]);
     const GraphEdge* odometry = step.odometry[n];
     Pose2 initial;
-    if (key.index > 0) {
-      if (!odometry) return Status::Error("pose " + std::to_string(step.new_poses[n]) + " has no odometry edge");
+    if (initial_from_vertices) {
+      initial = Between(vertices_[starts_[key.trajectory]], vertices_[step.new_poses[n]]);
+    } else if (key.index > 0) {
+      if (!odometry)
+        return Status::Error("pose " + std::to_string(step.new_poses[n]) + " has no odometry edge");
       initial = Compose(smoother->LocalPose(KeyOf(odometry->from)), odometry->measured_T_from_to);
     }
     if (Status s = smoother->AddPose(key, initial); !s.ok()) return s;
     if (odometry) {
-      const Status s = smoother->AddBetween(KeyOf(odometry->from), key, odometry->measured_T_from_to,
-                                            odometry->information.inverse());
+      const Status s =
+          smoother->AddBetween(KeyOf(odometry->from), key, odometry->measured_T_from_to,
+                               odometry->information.inverse());
       if (!s.ok()) return s;
     }
   }
@@ -76,9 +84,12 @@ Status GraphReplay::AddStep(int k, Smoother* smoother) const {
   return Status::Ok();
 }
 
-Status GraphReplay::AddAll(Smoother* smoother) const {
+Status GraphReplay::AddAll(Smoother* smoother, bool initial_from_vertices) const {
+  if (initial_from_vertices && !has_all_vertices()) {
+    return Status::Error("the graph file does not have a vertex for every pose");
+  }
   for (int k = 0; k < num_steps(); ++k) {
-    if (Status s = AddStep(k, smoother); !s.ok()) return s;
+    if (Status s = AddStep(k, smoother, initial_from_vertices); !s.ok()) return s;
   }
   return Status::Ok();
 }

@@ -33,9 +33,12 @@ class GraphReplay {
   // Adds step `k` to `smoother`: new poses, initialised by composing their odometry
   // measurement onto the smoother's current estimate of the previous pose (the origin
   // for a piece's first pose), then the step's edges.
-  Status AddStep(int k, Smoother* smoother) const;
-  // Adds every step without updating (for a batch solve).
-  Status AddAll(Smoother* smoother) const;
+  Status AddStep(int k, Smoother* smoother, bool initial_from_vertices = false) const;
+  // Adds every step without updating (for a batch solve). With `initial_from_vertices`
+  // the initial guess is the file's VERTEX values (expressed in each piece's first pose)
+  // instead of composed odometry; needs a vertex for every pose.
+  Status AddAll(Smoother* smoother, bool initial_from_vertices = false) const;
+  bool has_all_vertices() const { return vertices_.size() == static_cast<size_t>(num_poses_); }
 
  private:
   struct Step {
@@ -47,7 +50,9 @@ class GraphReplay {
   int num_poses_ = 0;
   int num_edges_ = 0;
   int num_encounters_ = 0;
-  std::vector<int64_t> starts_;  // first global id of each piece (size robots + 1)
+  std::vector<int64_t> starts_;
+  std::vector<Pose2> vertices_;  // by id, when the file has every vertex  // first global id of
+                                 // each piece (size robots + 1)
   std::vector<Step> steps_;
 };
 

@@ -1,0 +1,164 @@
+#include "tools/import_carmen/robot_streams.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+namespace anchormap {
+namespace {
+
+bool IsRobotName(const std::string& name) {
+  if (name.empty() || name.front() < 'A' || name.front() > 'Z') return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+std::string Seconds(int64_t utime) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.3f s", 1e-6 * static_cast<double>(utime));
+  return buffer;
+}
+
+}  // namespace
+
+Status CarmenImportOptions::Validate() const {
+  if (!IsRobotName(robot)) {
+    return Status::Error("robot: '" + robot + "' is not an upper-case name like R1");
+  }
+  if (split < 1 || split > 100) {
+    return Status::Error("split: " + std::to_string(split) + " is not in [1, 100]");
+  }
+  if (!(gap_fraction >= 0.0) || (split - 1) * gap_fraction >= 1.0 || gap_fraction >= 0.5) {
+    return Status::Error("gap_fraction: " + std::to_string(gap_fraction) +
+                         " must be >= 0, < 0.5 and leave time for every piece");
+  }
+  if (!std::isfinite(gap_s)) return Status::Error("gap_s: not a finite number");
+  return Status::Ok();
+}
+
+int64_t SecondsToUtime(double seconds) { return std::llround(seconds * 1e6); }
+
+std::vector<std::string> PieceRobotNames(const std::string& robot, int count) {
+  if (count <= 1) return {robot};
+  size_t digits_at = robot.size();
+  while (digits_at > 0 && std::isdigit(static_cast<unsigned char>(robot[digits_at - 1]))) {
+    --digits_at;
+  }
+  const std::string prefix = robot.substr(0, digits_at);
+  const int64_t first =
+      digits_at < robot.size() ? std::stoll(robot.substr(digits_at).substr(0, 9)) : 1;
+  std::vector<std::string> names;
+  for (int i = 0; i < count; ++i) names.push_back(prefix + std::to_string(first + i));
+  return names;
+}
+
+Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOptions& options,
+                         std::vector<RobotStream>* robots, SplitSummary* summary) {
+  if (Status s = options.Validate(); !s.ok()) return s;
+  *summary = SplitSummary();
+  robots->clear();
+
+  // Odometry in the log's frame, sorted by time; std::stable_sort keeps file order for ties.
+  OdometrySource source = options.odometry_source;
+  if (source == OdometrySource::kAuto) {
+    source = contents.odometry.empty() ? OdometrySource::kLaserLines : OdometrySource::kOdomLines;
+  }
+  summary->odometry_source_used = source;
+  std::vector<RobotOdometrySample> odometry;
+  if (source == OdometrySource::kOdomLines) {
+    for (const CarmenOdometry& o : contents.odometry) {
+      odometry.push_back({SecondsToUtime(o.ipc_time_s), o.pose, o.tv_mps, o.rv_radps});
+    }
+  } else {
+    for (const CarmenLaser& l : contents.lasers) {
+      odometry.push_back({SecondsToUtime(l.ipc_time_s), l.robot_pose, l.tv_mps, l.rv_radps});
+    }
+  }
+  const auto by_time = [](const auto& a, const auto& b) { return a.utime < b.utime; };
+  std::stable_sort(odometry.begin(), odometry.end(), by_time);
+
+  std::vector<size_t> scan_order(contents.lasers.size());
+  std::iota(scan_order.begin(), scan_order.end(), 0);
+  std::stable_sort(scan_order.begin(), scan_order.end(), [&](size_t a, size_t b) {
+    return contents.lasers[a].ipc_time_s < contents.lasers[b].ipc_time_s;
+  });
+
+  if (odometry.empty()) {
+    return Status::Error(source == OdometrySource::kOdomLines
+                             ? "the log has no ODOM lines (try the laser lines' odometry)"
+                             : "the log has no laser lines to take odometry from");
+  }
+  if (scan_order.empty()) return Status::Error("the log has no FLASER or ROBOTLASER1 lines");
+
+  const int64_t first_scan = SecondsToUtime(contents.lasers[scan_order.front()].ipc_time_s);
+  const int64_t last_scan = SecondsToUtime(contents.lasers[scan_order.back()].ipc_time_s);
+  summary->first_utime = std::min(odometry.front().utime, first_scan);
+  summary->last_utime = std::max(odometry.back().utime, last_scan);
+  const int pieces = options.split;
+  const double duration_us = static_cast<double>(summary->last_utime - summary->first_utime);
+  summary->gap_us = options.gap_s >= 0.0 ? SecondsToUtime(options.gap_s)
+                                         : std::llround(options.gap_fraction * duration_us);
+  for (int k = 1; k < pieces; ++k) {
+    summary->cut_utimes.push_back(summary->first_utime + std::llround(duration_us * k / pieces));
+  }
+  // The piece a time belongs to, or -1 inside a gap.
+  const auto piece_of = [&](int64_t utime) {
+    const auto& cuts = summary->cut_utimes;
+    const int k =
+        static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), utime) - cuts.begin());
+    if (k > 0 && 2 * (utime - cuts[k - 1]) < summary->gap_us) return -1;
+    if (k < pieces - 1 && 2 * (cuts[k] - utime) < summary->gap_us) return -1;
+    return k;
+  };
+
+  const std::vector<std::string> names = PieceRobotNames(options.robot, pieces);
+  robots->resize(pieces);
+  for (int k = 0; k < pieces; ++k) (*robots)[k].robot = names[k];
+  for (const RobotOdometrySample& sample : odometry) {
+    const int k = piece_of(sample.utime);
+    if (k < 0) {
+      ++summary->dropped_odometry;
+      continue;
+    }
+    (*robots)[k].odometry.push_back(sample);
+  }
+  for (size_t index : scan_order) {
+    const CarmenLaser& laser = contents.lasers[index];
+    const int64_t utime = SecondsToUtime(laser.ipc_time_s);
+    const int k = piece_of(utime);
+    if (k < 0) {
+      ++summary->dropped_scans;
+      continue;
+    }
+    RobotScan scan;
+    scan.utime = utime;
+    scan.rad0 = static_cast<float>(laser.start_angle_rad);
+    scan.radstep = static_cast<float>(laser.angular_resolution_rad);
+    scan.ranges_m = laser.ranges_m;
+    scan.intensities = laser.remissions;
+    (*robots)[k].scans.push_back(std::move(scan));
+    (*robots)[k].reference.push_back({utime, laser.laser_pose});
+  }
+
+  for (int k = 0; k < pieces; ++k) {
+    RobotStream& robot = (*robots)[k];
+    if (robot.odometry.empty()) {
+      const int64_t begin = k == 0 ? summary->first_utime : summary->cut_utimes[k - 1];
+      const int64_t end = k == pieces - 1 ? summary->last_utime : summary->cut_utimes[k];
+      return Status::Error("piece " + std::to_string(k + 1) + " (" + robot.robot +
+                           ") has no odometry between " + Seconds(begin) + " and " + Seconds(end) +
+                           ": gap too large for this log?");
+    }
+    if (pieces == 1) continue;  // the log's own frame
+    robot.T_log_odometry = robot.odometry.front().pose;
+    for (RobotOdometrySample& sample : robot.odometry) {
+      sample.pose = Between(robot.T_log_odometry, sample.pose);
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace anchormap

@@ -1,0 +1,176 @@
+#include "tools/import_carmen/robot_streams.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+namespace anchormap {
+namespace {
+
+// The robot's true path in the log's frame: a slow arc.
+Pose2 PathAt(double t) { return Pose2(0.1 * t, 0.02 * t * t, 0.01 * t); }
+
+// 90 s of log: ODOM every 0.1 s (901 lines), FLASER every 0.5 s (181 lines) whose laser pose
+// is the path shifted by 1 m in x (so reference and odometry are distinguishable).
+CarmenLogContents MakeLog() {
+  CarmenLogContents contents;
+  for (int i = 0; i <= 900; ++i) {
+    CarmenOdometry odometry;
+    odometry.ipc_time_s = 0.1 * i;
+    odometry.pose = PathAt(odometry.ipc_time_s);
+    odometry.tv_mps = 0.1;
+    contents.odometry.push_back(odometry);
+  }
+  for (int i = 0; i <= 180; ++i) {
+    CarmenLaser laser;
+    laser.ipc_time_s = 0.5 * i;
+    laser.robot_pose = PathAt(laser.ipc_time_s);
+    laser.laser_pose = Pose2(laser.robot_pose.x() + 1.0, laser.robot_pose.y(), 0.0);
+    laser.start_angle_rad = -M_PI / 2;
+    laser.angular_resolution_rad = M_PI / 180;
+    laser.ranges_m = {1.0f, 2.0f};
+    contents.lasers.push_back(laser);
+  }
+  return contents;
+}
+
+TEST(RobotStreamsTest, WithoutSplitEverythingStaysInTheLogFrame) {
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  CarmenImportOptions options;
+  ASSERT_TRUE(BuildRobotStreams(MakeLog(), options, &robots, &summary).ok());
+  ASSERT_EQ(robots.size(), 1u);
+  EXPECT_EQ(robots[0].robot, "R1");
+  EXPECT_EQ(robots[0].odometry.size(), 901u);
+  EXPECT_EQ(robots[0].scans.size(), 181u);
+  EXPECT_EQ(robots[0].reference.size(), 181u);
+  EXPECT_EQ(robots[0].odometry[900].utime, 90000000);
+  EXPECT_DOUBLE_EQ(robots[0].odometry[900].pose.y(), PathAt(90).y());
+  EXPECT_EQ(robots[0].scans[1].utime, 500000);
+  EXPECT_FLOAT_EQ(robots[0].scans[1].rad0, static_cast<float>(-M_PI / 2));
+  EXPECT_DOUBLE_EQ(robots[0].reference[1].pose.x(), PathAt(0.5).x() + 1.0);
+  EXPECT_EQ(summary.odometry_source_used, OdometrySource::kOdomLines);
+  EXPECT_DOUBLE_EQ(summary.duration_s(), 90.0);
+  EXPECT_EQ(summary.dropped_odometry + summary.dropped_scans, 0);
+}
+
+TEST(RobotStreamsTest, SplitMakesIndependentRobotsStartingAtTheOrigin) {
+  CarmenImportOptions options;
+  options.split = 3;
+  options.gap_s = 2.0;
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  ASSERT_TRUE(BuildRobotStreams(MakeLog(), options, &robots, &summary).ok());
+  ASSERT_EQ(robots.size(), 3u);
+  EXPECT_EQ(summary.cut_utimes, (std::vector<int64_t>{30000000, 60000000}));
+  EXPECT_EQ(summary.gap_us, 2000000);
+  // Dropped: times strictly within 1 s of a cut, 29.1..30.9 and 59.1..60.9 (19 + 19 ODOM),
+  // 29.5, 30, 30.5 and 59.5, 60, 60.5 (3 + 3 scans).
+  EXPECT_EQ(summary.dropped_odometry, 38);
+  EXPECT_EQ(summary.dropped_scans, 6);
+  // Pieces: [0, 29], [31, 59], [61, 90] s; 291 + 281 + 291 = 901 - 38 ODOM lines and
+  // 59 + 57 + 59 = 181 - 6 scans.
+  const int64_t expected_odometry[3] = {291, 281, 291};
+  const int64_t expected_scans[3] = {59, 57, 59};
+  const double first_time_s[3] = {0.0, 31.0, 61.0};
+  for (int k = 0; k < 3; ++k) {
+    const RobotStream& robot = robots[k];
+    EXPECT_EQ(robot.robot, "R" + std::to_string(k + 1));
+    EXPECT_EQ(static_cast<int64_t>(robot.odometry.size()), expected_odometry[k]) << k;
+    EXPECT_EQ(static_cast<int64_t>(robot.scans.size()), expected_scans[k]) << k;
+    EXPECT_EQ(robot.reference.size(), robot.scans.size());
+    // Starts at the origin of its own frame, which is the first pose in the log's frame.
+    EXPECT_EQ(robot.odometry.front().utime, std::llround(first_time_s[k] * 1e6));
+    EXPECT_NEAR(robot.odometry.front().pose.vector().norm(), 0.0, 1e-12);
+    const Pose2 origin = PathAt(first_time_s[k]);
+    EXPECT_NEAR(robot.T_log_odometry.x(), origin.x(), 1e-12);
+    EXPECT_NEAR(robot.T_log_odometry.y(), origin.y(), 1e-12);
+    // A later pose is the same motion re-expressed: origin (+) pose = the log's pose.
+    const RobotOdometrySample& last = robot.odometry.back();
+    const Pose2 in_log = Compose(robot.T_log_odometry, last.pose);
+    const Pose2 truth = PathAt(1e-6 * last.utime);
+    EXPECT_NEAR(in_log.x(), truth.x(), 1e-9);
+    EXPECT_NEAR(in_log.y(), truth.y(), 1e-9);
+    EXPECT_NEAR(in_log.theta(), truth.theta(), 1e-12);
+    // The reference stays in the log's frame.
+    EXPECT_NEAR(robot.reference.front().pose.x(),
+                PathAt(1e-6 * robot.reference.front().utime).x() + 1.0, 1e-12);
+  }
+}
+
+TEST(RobotStreamsTest, DefaultGapIsTwoPercentOfTheDuration) {
+  CarmenImportOptions options;
+  options.split = 2;
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  ASSERT_TRUE(BuildRobotStreams(MakeLog(), options, &robots, &summary).ok());
+  EXPECT_EQ(summary.gap_us, 1800000);  // 2% of 90 s
+  // Cut at 45 s; dropped: 44.2..45.8 (17 ODOM lines) and 44.5, 45, 45.5 (3 scans).
+  EXPECT_EQ(summary.dropped_odometry, 17);
+  EXPECT_EQ(summary.dropped_scans, 3);
+}
+
+TEST(RobotStreamsTest, SortsByTimeAndKeepsFileOrderForTies) {
+  CarmenLogContents contents = MakeLog();
+  std::swap(contents.odometry[10], contents.odometry[11]);  // 1.1 s logged before 1.0 s
+  contents.lasers[3].ipc_time_s = 0.1;                      // a late line with an early time
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  ASSERT_TRUE(BuildRobotStreams(contents, CarmenImportOptions(), &robots, &summary).ok());
+  for (size_t i = 1; i < robots[0].odometry.size(); ++i) {
+    ASSERT_LT(robots[0].odometry[i - 1].utime, robots[0].odometry[i].utime) << i;
+  }
+  EXPECT_EQ(robots[0].scans[1].utime, 100000);
+  EXPECT_EQ(robots[0].reference[1].utime, 100000);
+  EXPECT_NEAR(robots[0].reference[1].pose.x(), PathAt(1.5).x() + 1.0, 1e-12);
+}
+
+TEST(RobotStreamsTest, OdometryFromLaserLinesWhenTheLogHasNoOdom) {
+  CarmenLogContents contents = MakeLog();
+  contents.odometry.clear();
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  ASSERT_TRUE(BuildRobotStreams(contents, CarmenImportOptions(), &robots, &summary).ok());
+  EXPECT_EQ(summary.odometry_source_used, OdometrySource::kLaserLines);
+  ASSERT_EQ(robots[0].odometry.size(), 181u);
+  EXPECT_DOUBLE_EQ(robots[0].odometry[2].pose.x(), PathAt(1.0).x());
+
+  CarmenImportOptions from_odom;
+  from_odom.odometry_source = OdometrySource::kOdomLines;
+  EXPECT_EQ(BuildRobotStreams(contents, from_odom, &robots, &summary).message(),
+            "the log has no ODOM lines (try the laser lines' odometry)");
+}
+
+TEST(RobotStreamsTest, GapTooLargeIsAnErrorNamingThePiece) {
+  CarmenImportOptions options;
+  options.split = 3;
+  options.gap_s = 40.0;
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  EXPECT_EQ(BuildRobotStreams(MakeLog(), options, &robots, &summary).message(),
+            "piece 2 (R2) has no odometry between 30.000 s and 60.000 s: gap too large for "
+            "this log?");
+}
+
+TEST(CarmenImportOptionsTest, ValidateNamesTheField) {
+  CarmenImportOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.robot = "r1";
+  EXPECT_EQ(options.Validate().message(), "robot: 'r1' is not an upper-case name like R1");
+  options.robot = "R1";
+  options.split = 0;
+  EXPECT_EQ(options.Validate().message(), "split: 0 is not in [1, 100]");
+  options.split = 3;
+  options.gap_fraction = 0.6;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
+TEST(PieceRobotNamesTest, CountsOnFromTheGivenName) {
+  EXPECT_EQ(PieceRobotNames("R1", 1), (std::vector<std::string>{"R1"}));
+  EXPECT_EQ(PieceRobotNames("R1", 3), (std::vector<std::string>{"R1", "R2", "R3"}));
+  EXPECT_EQ(PieceRobotNames("R4", 2), (std::vector<std::string>{"R4", "R5"}));
+  EXPECT_EQ(PieceRobotNames("ALPHA", 2), (std::vector<std::string>{"ALPHA1", "ALPHA2"}));
+}
+
+}  // namespace
+}  // namespace anchormap

@@ -1,0 +1,142 @@
+#include "tools/import_carmen/robot_streams_writer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/bus/lcm_log.h"
+
+namespace anchormap {
+namespace {
+
+constexpr const char* kRobotToken = "{robot}";
+
+Status ValidatePattern(const char* name, const std::string& pattern) {
+  if (pattern.find(kRobotToken) == std::string::npos) {
+    return Status::Error(std::string(name) + " channel pattern '" + pattern +
+                         "' does not contain {robot}");
+  }
+  const std::string example = ChannelName(pattern, "R1");
+  for (char c : example) {
+    if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) {
+      return Status::Error(std::string(name) + " channel pattern '" + pattern +
+                           "' does not give an upper-case channel name");
+    }
+  }
+  return Status::Ok();
+}
+
+enum class Kind { kOdometry = 0, kScan = 1, kReference = 2 };
+
+struct Event {
+  int64_t utime;
+  Kind kind;
+  size_t robot;
+  size_t index;
+};
+
+}  // namespace
+
+Status ImportChannels::Validate() const {
+  if (Status s = ValidatePattern("odometry", odometry); !s.ok()) return s;
+  if (Status s = ValidatePattern("laser", laser); !s.ok()) return s;
+  return ValidatePattern("reference", reference);
+}
+
+std::string ChannelName(const std::string& pattern, const std::string& robot) {
+  std::string name = pattern;
+  const std::string token = kRobotToken;
+  for (size_t at = name.find(token); at != std::string::npos; at = name.find(token, at)) {
+    name.replace(at, token.size(), robot);
+    at += robot.size();
+  }
+  return name;
+}
+
+bot_core::pose_t ToPoseMessage(int64_t utime, const Pose2& pose, double tv_mps, double rv_radps) {
+  bot_core::pose_t message{};
+  message.utime = utime;
+  message.pos[0] = pose.x();
+  message.pos[1] = pose.y();
+  message.vel[0] = tv_mps * std::cos(pose.theta());
+  message.vel[1] = tv_mps * std::sin(pose.theta());
+  message.orientation[0] = std::cos(0.5 * pose.theta());
+  message.orientation[3] = std::sin(0.5 * pose.theta());
+  message.rotation_rate[2] = rv_radps;
+  return message;
+}
+
+bot_core::planar_lidar_t ToLidarMessage(const RobotScan& scan) {
+  bot_core::planar_lidar_t message{};
+  message.utime = scan.utime;
+  message.nranges = static_cast<int32_t>(scan.ranges_m.size());
+  message.ranges = scan.ranges_m;
+  message.nintensities = static_cast<int32_t>(scan.intensities.size());
+  message.intensities = scan.intensities;
+  message.rad0 = scan.rad0;
+  message.radstep = scan.radstep;
+  return message;
+}
+
+Status WriteRobotStreams(const std::vector<RobotStream>& robots, const ImportChannels& channels,
+                         const std::string& path, WriteCounts* counts) {
+  if (Status s = channels.Validate(); !s.ok()) return s;
+  *counts = WriteCounts();
+  std::vector<Event> events;
+  for (size_t r = 0; r < robots.size(); ++r) {
+    const RobotStream& robot = robots[r];
+    for (size_t i = 0; i < robot.odometry.size(); ++i) {
+      events.push_back({robot.odometry[i].utime, Kind::kOdometry, r, i});
+    }
+    for (size_t i = 0; i < robot.scans.size(); ++i) {
+      events.push_back({robot.scans[i].utime, Kind::kScan, r, i});
+    }
+    for (size_t i = 0; i < robot.reference.size(); ++i) {
+      events.push_back({robot.reference[i].utime, Kind::kReference, r, i});
+    }
+  }
+  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
+    if (a.utime != b.utime) return a.utime < b.utime;
+    if (a.kind != b.kind) return a.kind < b.kind;
+    return a.robot < b.robot;
+  });
+
+  LcmLogWriter writer;
+  if (Status s = writer.Open(path); !s.ok()) return s;
+  std::vector<std::string> odometry_channel, laser_channel, reference_channel;
+  for (const RobotStream& robot : robots) {
+    odometry_channel.push_back(ChannelName(channels.odometry, robot.robot));
+    laser_channel.push_back(ChannelName(channels.laser, robot.robot));
+    reference_channel.push_back(ChannelName(channels.reference, robot.robot));
+  }
+  for (const Event& event : events) {
+    const RobotStream& robot = robots[event.robot];
+    Status status = Status::Ok();
+    switch (event.kind) {
+      case Kind::kOdometry: {
+        const RobotOdometrySample& s = robot.odometry[event.index];
+        status = writer.Write(odometry_channel[event.robot], s.utime,
+                              ToPoseMessage(s.utime, s.pose, s.tv_mps, s.rv_radps));
+        ++counts->odometry;
+        break;
+      }
+      case Kind::kScan: {
+        const RobotScan& scan = robot.scans[event.index];
+        status = writer.Write(laser_channel[event.robot], scan.utime, ToLidarMessage(scan));
+        ++counts->scans;
+        break;
+      }
+      case Kind::kReference: {
+        const StampedPose2& pose = robot.reference[event.index];
+        status = writer.Write(reference_channel[event.robot], pose.utime,
+                              ToPoseMessage(pose.utime, pose.pose));
+        ++counts->reference;
+        break;
+      }
+    }
+    if (!status.ok()) return Status::Error(path + ": " + status.message());
+  }
+  writer.Close();
+  return Status::Ok();
+}
+
+}  // namespace anchormap
