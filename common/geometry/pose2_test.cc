@@ -11,9 +11,12 @@ namespace {
 
 // Hard values: angles at and around +-pi, zero, large translations.
 std::vector<Pose2> HardPoses() {
-  std::vector<Pose2> poses = {Pose2(0, 0, 0),          Pose2(1, 2, kPi),
-                              Pose2(-3, 0.5, -kPi + 1e-9), Pose2(1e3, -1e3, kPi / 2),
-                              Pose2(0.1, -0.2, -kPi / 2),  Pose2(5, 5, 3.0)};
+  std::vector<Pose2> poses = {Pose2(0, 0, 0),
+                              Pose2(1, 2, kPi),
+                              Pose2(-3, 0.5, -kPi + 1e-9),
+                              Pose2(1e3, -1e3, kPi / 2),
+                              Pose2(0.1, -0.2, -kPi / 2),
+                              Pose2(5, 5, 3.0)};
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-10, 10), a(-kPi, kPi);
   for (int i = 0; i < 20; ++i) poses.emplace_back(u(rng), u(rng), a(rng));
@@ -69,7 +72,8 @@ TEST(Pose2Test, JacobiansEqualNumericDifferences) {
       return Compose(Pose2::FromVector(v.head<3>()), Pose2::FromVector(v.tail<3>())).vector();
     };
     auto numeric = NumericJacobian(compose, x);
-    EXPECT_LT((numeric.leftCols<3>() - Ja).cwiseAbs().maxCoeff(), 1e-6 * (1 + a.vector().norm() + b.vector().norm()));
+    EXPECT_LT((numeric.leftCols<3>() - Ja).cwiseAbs().maxCoeff(),
+              1e-6 * (1 + a.vector().norm() + b.vector().norm()));
     EXPECT_LT((numeric.rightCols<3>() - Jb).cwiseAbs().maxCoeff(), 1e-6);
 
     Between(a, b, &Ja, &Jb);
@@ -77,7 +81,8 @@ TEST(Pose2Test, JacobiansEqualNumericDifferences) {
       return Between(Pose2::FromVector(v.head<3>()), Pose2::FromVector(v.tail<3>())).vector();
     };
     numeric = NumericJacobian(between, x);
-    EXPECT_LT((numeric.leftCols<3>() - Ja).cwiseAbs().maxCoeff(), 1e-6 * (1 + (a.vector() - b.vector()).norm()));
+    EXPECT_LT((numeric.leftCols<3>() - Ja).cwiseAbs().maxCoeff(),
+              1e-6 * (1 + (a.vector() - b.vector()).norm()));
     EXPECT_LT((numeric.rightCols<3>() - Jb).cwiseAbs().maxCoeff(), 1e-6);
   }
 }

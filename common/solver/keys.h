@@ -14,9 +14,7 @@ using TrajectoryId = int64_t;
 struct PoseKey {
   TrajectoryId trajectory = 0;
   int32_t index = 0;  // keyframe index within the trajectory, 0, 1, 2, ...
-  bool operator==(const PoseKey& o) const {
-    return trajectory == o.trajectory && index == o.index;
-  }
+  bool operator==(const PoseKey& o) const { return trajectory == o.trajectory && index == o.index; }
 };
 
 struct AnchorKey {
@@ -27,7 +25,7 @@ struct AnchorKey {
 // Either kind of variable, for covariance queries and orderings.
 struct Key {
   Key() = default;
-  Key(PoseKey pose) : trajectory(pose.trajectory), index(pose.index) {}      // NOLINT
+  Key(PoseKey pose) : trajectory(pose.trajectory), index(pose.index) {}          // NOLINT
   Key(AnchorKey anchor) : trajectory(anchor.trajectory), index(kAnchorIndex) {}  // NOLINT
 
   bool is_anchor() const { return index == kAnchorIndex; }

@@ -41,8 +41,9 @@ struct SmootherStats {
   int64_t batch_steps_on_clock = 0;
   int64_t batch_steps_on_fill = 0;
   int64_t batch_steps_on_merge = 0;
-  int64_t batch_iterations = 0;          // summed over batch steps
-  int64_t iterations_to_convergence = 0; // batch iterations until the step fell below convergence_step
+  int64_t batch_iterations = 0;  // summed over batch steps
+  int64_t iterations_to_convergence =
+      0;  // batch iterations until the step fell below convergence_step
   int64_t givens_block_eliminations = 0;
   int64_t rows_backsubstituted = 0;
   int64_t variables = 0;

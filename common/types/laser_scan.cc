@@ -15,7 +15,8 @@ std::vector<Eigen::Vector2d> LaserScan::PointsInBodyFrame() const {
   for (size_t i = 0; i < ranges.size(); ++i) {
     if (!IsReturn(i)) continue;
     const double a = Angle(i);
-    points.push_back(T_body_sensor.TransformPoint({ranges[i] * std::cos(a), ranges[i] * std::sin(a)}));
+    points.push_back(
+        T_body_sensor.TransformPoint({ranges[i] * std::cos(a), ranges[i] * std::sin(a)}));
   }
   return points;
 }

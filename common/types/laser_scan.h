@@ -17,7 +17,7 @@ struct LaserScan {
   float radstep = 0.0f;    // angle between consecutive ranges, radians
   float max_range = 0.0f;  // a range >= max_range (or <= 0, or not finite) is "no return"
   std::vector<float> ranges;
-  Pose2 T_body_sensor;     // the sensor's mounting pose on the robot
+  Pose2 T_body_sensor;  // the sensor's mounting pose on the robot
 
   bool IsReturn(size_t i) const;
   double Angle(size_t i) const { return rad0 + static_cast<double>(i) * radstep; }

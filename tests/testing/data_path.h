@@ -26,10 +26,10 @@ inline std::string DataFile(const std::string& relative) {
 
 }  // namespace anchormap::testing
 
-#define ANCHORMAP_REQUIRE_DATA(var, relative)                                              \
-  const std::string var = ::anchormap::testing::DataFile(relative);                        \
-  if (var.empty()) {                                                                       \
-    GTEST_SKIP() << "data file '" << (relative) << "' not found in '"                      \
-                 << ::anchormap::testing::DataDir()                                        \
+#define ANCHORMAP_REQUIRE_DATA(var, relative)                                               \
+  const std::string var = ::anchormap::testing::DataFile(relative);                         \
+  if (var.empty()) {                                                                        \
+    GTEST_SKIP() << "data file '" << (relative) << "' not found in '"                       \
+                 << ::anchormap::testing::DataDir()                                         \
                  << "' (set ANCHORMAP_DATA_DIR to the folder holding posegraph/, carmen/)"; \
   }

@@ -1,0 +1,41 @@
+#pragma once
+// A batch step's factorisation: forms the normal equations A^T A, A^T b of all
+// linearised factors in a given variable order, factors them with CHOLMOD (simplicial
+// LL^T, no further permutation) and returns R = L^T and d with R^T d = A^T b, so that the
+// incremental updates continue from it exactly as from a QR factorisation of A.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/solver/sparse_r.h"
+
+namespace anchormap {
+
+// One linearised factor, with its variables already mapped to elimination positions.
+struct PositionedFactor {
+  int num_keys = 0;
+  int positions[4] = {0, 0, 0, 0};
+  const Eigen::Matrix3d* jacobians = nullptr;  // num_keys whitened blocks
+  Eigen::Vector3d rhs;                         // -whitened error
+};
+
+class BatchFactorization {
+ public:
+  BatchFactorization();
+  ~BatchFactorization();
+  BatchFactorization(const BatchFactorization&) = delete;
+  BatchFactorization& operator=(const BatchFactorization&) = delete;
+
+  // Factors the system of `factors` over `num_positions` variables. On success fills
+  // `rows` (R and d by block row) and returns true; on failure (matrix not positive
+  // definite: an unconstrained variable) returns false and sets `error`.
+  bool Factor(int num_positions, const std::vector<PositionedFactor>& factors,
+              std::vector<RBlockRow>* rows, std::string* error);
+
+ private:
+  struct Cholmod;
+  std::unique_ptr<Cholmod> cholmod_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,54 @@
+#include "common/solver/factor.h"
+
+namespace anchormap {
+namespace {
+
+template <typename>
+inline constexpr bool kAlwaysFalse = false;
+
+// Raw error and (optional) Jacobians for any factor type.
+Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J) {
+  return std::visit(
+      [&](const auto& f) -> Eigen::Vector3d {
+        using T = std::decay_t<decltype(f)>;
+        if constexpr (std::is_same_v<T, PriorFactor>) {
+          return f.Error(v[0], J);
+        } else if constexpr (std::is_same_v<T, BetweenFactor> ||
+                             std::is_same_v<T, GlobalEncounterFactor>) {
+          return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+        } else if constexpr (std::is_same_v<T, EncounterFactor>) {
+          return f.Error(v[0], v[1], v[2], v[3], J);
+        } else {
+          static_assert(kAlwaysFalse<T>, "unhandled factor type");
+        }
+      },
+      factor);
+}
+
+const Eigen::Matrix3d& SqrtInformation(const Factor& factor) {
+  return std::visit([](const auto& f) -> const Eigen::Matrix3d& { return f.sqrt_information; },
+                    factor);
+}
+
+}  // namespace
+
+std::vector<Key> FactorKeys(const Factor& factor) {
+  return std::visit([](const auto& f) { return f.keys(); }, factor);
+}
+
+LinearizedFactor Linearize(const Factor& factor, const Pose2* values) {
+  LinearizedFactor out;
+  std::array<Eigen::Matrix3d, kMaxFactorKeys> J;
+  const Eigen::Vector3d error = Evaluate(factor, values, J.data());
+  const Eigen::Matrix3d& S = SqrtInformation(factor);
+  out.num_keys = static_cast<int>(FactorKeys(factor).size());
+  for (int k = 0; k < out.num_keys; ++k) out.jacobians[k] = S * J[k];
+  out.whitened_error = S * error;
+  return out;
+}
+
+double FactorChi2(const Factor& factor, const Pose2* values) {
+  return (SqrtInformation(factor) * Evaluate(factor, values, nullptr)).squaredNorm();
+}
+
+}  // namespace anchormap

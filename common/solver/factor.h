@@ -1,0 +1,44 @@
+#pragma once
+// The factors of the multi-robot pose graph, as one closed set of value types
+// (std::variant): the smoother owns them by value, journals can copy them, and every
+// switch over them is checked for exhaustiveness by the compiler.
+//
+// Each factor type provides:
+//   keys()                       the variables it constrains, in Jacobian order
+//   Error(values, jacobians)     e(x) = h(x) - z (angle wrapped), with dh/dx per key
+//   sqrt_information             S with S^T S = information; whitened residual is S e
+
+#include <array>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/solver/between_factor.h"
+#include "common/solver/encounter_factor.h"
+#include "common/solver/global_encounter_factor.h"
+#include "common/solver/prior_factor.h"
+
+namespace anchormap {
+
+using Factor = std::variant<PriorFactor, BetweenFactor, EncounterFactor, GlobalEncounterFactor>;
+
+// At most four variables per factor (the relative encounter).
+constexpr int kMaxFactorKeys = 4;
+
+// A factor linearised at some values: whitened Jacobian blocks and whitened residual.
+struct LinearizedFactor {
+  int num_keys = 0;
+  std::array<Eigen::Matrix3d, kMaxFactorKeys> jacobians;  // S * dh/dx_k
+  Eigen::Vector3d whitened_error;                         // S * e(x)
+};
+
+std::vector<Key> FactorKeys(const Factor& factor);
+
+// Linearises `factor` at `values` (one Pose2 per key, in FactorKeys order).
+LinearizedFactor Linearize(const Factor& factor, const Pose2* values);
+
+// Squared whitened residual |S e(x)|^2 at `values`.
+double FactorChi2(const Factor& factor, const Pose2* values);
+
+}  // namespace anchormap

@@ -1,0 +1,731 @@
+#include "common/solver/smoother.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <unordered_map>
+
+#include <Eigen/Dense>
+
+#include "common/geometry/covariance.h"
+#include "common/solver/anchor_groups.h"
+#include "common/solver/batch_factorization.h"
+#include "common/solver/covariances.h"
+#include "common/solver/factor.h"
+#include "common/solver/ordering.h"
+#include "common/solver/sparse_r.h"
+
+namespace anchormap {
+namespace {
+
+// The system is linearised at `linearization` (theta); R delta = d gives the current
+// solution delta relative to it (additive in x, y, theta, as iSAM's Pose2d).
+struct Variable {
+  Key key;
+  Pose2 linearization;
+  int position = -1;  // elimination position; -1 while pending (not yet in R)
+};
+
+struct FactorRecord {
+  Factor factor;
+  std::array<int, kMaxFactorKeys> vars{};
+  int num_vars = 0;
+  bool active = true;  // false once removed (a gauge prior dropped at a merge)
+};
+
+struct TrajectoryInfo {
+  int32_t max_index = 0;
+  int num_poses = 0;
+  int64_t origin_prior = -1;  // factor id of the prior on the first pose
+  bool anchored = false;      // relative formulation: has an anchor variable
+};
+
+Pose2 Retract(const Pose2& theta, const Eigen::Vector3d& delta) {
+  return Pose2(theta.x() + delta.x(), theta.y() + delta.y(), theta.theta() + delta.z());
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+}  // namespace
+
+class Smoother::Impl {
+ public:
+  explicit Impl(const SmootherOptions& options)
+      : options_(options), r_(std::make_shared<SparseR>()) {}
+
+  const SmootherOptions& options() const { return options_; }
+
+  Status AddPose(PoseKey key, const Pose2& initial);
+  Status AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov);
+  Status AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov);
+  UpdateResult Update(bool force_batch);
+
+  bool Has(const Key& key) const { return index_.count(key) > 0; }
+  int NumPoses(TrajectoryId t) const {
+    auto it = trajectories_.find(t);
+    return it == trajectories_.end() ? 0 : it->second.num_poses;
+  }
+  const std::vector<TrajectoryId>& trajectory_order() const { return trajectory_order_; }
+  Pose2 Estimate(const Key& key) const { return EstimateOf(index_.at(key)); }
+  bool IsAnchored(TrajectoryId t) const {
+    auto it = trajectories_.find(t);
+    return it != trajectories_.end() && it->second.anchored;
+  }
+  Pose2 GlobalPose(PoseKey key) const {
+    const Pose2 local = Estimate(key);
+    if (options_.formulation != Formulation::kRelative || !IsAnchored(key.trajectory)) return local;
+    return Compose(Estimate(AnchorKey{key.trajectory}), local);
+  }
+  TrajectoryId GroupRoot(TrajectoryId t) const { return groups_.Contains(t) ? groups_.Root(t) : t; }
+  Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+  double Chi2() const;
+  const SmootherStats& stats() const { return stats_; }
+
+ private:
+  Pose2 EstimateOf(int var) const {
+    const Variable& v = vars_[var];
+    return v.position < 0 ? v.linearization : Retract(v.linearization, delta_[v.position]);
+  }
+  int AddVariable(const Key& key, const Pose2& initial);
+  int64_t AddFactor(Factor factor);
+  Eigen::Matrix3d GaugeSqrtInformation() const {
+    return Eigen::Matrix3d::Identity() / options_.gauge_prior_sigma;
+  }
+  Status CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const;
+  std::vector<TrajectoryId> GroupMembers(TrajectoryId root) const;
+  void MoveTrajectories(const std::vector<TrajectoryId>& trajectories, const Pose2& T_new_old);
+  void SetValue(int var, const Pose2& value);
+
+  std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
+  void TakeOutOfPending(const std::vector<int64_t>& done);
+  void IncrementalStep(UpdateResult* result);
+  void BatchStep(UpdateResult* result);
+  void GaussNewtonIterations(const std::vector<int64_t>& included, UpdateResult* result);
+  void DogLegIterations(const std::vector<int64_t>& included, UpdateResult* result);
+  // Linearises `included` at the linearisation point, factors them in the current order
+  // and solves for delta; false (with result->status) on failure.
+  bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result);
+  // chi2 at linearisation point + step (step empty: at the linearisation point).
+  double Chi2Of(const std::vector<int64_t>& included,
+                const std::vector<Eigen::Vector3d>& step) const;
+  int CountAnchors() const;
+  static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
+  SparseR& MutableR() {
+    if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
+    return *r_;
+  }
+
+  SmootherOptions options_;
+  std::vector<Variable> vars_;
+  std::unordered_map<Key, int, KeyHash> index_;
+  std::vector<FactorRecord> factors_;
+  std::vector<int64_t> pending_factors_;
+  std::vector<int> pending_vars_;
+  std::vector<int> position_to_var_;
+  std::vector<Eigen::Vector3d> delta_;  // by position
+  std::shared_ptr<SparseR> r_;
+  std::unique_ptr<CovarianceRecovery> covariances_;
+  BatchFactorization batch_;
+  AnchorGroups groups_;
+  std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
+  std::vector<TrajectoryId> trajectory_order_;
+  bool merge_pending_ = false;
+  int updates_since_batch_ = 0;
+  int64_t nonzeros_after_batch_ = 0;
+  SmootherStats stats_;
+};
+
+int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
+  const int var = static_cast<int>(vars_.size());
+  vars_.push_back({key, initial, -1});
+  index_.emplace(key, var);
+  pending_vars_.push_back(var);
+  ++stats_.variables;
+  return var;
+}
+
+int64_t Smoother::Impl::AddFactor(Factor factor) {
+  FactorRecord record{std::move(factor), {}, 0, true};
+  for (const Key& key : FactorKeys(record.factor)) record.vars[record.num_vars++] = index_.at(key);
+  factors_.push_back(std::move(record));
+  pending_factors_.push_back(static_cast<int64_t>(factors_.size()) - 1);
+  ++stats_.factors;
+  return static_cast<int64_t>(factors_.size()) - 1;
+}
+
+void Smoother::Impl::SetValue(int var, const Pose2& value) {
+  // Only used right before a batch step, which relinearises everything.
+  vars_[var].linearization = value;
+  if (vars_[var].position >= 0) delta_[vars_[var].position].setZero();
+}
+
+Status Smoother::Impl::CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const {
+  if (!z.IsFinite()) return Status::Error("measurement is not finite");
+  if (auto problem = CheckSymmetricPositiveDefinite(covariance)) {
+    return Status::Error("covariance rejected: " + *problem);
+  }
+  return Status::Ok();
+}
+
+Status Smoother::Impl::AddPose(PoseKey key, const Pose2& initial) {
+  if (key.index < 0) return Status::Error("pose index must be >= 0");
+  if (!initial.IsFinite()) return Status::Error("initial pose is not finite");
+  if (Has(key)) return Status::Error("pose " + Key(key).ToString() + " exists already");
+  auto it = trajectories_.find(key.trajectory);
+  if (it == trajectories_.end()) {
+    if (key.index != 0) {
+      return Status::Error("trajectory " + std::to_string(key.trajectory) +
+                           " must start with pose index 0");
+    }
+    AddVariable(key, initial);
+    TrajectoryInfo info;
+    info.num_poses = 1;
+    info.origin_prior = AddFactor(PriorFactor{key, initial, GaugeSqrtInformation()});
+    if (options_.formulation != Formulation::kRelative) {
+      groups_.CreateGroup(key.trajectory, info.origin_prior);
+    }
+    trajectories_.emplace(key.trajectory, info);
+    trajectory_order_.push_back(key.trajectory);
+    return Status::Ok();
+  }
+  AddVariable(key, initial);
+  it->second.max_index = std::max(it->second.max_index, key.index);
+  ++it->second.num_poses;
+  return Status::Ok();
+}
+
+Status Smoother::Impl::AddBetween(PoseKey from, PoseKey to, const Pose2& z,
+                                  const Eigen::Matrix3d& covariance) {
+  if (!Has(from) || !Has(to)) return Status::Error("between factor on an unknown pose");
+  if (from.trajectory != to.trajectory) {
+    return Status::Error("between factor joins two trajectories: use AddEncounter");
+  }
+  if (from == to) return Status::Error("between factor from a pose to itself");
+  if (Status s = CheckMeasurement(z, covariance); !s.ok()) return s;
+  AddFactor(BetweenFactor{from, to, z, SqrtInformationFromCovariance(covariance)});
+  return Status::Ok();
+}
+
+std::vector<TrajectoryId> Smoother::Impl::GroupMembers(TrajectoryId root) const {
+  std::vector<TrajectoryId> members;
+  for (TrajectoryId t : trajectory_order_) {
+    if (groups_.Contains(t) && groups_.Root(t) == root) members.push_back(t);
+  }
+  return members;
+}
+
+void Smoother::Impl::MoveTrajectories(const std::vector<TrajectoryId>& trajectories,
+                                      const Pose2& T_new_old) {
+  for (TrajectoryId t : trajectories) {
+    if (options_.formulation == Formulation::kRelative) {
+      const int var = index_.at(AnchorKey{t});
+      SetValue(var, Compose(T_new_old, EstimateOf(var)));
+      continue;
+    }
+    for (int var = 0; var < static_cast<int>(vars_.size()); ++var) {
+      if (vars_[var].key.trajectory == t && !vars_[var].key.is_anchor()) {
+        SetValue(var, Compose(T_new_old, EstimateOf(var)));
+      }
+    }
+  }
+}
+
+Status Smoother::Impl::AddEncounter(PoseKey a, PoseKey b, const Pose2& z,
+                                    const Eigen::Matrix3d& covariance) {
+  if (!Has(a) || !Has(b)) return Status::Error("encounter on an unknown pose");
+  if (a.trajectory == b.trajectory) {
+    return Status::Error("encounter within one trajectory: use AddBetween (a loop closure)");
+  }
+  if (Status s = CheckMeasurement(z, covariance); !s.ok()) return s;
+  const Eigen::Matrix3d sqrt_information = SqrtInformationFromCovariance(covariance);
+
+  if (options_.formulation == Formulation::kRelative) {
+    TrajectoryInfo& info_a = trajectories_.at(a.trajectory);
+    TrajectoryInfo& info_b = trajectories_.at(b.trajectory);
+    const Pose2 x_a = Estimate(a), x_b = Estimate(b);
+    if (!info_a.anchored && !info_b.anchored) {
+      // First encounter of both: a's local frame becomes its group's frame.
+      const int anchor = AddVariable(AnchorKey{a.trajectory}, Pose2());
+      info_a.anchored = true;
+      groups_.CreateGroup(
+          a.trajectory, AddFactor(PriorFactor{vars_[anchor].key, Pose2(), GaugeSqrtInformation()}));
+    }
+    if (!info_b.anchored) {
+      // T_global_local_b such that A_b (+) x_b = A_a (+) x_a (+) z: only anchors move.
+      const Pose2 A_a = Estimate(AnchorKey{a.trajectory});
+      AddVariable(AnchorKey{b.trajectory}, Compose(Compose(Compose(A_a, x_a), z), x_b.Inverse()));
+      info_b.anchored = true;
+      groups_.Join(b.trajectory, a.trajectory);
+    } else if (!info_a.anchored) {
+      const Pose2 A_b = Estimate(AnchorKey{b.trajectory});
+      AddVariable(AnchorKey{a.trajectory},
+                  Compose(Compose(Compose(A_b, x_b), z.Inverse()), x_a.Inverse()));
+      info_a.anchored = true;
+      groups_.Join(a.trajectory, b.trajectory);
+    }
+  }
+
+  if (!groups_.SameGroup(a.trajectory, b.trajectory)) {
+    // Two groups, each with its own gauge, join: keep the older gauge, drop the other's
+    // prior (removing rows needs a batch step), and move the absorbed group rigidly so
+    // that it agrees with this encounter (only its anchors in the relative formulation;
+    // every pose in global-moved; nothing in the thesis' global baseline).
+    const TrajectoryId root_a = groups_.Root(a.trajectory);
+    const TrajectoryId root_b = groups_.Root(b.trajectory);
+    const std::vector<TrajectoryId> members_a = GroupMembers(root_a);
+    const std::vector<TrajectoryId> members_b = GroupMembers(root_b);
+    const AnchorGroups::Merge merge = groups_.MergeGroups(a.trajectory, b.trajectory);
+    factors_[merge.absorbed_prior_id].active = false;
+    merge_pending_ = true;
+    if (options_.formulation != Formulation::kGlobal) {
+      const bool a_absorbed = merge.absorbed_root == root_a;
+      const Pose2 global_a = GlobalPose(a), global_b = GlobalPose(b);
+      const Pose2 T_new_old = a_absorbed
+                                  ? Compose(Compose(global_b, z.Inverse()), global_a.Inverse())
+                                  : Compose(Compose(global_a, z), global_b.Inverse());
+      MoveTrajectories(a_absorbed ? members_a : members_b, T_new_old);
+    }
+  }
+
+  if (options_.formulation == Formulation::kRelative) {
+    AddFactor(EncounterFactor{a, b, z, sqrt_information});
+  } else {
+    AddFactor(GlobalEncounterFactor{a, b, z, sqrt_information});
+  }
+  return Status::Ok();
+}
+
+// --- Updates ---------------------------------------------------------------------------
+
+std::vector<int64_t> Smoother::Impl::GroundPendingFactors(std::vector<char>* grounded) const {
+  // A measurement enters R only when all but at most one of its variables are already
+  // determined; it then determines the last one (every factor's Jacobian block is
+  // invertible). Anything else waits, so R never gets a singular diagonal block.
+  std::vector<int64_t> ready;
+  std::vector<char> used(pending_factors_.size(), 0);
+  bool progress = true;
+  while (progress) {
+    progress = false;
+    for (size_t k = 0; k < pending_factors_.size(); ++k) {
+      if (used[k]) continue;
+      const FactorRecord& f = factors_[pending_factors_[k]];
+      if (!f.active) {
+        used[k] = 1;
+        continue;
+      }
+      int unknown = -1, unknowns = 0;
+      for (int j = 0; j < f.num_vars; ++j) {
+        if (!(*grounded)[f.vars[j]]) {
+          unknown = f.vars[j];
+          ++unknowns;
+        }
+      }
+      if (unknowns > 1) continue;
+      if (unknown >= 0) (*grounded)[unknown] = 1;
+      used[k] = 1;
+      ready.push_back(pending_factors_[k]);
+      progress = true;
+    }
+  }
+  return ready;
+}
+
+void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
+  std::vector<char> is_done(factors_.size(), 0);
+  for (int64_t f : done) is_done[f] = 1;
+  std::vector<int64_t> still;
+  for (int64_t f : pending_factors_) {
+    if (!is_done[f] && factors_[f].active) still.push_back(f);
+  }
+  pending_factors_.swap(still);
+  std::vector<int> vars;
+  for (int v : pending_vars_) {
+    if (vars_[v].position < 0) vars.push_back(v);
+  }
+  pending_vars_.swap(vars);
+}
+
+void Smoother::Impl::IncrementalStep(UpdateResult* result) {
+  std::vector<char> grounded(vars_.size(), 0);
+  for (size_t v = 0; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
+  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
+
+  SparseR& R = MutableR();
+  int appended = 0;
+  for (int v : pending_vars_) {
+    if (!grounded[v]) continue;
+    vars_[v].position = R.size() + appended++;
+    position_to_var_.push_back(v);
+  }
+  R.Append(appended);
+  delta_.resize(R.size(), Eigen::Vector3d::Zero());
+
+  std::vector<int> touched;
+  std::array<Pose2, kMaxFactorKeys> values;
+  for (int64_t id : ready) {
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+    // Linearised at the current estimate, expressed relative to the linearisation point
+    // of R: J (x - theta) = -e(x_hat) + J delta.
+    const LinearizedFactor lin = Linearize(f.factor, values.data());
+    NewRows rows;
+    rows.rhs = -lin.whitened_error;
+    for (int j = 0; j < f.num_vars; ++j) {
+      const int position = vars_[f.vars[j]].position;
+      rows.blocks.emplace_back(position, lin.jacobians[j]);
+      rows.rhs += lin.jacobians[j] * delta_[position];
+    }
+    const size_t before = touched.size();
+    R.Eliminate(std::move(rows), &touched);
+    stats_.givens_block_eliminations += static_cast<int64_t>(touched.size() - before);
+  }
+  result->factors_added = static_cast<int>(ready.size());
+  TakeOutOfPending(ready);
+
+  if (options_.backsubstitution_threshold == 0.0) {
+    R.BackSubstitute(&delta_);
+    result->rows_backsubstituted = R.size();
+  } else {
+    result->rows_backsubstituted =
+        R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
+  }
+}
+
+bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
+  std::vector<LinearizedFactor> linearized(included.size());
+  std::vector<PositionedFactor> positioned(included.size());
+  std::array<Pose2, kMaxFactorKeys> values;
+  for (size_t k = 0; k < included.size(); ++k) {
+    const FactorRecord& f = factors_[included[k]];
+    for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
+    linearized[k] = Linearize(f.factor, values.data());
+    positioned[k].num_keys = f.num_vars;
+    for (int j = 0; j < f.num_vars; ++j) positioned[k].positions[j] = vars_[f.vars[j]].position;
+    positioned[k].jacobians = linearized[k].jacobians.data();
+    positioned[k].rhs = -linearized[k].whitened_error;
+  }
+  std::vector<RBlockRow> rows;
+  std::string error;
+  if (!batch_.Factor(static_cast<int>(position_to_var_.size()), positioned, &rows, &error)) {
+    result->status = Status::Error(error);
+    return false;
+  }
+  MutableR().Assign(std::move(rows));
+  r_->BackSubstitute(&delta_);
+  return true;
+}
+
+double Smoother::Impl::Chi2Of(const std::vector<int64_t>& included,
+                              const std::vector<Eigen::Vector3d>& step) const {
+  double chi2 = 0.0;
+  std::array<Pose2, kMaxFactorKeys> values;
+  for (int64_t id : included) {
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const Variable& v = vars_[f.vars[j]];
+      values[j] = step.empty() ? v.linearization : Retract(v.linearization, step[v.position]);
+    }
+    chi2 += FactorChi2(f.factor, values.data());
+  }
+  return chi2;
+}
+
+void Smoother::Impl::BatchStep(UpdateResult* result) {
+  result->batch_step = true;
+  // Relinearise everything at the current estimate.
+  for (Variable& v : vars_) {
+    if (v.position >= 0) v.linearization = Retract(v.linearization, delta_[v.position]);
+  }
+  // Start from scratch: every active factor is pending, grounding starts at the priors.
+  pending_factors_.clear();
+  for (size_t f = 0; f < factors_.size(); ++f) {
+    if (factors_[f].active) pending_factors_.push_back(static_cast<int64_t>(f));
+  }
+  std::vector<char> grounded(vars_.size(), 0);
+  const std::vector<int64_t> included = GroundPendingFactors(&grounded);
+
+  // Ordering over the grounded variables; anchors and each trajectory's latest pose last.
+  std::vector<int> dense(vars_.size(), -1), dense_to_var;
+  for (size_t v = 0; v < vars_.size(); ++v) {
+    if (grounded[v]) {
+      dense[v] = static_cast<int>(dense_to_var.size());
+      dense_to_var.push_back(static_cast<int>(v));
+    }
+  }
+  std::vector<std::vector<int>> factor_vars(included.size());
+  for (size_t k = 0; k < included.size(); ++k) {
+    const FactorRecord& f = factors_[included[k]];
+    for (int j = 0; j < f.num_vars; ++j) factor_vars[k].push_back(dense[f.vars[j]]);
+  }
+  std::unordered_map<TrajectoryId, std::pair<int32_t, int>> latest;  // trajectory -> (index, dense)
+  std::vector<bool> keep_last(dense_to_var.size(), false);
+  for (size_t d = 0; d < dense_to_var.size(); ++d) {
+    const Key& key = vars_[dense_to_var[d]].key;
+    if (key.is_anchor()) {
+      keep_last[d] = true;
+      continue;
+    }
+    auto [it, inserted] = latest.try_emplace(key.trajectory, key.index, static_cast<int>(d));
+    if (!inserted && key.index > it->second.first) it->second = {key.index, static_cast<int>(d)};
+  }
+  for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
+  const std::vector<int> order =
+      ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
+  for (Variable& v : vars_) v.position = -1;
+  position_to_var_.clear();
+  for (int d : order) {
+    vars_[dense_to_var[d]].position = static_cast<int>(position_to_var_.size());
+    position_to_var_.push_back(dense_to_var[d]);
+  }
+  delta_.assign(position_to_var_.size(), Eigen::Vector3d::Zero());
+  TakeOutOfPending(included);
+
+  if (options_.method == NonlinearMethod::kDogLeg) {
+    DogLegIterations(included, result);
+  } else {
+    GaussNewtonIterations(included, result);
+  }
+  nonzeros_after_batch_ = r_->NonZeros();
+  updates_since_batch_ = 0;
+}
+
+void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
+                                           UpdateResult* result) {
+  // R stays linearised at the last point; the final delta is kept (not folded into the
+  // linearisation point) so that incremental updates continue consistently from R.
+  bool converged = false;
+  for (int it = 0; it < options_.max_batch_iterations; ++it) {
+    if (it > 0) {
+      for (int var : position_to_var_) {
+        Variable& v = vars_[var];
+        v.linearization = Retract(v.linearization, delta_[v.position]);
+      }
+    }
+    if (!FactorAll(included, result)) return;
+    ++result->iterations;
+    const double step = MaxAbs(delta_);
+    if (step < options_.convergence_step) {
+      converged = true;
+      break;
+    }
+  }
+  stats_.iterations_to_convergence += result->iterations;
+  (void)converged;
+}
+
+void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, UpdateResult* result) {
+  // Powell's dog-leg: blend the Gauss-Newton step with steepest descent inside a trust
+  // region, accept a step only if chi2 decreases.
+  double radius = options_.dogleg_initial_radius;
+  double chi2 = Chi2Of(included, {});
+  const int n = static_cast<int>(position_to_var_.size());
+  for (int it = 0; it < options_.max_batch_iterations; ++it) {
+    if (!FactorAll(included, result)) return;
+    ++result->iterations;
+    const std::vector<Eigen::Vector3d> gauss_newton = delta_;
+    // Gradient direction g = J^T b (b = -whitened error) and |J g|^2.
+    std::vector<Eigen::Vector3d> g(n, Eigen::Vector3d::Zero());
+    std::vector<LinearizedFactor> lin(included.size());
+    std::array<Pose2, kMaxFactorKeys> values;
+    for (size_t k = 0; k < included.size(); ++k) {
+      const FactorRecord& f = factors_[included[k]];
+      for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
+      lin[k] = Linearize(f.factor, values.data());
+      for (int j = 0; j < f.num_vars; ++j) {
+        g[vars_[f.vars[j]].position] -= lin[k].jacobians[j].transpose() * lin[k].whitened_error;
+      }
+    }
+    auto apply_J = [&](const std::vector<Eigen::Vector3d>& h) {
+      double norm2 = 0.0;
+      for (size_t k = 0; k < included.size(); ++k) {
+        const FactorRecord& f = factors_[included[k]];
+        Eigen::Vector3d r = Eigen::Vector3d::Zero();
+        for (int j = 0; j < f.num_vars; ++j)
+          r += lin[k].jacobians[j] * h[vars_[f.vars[j]].position];
+        norm2 += r.squaredNorm();
+      }
+      return norm2;
+    };
+    auto norm = [](const std::vector<Eigen::Vector3d>& v) {
+      double s = 0.0;
+      for (const auto& x : v) s += x.squaredNorm();
+      return std::sqrt(s);
+    };
+    auto dot = [](const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+      double s = 0.0;
+      for (size_t i = 0; i < a.size(); ++i) s += a[i].dot(b[i]);
+      return s;
+    };
+    const double g_norm = norm(g);
+    const double Jg2 = apply_J(g);
+    const double alpha = Jg2 > 0 ? g_norm * g_norm / Jg2 : 0.0;
+    const double gn_norm = norm(gauss_newton);
+
+    bool accepted = false;
+    std::vector<Eigen::Vector3d> h(n);
+    while (!accepted && radius > 1e-12) {
+      if (gn_norm <= radius) {
+        h = gauss_newton;
+      } else if (alpha * g_norm >= radius) {
+        for (int p = 0; p < n; ++p) h[p] = (radius / g_norm) * g[p];
+      } else {
+        // h = a + beta (b - a) with |h| = radius, a = alpha g, b = Gauss-Newton.
+        std::vector<Eigen::Vector3d> a(n), ba(n);
+        for (int p = 0; p < n; ++p) {
+          a[p] = alpha * g[p];
+          ba[p] = gauss_newton[p] - a[p];
+        }
+        const double aa = dot(a, a), ab = dot(a, ba), bb = dot(ba, ba);
+        const double beta = (-ab + std::sqrt(ab * ab + bb * (radius * radius - aa))) / bb;
+        for (int p = 0; p < n; ++p) h[p] = a[p] + beta * ba[p];
+      }
+      const double predicted = 2.0 * dot(g, h) - apply_J(h);
+      const double new_chi2 = Chi2Of(included, h);
+      const double rho = predicted > 0 ? (chi2 - new_chi2) / predicted : -1.0;
+      if (rho > 0.75) {
+        radius = std::max(radius, 3.0 * norm(h));
+      } else if (rho < 0.25) {
+        radius *= 0.5;
+      }
+      if (rho > 0 || (chi2 - new_chi2) >= 0.0) {
+        accepted = true;
+        for (int var : position_to_var_) {
+          Variable& v = vars_[var];
+          v.linearization = Retract(v.linearization, h[v.position]);
+        }
+        chi2 = new_chi2;
+      }
+    }
+    if (!accepted || MaxAbs(h) < options_.convergence_step) break;
+  }
+  stats_.iterations_to_convergence += result->iterations;
+  // Leave R linearised at the final point, with its Gauss-Newton solution as delta.
+  FactorAll(included, result);
+}
+
+UpdateResult Smoother::Impl::Update(bool force_batch) {
+  const auto start = std::chrono::steady_clock::now();
+  UpdateResult result;
+  result.update = ++stats_.updates;
+  covariances_.reset();
+  const int anchors_before = CountAnchors();
+
+  ++updates_since_batch_;
+  const bool on_clock =
+      options_.batch_every_updates > 0 && updates_since_batch_ >= options_.batch_every_updates;
+  const bool on_fill = options_.batch_when_fill_grows > 0 && nonzeros_after_batch_ > 0 &&
+                       r_->NonZeros() > options_.batch_when_fill_grows * nonzeros_after_batch_;
+  if (force_batch || merge_pending_ || on_clock || on_fill) {
+    if (merge_pending_) {
+      ++stats_.batch_steps_on_merge;
+      result.groups_merged = 1;
+    } else if (on_clock) {
+      ++stats_.batch_steps_on_clock;
+    } else if (on_fill) {
+      ++stats_.batch_steps_on_fill;
+    }
+    merge_pending_ = false;
+    BatchStep(&result);
+    ++stats_.batch_steps;
+    stats_.batch_iterations += result.iterations;
+    result.factors_added = static_cast<int>(stats_.factors);
+  } else {
+    IncrementalStep(&result);
+  }
+  if (!pending_vars_.empty() && result.status.ok()) {
+    result.status = Status::Error(std::to_string(pending_vars_.size()) +
+                                  " variable(s) wait for measurements that determine them, e.g. " +
+                                  vars_[pending_vars_.front()].key.ToString());
+  }
+  result.anchors_created = CountAnchors() - anchors_before;
+  stats_.rows_backsubstituted += result.rows_backsubstituted;
+  stats_.nnz_r = r_->NonZeros();
+  result.seconds = Seconds(start);
+  return result;
+}
+
+int Smoother::Impl::CountAnchors() const {
+  int anchors = 0;
+  for (int var : position_to_var_) anchors += vars_[var].key.is_anchor() ? 1 : 0;
+  return anchors;
+}
+
+double Smoother::Impl::MaxAbs(const std::vector<Eigen::Vector3d>& v) {
+  double m = 0.0;
+  for (const auto& x : v) m = std::max(m, x.cwiseAbs().maxCoeff());
+  return m;
+}
+
+// --- Queries ---------------------------------------------------------------------------
+
+Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
+  if (!covariances_) covariances_ = std::make_unique<CovarianceRecovery>(r_);
+  std::vector<int> positions;
+  for (const Key& key : keys) {
+    auto it = index_.find(key);
+    if (it == index_.end() || vars_[it->second].position < 0) {
+      throw std::invalid_argument("no covariance for " + key.ToString() +
+                                  ": not a solved variable");
+    }
+    positions.push_back(vars_[it->second].position);
+  }
+  return covariances_->Joint(positions);
+}
+
+double Smoother::Impl::Chi2() const {
+  double chi2 = 0.0;
+  std::array<Pose2, kMaxFactorKeys> values;
+  for (const FactorRecord& f : factors_) {
+    if (!f.active) continue;
+    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+    chi2 += FactorChi2(f.factor, values.data());
+  }
+  return chi2;
+}
+
+// --- Smoother --------------------------------------------------------------------------
+
+Smoother::Smoother(const SmootherOptions& options) : impl_(std::make_unique<Impl>(options)) {}
+Smoother::~Smoother() = default;
+Smoother::Smoother(Smoother&&) noexcept = default;
+Smoother& Smoother::operator=(Smoother&&) noexcept = default;
+
+const SmootherOptions& Smoother::options() const { return impl_->options(); }
+Status Smoother::AddPose(PoseKey key, const Pose2& initial) { return impl_->AddPose(key, initial); }
+Status Smoother::AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov) {
+  return impl_->AddBetween(from, to, z, cov);
+}
+Status Smoother::AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov) {
+  return impl_->AddEncounter(a, b, z, cov);
+}
+UpdateResult Smoother::Update() { return impl_->Update(false); }
+UpdateResult Smoother::BatchOptimize() { return impl_->Update(true); }
+bool Smoother::HasPose(PoseKey key) const { return impl_->Has(key); }
+int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t); }
+std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }
+Pose2 Smoother::LocalPose(PoseKey key) const { return impl_->Estimate(key); }
+Pose2 Smoother::GlobalPose(PoseKey key) const { return impl_->GlobalPose(key); }
+bool Smoother::IsAnchored(TrajectoryId t) const { return impl_->IsAnchored(t); }
+std::optional<Pose2> Smoother::Anchor(TrajectoryId t) const {
+  if (!impl_->IsAnchored(t)) return std::nullopt;
+  return impl_->Estimate(AnchorKey{t});
+}
+TrajectoryId Smoother::GroupRoot(TrajectoryId t) const { return impl_->GroupRoot(t); }
+Eigen::Matrix3d Smoother::MarginalCovariance(const Key& key) {
+  return impl_->JointCovariance({key});
+}
+Eigen::MatrixXd Smoother::JointCovariance(const std::vector<Key>& keys) {
+  return impl_->JointCovariance(keys);
+}
+double Smoother::Chi2() const { return impl_->Chi2(); }
+const SmootherStats& Smoother::stats() const { return impl_->stats(); }
+std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
+  std::vector<Pose2> poses;
+  for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) poses.push_back(impl_->GlobalPose({t, i}));
+  return poses;
+}
+
+}  // namespace anchormap

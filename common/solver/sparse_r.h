@@ -1,0 +1,75 @@
+#pragma once
+// The square-root information matrix R (upper triangular) and right-hand side d of the
+// linearised system, stored in 3x3 blocks: block row/column p is the variable at
+// elimination position p. ALGORITHM.md section 5.
+//
+// Rows are added by Givens rotations (each zeroing one entry below the diagonal); new
+// variables append empty block rows/columns at the end. R^T R = A^T A and R delta = d
+// is the least-squares solution of A delta = b.
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace anchormap {
+
+// One block row of R: the upper-triangular diagonal block, the blocks to its right
+// (sorted by column), and the row's part of d.
+struct RBlockRow {
+  Eigen::Matrix3d diagonal = Eigen::Matrix3d::Zero();
+  std::vector<std::pair<int, Eigen::Matrix3d>> right;  // (column > row, block), sorted
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+};
+
+// Three new whitened measurement rows: blocks by column (any order) and rhs.
+struct NewRows {
+  std::vector<std::pair<int, Eigen::Matrix3d>> blocks;
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+};
+
+class SparseR {
+ public:
+  int size() const { return static_cast<int>(rows_.size()); }
+  // Appends `count` empty block rows/columns at the end (new variables).
+  void Append(int count);
+  // Replaces the whole matrix (after a batch factorisation).
+  void Assign(std::vector<RBlockRow> rows);
+
+  // Eliminates three new rows into R by Givens rotations. Block rows that change are
+  // appended to `touched` (may repeat). Returns |leftover rhs|^2, the part of the new
+  // rows' residual that no variable can absorb. Cost: proportional to the fill of the
+  // rows met on the way (only the right part of R changes for recent variables).
+  double Eliminate(NewRows rows, std::vector<int>* touched);
+
+  // delta = R^-1 d by full back-substitution.
+  void BackSubstitute(std::vector<Eigen::Vector3d>* delta) const;
+  // Recomputes only block rows in `dirty` and, transitively, rows whose inputs changed by
+  // more than `threshold` (max-abs); others keep their value. Returns rows recomputed.
+  int BackSubstitutePartial(const std::vector<int>& dirty, double threshold,
+                            std::vector<Eigen::Vector3d>* delta);
+
+  const RBlockRow& row(int p) const { return rows_[p]; }
+  // Block rows that have a block in column q (q excluded), for propagation and covariances.
+  const std::vector<int>& RowsReferencing(int q) const { return column_rows_[q]; }
+
+  // Scalar non-zeros of R (6 per diagonal block, 9 per off-diagonal block).
+  int64_t NonZeros() const { return nonzeros_; }
+  // Smallest |diagonal entry| of R: near zero means an unconstrained variable.
+  double MinAbsDiagonal() const;
+
+ private:
+  Eigen::Vector3d SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const;
+
+  std::vector<RBlockRow> rows_;
+  std::vector<std::vector<int>> column_rows_;
+  int64_t nonzeros_ = 0;
+};
+
+// Solves R^T y = g by block forward substitution, R given by its block rows and g indexed
+// by position.
+std::vector<Eigen::Vector3d> SolveTransposed(const std::vector<RBlockRow>& rows,
+                                             std::vector<Eigen::Vector3d> g);
+
+}  // namespace anchormap
