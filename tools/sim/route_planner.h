@@ -15,7 +15,7 @@
 namespace anchormap::sim {
 
 struct RoutePlannerOptions {
-  double resolution_m = 0.2;  // raster cell size; finer is slower to plan
+  double resolution_m = 0.1;  // raster cell size; finer is slower to plan
   // Smallest allowed distance from a robot's centre to any wall (robot radius + margin).
   double clearance_m = 0.45;
   // Cells closer to a wall than this cost more (corridor centring); >= clearance_m.

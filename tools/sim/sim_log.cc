@@ -61,7 +61,8 @@ anchormap::encounter_t ToEncounterMessage(const SimEncounter& encounter) {
   return message;
 }
 
-Status WriteSimulationLog(const SimOptions& options, const std::string& path, SimSummary* summary) {
+Status WriteSimulationLog(const SimOptions& options, const std::string& path, SimSummary* summary,
+                          SimTrace* trace) {
   std::unique_ptr<Simulator> simulator;
   if (Status status = Simulator::Create(options, &simulator); !status.ok()) return status;
   LcmLogWriter writer;
@@ -79,6 +80,8 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
     truth_channels.push_back(name + "_GROUND_TRUTH");
     encounter_channels.push_back(name + "_ENCOUNTER");
   }
+  if (trace)
+    *trace = SimTrace{std::vector<std::vector<Eigen::Vector2d>>(simulator->num_robots()), {}};
   auto write = [&](const std::string& channel, int64_t utime, const auto& message) {
     ++result.events;
     return writer.Write(channel, utime, message);
@@ -104,12 +107,18 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
       }
       if (!status.ok()) return status;
       ++result.scans;
+      if (trace) trace->paths[i].push_back(robot.T_world_body().translation());
     }
     for (const SimEncounter& encounter : frame.encounters) {
       Status status =
           write(encounter_channels[encounter.observer], frame.utime, ToEncounterMessage(encounter));
       if (!status.ok()) return status;
       ++result.encounters;
+      if (trace) {
+        trace->encounters.emplace_back(
+            simulator->robot(encounter.observer).T_world_body().translation(),
+            simulator->robot(encounter.observed).T_world_body().translation());
+      }
       ++result.encounters_by_pair[{std::min(encounter.observer, encounter.observed),
                                    std::max(encounter.observer, encounter.observed)}];
     }

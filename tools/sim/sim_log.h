@@ -14,6 +14,7 @@
 #include "bot_core/planar_lidar_t.hpp"
 #include "bot_core/pose_t.hpp"
 #include "common/util/status.h"
+#include "tools/sim/sim_preview.h"
 #include "tools/sim/simulator.h"
 
 namespace anchormap::sim {
@@ -30,7 +31,10 @@ struct SimSummary {
   Eigen::Vector2d world_max{0.0, 0.0};
 };
 
-Status WriteSimulationLog(const SimOptions& options, const std::string& path, SimSummary* summary);
+// Runs the simulation of `options` and writes it to `path`. `summary` and `trace` (the
+// ground truth for sim_preview.h) are optional.
+Status WriteSimulationLog(const SimOptions& options, const std::string& path, SimSummary* summary,
+                          SimTrace* trace = nullptr);
 
 // Message conversions (also used by tests). Velocities are body-frame (forward, lateral,
 // yaw rate) and are rotated into the pose's frame for pose_t.vel.
