@@ -1,0 +1,171 @@
+#include "tools/render/server_output.h"
+
+#include <cmath>
+
+// GCC 12 warns inside lcm_coretypes.h when it inlines the int8 array decode of
+// grid_tile_t (bounds it cannot prove: -Wstringop-overflow, -Wrestrict); the generated
+// decode checks every size against the buffer.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wstringop-overflow"
+#pragma GCC diagnostic ignored "-Wrestrict"
+#include "anchormap/anchor_covariances_t.hpp"
+#include "anchormap/grid_tile_t.hpp"
+#include "anchormap/merged_map_t.hpp"
+#include "common/bus/lcm_log.h"
+
+namespace anchormap::render {
+namespace {
+
+bool Finite3(const double v[3]) {
+  return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+std::optional<MergedMap> FromMessage(const anchormap::merged_map_t& message) {
+  MergedMap map;
+  map.utime = message.utime;
+  map.update = message.update;
+  if (message.num_trajectories != static_cast<int>(message.trajectories.size()) ||
+      message.num_encounters != static_cast<int>(message.encounters.size())) {
+    return std::nullopt;
+  }
+  for (const anchormap::trajectory_t& t : message.trajectories) {
+    if (t.num_poses != static_cast<int>(t.poses.size()) || t.pose_utimes.size() != t.poses.size() ||
+        !Finite3(t.anchor)) {
+      return std::nullopt;
+    }
+    TrajectoryView view;
+    view.key = {t.robot, t.trajectory_id};
+    view.anchored = t.anchored;
+    view.T_global_local = Pose2(t.anchor[0], t.anchor[1], t.anchor[2]);
+    view.utimes = t.pose_utimes;
+    for (const auto& pose : t.poses) {
+      if (pose.size() != 3 || !Finite3(pose.data())) return std::nullopt;
+      view.poses.emplace_back(pose[0], pose[1], pose[2]);
+    }
+    map.trajectories.push_back(std::move(view));
+  }
+  for (const anchormap::encounter_link_t& link : message.encounters) {
+    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+  }
+  return map;
+}
+
+std::optional<GridTile> FromMessage(const anchormap::grid_tile_t& message) {
+  if (message.width <= 0 || message.height <= 0 || message.width > 100000 ||
+      message.height > 100000 || !(message.resolution > 0.0) ||
+      static_cast<int>(message.cells.size()) != message.height) {
+    return std::nullopt;
+  }
+  GridTile tile;
+  tile.update = message.update;
+  tile.resolution_m = message.resolution;
+  tile.tile_x = message.tile_x;
+  tile.tile_y = message.tile_y;
+  tile.width = message.width;
+  tile.height = message.height;
+  tile.cells.reserve(static_cast<size_t>(message.width) * message.height);
+  for (const auto& row : message.cells) {
+    if (static_cast<int>(row.size()) != message.width) return std::nullopt;
+    tile.cells.insert(tile.cells.end(), row.begin(), row.end());
+  }
+  return tile;
+}
+
+}  // namespace
+
+const Pose2* MergedMap::FindPose(int64_t trajectory_id, int index) const {
+  for (const TrajectoryView& t : trajectories) {
+    if (t.key.trajectory_id != trajectory_id) continue;
+    if (index < 0 || index >= static_cast<int>(t.poses.size())) return nullptr;
+    return &t.poses[index];
+  }
+  return nullptr;
+}
+
+size_t MergedMap::NumPoses() const {
+  size_t n = 0;
+  for (const TrajectoryView& t : trajectories) n += t.poses.size();
+  return n;
+}
+
+Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
+                        ServerOutput* output) {
+  LcmLogReader reader;
+  if (Status status = reader.Open(path); !status.ok()) return status;
+  ServerOutput result;
+  // A grid update is a run of tiles with the same update number; a tile of another update
+  // starts a new run, and the last run in the log is the grid. The run before it is kept
+  // to fill in a last run cut short (a server stopped while publishing).
+  std::vector<GridTile> grid;
+  std::vector<GridTile> previous_grid;
+  while (std::optional<LogEvent> event = reader.Next()) {
+    if (event->channel == channels.merged_map) {
+      const auto message = DecodeAs<anchormap::merged_map_t>(*event);
+      std::optional<MergedMap> map = message ? FromMessage(*message) : std::nullopt;
+      if (!map) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.merged_maps;
+      result.map = std::move(map);
+    } else if (event->channel == channels.grid_tiles) {
+      const auto message = DecodeAs<anchormap::grid_tile_t>(*event);
+      std::optional<GridTile> tile = message ? FromMessage(*message) : std::nullopt;
+      if (!tile) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.grid_tile_messages;
+      if (!grid.empty() && grid.front().update != tile->update) {
+        previous_grid = std::move(grid);
+        grid.clear();
+      }
+      grid.push_back(std::move(*tile));
+    } else if (event->channel == channels.anchor_covariances) {
+      const auto message = DecodeAs<anchormap::anchor_covariances_t>(*event);
+      if (!message || message->num_anchors != static_cast<int>(message->anchors.size())) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.covariance_messages;
+      for (const anchormap::anchor_covariance_t& anchor : message->anchors) {
+        const double variance = anchor.covariance[0] + anchor.covariance[4];
+        if (!std::isfinite(variance) || variance < 0.0) {
+          ++result.undecodable;
+          continue;
+        }
+        result.anchor_samples.push_back({message->update,
+                                         message->utime,
+                                         {anchor.robot, anchor.trajectory_id},
+                                         std::sqrt(variance)});
+      }
+    }
+  }
+  if (grid.size() < previous_grid.size()) {
+    for (GridTile& old_tile : previous_grid) {
+      bool present = false;
+      for (const GridTile& tile : grid) {
+        present = present || (tile.tile_x == old_tile.tile_x && tile.tile_y == old_tile.tile_y);
+      }
+      if (!present) {
+        grid.push_back(std::move(old_tile));
+        ++result.grid_tiles_from_previous_update;
+      }
+    }
+  }
+  result.grid = std::move(grid);
+  if (result.map) {
+    for (const EncounterLink& link : result.map->encounters) {
+      if (!result.map->FindPose(link.trajectory_a, link.index_a) ||
+          !result.map->FindPose(link.trajectory_b, link.index_b)) {
+        ++result.dangling_links;
+      }
+    }
+  }
+  *output = std::move(result);
+  return Status::Ok();
+}
+
+}  // namespace anchormap::render
+
+#pragma GCC diagnostic pop
