@@ -115,8 +115,8 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
         const Pose2* a = map->FindPose(link.trajectory_a, link.index_a);
         const Pose2* b = map->FindPose(link.trajectory_b, link.index_b);
         if (!a || !b) continue;
-        canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()), kDark, 1.0,
-                    0.7);
+        canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()), kDark, 1.5,
+                    0.8);
       }
     }
   }

@@ -109,12 +109,25 @@ Status RenderUncertaintyPlot(const std::vector<AnchorSample>& samples,
 
   // Lines and legend.
   double legend_y = frame.top_px + 10;
+  size_t legend_entries = 0;
+  bool legend_full = false;
   for (const auto& [key, points] : series) {
     const Rgb color = colors.ColorOf(key);
     std::vector<Eigen::Vector2d> pixels;
     for (const Eigen::Vector2d& p : points) pixels.push_back(frame.ToPixel(p.x(), p.y()));
     canvas.Polyline(pixels, color, options.line_width_px);
     if (pixels.size() == 1) canvas.FillCircle(pixels.front(), 3.0, color);
+    // The legend holds as many entries as fit; the last line counts the rest.
+    ++legend_entries;
+    if (legend_y + 36 > options.height_px && legend_entries < series.size()) {
+      if (!legend_full) {
+        canvas.Text(frame.right_px + 14, legend_y + 4,
+                    "... and " + std::to_string(series.size() - legend_entries + 1) + " more", 12,
+                    kBlack);
+      }
+      legend_full = true;
+      continue;
+    }
     canvas.Line({frame.right_px + 14, legend_y}, {frame.right_px + 38, legend_y}, color, 3.0);
     canvas.Text(frame.right_px + 44, legend_y + 4,
                 key.robot + " (trajectory " + std::to_string(key.trajectory_id) + ")", 12, kBlack);

@@ -1,0 +1,98 @@
+#include "tools/render/server_output.h"
+
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "tools/render/testing_helpers.h"
+
+namespace anchormap::render {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return (std::filesystem::path(::testing::TempDir()) / name).string();
+}
+
+TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
+  const std::string path = TempPath("server_output.lcmlog");
+  testing::WriteTestServerLog(path);
+  ServerOutput output;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
+  ASSERT_TRUE(output.map);
+  EXPECT_EQ(output.map->update, 9);
+  EXPECT_EQ(output.merged_maps, 2);
+  ASSERT_EQ(output.map->trajectories.size(), 3u);
+  EXPECT_EQ(output.map->trajectories[0].key.robot, "R1");
+  EXPECT_EQ(output.map->trajectories[0].key.trajectory_id, 11);
+  EXPECT_FALSE(output.map->trajectories[2].anchored);
+  EXPECT_EQ(output.map->NumPoses(), 8u);
+  const Pose2* end = output.map->FindPose(11, 2);
+  ASSERT_NE(end, nullptr);
+  EXPECT_EQ(end->x(), 8.0);
+  EXPECT_EQ(output.map->FindPose(11, 3), nullptr);
+  EXPECT_EQ(output.map->FindPose(99, 0), nullptr);
+  EXPECT_EQ(output.dangling_links, 0);
+  // The grid: the four tiles of update 9, not the single tile of update 4.
+  ASSERT_EQ(output.grid.size(), 4u);
+  for (const GridTile& tile : output.grid) EXPECT_EQ(tile.update, 9);
+  EXPECT_EQ(output.grid_tile_messages, 5);
+  // Covariances: 9 messages of 2 anchors; R2's sigma_xy goes 2.0 -> 0.4.
+  EXPECT_EQ(output.covariance_messages, 9);
+  ASSERT_EQ(output.anchor_samples.size(), 18u);
+  EXPECT_EQ(output.anchor_samples[1].key.robot, "R2");
+  EXPECT_NEAR(output.anchor_samples[1].sigma_xy_m, 2.0, 1e-12);
+  EXPECT_NEAR(output.anchor_samples[17].sigma_xy_m, 0.4, 1e-12);
+  EXPECT_NEAR(output.anchor_samples[0].sigma_xy_m, std::sqrt(2e-6), 1e-12);
+  EXPECT_EQ(output.undecodable, 0);
+}
+
+TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
+  const std::string path = TempPath("server_output_bad.lcmlog");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(path).ok());
+    const uint8_t garbage[5] = {1, 2, 3, 4, 5};
+    writer.WriteRaw("ANCHORMAP_MERGED_MAP", 1, garbage, sizeof(garbage));
+    writer.WriteRaw("ANCHORMAP_GRID_TILES", 2, garbage, sizeof(garbage));
+    writer.Write("ANCHORMAP_MERGED_MAP", 3, testing::TestMergedMap(2));
+    anchormap::merged_map_t broken = testing::TestMergedMap(3);  // poses with NaN
+    broken.trajectories[0].poses[1][0] = std::nan("");
+    writer.Write("ANCHORMAP_MERGED_MAP", 4, broken);
+    anchormap::grid_tile_t wrong = testing::TestTile(1, 0, 0);
+    wrong.width = 11;  // rows hold 10 cells
+    writer.Write("ANCHORMAP_GRID_TILES", 5, wrong);
+    writer.WriteRaw("OTHER_CHANNEL", 6, garbage, sizeof(garbage));
+  }
+  ServerOutput output;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
+  EXPECT_EQ(output.undecodable, 4);
+  ASSERT_TRUE(output.map);
+  EXPECT_EQ(output.map->update, 2);  // the last VALID map
+  EXPECT_TRUE(output.grid.empty());
+}
+
+TEST(ServerOutputTest, ACutShortGridUpdateIsFilledFromTheOneBefore) {
+  const std::string path = TempPath("server_output_cut.lcmlog");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(path).ok());
+    for (int tx = 0; tx < 3; ++tx)
+      writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(5, tx, 0));
+    writer.Write("ANCHORMAP_GRID_TILES", 2, testing::TestTile(6, 1, 0));  // then stopped
+  }
+  ServerOutput output;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
+  ASSERT_EQ(output.grid.size(), 3u);
+  EXPECT_EQ(output.grid_tiles_from_previous_update, 2);
+  EXPECT_EQ(output.grid[0].update, 6);
+  EXPECT_EQ(output.grid[0].tile_x, 1);
+}
+
+TEST(ServerOutputTest, MissingFileIsAnError) {
+  ServerOutput output;
+  EXPECT_FALSE(ReadServerOutput(TempPath("absent.lcmlog"), ChannelNames{}, &output).ok());
+}
+
+}  // namespace
+}  // namespace anchormap::render
