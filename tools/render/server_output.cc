@@ -71,6 +71,17 @@ std::optional<GridTile> FromMessage(const anchormap::grid_tile_t& message) {
   return tile;
 }
 
+// DecodeAs that also turns exceptions into "does not decode": lcm-gen's decoders resize
+// vectors to the counts in the message, so a corrupt negative count throws.
+template <typename T>
+std::optional<T> SafeDecode(const LogEvent& event) {
+  try {
+    return DecodeAs<T>(event);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
 }  // namespace
 
 const Pose2* MergedMap::FindPose(int64_t trajectory_id, int index) const {
@@ -100,7 +111,7 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
   std::vector<GridTile> previous_grid;
   while (std::optional<LogEvent> event = reader.Next()) {
     if (event->channel == channels.merged_map) {
-      const auto message = DecodeAs<anchormap::merged_map_t>(*event);
+      const auto message = SafeDecode<anchormap::merged_map_t>(*event);
       std::optional<MergedMap> map = message ? FromMessage(*message) : std::nullopt;
       if (!map) {
         ++result.undecodable;
@@ -109,7 +120,7 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
       ++result.merged_maps;
       result.map = std::move(map);
     } else if (event->channel == channels.grid_tiles) {
-      const auto message = DecodeAs<anchormap::grid_tile_t>(*event);
+      const auto message = SafeDecode<anchormap::grid_tile_t>(*event);
       std::optional<GridTile> tile = message ? FromMessage(*message) : std::nullopt;
       if (!tile) {
         ++result.undecodable;
@@ -122,7 +133,7 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
       }
       grid.push_back(std::move(*tile));
     } else if (event->channel == channels.anchor_covariances) {
-      const auto message = DecodeAs<anchormap::anchor_covariances_t>(*event);
+      const auto message = SafeDecode<anchormap::anchor_covariances_t>(*event);
       if (!message || message->num_anchors != static_cast<int>(message->anchors.size())) {
         ++result.undecodable;
         continue;

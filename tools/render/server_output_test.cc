@@ -60,13 +60,22 @@ TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
     broken.trajectories[0].poses[1][0] = std::nan("");
     writer.Write("ANCHORMAP_MERGED_MAP", 4, broken);
     anchormap::grid_tile_t wrong = testing::TestTile(1, 0, 0);
-    wrong.width = 11;  // rows hold 10 cells
+    wrong.resolution = 0.0;
     writer.Write("ANCHORMAP_GRID_TILES", 5, wrong);
+    // A tile whose height field says -1: lcm-gen's decoder would resize a vector to
+    // 2^64 - 1 elements and throw; the reader must count it, not crash.
+    const anchormap::grid_tile_t tile = testing::TestTile(1, 0, 0);
+    std::vector<uint8_t> bytes(tile.getEncodedSize());
+    tile.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    for (int i = 44; i < 48; ++i)
+      bytes[i] = 0xff;  // hash 8, utime 8, update 8, resolution 8,
+                        // tile_x 4, tile_y 4, width 4, then height
+    writer.WriteRaw("ANCHORMAP_GRID_TILES", 6, bytes.data(), bytes.size());
     writer.WriteRaw("OTHER_CHANNEL", 6, garbage, sizeof(garbage));
   }
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
-  EXPECT_EQ(output.undecodable, 4);
+  EXPECT_EQ(output.undecodable, 5);
   ASSERT_TRUE(output.map);
   EXPECT_EQ(output.map->update, 2);  // the last VALID map
   EXPECT_TRUE(output.grid.empty());
