@@ -55,6 +55,20 @@ void PrintSummary(const std::string& path, const ServerOutput& output,
   } else {
     std::printf("  no grid tiles in the log\n");
   }
+  if (output.status) {
+    const ServerStatus& status = *output.status;
+    std::printf(
+        "  server status (update %lld): %d robots, %d trajectories (%d anchored), %lld keyframes, "
+        "%lld encounters; rejected:",
+        static_cast<long long>(status.update), status.num_robots, status.num_trajectories,
+        status.num_anchored, static_cast<long long>(status.keyframes),
+        static_cast<long long>(status.encounters));
+    if (status.rejections.empty()) std::printf(" none");
+    for (const auto& [reason, count] : status.rejections) {
+      std::printf(" %s=%lld", reason.c_str(), static_cast<long long>(count));
+    }
+    std::printf("\n");
+  }
   std::set<TrajectoryKey> anchors;
   for (const AnchorSample& s : output.anchor_samples) anchors.insert(s.key);
   std::printf("  %lld anchor-covariance messages (%zu anchors)\n",
@@ -75,26 +89,32 @@ int main(int argc, char** argv) {
   bool no_encounters = false;
   bool quiet = false;
   po::options_description options("anchormap-render: render the server's output log");
-  options.add_options()("help,h", "print this help and exit")(
-      "map", po::value(&map_log), "the server's output LCM log (required)")(
-      "png", po::value(&png), "write the merged map (grid, trajectories, encounters) as PNG")(
-      "pgm", po::value(&pgm), "write the occupancy grid as PGM, with a map_server YAML beside it")(
-      "yaml", po::value(&yaml), "YAML path for --pgm (default: the PGM path with .yaml)")(
-      "g2o", po::value(&g2o),
-      "write the merged graph (keyframes, odometry chains, encounters) as g2o")(
-      "uncertainty-png", po::value(&uncertainty_png),
-      "plot every anchor's positional uncertainty over the updates")(
-      "pixels-per-m", po::value(&png_options.pixels_per_m)->default_value(0.0),
-      "map PNG scale (0: about 1400 px on the longer side)")(
-      "no-encounters", po::bool_switch(&no_encounters), "do not draw encounter lines")(
-      "title", po::value(&png_options.title)->default_value(png_options.title), "map PNG title")(
-      "merged-map-channel", po::value(&channels.merged_map)->default_value(channels.merged_map),
-      "merged map channel")("grid-channel",
-                            po::value(&channels.grid_tiles)->default_value(channels.grid_tiles),
-                            "grid tile channel")(
-      "covariance-channel",
-      po::value(&channels.anchor_covariances)->default_value(channels.anchor_covariances),
-      "anchor covariance channel")("quiet,q", po::bool_switch(&quiet), "print only errors");
+  // clang-format off
+  options.add_options()
+      ("help,h", "print this help and exit")
+      ("map", po::value(&map_log), "the server's output LCM log (required)")
+      ("png", po::value(&png), "write the merged map (grid, trajectories, encounters) as PNG")
+      ("pgm", po::value(&pgm), "write the occupancy grid as PGM, with a map_server YAML beside it")
+      ("yaml", po::value(&yaml), "YAML path for --pgm (default: the PGM path with .yaml)")
+      ("g2o", po::value(&g2o),
+       "write the merged graph (keyframes, odometry chains, encounters) as g2o")
+      ("uncertainty-png", po::value(&uncertainty_png),
+       "plot every anchor's positional uncertainty over the updates")
+      ("pixels-per-m", po::value(&png_options.pixels_per_m)->default_value(0.0),
+       "map PNG scale (0: about 1400 px on the longer side)")
+      ("no-encounters", po::bool_switch(&no_encounters), "do not draw encounter lines")
+      ("title", po::value(&png_options.title)->default_value(png_options.title), "map PNG title")
+      ("merged-map-channel", po::value(&channels.merged_map)->default_value(channels.merged_map),
+       "merged map channel")
+      ("grid-channel", po::value(&channels.grid_tiles)->default_value(channels.grid_tiles),
+       "grid tile channel")
+      ("covariance-channel",
+       po::value(&channels.anchor_covariances)->default_value(channels.anchor_covariances),
+       "anchor covariance channel")
+      ("status-channel", po::value(&channels.server_status)->default_value(channels.server_status),
+       "server status channel")
+      ("quiet,q", po::bool_switch(&quiet), "print only errors");
+  // clang-format on
   po::variables_map vm;
   try {
     po::store(po::command_line_parser(argc, argv).options(options).run(), vm);
@@ -148,8 +168,9 @@ int main(int argc, char** argv) {
   };
   if (!png.empty()) {
     MapViewport viewport;
-    report(RenderMapPng(output.map ? &*output.map : nullptr, raster, colors, png_options, png,
-                        &viewport),
+    const anchormap::Status status = RenderMapPng(output.map ? &*output.map : nullptr, raster,
+                                                  colors, png_options, png, &viewport);
+    report(status,
            "map PNG (" + std::to_string(viewport.width_px) + " x " +
                std::to_string(viewport.height_px) + " px)",
            png);

@@ -11,6 +11,7 @@
 #include "anchormap/anchor_covariances_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/merged_map_t.hpp"
+#include "anchormap/server_status_t.hpp"
 #include "common/bus/lcm_log.h"
 
 namespace anchormap::render {
@@ -132,6 +133,24 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
         grid.clear();
       }
       grid.push_back(std::move(*tile));
+    } else if (event->channel == channels.server_status) {
+      const auto message = SafeDecode<anchormap::server_status_t>(*event);
+      if (!message || message->num_reasons != static_cast<int>(message->rejection_reasons.size()) ||
+          message->rejection_counts.size() != message->rejection_reasons.size()) {
+        ++result.undecodable;
+        continue;
+      }
+      ServerStatus status{message->update,
+                          message->num_robots,
+                          message->num_trajectories,
+                          message->num_anchored,
+                          message->keyframes,
+                          message->encounters,
+                          {}};
+      for (int i = 0; i < message->num_reasons; ++i) {
+        status.rejections.emplace_back(message->rejection_reasons[i], message->rejection_counts[i]);
+      }
+      result.status = std::move(status);
     } else if (event->channel == channels.anchor_covariances) {
       const auto message = SafeDecode<anchormap::anchor_covariances_t>(*event);
       if (!message || message->num_anchors != static_cast<int>(message->anchors.size())) {

@@ -59,8 +59,20 @@ struct AnchorSample {
   double sigma_xy_m = 0.0;  // sqrt(sigma_x^2 + sigma_y^2)
 };
 
+// The server's last status message (anchormap.server_status_t as a value).
+struct ServerStatus {
+  int64_t update = 0;
+  int num_robots = 0;
+  int num_trajectories = 0;
+  int num_anchored = 0;
+  int64_t keyframes = 0;
+  int64_t encounters = 0;
+  std::vector<std::pair<std::string, int64_t>> rejections;  // reason, count
+};
+
 struct ChannelNames {
   std::string merged_map = "ANCHORMAP_MERGED_MAP";
+  std::string server_status = "ANCHORMAP_SERVER_STATUS";
   std::string grid_tiles = "ANCHORMAP_GRID_TILES";
   std::string anchor_covariances = "ANCHORMAP_ANCHOR_COVARIANCES";
 };
@@ -72,6 +84,7 @@ struct ServerOutput {
   std::vector<GridTile> grid;
   int64_t grid_tiles_from_previous_update = 0;
   std::vector<AnchorSample> anchor_samples;  // in log order
+  std::optional<ServerStatus> status;        // the last status message
   int64_t merged_maps = 0;                   // messages read per kind
   int64_t grid_tile_messages = 0;
   int64_t covariance_messages = 0;

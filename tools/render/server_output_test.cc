@@ -45,6 +45,12 @@ TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
   EXPECT_NEAR(output.anchor_samples[17].sigma_xy_m, 0.4, 1e-12);
   EXPECT_NEAR(output.anchor_samples[0].sigma_xy_m, std::sqrt(2e-6), 1e-12);
   EXPECT_EQ(output.undecodable, 0);
+  ASSERT_TRUE(output.status);
+  EXPECT_EQ(output.status->keyframes, 8);
+  EXPECT_EQ(output.status->num_anchored, 2);
+  ASSERT_EQ(output.status->rejections.size(), 1u);
+  EXPECT_EQ(output.status->rejections[0].first, "duplicate_seq");
+  EXPECT_EQ(output.status->rejections[0].second, 2);
 }
 
 TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {

@@ -12,6 +12,7 @@
 #include "anchormap/anchor_covariances_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/merged_map_t.hpp"
+#include "anchormap/server_status_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "tools/render/colors.h"
 
@@ -114,8 +115,8 @@ inline anchormap::anchor_covariances_t TestCovariances(int64_t update, double r2
 }
 
 // Writes a server output log: two merged maps (updates 4 and 9), a 2 x 2 tile grid of
-// update 9 covering [0, 10] x [0, 10], and covariances for updates 1..9 in which R2's
-// sigma_xy shrinks from 2 m to 0.4 m.
+// update 9 covering [0, 10] x [0, 10], covariances for updates 1..9 in which R2's
+// sigma_xy shrinks from 2 m to 0.4 m, and a server status (2 duplicates rejected).
 inline void WriteTestServerLog(const std::string& path) {
   LcmLogWriter writer;
   if (!writer.Open(path).ok()) return;
@@ -127,6 +128,19 @@ inline void WriteTestServerLog(const std::string& path) {
                  TestCovariances(update, sigma_xy * sigma_xy / 2));
   }
   writer.Write("ANCHORMAP_MERGED_MAP", 20, TestMergedMap(9));
+  anchormap::server_status_t status;
+  status.utime = 20;
+  status.update = 9;
+  status.num_robots = 3;
+  status.num_trajectories = 3;
+  status.num_anchored = 2;
+  status.keyframes = 8;
+  status.encounters = 1;
+  status.last_update_ms = 0.5;
+  status.num_reasons = 1;
+  status.rejection_reasons = {"duplicate_seq"};
+  status.rejection_counts = {2};
+  writer.Write("ANCHORMAP_SERVER_STATUS", 20, status);
   for (int ty = 0; ty < 2; ++ty) {
     for (int tx = 0; tx < 2; ++tx) writer.Write("ANCHORMAP_GRID_TILES", 21, TestTile(9, tx, ty));
   }
