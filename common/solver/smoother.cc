@@ -61,7 +61,7 @@ class Smoother::Impl {
   Status AddPose(PoseKey key, const Pose2& initial);
   Status AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov);
   Status AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov);
-  UpdateResult Update(bool force_batch);
+  UpdateResult Update(bool force_batch, double convergence_step);
 
   bool Has(const Key& key) const { return index_.count(key) > 0; }
   int NumPoses(TrajectoryId t) const {
@@ -83,6 +83,13 @@ class Smoother::Impl {
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
   double Chi2() const;
   const SmootherStats& stats() const { return stats_; }
+  std::vector<Factor> ActiveFactors() const {
+    std::vector<Factor> out;
+    for (const FactorRecord& f : factors_) {
+      if (f.active) out.push_back(f.factor);
+    }
+    return out;
+  }
 
  private:
   Pose2 EstimateOf(int var) const {
@@ -102,9 +109,11 @@ class Smoother::Impl {
   std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
   void TakeOutOfPending(const std::vector<int64_t>& done);
   void IncrementalStep(UpdateResult* result);
-  void BatchStep(UpdateResult* result);
-  void GaussNewtonIterations(const std::vector<int64_t>& included, UpdateResult* result);
-  void DogLegIterations(const std::vector<int64_t>& included, UpdateResult* result);
+  void BatchStep(bool converge, UpdateResult* result);
+  void GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
+                             UpdateResult* result);
+  void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
+                        UpdateResult* result);
   // Linearises `included` at the linearisation point, factors them in the current order
   // and solves for delta; false (with result->status) on failure.
   bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result);
@@ -133,6 +142,7 @@ class Smoother::Impl {
   std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
   std::vector<TrajectoryId> trajectory_order_;
   bool merge_pending_ = false;
+  double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
   int64_t nonzeros_after_batch_ = 0;
   SmootherStats stats_;
@@ -433,7 +443,7 @@ double Smoother::Impl::Chi2Of(const std::vector<int64_t>& included,
   return chi2;
 }
 
-void Smoother::Impl::BatchStep(UpdateResult* result) {
+void Smoother::Impl::BatchStep(bool converge, UpdateResult* result) {
   result->batch_step = true;
   // Relinearise everything at the current estimate.
   for (Variable& v : vars_) {
@@ -483,21 +493,21 @@ void Smoother::Impl::BatchStep(UpdateResult* result) {
   delta_.assign(position_to_var_.size(), Eigen::Vector3d::Zero());
   TakeOutOfPending(included);
 
+  const int max_iterations = converge ? options_.max_batch_iterations : 1;
   if (options_.method == NonlinearMethod::kDogLeg) {
-    DogLegIterations(included, result);
+    DogLegIterations(included, max_iterations, result);
   } else {
-    GaussNewtonIterations(included, result);
+    GaussNewtonIterations(included, max_iterations, result);
   }
   nonzeros_after_batch_ = r_->NonZeros();
   updates_since_batch_ = 0;
 }
 
-void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
+void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
                                            UpdateResult* result) {
   // R stays linearised at the last point; the final delta is kept (not folded into the
   // linearisation point) so that incremental updates continue consistently from R.
-  bool converged = false;
-  for (int it = 0; it < options_.max_batch_iterations; ++it) {
+  for (int it = 0; it < max_iterations; ++it) {
     if (it > 0) {
       for (int var : position_to_var_) {
         Variable& v = vars_[var];
@@ -506,23 +516,19 @@ void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
     }
     if (!FactorAll(included, result)) return;
     ++result->iterations;
-    const double step = MaxAbs(delta_);
-    if (step < options_.convergence_step) {
-      converged = true;
-      break;
-    }
+    if (MaxAbs(delta_) < tolerance_) break;
   }
   stats_.iterations_to_convergence += result->iterations;
-  (void)converged;
 }
 
-void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, UpdateResult* result) {
+void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
+                                      UpdateResult* result) {
   // Powell's dog-leg: blend the Gauss-Newton step with steepest descent inside a trust
   // region, accept a step only if chi2 decreases.
   double radius = options_.dogleg_initial_radius;
   double chi2 = Chi2Of(included, {});
   const int n = static_cast<int>(position_to_var_.size());
-  for (int it = 0; it < options_.max_batch_iterations; ++it) {
+  for (int it = 0; it < max_iterations; ++it) {
     if (!FactorAll(included, result)) return;
     ++result->iterations;
     const std::vector<Eigen::Vector3d> gauss_newton = delta_;
@@ -599,14 +605,14 @@ void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, Upda
         chi2 = new_chi2;
       }
     }
-    if (!accepted || MaxAbs(h) < options_.convergence_step) break;
+    if (!accepted || MaxAbs(h) < tolerance_) break;
   }
   stats_.iterations_to_convergence += result->iterations;
   // Leave R linearised at the final point, with its Gauss-Newton solution as delta.
   FactorAll(included, result);
 }
 
-UpdateResult Smoother::Impl::Update(bool force_batch) {
+UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   const auto start = std::chrono::steady_clock::now();
   UpdateResult result;
   result.update = ++stats_.updates;
@@ -627,13 +633,17 @@ UpdateResult Smoother::Impl::Update(bool force_batch) {
     } else if (on_fill) {
       ++stats_.batch_steps_on_fill;
     }
+    const bool converge = force_batch || merge_pending_ || options_.converge_periodic_batches;
     merge_pending_ = false;
-    BatchStep(&result);
+    tolerance_ = convergence_step > 0 ? convergence_step : options_.convergence_step;
+    BatchStep(converge, &result);
+    stats_.batch_seconds += Seconds(start);
     ++stats_.batch_steps;
     stats_.batch_iterations += result.iterations;
     result.factors_added = static_cast<int>(stats_.factors);
   } else {
     IncrementalStep(&result);
+    stats_.incremental_seconds += Seconds(start);
   }
   if (!pending_vars_.empty() && result.status.ok()) {
     result.status = Status::Error(std::to_string(pending_vars_.size()) +
@@ -701,8 +711,10 @@ Status Smoother::AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eige
 Status Smoother::AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov) {
   return impl_->AddEncounter(a, b, z, cov);
 }
-UpdateResult Smoother::Update() { return impl_->Update(false); }
-UpdateResult Smoother::BatchOptimize() { return impl_->Update(true); }
+UpdateResult Smoother::Update() { return impl_->Update(false, 0.0); }
+UpdateResult Smoother::BatchOptimize(double convergence_step) {
+  return impl_->Update(true, convergence_step);
+}
 bool Smoother::HasPose(PoseKey key) const { return impl_->Has(key); }
 int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t); }
 std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }
@@ -721,6 +733,9 @@ Eigen::MatrixXd Smoother::JointCovariance(const std::vector<Key>& keys) {
   return impl_->JointCovariance(keys);
 }
 double Smoother::Chi2() const { return impl_->Chi2(); }
+Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
+bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
+std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactors(); }
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   std::vector<Pose2> poses;

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/solver/factor.h"
 #include "common/solver/keys.h"
 #include "common/solver/smoother_options.h"
 #include "common/util/status.h"
@@ -48,7 +49,9 @@ struct SmootherStats {
   int64_t rows_backsubstituted = 0;
   int64_t variables = 0;
   int64_t factors = 0;
-  int64_t nnz_r = 0;  // scalar non-zeros of R (upper triangle)
+  int64_t nnz_r = 0;                 // scalar non-zeros of R (upper triangle)
+  double batch_seconds = 0.0;        // time spent in batch steps
+  double incremental_seconds = 0.0;  // time spent in incremental updates
 };
 
 class Smoother {
@@ -79,8 +82,9 @@ class Smoother {
 
   // Folds everything added since the last call into the solution.
   UpdateResult Update();
-  // Forces a batch step now (relinearise, reorder, refactor, iterate to convergence).
-  UpdateResult BatchOptimize();
+  // Forces a batch step now (relinearise, reorder, refactor, iterate until the largest step
+  // component is below `convergence_step`; <= 0 means options().convergence_step).
+  UpdateResult BatchOptimize(double convergence_step = 0.0);
 
   // --- Estimates (valid after Update()) ---
   bool HasPose(PoseKey key) const;
@@ -103,6 +107,12 @@ class Smoother {
   Eigen::Matrix3d MarginalCovariance(const Key& key);
   // Joint covariance of several variables, 3k x 3k, blocks in the order given.
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+
+  // The current estimate of any variable (pose: local frame; anchor: T_global_local).
+  Pose2 Value(const Key& key) const;
+  bool HasVariable(const Key& key) const;
+  // Every active factor (gauge priors included), for exports, journals and test oracles.
+  std::vector<Factor> ActiveFactors() const;
 
   // Sum of squared whitened residuals of every factor at the current estimate.
   double Chi2() const;

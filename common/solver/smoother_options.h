@@ -42,6 +42,11 @@ struct SmootherOptions {
   // propagate further (iSAM2's wildfire threshold). 0 = exact full back-substitution.
   double backsubstitution_threshold = 0.0;
 
+  // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
+  // this set they iterate to convergence like merge steps and BatchOptimize() (the
+  // thesis' protocol for counting iterations).
+  bool converge_periodic_batches = false;
+
   // Batch-step convergence: stop iterating when the largest component of the step is
   // below this (metres / radians) or after max_batch_iterations.
   double convergence_step = 1e-4;

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <queue>
 
 #include <Eigen/Dense>
 
@@ -15,12 +14,12 @@ constexpr int64_t kBlockNonZeros = 9;
 
 // Zeroes W(low, col) against W(high, col) with one Givens rotation applied to columns
 // col.. of both rows.
-void Rotate(Eigen::Matrix<double, 6, Eigen::Dynamic>& W, int high, int low, int col) {
+void Rotate(Eigen::Matrix<double, 6, Eigen::Dynamic>& W, int width, int high, int low, int col) {
   const double a = W(high, col), b = W(low, col);
   if (b == 0.0) return;
-  const double r = std::hypot(a, b);
+  const double r = std::sqrt(a * a + b * b);  // entries are O(1e-6..1e6): no overflow
   const double c = a / r, s = b / r;
-  for (int j = col; j < W.cols(); ++j) {
+  for (int j = col; j < width; ++j) {
     const double t1 = W(high, j), t2 = W(low, j);
     W(high, j) = c * t1 + s * t2;
     W(low, j) = -s * t1 + c * t2;
@@ -48,9 +47,9 @@ void SparseR::Assign(std::vector<RBlockRow> rows) {
 double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
   std::sort(rows.blocks.begin(), rows.blocks.end(), by_column);
-  std::vector<std::pair<int, Eigen::Matrix3d>> next_blocks;
-  std::vector<int> columns;
-  Eigen::Matrix<double, 6, Eigen::Dynamic> W;
+  std::vector<std::pair<int, Eigen::Matrix3d>>& next_blocks = scratch_blocks_;
+  std::vector<int>& columns = scratch_columns_;
+  Eigen::Matrix<double, 6, Eigen::Dynamic>& W = scratch_;
 
   while (!rows.blocks.empty()) {
     const int c = rows.blocks.front().first;
@@ -76,7 +75,9 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
       }
     }
     const int m = static_cast<int>(columns.size());
-    W.setZero(6, 3 + 3 * m + 1);
+    if (W.cols() < 3 + 3 * m + 1) W.resize(6, 2 * (3 + 3 * m + 1));  // amortised growth
+    const int width = 3 + 3 * m + 1;
+    W.leftCols(width).setZero();
     W.block<3, 3>(0, 0) = row.diagonal;
     W.block<3, 3>(3, 0) = rows.blocks.front().second;
     {
@@ -96,7 +97,7 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
 
     // Zero the new rows' entries under the diagonal block, column by column.
     for (int k = 0; k < 3; ++k) {
-      for (int low = 3; low < 6; ++low) Rotate(W, k, low, k);
+      for (int low = 3; low < 6; ++low) Rotate(W, width, k, low, k);
     }
 
     // Write back R's row (new fill registers in the column index) and the new rows.
@@ -142,30 +143,24 @@ void SparseR::BackSubstitute(std::vector<Eigen::Vector3d>* delta) const {
 int SparseR::BackSubstitutePartial(const std::vector<int>& dirty, double threshold,
                                    std::vector<Eigen::Vector3d>* delta) {
   delta->resize(rows_.size(), Eigen::Vector3d::Zero());
-  std::priority_queue<int> queue;  // largest position first: back-substitution order
-  std::vector<char> queued(rows_.size(), 0);
+  // Rows are solved in decreasing position; a row only ever marks rows above it, so one
+  // downward sweep over a bitmap visits each dirty row once (cheaper than a heap).
+  std::vector<char>& mark = scratch_dirty_;
+  mark.assign(rows_.size(), 0);
+  int highest = -1;
   for (int p : dirty) {
-    if (!queued[p]) {
-      queued[p] = 1;
-      queue.push(p);
-    }
+    mark[p] = 1;
+    highest = std::max(highest, p);
   }
   int recomputed = 0;
-  while (!queue.empty()) {
-    const int p = queue.top();
-    queue.pop();
-    queued[p] = 0;
+  for (int p = highest; p >= 0; --p) {
+    if (!mark[p]) continue;
     const Eigen::Vector3d value = SolveRow(p, *delta);
     const double change = (value - (*delta)[p]).cwiseAbs().maxCoeff();
     (*delta)[p] = value;
     ++recomputed;
     if (change > threshold) {
-      for (int r : column_rows_[p]) {
-        if (!queued[r]) {
-          queued[r] = 1;
-          queue.push(r);
-        }
-      }
+      for (int r : column_rows_[p]) mark[r] = 1;
     }
   }
   return recomputed;

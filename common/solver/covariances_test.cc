@@ -1,0 +1,70 @@
+#include "common/solver/covariances.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+namespace anchormap {
+namespace {
+
+TEST(CovarianceRecoveryTest, EveryBlockEqualsTheDenseInverse) {
+  std::mt19937 rng(9);
+  const int n = 25;
+  auto r = std::make_shared<SparseR>();
+  r->Append(n);
+  // A chain with random loop closures, as in a pose graph.
+  for (int p = 0; p < n; ++p) {
+    NewRows rows;
+    rows.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * 2 + 0.2 * Eigen::Matrix3d::Random());
+    if (p > 0) rows.blocks.emplace_back(p - 1, Eigen::Matrix3d::Random());
+    r->Eliminate(rows, nullptr);
+  }
+  for (int k = 0; k < 15; ++k) {
+    NewRows rows;
+    const int a = std::uniform_int_distribution<int>(0, n - 2)(rng);
+    rows.blocks.emplace_back(a, Eigen::Matrix3d::Random());
+    rows.blocks.emplace_back(std::uniform_int_distribution<int>(a + 1, n - 1)(rng),
+                             Eigen::Matrix3d::Random());
+    r->Eliminate(rows, nullptr);
+  }
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int p = 0; p < n; ++p) {
+    R.block<3, 3>(3 * p, 3 * p) = r->row(p).diagonal;
+    for (const auto& [q, block] : r->row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
+  }
+  const Eigen::MatrixXd sigma = (R.transpose() * R).inverse();
+
+  CovarianceRecovery recovery(r);
+  // Marginals and pairs in R's pattern first (the cheap case), then any pair.
+  for (int l = n - 1; l >= 0; --l) {
+    EXPECT_LT((recovery.Block(l, l) - sigma.block<3, 3>(3 * l, 3 * l)).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  for (int i = 0; i < n; ++i) {
+    for (int l = 0; l < n; ++l) {
+      EXPECT_LT((recovery.Block(i, l) - sigma.block<3, 3>(3 * i, 3 * l)).cwiseAbs().maxCoeff(),
+                1e-9)
+          << i << "," << l;
+    }
+  }
+  const Eigen::MatrixXd joint = recovery.Joint({n - 1, 3, 17});
+  EXPECT_LT((joint.block<3, 3>(3, 6) - sigma.block<3, 3>(9, 51)).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((joint - joint.transpose()).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(CovarianceRecoveryTest, LastBlockNeedsNoOtherEntries) {
+  auto r = std::make_shared<SparseR>();
+  r->Append(3);
+  for (int p = 0; p < 3; ++p) {
+    NewRows rows;
+    rows.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * (p + 1.0));
+    if (p > 0) rows.blocks.emplace_back(p - 1, Eigen::Matrix3d::Identity());
+    r->Eliminate(rows, nullptr);
+  }
+  CovarianceRecovery recovery(r);
+  recovery.Block(2, 2);
+  EXPECT_EQ(recovery.memoised(), 1u);  // only the anchor-last block: no recursion
+}
+
+}  // namespace
+}  // namespace anchormap

@@ -1,0 +1,168 @@
+#include "common/solver/smoother.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/testing/dense_oracle.h"
+#include "tests/testing/random_graph.h"
+
+namespace anchormap {
+namespace {
+
+using testing::DenseOracle;
+using testing::Values;
+
+const Eigen::Matrix3d kCovariance = Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal();
+
+// Adds a random single-trajectory graph as trajectory `t` and returns its ground truth.
+PoseGraph AddRandomTrajectory(Smoother* smoother, TrajectoryId t, int poses, uint32_t seed,
+                              bool update_each_step) {
+  testing::RandomGraphOptions options;
+  options.poses = poses;
+  options.loop_closures = poses / 5;
+  options.seed = seed;
+  const PoseGraph graph = testing::RandomGraph(options);
+  for (int i = 0; i < poses; ++i) {
+    Pose2 initial;
+    if (i > 0)
+      initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+    EXPECT_TRUE(smoother->AddPose({t, i}, initial).ok());
+    if (i > 0) {
+      EXPECT_TRUE(smoother
+                      ->AddBetween({t, i - 1}, {t, i}, graph.edges[i - 1].measured_T_from_to,
+                                   graph.edges[i - 1].information.inverse())
+                      .ok());
+    }
+    for (size_t e = poses - 1; e < graph.edges.size(); ++e) {
+      if (graph.edges[e].to == i) {
+        EXPECT_TRUE(smoother
+                        ->AddBetween({t, static_cast<int32_t>(graph.edges[e].from)}, {t, i},
+                                     graph.edges[e].measured_T_from_to,
+                                     graph.edges[e].information.inverse())
+                        .ok());
+      }
+    }
+    if (update_each_step) {
+      EXPECT_TRUE(smoother->Update().status.ok());
+    }
+  }
+  return graph;
+}
+
+Values CurrentValues(const Smoother& smoother) {
+  Values values;
+  for (const Factor& f : smoother.ActiveFactors()) {
+    for (const Key& key : FactorKeys(f)) values[key] = smoother.Value(key);
+  }
+  return values;
+}
+
+TEST(SmootherTest, RejectsBadInputWithReasons) {
+  Smoother smoother;
+  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2()).message(),
+            "trajectory 0 must start with pose index 0");
+  ASSERT_TRUE(smoother.AddPose({0, 0}, Pose2()).ok());
+  EXPECT_EQ(smoother.AddPose({0, 0}, Pose2()).message(), "pose pose(0,0) exists already");
+  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2(std::nan(""), 0, 0)).message(),
+            "initial pose is not finite");
+  ASSERT_TRUE(smoother.AddPose({0, 1}, Pose2()).ok());
+  Eigen::Matrix3d bad = kCovariance;
+  bad(2, 2) = -1;
+  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 1}, Pose2(), bad).message(),
+            "covariance rejected: matrix is not positive definite");
+  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 7}, Pose2(), kCovariance).message(),
+            "between factor on an unknown pose");
+  EXPECT_EQ(smoother.AddEncounter({0, 0}, {0, 1}, Pose2(), kCovariance).message(),
+            "encounter within one trajectory: use AddBetween (a loop closure)");
+  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, std::nan(""), 0), kCovariance).message(),
+            "measurement is not finite");
+}
+
+TEST(SmootherTest, UnconstrainedPoseWaitsInsteadOfBreakingTheSolution) {
+  Smoother smoother;
+  ASSERT_TRUE(smoother.AddPose({0, 0}, Pose2()).ok());
+  ASSERT_TRUE(smoother.AddPose({0, 1}, Pose2(1, 0, 0)).ok());
+  ASSERT_TRUE(smoother.AddPose({0, 2}, Pose2(2, 0, 0)).ok());
+  ASSERT_TRUE(smoother.AddBetween({0, 1}, {0, 2}, Pose2(1, 0, 0), kCovariance).ok());
+  const UpdateResult result = smoother.Update();
+  EXPECT_FALSE(result.status.ok());  // poses 1 and 2 are not tied to pose 0 yet
+  EXPECT_NE(result.status.message().find("wait for measurements"), std::string::npos);
+  EXPECT_TRUE(smoother.LocalPose({0, 0}).IsFinite());
+  ASSERT_TRUE(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, 0, 0.1), kCovariance).ok());
+  EXPECT_TRUE(smoother.Update().status.ok());
+  // One linear step from the initial guess, then the nonlinear optimum.
+  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), 0.1, 1e-9);
+  EXPECT_TRUE(smoother.BatchOptimize().status.ok());
+  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), std::sin(0.1), 1e-9);
+}
+
+TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
+  for (NonlinearMethod method : {NonlinearMethod::kGaussNewton, NonlinearMethod::kDogLeg}) {
+    for (double threshold : {0.0, 1e-3}) {
+      SmootherOptions options;
+      options.method = method;
+      options.batch_every_updates = 7;
+      options.backsubstitution_threshold = threshold;
+      Smoother smoother(options);
+      AddRandomTrajectory(&smoother, 0, 60, 4, /*update_each_step=*/true);
+      ASSERT_TRUE(smoother.BatchOptimize().status.ok());
+      const DenseOracle oracle(smoother.ActiveFactors());
+      const Values optimum = oracle.Solve(CurrentValues(smoother));
+      for (const auto& [key, value] : optimum) {
+        EXPECT_LT(PoseError(smoother.Value(key), value).cwiseAbs().maxCoeff(), 1e-6)
+            << key.ToString();
+      }
+      EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-6 * oracle.Chi2(optimum));
+    }
+  }
+}
+
+TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
+  SmootherOptions options;
+  options.convergence_step = 1e-13;  // R linearised at the estimate itself
+  Smoother smoother(options);
+  AddRandomTrajectory(&smoother, 0, 30, 8, false);
+  AddRandomTrajectory(&smoother, 1, 25, 9, false);
+  ASSERT_TRUE(smoother.AddEncounter({0, 10}, {1, 3}, Pose2(0.5, 0.2, 0.1), kCovariance).ok());
+  ASSERT_TRUE(smoother.AddEncounter({1, 20}, {0, 25}, Pose2(-0.5, 0.2, 3.0), kCovariance).ok());
+  ASSERT_TRUE(smoother.BatchOptimize().status.ok());
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const Values values = CurrentValues(smoother);
+  const std::vector<Key> keys = {AnchorKey{0}, AnchorKey{1}, PoseKey{0, 10}, PoseKey{1, 3},
+                                 PoseKey{0, 0}};
+  const Eigen::MatrixXd expected = oracle.Covariance(values, keys);
+  const Eigen::MatrixXd joint = smoother.JointCovariance(keys);
+  EXPECT_LT((joint - expected).cwiseAbs().maxCoeff(), 1e-9 * expected.cwiseAbs().maxCoeff());
+  for (size_t k = 0; k < keys.size(); ++k) {
+    EXPECT_LT((smoother.MarginalCovariance(keys[k]) - expected.block<3, 3>(3 * k, 3 * k))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-9 * expected.cwiseAbs().maxCoeff());
+  }
+  EXPECT_THROW(smoother.MarginalCovariance(PoseKey{7, 0}), std::invalid_argument);
+}
+
+TEST(SmootherTest, CovarianceOfIncrementalStateEqualsDenseInverseOfItsSystem) {
+  // Between batch steps R mixes linearisation points; its covariance is still exactly
+  // (R^T R)^-1, which the oracle rebuilds from the factors only at convergence. Here:
+  // no batch step at all and linear-enough measurements, so both agree closely.
+  SmootherOptions options;
+  options.batch_every_updates = 0;
+  options.batch_when_fill_grows = 0;
+  Smoother smoother(options);
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(smoother.AddPose({0, i}, Pose2(i, 0, 0)).ok());
+    if (i > 0) {
+      ASSERT_TRUE(smoother.AddBetween({0, i - 1}, {0, i}, Pose2(1, 0, 0), kCovariance).ok());
+    }
+    ASSERT_TRUE(smoother.Update().status.ok());
+  }
+  ASSERT_TRUE(smoother.AddBetween({0, 3}, {0, 17}, Pose2(14, 0, 0), kCovariance).ok());
+  ASSERT_TRUE(smoother.Update().status.ok());
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const std::vector<Key> keys = {PoseKey{0, 19}, PoseKey{0, 5}};
+  const Eigen::MatrixXd expected = oracle.Covariance(CurrentValues(smoother), keys);
+  EXPECT_LT((smoother.JointCovariance(keys) - expected).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+}  // namespace
+}  // namespace anchormap

@@ -1,0 +1,135 @@
+#include "common/solver/sparse_r.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+namespace anchormap {
+namespace {
+
+Eigen::MatrixXd Dense(const SparseR& r) {
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * r.size(), 3 * r.size());
+  for (int p = 0; p < r.size(); ++p) {
+    R.block<3, 3>(3 * p, 3 * p) = r.row(p).diagonal;
+    for (const auto& [q, block] : r.row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
+  }
+  return R;
+}
+
+Eigen::VectorXd DenseRhs(const SparseR& r) {
+  Eigen::VectorXd d(3 * r.size());
+  for (int p = 0; p < r.size(); ++p) d.segment<3>(3 * p) = r.row(p).rhs;
+  return d;
+}
+
+// Random sparse rows over `n` block columns, each touching 1-3 blocks (like factors),
+// with the first rows fixing every variable so the system has full rank.
+std::vector<NewRows> RandomRows(int n, int extra, std::mt19937* rng) {
+  std::normal_distribution<double> g;
+  std::vector<NewRows> rows;
+  for (int p = 0; p < n; ++p) {
+    NewRows row;
+    row.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * 3 + 0.3 * Eigen::Matrix3d::Random());
+    if (p > 0) row.blocks.emplace_back(p - 1, Eigen::Matrix3d::Random());
+    row.rhs = Eigen::Vector3d::Random();
+    rows.push_back(row);
+  }
+  for (int k = 0; k < extra; ++k) {
+    NewRows row;
+    const int a = std::uniform_int_distribution<int>(0, n - 1)(*rng);
+    int b = std::uniform_int_distribution<int>(0, n - 1)(*rng);
+    if (b == a) b = (a + 1) % n;
+    row.blocks.emplace_back(b, Eigen::Matrix3d::Random());
+    row.blocks.emplace_back(a, Eigen::Matrix3d::Random());
+    row.rhs = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+TEST(SparseRTest, GivensUpdatesEqualDenseLeastSquaresAfterEveryRow) {
+  std::mt19937 rng(11);
+  const int n = 12;
+  SparseR r;
+  r.Append(n);
+  Eigen::MatrixXd A(0, 3 * n);
+  Eigen::VectorXd b(0);
+  double leftover = 0.0;
+  for (const NewRows& rows : RandomRows(n, 25, &rng)) {
+    Eigen::MatrixXd block_rows = Eigen::MatrixXd::Zero(3, 3 * n);
+    for (const auto& [q, m] : rows.blocks) block_rows.block<3, 3>(0, 3 * q) = m;
+    A.conservativeResize(A.rows() + 3, Eigen::NoChange);
+    A.bottomRows(3) = block_rows;
+    b.conservativeResize(b.size() + 3);
+    b.tail(3) = rows.rhs;
+    std::vector<int> touched;
+    leftover += r.Eliminate(rows, &touched);
+    EXPECT_FALSE(touched.empty());
+
+    const Eigen::MatrixXd R = Dense(r);
+    // Strictly upper triangular below the diagonal.
+    EXPECT_EQ(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_LT((R.transpose() * R - A.transpose() * A).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((R.transpose() * DenseRhs(r) - A.transpose() * b).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  // Solution equals the dense least-squares solution; the leftover equals its residual.
+  std::vector<Eigen::Vector3d> delta;
+  r.BackSubstitute(&delta);
+  const Eigen::VectorXd expected = A.colPivHouseholderQr().solve(b);
+  for (int p = 0; p < n; ++p) EXPECT_LT((delta[p] - expected.segment<3>(3 * p)).norm(), 1e-9);
+  EXPECT_NEAR(leftover, (A * expected - b).squaredNorm(), 1e-9);
+  EXPECT_EQ(r.NonZeros(), [&] {
+    int64_t nnz = 0;
+    for (int p = 0; p < n; ++p) nnz += 6 + 9 * static_cast<int64_t>(r.row(p).right.size());
+    return nnz;
+  }());
+}
+
+TEST(SparseRTest, PartialBackSubstitutionWithZeroThresholdIsExact) {
+  std::mt19937 rng(5);
+  const int n = 30;
+  SparseR r;
+  r.Append(n);
+  auto rows = RandomRows(n, 40, &rng);
+  std::vector<Eigen::Vector3d> full, partial;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    std::vector<int> touched;
+    r.Eliminate(rows[k], &touched);
+    if (k + 1 < static_cast<size_t>(n)) continue;  // wait until every variable is determined
+    if (partial.empty()) {
+      r.BackSubstitute(&partial);
+      continue;
+    }
+    r.BackSubstitutePartial(touched, 0.0, &partial);
+    r.BackSubstitute(&full);
+    for (int p = 0; p < n; ++p) EXPECT_LT((full[p] - partial[p]).cwiseAbs().maxCoeff(), 1e-12);
+  }
+  // A large threshold recomputes only the touched rows.
+  NewRows last;
+  last.blocks.emplace_back(n - 1, Eigen::Matrix3d::Identity());
+  std::vector<int> touched;
+  r.Eliminate(last, &touched);
+  EXPECT_EQ(r.BackSubstitutePartial(touched, 1e9, &partial), 1);
+}
+
+TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
+  std::mt19937 rng(2);
+  SparseR r;
+  r.Append(8);
+  for (const NewRows& rows : RandomRows(8, 10, &rng)) r.Eliminate(rows, nullptr);
+  std::vector<RBlockRow> copy;
+  for (int p = 0; p < r.size(); ++p) copy.push_back(r.row(p));
+  std::vector<Eigen::Vector3d> g(8);
+  Eigen::VectorXd gd(24);
+  for (int p = 0; p < 8; ++p) {
+    g[p] = Eigen::Vector3d::Random();
+    gd.segment<3>(3 * p) = g[p];
+  }
+  const auto y = SolveTransposed(copy, g);
+  const Eigen::VectorXd expected = Dense(r).transpose().triangularView<Eigen::Lower>().solve(gd);
+  for (int p = 0; p < 8; ++p) EXPECT_LT((y[p] - expected.segment<3>(3 * p)).norm(), 1e-10);
+}
+
+}  // namespace
+}  // namespace anchormap
