@@ -32,9 +32,14 @@ std::string Format(const char* format, double a, double b = 0.0, double c = 0.0)
 }  // namespace
 
 uint8_t OccupancyGray(int8_t occupancy) {
+  // map_saver's thresholds: at most 19.6 % is free (white), at least 65 % occupied (black);
+  // in between a grey ramp, so that uncertain cells stay visible.
+  constexpr double kFree = 19.6;
+  constexpr double kOccupied = 65.0;
   if (occupancy < 0) return 205;
-  const int clamped = std::min<int>(occupancy, 100);
-  return static_cast<uint8_t>(255 - (clamped * 255 + 50) / 100);
+  if (occupancy <= kFree) return 255;
+  if (occupancy >= kOccupied) return 0;
+  return static_cast<uint8_t>(std::lround(255.0 * (kOccupied - occupancy) / (kOccupied - kFree)));
 }
 
 MapViewport ChooseViewport(const MergedMap* map, const OccupancyRaster& raster,

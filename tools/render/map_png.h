@@ -1,8 +1,8 @@
 #pragma once
 // The merged map as a PNG: occupancy grid in grey levels (black occupied, white free,
-// light grey unknown), each trajectory as a line in its own colour (dashed when not yet
-// anchored: it is then drawn in its own local frame), encounters as thin dark lines
-// between the keyframes they join, a legend, a title and a scale bar.
+// light grey unknown, a ramp between free and occupied), each trajectory as a line in its own
+// colour (dashed when not yet anchored: it is then drawn in its own local frame), encounters as
+// thin dark lines between the keyframes they join, a legend, a title and a scale bar.
 
 #include <string>
 
@@ -48,7 +48,8 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
                     const ColorAssignment& colors, const MapPngOptions& options,
                     const std::string& path, MapViewport* viewport = nullptr);
 
-// Grey value of an occupancy cell in the PNG: -1 -> 205, 0 -> 255, 100 -> 0.
+// Grey value of an occupancy cell in the PNG: unknown (-1) 205, free (<= 19.6) 255,
+// occupied (>= 65) 0, a linear ramp in between (map_saver's thresholds).
 uint8_t OccupancyGray(int8_t occupancy);
 
 }  // namespace anchormap::render

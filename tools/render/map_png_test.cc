@@ -80,7 +80,9 @@ TEST(MapPngTest, OccupancyGrayLevels) {
   EXPECT_EQ(OccupancyGray(-1), 205);
   EXPECT_EQ(OccupancyGray(0), 255);
   EXPECT_EQ(OccupancyGray(100), 0);
-  EXPECT_EQ(OccupancyGray(50), 127);
+  EXPECT_EQ(OccupancyGray(19), 255);
+  EXPECT_EQ(OccupancyGray(50), 84);  // 255 * (65 - 50) / (65 - 19.6)
+  EXPECT_EQ(OccupancyGray(65), 0);
 }
 
 }  // namespace

@@ -44,12 +44,12 @@ void PrintSummary(const std::string& path, const ServerOutput& output,
     std::printf("  no merged map in the log\n");
   }
   if (!raster.empty()) {
-    std::printf("  grid %d x %d cells at %.3f m (%zu tiles of update %lld", raster.width,
+    std::printf("  grid %d x %d cells at %.3f m (%zu tiles, update %lld", raster.width,
                 raster.height, raster.resolution_m, output.grid.size(),
-                static_cast<long long>(output.grid.front().update));
-    if (output.grid_tiles_from_previous_update > 0) {
-      std::printf(", %lld from the update before",
-                  static_cast<long long>(output.grid_tiles_from_previous_update));
+                static_cast<long long>(output.grid_update));
+    if (output.grid_tiles_from_earlier_updates > 0) {
+      std::printf(", %lld from earlier updates",
+                  static_cast<long long>(output.grid_tiles_from_earlier_updates));
     }
     std::printf(")\n");
   } else {

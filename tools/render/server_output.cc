@@ -1,6 +1,8 @@
 #include "tools/render/server_output.h"
 
 #include <cmath>
+#include <map>
+#include <utility>
 
 // GCC 12 warns inside lcm_coretypes.h when it inlines the int8 array decode of
 // grid_tile_t (bounds it cannot prove: -Wstringop-overflow, -Wrestrict); the generated
@@ -72,6 +74,9 @@ std::optional<GridTile> FromMessage(const anchormap::grid_tile_t& message) {
   return tile;
 }
 
+// How many grid updates back a tile missing from the last one may come from.
+constexpr int64_t kMaxGridRunsBack = 5;
+
 // DecodeAs that also turns exceptions into "does not decode": lcm-gen's decoders resize
 // vectors to the counts in the message, so a corrupt negative count throws.
 template <typename T>
@@ -105,11 +110,17 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
   LcmLogReader reader;
   if (Status status = reader.Open(path); !status.ok()) return status;
   ServerOutput result;
-  // A grid update is a run of tiles with the same update number; a tile of another update
-  // starts a new run, and the last run in the log is the grid. The run before it is kept
-  // to fill in a last run cut short (a server stopped while publishing).
-  std::vector<GridTile> grid;
-  std::vector<GridTile> previous_grid;
+  // A grid update is a run of tiles with the same update number. The grid is the newest
+  // version of every tile seen in the last few runs: tiles of the last run, and tiles that
+  // run lacks (lost in transport, or a server stopped while publishing) from the runs
+  // before it. Older tiles are dropped: the map may have moved since.
+  struct KeptTile {
+    GridTile tile;
+    int64_t run = 0;
+  };
+  std::map<std::pair<int, int>, KeptTile> newest_tiles;
+  int64_t run = -1;
+  int64_t run_update = 0;
   while (std::optional<LogEvent> event = reader.Next()) {
     if (event->channel == channels.merged_map) {
       const auto message = SafeDecode<anchormap::merged_map_t>(*event);
@@ -128,11 +139,12 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
         continue;
       }
       ++result.grid_tile_messages;
-      if (!grid.empty() && grid.front().update != tile->update) {
-        previous_grid = std::move(grid);
-        grid.clear();
+      if (run < 0 || tile->update != run_update) {
+        ++run;
+        run_update = tile->update;
       }
-      grid.push_back(std::move(*tile));
+      const std::pair<int, int> key(tile->tile_x, tile->tile_y);
+      newest_tiles[key] = KeptTile{std::move(*tile), run};
     } else if (event->channel == channels.server_status) {
       const auto message = SafeDecode<anchormap::server_status_t>(*event);
       if (!message || message->num_reasons != static_cast<int>(message->rejection_reasons.size()) ||
@@ -171,19 +183,12 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
       }
     }
   }
-  if (grid.size() < previous_grid.size()) {
-    for (GridTile& old_tile : previous_grid) {
-      bool present = false;
-      for (const GridTile& tile : grid) {
-        present = present || (tile.tile_x == old_tile.tile_x && tile.tile_y == old_tile.tile_y);
-      }
-      if (!present) {
-        grid.push_back(std::move(old_tile));
-        ++result.grid_tiles_from_previous_update;
-      }
-    }
+  result.grid_update = run_update;
+  for (auto& [key, kept] : newest_tiles) {
+    if (run - kept.run > kMaxGridRunsBack) continue;
+    if (kept.run != run) ++result.grid_tiles_from_earlier_updates;
+    result.grid.push_back(std::move(kept.tile));
   }
-  result.grid = std::move(grid);
   if (result.map) {
     for (const EncounterLink& link : result.map->encounters) {
       if (!result.map->FindPose(link.trajectory_a, link.index_a) ||

@@ -79,10 +79,12 @@ struct ChannelNames {
 
 struct ServerOutput {
   std::optional<MergedMap> map;  // the last merged map in the log
-  // The tiles of the last grid update; when that update has fewer tiles than the one
-  // before (cut short), the missing tiles come from the one before.
+  // The grid: the newest version of every tile among the last grid updates (a grid update
+  // is a run of tiles with one update number). Tiles the last update lacks (lost on the
+  // bus, or the server stopped while publishing) come from up to 5 updates before.
   std::vector<GridTile> grid;
-  int64_t grid_tiles_from_previous_update = 0;
+  int64_t grid_tiles_from_earlier_updates = 0;
+  int64_t grid_update = 0;                   // the last grid update's number
   std::vector<AnchorSample> anchor_samples;  // in log order
   std::optional<ServerStatus> status;        // the last status message
   int64_t merged_maps = 0;                   // messages read per kind

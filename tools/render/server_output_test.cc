@@ -87,21 +87,44 @@ TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
   EXPECT_TRUE(output.grid.empty());
 }
 
-TEST(ServerOutputTest, ACutShortGridUpdateIsFilledFromTheOneBefore) {
+TEST(ServerOutputTest, TilesMissingFromTheLastUpdateComeFromRecentOnes) {
   const std::string path = TempPath("server_output_cut.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
+    // Update 4 has a tile (9, 9) that no later update has.
+    writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(4, 9, 9));
     for (int tx = 0; tx < 3; ++tx)
-      writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(5, tx, 0));
-    writer.Write("ANCHORMAP_GRID_TILES", 2, testing::TestTile(6, 1, 0));  // then stopped
+      writer.Write("ANCHORMAP_GRID_TILES", 2, testing::TestTile(5, tx, 0));
+    writer.Write("ANCHORMAP_GRID_TILES", 3, testing::TestTile(6, 1, 0));  // then stopped
   }
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
-  ASSERT_EQ(output.grid.size(), 3u);
-  EXPECT_EQ(output.grid_tiles_from_previous_update, 2);
-  EXPECT_EQ(output.grid[0].update, 6);
-  EXPECT_EQ(output.grid[0].tile_x, 1);
+  ASSERT_EQ(output.grid.size(), 4u);
+  EXPECT_EQ(output.grid_update, 6);
+  EXPECT_EQ(output.grid_tiles_from_earlier_updates, 3);
+  // In tile order: (0, 0) from update 5, (1, 0) from update 6, (2, 0) from 5, (9, 9) from 4.
+  EXPECT_EQ(output.grid[0].update, 5);
+  EXPECT_EQ(output.grid[1].update, 6);
+  EXPECT_EQ(output.grid[1].tile_x, 1);
+  EXPECT_EQ(output.grid[3].tile_x, 9);
+}
+
+TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
+  const std::string path = TempPath("server_output_old.lcmlog");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(path).ok());
+    writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(1, 9, 9));
+    for (int update = 2; update <= 7; ++update) {
+      writer.Write("ANCHORMAP_GRID_TILES", update, testing::TestTile(update, 0, 0));
+    }
+  }
+  ServerOutput output;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
+  ASSERT_EQ(output.grid.size(), 1u);  // (9, 9) is 6 updates old
+  EXPECT_EQ(output.grid[0].update, 7);
+  EXPECT_EQ(output.grid_tiles_from_earlier_updates, 0);
 }
 
 TEST(ServerOutputTest, MissingFileIsAnError) {

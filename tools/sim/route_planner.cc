@@ -106,7 +106,8 @@ RoutePlanner::RoutePlanner(const FloorPlan& plan, const RoutePlannerOptions& opt
         if (!mask.IsFree(p)) f[index] = 0.0f;
       }
     }
-    // Pixels larger than... or smaller than a cell: also every non-free pixel centre.
+    // Pixels smaller than a cell can hide between the points above: mark the cell of
+    // every non-free pixel centre too.
     for (int y = 0; y < mask.height; ++y) {
       for (int x = 0; x < mask.width; ++x) {
         if (mask.free[static_cast<size_t>(y) * mask.width + x]) continue;
