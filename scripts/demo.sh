@@ -81,7 +81,9 @@ replay_stage() {
   trap 'for p in "${started[@]}"; do kill -TERM "$p" 2>/dev/null || true; done' EXIT
   echo "   LCM URL $URL (network namespace: ${ANCHORMAP_NETNS:-?})"
 
-  lcm-logger -f -c 'ANCHORMAP_.*' --lcm-url="$URL" "$OUT/run.lcmlog" \
+  # A 4 MB receive buffer: the server's grid goes out as bursts of ~40 tiles of 16 kB, and
+  # with the default 208 kB buffer the logger loses most of each burst.
+  lcm-logger -f -c 'ANCHORMAP_.*' --lcm-url="$URL&recv_buf_size=4194304" "$OUT/run.lcmlog" \
     > "$OUT/logs/lcm-logger.log" 2>&1 &
   local logger=$!
   started+=("$logger")
