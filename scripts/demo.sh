@@ -59,19 +59,47 @@ missing_ok() { [ "${ANCHORMAP_DEMO_ALLOW_MISSING:-0}" = "1" ]; }
 now() { date +%s.%N; }
 elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", b - a }'; }
 
-# Sends SIGINT to one process we started and waits up to 10 s before SIGTERM, then SIGKILL.
+# Sends SIGINT to one process we started and waits (10 s, or $3) before SIGTERM, then SIGKILL.
 stop_process() {
-  local pid=$1 name=$2
+  local pid=$1 name=$2 grace_s=${3:-10}
   kill -INT "$pid" 2>/dev/null || return 0
-  for _ in $(seq 1 100); do
+  for _ in $(seq 1 $((grace_s * 10))); do
     kill -0 "$pid" 2>/dev/null || { wait "$pid" 2>/dev/null || true; return 0; }
     sleep 0.1
   done
-  echo "demo: $name (pid $pid) ignored SIGINT for 10 s; sending SIGTERM" >&2
+  echo "demo: $name (pid $pid) ignored SIGINT for $grace_s s; sending SIGTERM" >&2
   kill -TERM "$pid" 2>/dev/null || true
   sleep 1
   kill -KILL "$pid" 2>/dev/null || true
   wait "$pid" 2>/dev/null || true
+}
+
+# CPU time (clock ticks) a process has used so far.
+cpu_ticks() { awk '{ print $14 + $15 }' "/proc/$1/stat" 2>/dev/null || echo 0; }
+
+# Waits (at most 120 s) until the server has taken in every keyframe the agents sent: its
+# status line's "anchored A keyframes N" reaches the sum of the agents' final counts. A
+# loaded machine can leave the server many seconds behind the replay. Also returns once
+# the server has used less than 10 % of a CPU for 3 s (nothing left to catch up on, or
+# log lines it cannot read).
+wait_for_server() {
+  local server=$1 sent=0 seen=0 window=() ticks
+  for f in "$OUT"/logs/agent-R*.log; do
+    n=$(grep -o 'final: .*' "$f" | grep -o 'keyframes [0-9]*' | head -n 1 | awk '{ print $2 }')
+    sent=$((sent + ${n:-0}))
+  done
+  for _ in $(seq 1 240); do
+    kill -0 "$server" 2>/dev/null || return 0
+    seen=$(grep -o 'anchored [0-9]* keyframes [0-9]*' "$OUT/logs/server.log" | tail -n 1 |
+      awk '{ print $4 }')
+    if [ "$sent" -gt 0 ] && [ "${seen:-0}" -ge "$sent" ]; then return 0; fi
+    window+=("$(cpu_ticks "$server")")
+    [ ${#window[@]} -gt 7 ] && window=("${window[@]:1}")
+    # 7 samples 0.5 s apart span 3 s; 10 % of a CPU is 30 ticks (at 100 ticks/s).
+    if [ ${#window[@]} -eq 7 ] && [ $((window[6] - window[0])) -lt 30 ]; then return 0; fi
+    sleep 0.5
+  done
+  echo "demo: the server took in ${seen:-?} of $sent keyframes in 120 s; stopping it anyway" >&2
 }
 
 # ---------------------------------------------------------------------------------------
@@ -90,7 +118,7 @@ replay_stage() {
 
   local server=""
   if have anchormap-server; then
-    "$BIN/anchormap-server" --lcm-url "$URL" --publish-period-s 1 --grid-period-s 2 \
+    "$BIN/anchormap-server" --lcm-url "$URL" --publish-period-s 1 --grid-period-s 2 --status-period-s 1 \
       > "$OUT/logs/server.log" 2>&1 &
     server=$!
     started+=("$server")
@@ -118,8 +146,9 @@ replay_stage() {
   sleep 1  # the agents' last keyframes
   for i in "${!agents[@]}"; do stop_process "${agents[$i]}" "agent R$((i + 1))"; done
   if [ -n "$server" ]; then
-    sleep 3  # one more publish period of the map and the grid
-    stop_process "$server" anchormap-server
+    wait_for_server "$server"
+    sleep 3  # one more grid period (2 s) for the final map and grid
+    stop_process "$server" anchormap-server 30
   fi
   sleep 0.5
   stop_process "$logger" lcm-logger
