@@ -1,0 +1,89 @@
+#include "tools/render/map_png.h"
+
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "tools/render/testing_helpers.h"
+
+namespace anchormap::render {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return (std::filesystem::path(::testing::TempDir()) / name).string();
+}
+
+struct Rendered {
+  ServerOutput output;
+  OccupancyRaster raster;
+  MapViewport viewport;
+  testing::DecodedPng png;
+};
+
+Rendered RenderTestLog(bool with_grid, const MapPngOptions& options = MapPngOptions{}) {
+  Rendered r;
+  const std::string log = TempPath("map_png_test.lcmlog");
+  testing::WriteTestServerLog(log);
+  EXPECT_TRUE(ReadServerOutput(log, ChannelNames{}, &r.output).ok());
+  if (with_grid) r.raster = AssembleGrid(r.output.grid);
+  const std::string png = TempPath(with_grid ? "map_grid.png" : "map_nogrid.png");
+  const ColorAssignment colors({{"R1", 11}, {"R2", 12}, {"R3", 13}});
+  EXPECT_TRUE(RenderMapPng(&*r.output.map, r.raster, colors, options, png, &r.viewport).ok());
+  EXPECT_TRUE(testing::DecodePng(png, &r.png));  // decoded by libpng, not cairo
+  return r;
+}
+
+Rgb PixelAt(const Rendered& r, const Eigen::Vector2d& world) {
+  const Eigen::Vector2d p = r.viewport.ToPixel(world);
+  return r.png.at(static_cast<int>(std::floor(p.x())), static_cast<int>(std::floor(p.y())));
+}
+
+TEST(MapPngTest, SizeTrajectoryColoursAndGrid) {
+  const Rendered r = RenderTestLog(true);
+  EXPECT_EQ(r.png.width, r.viewport.width_px);
+  EXPECT_EQ(r.png.height, r.viewport.height_px);
+  // Content (grid and poses) [0, 10] x [0, 10] plus 2 m margins: 14 x 14 m, 1400 px.
+  EXPECT_NEAR(r.viewport.pixels_per_m, 100.0, 1e-9);
+  EXPECT_EQ(r.png.width, 1400);
+  // On R1's path (y = 2) and R2's (x = 10), away from the encounter line: their colours.
+  EXPECT_EQ(PixelAt(r, {2.0, 2.0}), TrajectoryColor(0));
+  EXPECT_EQ(PixelAt(r, {10.0, 5.0}), TrajectoryColor(1));
+  // Grid: the occupied column of tile (0, 0) at x in [0, 0.5] is black, free cells white,
+  // and outside the grid (x > 10) the white background.
+  EXPECT_EQ(PixelAt(r, {0.25, 4.0}), (Rgb{0, 0, 0}));
+  EXPECT_EQ(PixelAt(r, {7.0, 7.0}), (Rgb{255, 255, 255}));
+  EXPECT_EQ(PixelAt(r, {5.25, 7.0}), (Rgb{0, 0, 0}));  // tile (1, 1)'s occupied column
+  // The encounter line between (8, 2) and (10, 2) is dark (anti-aliased over two rows).
+  const Rgb on_link = PixelAt(r, {9.0, 2.0});
+  EXPECT_LT(on_link.r + on_link.g + on_link.b, 3 * 160);
+}
+
+TEST(MapPngTest, WithoutGridOnlyTrajectories) {
+  const Rendered r = RenderTestLog(false);
+  EXPECT_EQ(PixelAt(r, {2.0, 2.0}), TrajectoryColor(0));
+  EXPECT_EQ(PixelAt(r, {0.25, 4.0}), (Rgb{255, 255, 255}));  // no grid drawn
+  // Viewport: the poses [0, 10] x [0, 8] plus margins.
+  EXPECT_NEAR(r.viewport.world_max.y(), 10.0, 1e-9);
+}
+
+TEST(MapPngTest, ExplicitScale) {
+  MapPngOptions options;
+  options.pixels_per_m = 20.0;
+  const Rendered r = RenderTestLog(true, options);
+  EXPECT_EQ(r.png.width, 320);  // 14 m * 20 = 280 px, widened to the minimum 320
+  EXPECT_EQ(r.png.height, r.viewport.header_px + 14 * 20);
+  EXPECT_EQ(PixelAt(r, {2.0, 2.0}), TrajectoryColor(0));
+}
+
+TEST(MapPngTest, OccupancyGrayLevels) {
+  EXPECT_EQ(OccupancyGray(-1), 205);
+  EXPECT_EQ(OccupancyGray(0), 255);
+  EXPECT_EQ(OccupancyGray(100), 0);
+  EXPECT_EQ(OccupancyGray(19), 255);
+  EXPECT_EQ(OccupancyGray(50), 84);  // 255 * (65 - 50) / (65 - 19.6)
+  EXPECT_EQ(OccupancyGray(65), 0);
+}
+
+}  // namespace
+}  // namespace anchormap::render

@@ -1,0 +1,206 @@
+#include "tools/render/server_output.h"
+
+#include <cmath>
+#include <map>
+#include <utility>
+
+// GCC 12 warns inside lcm_coretypes.h when it inlines the int8 array decode of
+// grid_tile_t (bounds it cannot prove: -Wstringop-overflow, -Wrestrict); the generated
+// decode checks every size against the buffer.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wstringop-overflow"
+#pragma GCC diagnostic ignored "-Wrestrict"
+#include "anchormap/anchor_covariances_t.hpp"
+#include "anchormap/grid_tile_t.hpp"
+#include "anchormap/merged_map_t.hpp"
+#include "anchormap/server_status_t.hpp"
+#include "common/bus/lcm_log.h"
+
+namespace anchormap::render {
+namespace {
+
+bool Finite3(const double v[3]) {
+  return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+std::optional<MergedMap> FromMessage(const anchormap::merged_map_t& message) {
+  MergedMap map;
+  map.utime = message.utime;
+  map.update = message.update;
+  if (message.num_trajectories != static_cast<int>(message.trajectories.size()) ||
+      message.num_encounters != static_cast<int>(message.encounters.size())) {
+    return std::nullopt;
+  }
+  for (const anchormap::trajectory_t& t : message.trajectories) {
+    if (t.num_poses != static_cast<int>(t.poses.size()) || t.pose_utimes.size() != t.poses.size() ||
+        !Finite3(t.anchor)) {
+      return std::nullopt;
+    }
+    TrajectoryView view;
+    view.key = {t.robot, t.trajectory_id};
+    view.anchored = t.anchored;
+    view.T_global_local = Pose2(t.anchor[0], t.anchor[1], t.anchor[2]);
+    view.utimes = t.pose_utimes;
+    for (const auto& pose : t.poses) {
+      if (pose.size() != 3 || !Finite3(pose.data())) return std::nullopt;
+      view.poses.emplace_back(pose[0], pose[1], pose[2]);
+    }
+    map.trajectories.push_back(std::move(view));
+  }
+  for (const anchormap::encounter_link_t& link : message.encounters) {
+    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+  }
+  return map;
+}
+
+std::optional<GridTile> FromMessage(const anchormap::grid_tile_t& message) {
+  if (message.width <= 0 || message.height <= 0 || message.width > 100000 ||
+      message.height > 100000 || !(message.resolution > 0.0) ||
+      static_cast<int>(message.cells.size()) != message.height) {
+    return std::nullopt;
+  }
+  GridTile tile;
+  tile.update = message.update;
+  tile.resolution_m = message.resolution;
+  tile.tile_x = message.tile_x;
+  tile.tile_y = message.tile_y;
+  tile.width = message.width;
+  tile.height = message.height;
+  tile.cells.reserve(static_cast<size_t>(message.width) * message.height);
+  for (const auto& row : message.cells) {
+    if (static_cast<int>(row.size()) != message.width) return std::nullopt;
+    tile.cells.insert(tile.cells.end(), row.begin(), row.end());
+  }
+  return tile;
+}
+
+// How many grid updates back a tile missing from the last one may come from.
+constexpr int64_t kMaxGridRunsBack = 5;
+
+// DecodeAs that also turns exceptions into "does not decode": lcm-gen's decoders resize
+// vectors to the counts in the message, so a corrupt negative count throws.
+template <typename T>
+std::optional<T> SafeDecode(const LogEvent& event) {
+  try {
+    return DecodeAs<T>(event);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
+const Pose2* MergedMap::FindPose(int64_t trajectory_id, int index) const {
+  for (const TrajectoryView& t : trajectories) {
+    if (t.key.trajectory_id != trajectory_id) continue;
+    if (index < 0 || index >= static_cast<int>(t.poses.size())) return nullptr;
+    return &t.poses[index];
+  }
+  return nullptr;
+}
+
+size_t MergedMap::NumPoses() const {
+  size_t n = 0;
+  for (const TrajectoryView& t : trajectories) n += t.poses.size();
+  return n;
+}
+
+Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
+                        ServerOutput* output) {
+  LcmLogReader reader;
+  if (Status status = reader.Open(path); !status.ok()) return status;
+  ServerOutput result;
+  // A grid update is a run of tiles with the same update number. The grid is the newest
+  // version of every tile seen in the last few runs: tiles of the last run, and tiles that
+  // run lacks (lost in transport, or a server stopped while publishing) from the runs
+  // before it. Older tiles are dropped: the map may have moved since.
+  struct KeptTile {
+    GridTile tile;
+    int64_t run = 0;
+  };
+  std::map<std::pair<int, int>, KeptTile> newest_tiles;
+  int64_t run = -1;
+  int64_t run_update = 0;
+  while (std::optional<LogEvent> event = reader.Next()) {
+    if (event->channel == channels.merged_map) {
+      const auto message = SafeDecode<anchormap::merged_map_t>(*event);
+      std::optional<MergedMap> map = message ? FromMessage(*message) : std::nullopt;
+      if (!map) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.merged_maps;
+      result.map = std::move(map);
+    } else if (event->channel == channels.grid_tiles) {
+      const auto message = SafeDecode<anchormap::grid_tile_t>(*event);
+      std::optional<GridTile> tile = message ? FromMessage(*message) : std::nullopt;
+      if (!tile) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.grid_tile_messages;
+      if (run < 0 || tile->update != run_update) {
+        ++run;
+        run_update = tile->update;
+      }
+      const std::pair<int, int> key(tile->tile_x, tile->tile_y);
+      newest_tiles[key] = KeptTile{std::move(*tile), run};
+    } else if (event->channel == channels.server_status) {
+      const auto message = SafeDecode<anchormap::server_status_t>(*event);
+      if (!message || message->num_reasons != static_cast<int>(message->rejection_reasons.size()) ||
+          message->rejection_counts.size() != message->rejection_reasons.size()) {
+        ++result.undecodable;
+        continue;
+      }
+      ServerStatus status{message->update,
+                          message->num_robots,
+                          message->num_trajectories,
+                          message->num_anchored,
+                          message->keyframes,
+                          message->encounters,
+                          {}};
+      for (int i = 0; i < message->num_reasons; ++i) {
+        status.rejections.emplace_back(message->rejection_reasons[i], message->rejection_counts[i]);
+      }
+      result.status = std::move(status);
+    } else if (event->channel == channels.anchor_covariances) {
+      const auto message = SafeDecode<anchormap::anchor_covariances_t>(*event);
+      if (!message || message->num_anchors != static_cast<int>(message->anchors.size())) {
+        ++result.undecodable;
+        continue;
+      }
+      ++result.covariance_messages;
+      for (const anchormap::anchor_covariance_t& anchor : message->anchors) {
+        const double variance = anchor.covariance[0] + anchor.covariance[4];
+        if (!std::isfinite(variance) || variance < 0.0) {
+          ++result.undecodable;
+          continue;
+        }
+        result.anchor_samples.push_back({message->update,
+                                         message->utime,
+                                         {anchor.robot, anchor.trajectory_id},
+                                         std::sqrt(variance)});
+      }
+    }
+  }
+  result.grid_update = run_update;
+  for (auto& [key, kept] : newest_tiles) {
+    if (run - kept.run > kMaxGridRunsBack) continue;
+    if (kept.run != run) ++result.grid_tiles_from_earlier_updates;
+    result.grid.push_back(std::move(kept.tile));
+  }
+  if (result.map) {
+    for (const EncounterLink& link : result.map->encounters) {
+      if (!result.map->FindPose(link.trajectory_a, link.index_a) ||
+          !result.map->FindPose(link.trajectory_b, link.index_b)) {
+        ++result.dangling_links;
+      }
+    }
+  }
+  *output = std::move(result);
+  return Status::Ok();
+}
+
+}  // namespace anchormap::render
+
+#pragma GCC diagnostic pop

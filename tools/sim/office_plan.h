@@ -1,0 +1,34 @@
+#pragma once
+// The built-in office floor plan: 40 m x 30 m tiles, each with a ring corridor (2.5 m
+// wide) around a central block of four rooms split by a cross corridor, and fourteen rooms
+// around the ring; every room has a 1.6 m door. Robots driving around the ring in
+// different directions meet head-on, which is what makes encounters frequent.
+//
+// For many robots the tile is repeated on a grid; neighbouring tiles connect through doors
+// in their shared outer walls, so the world stays one connected building.
+
+#include <string>
+
+#include "tools/sim/floor_plan.h"
+
+namespace anchormap::sim {
+
+struct OfficePlanOptions {
+  int tiles_x = 1;            // tiles side by side in x
+  int tiles_y = 1;            // tiles in y
+  double door_width_m = 1.6;  // every door; must exceed twice the robots' clearance
+
+  // Empty when valid, else the reason.
+  std::string Validate() const;
+};
+
+constexpr double kOfficeTileWidthM = 40.0;
+constexpr double kOfficeTileHeightM = 30.0;
+
+FloorPlan BuildOfficePlan(const OfficePlanOptions& options);
+
+// Tiles for `num_robots` robots at `robots_per_tile`, arranged as close to square as the
+// tile shape allows (tiles_x >= tiles_y).
+OfficePlanOptions OfficeTilesForRobots(int num_robots, int robots_per_tile);
+
+}  // namespace anchormap::sim
