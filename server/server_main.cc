@@ -59,6 +59,10 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "linearisation error");
   l->Add("smoother.batch_when_fill_grows", "batch-when-fill-grows",
          &s.smoother.batch_when_fill_grows, "batch step when nnz(R) grew by this factor (0 = off)");
+  l->Add("smoother.relinearize_threshold", "relinearize-threshold",
+         &s.smoother.relinearize_threshold,
+         "batch step as soon as an estimate moved this far from its linearisation point "
+         "(m / rad; 0 = off)");
   l->Add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
          "sigma of the gauge priors (m, rad)");
   l->Add("table.max_held", "max-held-keyframes", &s.table.max_held,

@@ -642,6 +642,16 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   } else {
     IncrementalStep(&result);
     stats_.incremental_seconds += Seconds(start);
+    if (options_.relinearize_threshold > 0 && result.status.ok() &&
+        MaxAbs(delta_) > options_.relinearize_threshold) {
+      const auto batch_start = std::chrono::steady_clock::now();
+      ++stats_.batch_steps_on_drift;
+      tolerance_ = options_.convergence_step;
+      BatchStep(options_.converge_periodic_batches, &result);
+      stats_.batch_seconds += Seconds(batch_start);
+      ++stats_.batch_steps;
+      stats_.batch_iterations += result.iterations;
+    }
   }
   if (!pending_vars_.empty() && result.status.ok()) {
     result.status = Status::Error(std::to_string(pending_vars_.size()) +

@@ -42,9 +42,10 @@ struct SmootherStats {
   int64_t batch_steps_on_clock = 0;
   int64_t batch_steps_on_fill = 0;
   int64_t batch_steps_on_merge = 0;
-  int64_t batch_iterations = 0;  // summed over batch steps
+  int64_t batch_steps_on_drift = 0;  // relinearize_threshold exceeded
+  int64_t batch_iterations = 0;      // summed over batch steps
   int64_t iterations_to_convergence =
-      0;  // batch iterations until the step fell below convergence_step
+      0;                             // batch iterations until the step fell below convergence_step
   int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations
   int64_t givens_block_columns = 0;  // block columns they spanned (the elimination work)
   int64_t rows_backsubstituted = 0;

@@ -42,6 +42,15 @@ struct SmootherOptions {
   // propagate further (iSAM2's wildfire threshold). 0 = exact full back-substitution.
   double backsubstitution_threshold = 0.0;
 
+  // Batch on drift: right after an incremental update, a batch step when some variable's
+  // estimate has moved more than this from the point its factors were linearised at
+  // (max-abs of the (x, y, theta) step; metres / radians). iSAM's Givens updates keep old
+  // Jacobians; when an anchor turns by degrees, encounters linearised at different anchor
+  // headings disagree by metres (lever arm x angle) and R gains information no
+  // measurement gave: overconfident, biased anchors until the next batch step. iSAM2
+  // relinearises on the same kind of threshold. 0 disables (pure iSAM).
+  double relinearize_threshold = 0.0;
+
   // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
   // this set they iterate to convergence like merge steps and BatchOptimize() (the
   // thesis' protocol for counting iterations).
@@ -65,6 +74,7 @@ struct SmootherOptions {
     if (batch_when_fill_grows != 0 && batch_when_fill_grows <= 1.0) {
       return "batch_when_fill_grows must be 0 (off) or > 1";
     }
+    if (!(relinearize_threshold >= 0)) return "relinearize_threshold must be >= 0";
     if (backsubstitution_threshold < 0) return "backsubstitution_threshold must be >= 0";
     if (!(convergence_step > 0)) return "convergence_step must be > 0";
     if (max_batch_iterations < 1) return "max_batch_iterations must be >= 1";

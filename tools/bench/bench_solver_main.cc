@@ -27,6 +27,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --batch-every K             batch step every K updates (default 100, 0 = never)
   --method gn|dogleg          nonlinear method of batch steps (default gn)
   --threshold X               back-substitution threshold (default 0 = exact)
+  --relinearize X             batch step when an estimate moved X from its linearisation
+                              point (default 0 = off, pure iSAM)
   --fill-factor F             batch when nnz(R) grows by F since the last one (default 4, 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
                               protocol for iterations_to_1e-4) instead of relinearising once
@@ -89,6 +91,8 @@ Flags ParseFlags(int argc, char** argv) {
           method == "gn" ? NonlinearMethod::kGaussNewton : NonlinearMethod::kDogLeg;
     } else if (arg == "--threshold") {
       flags.smoother.backsubstitution_threshold = ParseNumber(arg, value());
+    } else if (arg == "--relinearize") {
+      flags.smoother.relinearize_threshold = ParseNumber(arg, value());
     } else if (arg == "--fill-factor") {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
     } else if (arg == "--converge-batches") {
@@ -180,7 +184,8 @@ int Run(const Flags& flags) {
         "\"step_p99_ms\": %.4f, \"step_max_ms\": %.4f, \"batch_s\": %.4f, "
         "\"incremental_s\": %.4f, \"batch_steps\": %lld, "
         "\"batch_steps_on_clock\": %lld, \"batch_steps_on_fill\": %lld, "
-        "\"batch_steps_on_merge\": %lld, \"batch_iterations\": %lld, \"chi2\": %.6f, "
+        "\"batch_steps_on_merge\": %lld, \"batch_steps_on_drift\": %lld, "
+        "\"batch_iterations\": %lld, \"chi2\": %.6f, "
         "\"chi2_after_final_batch\": %.6f, \"chi2_batch_optimum\": %.6f, "
         "\"chi2_relative_difference\": %.3e, \"nnz_per_column\": %.3f, "
         "\"iterations_to_1e-4\": %lld, \"rows_backsubstituted_per_step\": %.1f, "
@@ -195,13 +200,13 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
+        static_cast<long long>(stats.batch_steps_on_drift),
         static_cast<long long>(stats.batch_iterations), chi2, chi2_final_batch, chi2_reference,
         relative_difference, nnz_per_column,
         static_cast<long long>(stats.iterations_to_convergence),
         static_cast<double>(stats.rows_backsubstituted) / std::max<size_t>(1, step_ms.size()),
         static_cast<long long>(stats.givens_block_rows),
-        static_cast<long long>(stats.givens_block_columns),
-        failures, first_failure.c_str());
+        static_cast<long long>(stats.givens_block_columns), failures, first_failure.c_str());
   } else {
     std::printf("graph %s: %d poses, %d edges (%d encounters), %d robot(s), %s formulation\n",
                 flags.graph.c_str(), replay.num_poses(), replay.num_edges(),
@@ -216,12 +221,13 @@ int Run(const Flags& flags) {
     std::printf("\ntime in batch steps %.3f s, in incremental steps %.3f s\n", stats.batch_seconds,
                 stats.incremental_seconds);
     std::printf(
-        "batch steps %lld (clock %lld, fill %lld, merge %lld), iterations %lld, "
+        "batch steps %lld (clock %lld, fill %lld, merge %lld, drift %lld), iterations %lld, "
         "iterations to 1e-4: %lld\n",
         static_cast<long long>(stats.batch_steps),
         static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
+        static_cast<long long>(stats.batch_steps_on_drift),
         static_cast<long long>(stats.batch_iterations),
         static_cast<long long>(stats.iterations_to_convergence));
     std::printf(
