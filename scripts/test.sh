@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Builds anchormap and runs every test: the README's test command; .ci/run calls it.
+#   0. Every C++ file is clang-formatted.
 #   1. Release build with warnings as errors, then ctest.
 #   2. ASan + UBSan build of the same tests, then ctest.
 # Set ANCHORMAP_SKIP_SANITIZE=1 to run only the first pass while iterating locally.
@@ -14,6 +15,13 @@ run_pass() {
   cmake --build "$dir" -j "$jobs"
   (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 900)
 }
+
+echo "== Formatting (clang-format, .clang-format at the root)"
+if ! find common agent server tools tests \( -name '*.cc' -o -name '*.h' \) -print0 |
+    xargs -0 clang-format --dry-run -Werror; then
+  echo "test.sh: files above are not clang-formatted (fix: clang-format -i FILE)" >&2
+  exit 1
+fi
 
 echo "== Release build (warnings are errors) and tests"
 run_pass build -DCMAKE_BUILD_TYPE=Release

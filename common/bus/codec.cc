@@ -17,17 +17,17 @@
 
 namespace anchormap {
 
-using codec_internal::Encode;
-using codec_internal::SafeDecode;
 using codec_internal::AllFinite;
+using codec_internal::CheckName;
+using codec_internal::CheckRanges;
+using codec_internal::CheckScanGeometry;
+using codec_internal::Encode;
+using codec_internal::FromProblem;
 using codec_internal::MatrixFromRowMajor;
 using codec_internal::MatrixToRowMajor;
-using codec_internal::PoseToArray;
 using codec_internal::PoseFromArray;
-using codec_internal::CheckName;
-using codec_internal::CheckScanGeometry;
-using codec_internal::CheckRanges;
-using codec_internal::FromProblem;
+using codec_internal::PoseToArray;
+using codec_internal::SafeDecode;
 using codec_internal::Success;
 
 void YawToQuaternion(double yaw, double q[4]) {

@@ -9,12 +9,12 @@
 namespace anchormap {
 
 using codec_internal::Encode;
-using codec_internal::SafeDecode;
+using codec_internal::FromProblem;
 using codec_internal::MatrixFromRowMajor;
 using codec_internal::MatrixToRowMajor;
-using codec_internal::PoseToArray;
 using codec_internal::PoseFromArray;
-using codec_internal::FromProblem;
+using codec_internal::PoseToArray;
+using codec_internal::SafeDecode;
 using codec_internal::Success;
 
 std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
