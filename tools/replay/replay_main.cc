@@ -140,6 +140,10 @@ int Main(int argc, char** argv) {
   loader.Add("smoother.batch_every_updates", "batch-every-updates",
              &options.server.server.smoother.batch_every_updates,
              "server: batch step every N updates (1 = pure batch)");
+  loader.Add("smoother.relinearize_threshold", "relinearize-threshold",
+             &options.server.server.smoother.relinearize_threshold,
+             "server: batch step when an estimate drifted this far from its linearisation point "
+             "(m / rad; 0 = off)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
