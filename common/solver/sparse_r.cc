@@ -14,7 +14,8 @@ constexpr int64_t kBlockNonZeros = 9;
 
 // Zeroes W(low, col) against W(high, col) with one Givens rotation applied to columns
 // col.. of both rows.
-void Rotate(Eigen::Matrix<double, 6, Eigen::Dynamic>& W, int width, int high, int low, int col) {
+void Rotate(Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor>& W, int width, int high,
+            int low, int col) {
   const double a = W(high, col), b = W(low, col);
   if (b == 0.0) return;
   const double r = std::sqrt(a * a + b * b);  // entries are O(1e-6..1e6): no overflow
@@ -49,7 +50,7 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
   std::sort(rows.blocks.begin(), rows.blocks.end(), by_column);
   std::vector<std::pair<int, Eigen::Matrix3d>>& next_blocks = scratch_blocks_;
   std::vector<int>& columns = scratch_columns_;
-  Eigen::Matrix<double, 6, Eigen::Dynamic>& W = scratch_;
+  Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor>& W = scratch_;
 
   while (!rows.blocks.empty()) {
     const int c = rows.blocks.front().first;

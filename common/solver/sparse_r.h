@@ -69,7 +69,7 @@ class SparseR {
   std::vector<RBlockRow> rows_;
   std::vector<std::vector<int>> column_rows_;
   // Work space of Eliminate, kept to avoid an allocation per block row.
-  Eigen::Matrix<double, 6, Eigen::Dynamic> scratch_;
+  Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> scratch_;
   std::vector<std::pair<int, Eigen::Matrix3d>> scratch_blocks_;
   std::vector<int> scratch_columns_;
   std::vector<char> scratch_dirty_;
