@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Prints the solver's benchmark figures (the solver issue's closing table) as markdown:
+# M3500 and city10000, incremental (solution after every step) and batch, exact and
+# thresholded back-substitution; iterations to 1e-4 for relative vs global formulations
+# on 2- and 3-robot splits. Run on a quiet machine after a Release build:
+#
+#   tools/bench/solver_figures.sh [DATA_DIR]     (default ../shared/data or $ANCHORMAP_DATA_DIR)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+DATA=${1:-${ANCHORMAP_DATA_DIR:-../shared/data}}/posegraph
+BENCH=build/bin/anchormap-bench-solver
+[ -x "$BENCH" ] || { echo "solver_figures: build first (scripts/test.sh or cmake --build build)" >&2; exit 1; }
+[ -d "$DATA" ] || { echo "solver_figures: no pose graphs in $DATA; skipping" >&2; exit 0; }
+
+field() { grep -o "\"$2\": [^,}]*" <<<"$1" | head -n 1 | sed 's/.*: //; s/"//g'; }
+
+echo "| graph | mode | back-sub threshold | total s | step median ms | step p99 ms | batch steps | chi2 at the end | chi2 after a final batch step | its rel. diff to the batch optimum | nnz/column |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
+for graph in M3500 city10000; do
+  [ -f "$DATA/$graph.g2o" ] || { echo "| $graph | (absent) |||||||||"; continue; }
+  for run in "batch 0" "incremental 0" "incremental 0.001" "incremental 0.01"; do
+    set -- $run
+    j=$("$BENCH" "$DATA/$graph.g2o" --mode "$1" --threshold "$2" --json)
+    echo "| $graph | $1 | $2 | $(field "$j" total_s) | $(field "$j" step_median_ms) |" \
+      "$(field "$j" step_p99_ms) | $(field "$j" batch_steps) | $(field "$j" chi2) |" \
+      "$(field "$j" chi2_after_final_batch) |" \
+      "$(field "$j" chi2_relative_difference) | $(field "$j" nnz_per_column) |"
+  done
+done
+
+echo
+echo "| graph | robots | formulation | iterations_to_1e-4 | batch steps | chi2 at the end | chi2 after a final batch |"
+echo "|---|---|---|---|---|---|---|"
+for graph in M3500 intel; do
+  [ -f "$DATA/$graph.g2o" ] || continue
+  for robots in 2 3; do
+    for formulation in relative global global-moved; do
+      j=$("$BENCH" "$DATA/$graph.g2o" --robots "$robots" --formulation "$formulation" \
+        --converge-batches --no-reference --json)
+      echo "| $graph | $robots | $formulation | $(field "$j" 'iterations_to_1e-4') |" \
+        "$(field "$j" batch_steps) | $(field "$j" chi2) | $(field "$j" chi2_after_final_batch) |"
+    done
+  done
+done
