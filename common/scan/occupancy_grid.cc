@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 namespace anchormap {
 namespace {
@@ -87,17 +88,55 @@ void OccupancyGrid::InsertRay(const Eigen::Vector2d& from_map, const Eigen::Vect
 
 void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
   // Each cell is updated at most once per scan (a hit wins over a miss), so that the
-  // beam density near the sensor does not count as repeated evidence.
+  // beam density near the sensor does not count as repeated evidence. Cells are
+  // de-duplicated in a window around the sensor stamped with the scan number (sorting the
+  // traced cells cost 40 % of a 10-robot server run).
   const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
   const Eigen::Vector2d origin = T_map_sensor.translation();
   const auto [x0, y0] = CellOf(origin);
-  std::vector<uint64_t> hits, misses;
+  const int64_t radius =
+      static_cast<int64_t>(std::ceil(options_.max_ray_length_m / options_.resolution_m)) + 2;
+  const int64_t side = 2 * radius + 1;
+  // The window costs 5 bytes a cell: up to 2049^2 cells (20 MB); longer rays relative to
+  // the resolution fall back to a hash map.
+  const bool use_window = side <= 2049;
+  if (use_window && window_stamp_.size() != static_cast<size_t>(side * side)) {
+    window_stamp_.assign(side * side, 0);
+    window_hit_.assign(side * side, 0);
+    scan_stamp_ = 0;
+  }
+  if (use_window && ++scan_stamp_ == 0) {  // wrapped: forget every stamp
+    std::fill(window_stamp_.begin(), window_stamp_.end(), 0);
+    scan_stamp_ = 1;
+  }
+  std::unordered_map<uint64_t, uint8_t> far_cells;  // only without the window
+  std::vector<std::pair<int64_t, int64_t>> cells;   // in order of first visit
+  // Every traced cell lies within `radius` of the sensor's cell (rays end within
+  // max_ray_length_m), so window indices are in range.
+  auto visit = [&, x0 = x0, y0 = y0](int64_t x, int64_t y, bool hit) {
+    if (!use_window) {
+      auto [it, inserted] = far_cells.try_emplace(TileKey(x, y), hit);
+      if (inserted) {
+        cells.emplace_back(x, y);
+      } else if (hit) {
+        it->second = 1;
+      }
+      return;
+    }
+    const size_t index = static_cast<size_t>((y - y0 + radius) * side + (x - x0 + radius));
+    if (window_stamp_[index] != scan_stamp_) {
+      window_stamp_[index] = scan_stamp_;
+      window_hit_[index] = hit;
+      cells.emplace_back(x, y);
+    } else if (hit) {
+      window_hit_[index] = 1;
+    }
+  };
   auto trace = [&, x0 = x0, y0 = y0](const Eigen::Vector2d& end, bool hit) {
     const auto [x1, y1] = CellOf(end);
-    const auto cells = BresenhamLine(x0, y0, x1, y1);
-    for (size_t i = 0; i + 1 < cells.size(); ++i)
-      misses.push_back(TileKey(cells[i].first, cells[i].second));
-    (hit ? hits : misses).push_back(TileKey(x1, y1));
+    const auto line = BresenhamLine(x0, y0, x1, y1);
+    for (size_t i = 0; i + 1 < line.size(); ++i) visit(line[i].first, line[i].second, false);
+    visit(x1, y1, hit);
   };
   for (size_t i = 0; i < scan.ranges.size(); ++i) {
     const double angle = scan.Angle(i);
@@ -110,24 +149,12 @@ void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
       trace(T_map_sensor.TransformPoint(options_.max_ray_length_m * direction), false);
     }
   }
-  std::sort(hits.begin(), hits.end());
-  hits.erase(std::unique(hits.begin(), hits.end()), hits.end());
-  std::sort(misses.begin(), misses.end());
-  misses.erase(std::unique(misses.begin(), misses.end()), misses.end());
-  // Cell coordinates are packed like tile keys (two 32-bit halves).
-  auto unpack = [](uint64_t key) {
-    return std::make_pair(
-        static_cast<int64_t>(static_cast<int32_t>(static_cast<uint32_t>(key >> 32))),
-        static_cast<int64_t>(static_cast<int32_t>(static_cast<uint32_t>(key))));
-  };
-  for (uint64_t key : hits) {
-    const auto [x, y] = unpack(key);
-    UpdateCell(x, y, options_.log_odds_hit);
-  }
-  for (uint64_t key : misses) {
-    if (std::binary_search(hits.begin(), hits.end(), key)) continue;
-    const auto [x, y] = unpack(key);
-    UpdateCell(x, y, options_.log_odds_miss);
+  for (const auto& [x, y] : cells) {
+    const bool hit =
+        use_window
+            ? window_hit_[static_cast<size_t>((y - y0 + radius) * side + (x - x0 + radius))] != 0
+            : far_cells.at(TileKey(x, y)) != 0;
+    UpdateCell(x, y, hit ? options_.log_odds_hit : options_.log_odds_miss);
   }
 }
 

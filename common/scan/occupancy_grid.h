@@ -75,6 +75,12 @@ class OccupancyGrid {
 
   OccupancyGridOptions options_;
   std::unordered_map<uint64_t, Tile> tiles_;
+  // InsertScan's once-per-cell bookkeeping: a square window of cells around the sensor
+  // (every traced cell falls inside it), stamped with the scan number instead of being
+  // cleared per scan; `window_hit_` says whether the cell's update is a hit.
+  std::vector<uint32_t> window_stamp_;
+  std::vector<uint8_t> window_hit_;
+  uint32_t scan_stamp_ = 0;
 };
 
 // The cells of the digital straight line from (x0, y0) to (x1, y1), both ends included

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <map>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -96,6 +98,56 @@ TEST(OccupancyGridTest, LongReturnsAreClippedAndNoReturnsIgnoredByDefault) {
   const double c = std::cos(0.1), s = std::sin(0.1);
   const auto along_no_return = grid.CellOf({3.0 * c, 3.0 * s});
   EXPECT_EQ(grid.Occupancy(along_no_return.first, along_no_return.second), -1);
+}
+
+// Each cell changes at most once per scan, by a hit if any beam ends there, else by a
+// miss: checked against sets built from BresenhamLine, for the stamped window (default
+// ray length) and the hash-map path (rays too long for a window at this resolution).
+TEST(OccupancyGridTest, EachCellOnceAHitWinsMatchesABruteForceReference) {
+  for (double max_ray_m : {4.0, 30.0}) {
+    OccupancyGridOptions options;
+    options.resolution_m = 0.02;
+    options.max_ray_length_m = max_ray_m;  // 4 m: 405-cell window; 30 m: 3005 > 2049
+    options.log_odds_min = -100;
+    options.log_odds_max = 100;
+    ASSERT_FALSE(options.Validate());
+    OccupancyGrid grid(options);
+    std::map<std::pair<int64_t, int64_t>, double> expected;
+    const Pose2 poses[] = {Pose2(0.3, -0.2, 0.4), Pose2(0.5, 0.1, -1.0), Pose2(0.31, -0.19, 0.4)};
+    for (const Pose2& T_map_body : poses) {
+      LaserScan scan;
+      scan.rad0 = -2.0f;
+      scan.radstep = 0.013f;
+      scan.max_range = 30.0f;
+      scan.T_body_sensor = Pose2(0.1, 0.0, 0.05);
+      for (int i = 0; i < 300; ++i)
+        scan.ranges.push_back(0.5f + 0.01f * static_cast<float>(i % 170));
+      grid.InsertScan(scan, T_map_body);
+      // Reference: sets of hit and traversed cells of this scan.
+      const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
+      const auto [x0, y0] = grid.CellOf(T_map_sensor.translation());
+      std::set<std::pair<int64_t, int64_t>> hits, misses;
+      for (size_t i = 0; i < scan.ranges.size(); ++i) {
+        const double a = scan.Angle(i);
+        const double length = std::min<double>(scan.ranges[i], max_ray_m);
+        const auto end = grid.CellOf(
+            T_map_sensor.TransformPoint(length * Eigen::Vector2d(std::cos(a), std::sin(a))));
+        const auto line = BresenhamLine(x0, y0, end.first, end.second);
+        for (size_t k = 0; k + 1 < line.size(); ++k) misses.insert(line[k]);
+        (scan.ranges[i] <= max_ray_m ? hits : misses).insert(end);
+      }
+      for (const auto& cell : misses) {
+        if (!hits.count(cell)) expected[cell] += options.log_odds_miss;
+      }
+      for (const auto& cell : hits) expected[cell] += options.log_odds_hit;
+    }
+    ASSERT_GT(expected.size(), 1000u);
+    for (const auto& [cell, log_odds] : expected) {
+      const std::optional<double> actual = grid.LogOdds(cell.first, cell.second);
+      ASSERT_TRUE(actual.has_value()) << cell.first << "," << cell.second;
+      EXPECT_NEAR(*actual, log_odds, 1e-5) << cell.first << "," << cell.second;
+    }
+  }
 }
 
 }  // namespace
