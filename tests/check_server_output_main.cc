@@ -222,6 +222,31 @@ int Check(const Options& options) {
       fail(robot + "'s anchor covariance grew");
     }
   }
+  // An encounter adds information: at every published update whose map holds more
+  // encounters than the previous published one, no anchor's trace may rise.
+  std::map<int64_t, size_t> encounters_at;  // update -> encounters in that map
+  for (const MergedMap& map : maps) encounters_at[map.update] = map.encounters.size();
+  std::map<std::string, double> previous;
+  size_t previous_encounters = 0;
+  int checked = 0;
+  for (const AnchorCovariances& c : covariances) {
+    const auto it = encounters_at.find(c.update);
+    const bool more = it != encounters_at.end() && it->second > previous_encounters;
+    for (const AnchorCovariance& a : c.anchors) {
+      const double trace = a.covariance.trace();
+      if (more && previous.count(a.robot)) {
+        ++checked;
+        if (trace > previous[a.robot] * (1.0 + options.trace_tolerance) + 1e-12) {
+          fail(a.robot + "'s anchor covariance rose at update " + std::to_string(c.update) +
+               ", which added encounters");
+        }
+      }
+      previous[a.robot] = trace;
+    }
+    if (it != encounters_at.end()) previous_encounters = it->second;
+  }
+  std::printf("  anchor traces checked at %d (anchor, update) pairs that added encounters\n",
+              checked);
   std::printf(failures == 0 ? "PASS\n" : "%d check(s) failed\n", failures);
   return failures == 0 ? 0 : 1;
 }

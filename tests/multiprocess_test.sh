@@ -5,8 +5,9 @@
 #   lcm-logplayer --speed 5 -> 3 x anchormap-agent -> anchormap-server -> lcm-logger
 # then anchormap-test-check-server-output reads the recording: every robot anchored after
 # (never before) its first encounter, merged keyframes within the bounds below of ground
-# truth after a rigid fit, anchor covariances published and not growing; and this script
-# checks that no keyframe was lost on the bus and that every daemon exits 0 on SIGINT.
+# truth after a rigid fit, anchor covariances published, not growing, and not rising at
+# any update that adds encounters; and this script checks that no keyframe was lost on
+# the bus and that every daemon exits 0 on SIGINT.
 # Without network namespaces: the same checks on agents + server in one process over
 # memq:// (anchormap-replay), then exit 77 (ctest SKIP_RETURN_CODE) since the
 # multi-process part did not run.
