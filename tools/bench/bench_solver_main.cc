@@ -11,6 +11,7 @@
 
 #include "common/io/graph_file.h"
 #include "common/solver/smoother.h"
+#include "common/util/retain_freed_memory.h"
 #include "tools/bench/graph_replay.h"
 
 namespace anchormap {
@@ -242,4 +243,7 @@ int Run(const Flags& flags) {
 }  // namespace
 }  // namespace anchormap
 
-int main(int argc, char** argv) { return anchormap::Run(anchormap::ParseFlags(argc, argv)); }
+int main(int argc, char** argv) {
+  anchormap::RetainFreedMemory();
+  return anchormap::Run(anchormap::ParseFlags(argc, argv));
+}

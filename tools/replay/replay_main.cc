@@ -16,6 +16,7 @@
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
+#include "common/util/retain_freed_memory.h"
 #include "server/server_node.h"
 
 namespace anchormap {
@@ -164,4 +165,7 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace anchormap
 
-int main(int argc, char** argv) { return anchormap::Main(argc, argv); }
+int main(int argc, char** argv) {
+  anchormap::RetainFreedMemory();
+  return anchormap::Main(argc, argv);
+}
