@@ -133,6 +133,7 @@ class Smoother::Impl {
   std::vector<FactorRecord> factors_;
   std::vector<int64_t> pending_factors_;
   std::vector<int> pending_vars_;
+  std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
   std::vector<int> position_to_var_;
   std::vector<Eigen::Vector3d> delta_;  // by position
   std::shared_ptr<SparseR> r_;
@@ -344,11 +345,14 @@ std::vector<int64_t> Smoother::Impl::GroundPendingFactors(std::vector<char>* gro
 }
 
 void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
-  std::vector<char> is_done(factors_.size(), 0);
-  for (int64_t f : done) is_done[f] = 1;
+  // O(pending + done log done), not O(all factors): this runs after every update.
+  std::vector<int64_t> sorted_done = done;
+  std::sort(sorted_done.begin(), sorted_done.end());
   std::vector<int64_t> still;
   for (int64_t f : pending_factors_) {
-    if (!is_done[f] && factors_[f].active) still.push_back(f);
+    if (!std::binary_search(sorted_done.begin(), sorted_done.end(), f) && factors_[f].active) {
+      still.push_back(f);
+    }
   }
   pending_factors_.swap(still);
   std::vector<int> vars;
@@ -359,8 +363,13 @@ void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
 }
 
 void Smoother::Impl::IncrementalStep(UpdateResult* result) {
-  std::vector<char> grounded(vars_.size(), 0);
-  for (size_t v = 0; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
+  // grounded[v] == (v is in R), kept between updates so that an update costs what it
+  // touches: only new and pending variables need a fresh look (a batch step clears it).
+  std::vector<char>& grounded = grounded_;
+  const size_t known = grounded.size();
+  grounded.resize(vars_.size());
+  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
+  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
   const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
 
   SparseR& R = MutableR();
@@ -483,6 +492,7 @@ void Smoother::Impl::BatchStep(bool converge, UpdateResult* result) {
   const std::vector<int> order =
       ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
   for (Variable& v : vars_) v.position = -1;
+  grounded_.clear();
   position_to_var_.clear();
   for (int d : order) {
     vars_[dense_to_var[d]].position = static_cast<int>(position_to_var_.size());
