@@ -109,7 +109,9 @@ class Smoother::Impl {
   std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
   void TakeOutOfPending(const std::vector<int64_t>& done);
   void IncrementalStep(UpdateResult* result);
-  void BatchStep(bool converge, UpdateResult* result);
+  // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
+  // (or once unless `converge`); counts itself in stats_.
+  void BatchStep(bool converge, double tolerance, UpdateResult* result);
   void GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
                              UpdateResult* result);
   void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
@@ -450,7 +452,10 @@ double Smoother::Impl::Chi2Of(const std::vector<int64_t>& included,
   return chi2;
 }
 
-void Smoother::Impl::BatchStep(bool converge, UpdateResult* result) {
+void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* result) {
+  const auto start = std::chrono::steady_clock::now();
+  const int iterations_before = result->iterations;
+  tolerance_ = tolerance;
   result->batch_step = true;
   // Relinearise everything at the current estimate.
   for (Variable& v : vars_) {
@@ -509,6 +514,9 @@ void Smoother::Impl::BatchStep(bool converge, UpdateResult* result) {
   }
   nonzeros_after_batch_ = r_->NonZeros();
   updates_since_batch_ = 0;
+  stats_.batch_seconds += Seconds(start);
+  ++stats_.batch_steps;
+  stats_.batch_iterations += result->iterations - iterations_before;
 }
 
 void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
@@ -643,24 +651,16 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
     }
     const bool converge = force_batch || merge_pending_ || options_.converge_periodic_batches;
     merge_pending_ = false;
-    tolerance_ = convergence_step > 0 ? convergence_step : options_.convergence_step;
-    BatchStep(converge, &result);
-    stats_.batch_seconds += Seconds(start);
-    ++stats_.batch_steps;
-    stats_.batch_iterations += result.iterations;
+    BatchStep(converge, convergence_step > 0 ? convergence_step : options_.convergence_step,
+              &result);
     result.factors_added = static_cast<int>(stats_.factors);
   } else {
     IncrementalStep(&result);
     stats_.incremental_seconds += Seconds(start);
     if (options_.relinearize_threshold > 0 && result.status.ok() &&
         MaxAbs(delta_) > options_.relinearize_threshold) {
-      const auto batch_start = std::chrono::steady_clock::now();
       ++stats_.batch_steps_on_drift;
-      tolerance_ = options_.convergence_step;
-      BatchStep(options_.converge_periodic_batches, &result);
-      stats_.batch_seconds += Seconds(batch_start);
-      ++stats_.batch_steps;
-      stats_.batch_iterations += result.iterations;
+      BatchStep(options_.converge_periodic_batches, options_.convergence_step, &result);
     }
   }
   if (!pending_vars_.empty() && result.status.ok()) {
