@@ -109,27 +109,34 @@ void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
     std::fill(window_stamp_.begin(), window_stamp_.end(), 0);
     scan_stamp_ = 1;
   }
+  // Each cell traced by this scan, once, with its hit flag (in the window, or in a hash
+  // map whose nodes do not move).
+  struct Visited {
+    int64_t x, y;
+    const uint8_t* hit;
+  };
+  std::vector<Visited> cells;
   std::unordered_map<uint64_t, uint8_t> far_cells;  // only without the window
-  std::vector<std::pair<int64_t, int64_t>> cells;   // in order of first visit
   // Every traced cell lies within `radius` of the sensor's cell (rays end within
   // max_ray_length_m), so window indices are in range.
   auto visit = [&, x0 = x0, y0 = y0](int64_t x, int64_t y, bool hit) {
-    if (!use_window) {
-      auto [it, inserted] = far_cells.try_emplace(TileKey(x, y), hit);
-      if (inserted) {
-        cells.emplace_back(x, y);
-      } else if (hit) {
-        it->second = 1;
-      }
-      return;
-    }
-    const size_t index = static_cast<size_t>((y - y0 + radius) * side + (x - x0 + radius));
-    if (window_stamp_[index] != scan_stamp_) {
+    uint8_t* flag;
+    bool first;
+    if (use_window) {
+      const size_t index = static_cast<size_t>((y - y0 + radius) * side + (x - x0 + radius));
+      first = window_stamp_[index] != scan_stamp_;
       window_stamp_[index] = scan_stamp_;
-      window_hit_[index] = hit;
-      cells.emplace_back(x, y);
+      flag = &window_hit_[index];
+    } else {
+      auto [it, inserted] = far_cells.try_emplace(TileKey(x, y), 0);
+      first = inserted;
+      flag = &it->second;
+    }
+    if (first) {
+      *flag = hit;
+      cells.push_back({x, y, flag});
     } else if (hit) {
-      window_hit_[index] = 1;
+      *flag = 1;
     }
   };
   auto trace = [&, x0 = x0, y0 = y0](const Eigen::Vector2d& end, bool hit) {
@@ -149,12 +156,8 @@ void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
       trace(T_map_sensor.TransformPoint(options_.max_ray_length_m * direction), false);
     }
   }
-  for (const auto& [x, y] : cells) {
-    const bool hit =
-        use_window
-            ? window_hit_[static_cast<size_t>((y - y0 + radius) * side + (x - x0 + radius))] != 0
-            : far_cells.at(TileKey(x, y)) != 0;
-    UpdateCell(x, y, hit ? options_.log_odds_hit : options_.log_odds_miss);
+  for (const Visited& cell : cells) {
+    UpdateCell(cell.x, cell.y, *cell.hit ? options_.log_odds_hit : options_.log_odds_miss);
   }
 }
 
