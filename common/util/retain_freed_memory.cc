@@ -11,7 +11,7 @@ namespace anchormap {
 void RetainFreedMemory() {
 #if defined(__GLIBC__)
   // Serve blocks up to 1 GiB from the heap instead of fresh mmap'd pages, and never trim
-  // the heap's top below 4 GiB of free space.
+  // the heap's top while less than 2 GiB of it is free.
   mallopt(M_MMAP_THRESHOLD, 1 << 30);
   mallopt(M_TRIM_THRESHOLD, static_cast<int>(0x7fffffff));
 #endif
