@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 
 namespace anchormap::sim {
@@ -33,17 +34,6 @@ Pose2 FromPoseMessage(const bot_core::pose_t& message) {
   const double w = message.orientation[0];
   const double z = message.orientation[3];
   return Pose2(message.pos[0], message.pos[1], 2.0 * std::atan2(z, w));
-}
-
-bot_core::planar_lidar_t ToLidarMessage(const LaserScan& scan) {
-  bot_core::planar_lidar_t message;
-  message.utime = scan.utime;
-  message.nranges = static_cast<int32_t>(scan.ranges.size());
-  message.ranges = scan.ranges;
-  message.nintensities = 0;
-  message.rad0 = scan.rad0;
-  message.radstep = scan.radstep;
-  return message;
 }
 
 anchormap::encounter_t ToEncounterMessage(const SimEncounter& encounter) {
@@ -100,7 +90,9 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
     if (!frame.has_scans) continue;
     for (int i = 0; i < simulator->num_robots(); ++i) {
       const SimRobot& robot = simulator->robot(i);
-      Status status = write(laser_channels[i], frame.utime, ToLidarMessage(frame.scans[i]));
+      const std::vector<uint8_t> scan = EncodeLaser(frame.scans[i]);
+      ++result.events;
+      Status status = writer.WriteRaw(laser_channels[i], frame.utime, scan.data(), scan.size());
       if (status.ok()) {
         status = write(truth_channels[i], frame.utime,
                        ToPoseMessage(frame.utime, robot.T_world_body(), robot.body_velocity()));

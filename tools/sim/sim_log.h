@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "anchormap/encounter_t.hpp"
-#include "bot_core/planar_lidar_t.hpp"
 #include "bot_core/pose_t.hpp"
 #include "common/util/status.h"
 #include "tools/sim/sim_preview.h"
@@ -36,11 +35,11 @@ struct SimSummary {
 Status WriteSimulationLog(const SimOptions& options, const std::string& path, SimSummary* summary,
                           SimTrace* trace = nullptr);
 
-// Message conversions (also used by tests). Velocities are body-frame (forward, lateral,
+// Message conversions (also used by tests; scans are encoded by common/bus/codec's
+// EncodeLaser). Velocities are body-frame (forward, lateral,
 // yaw rate) and are rotated into the pose's frame for pose_t.vel.
 bot_core::pose_t ToPoseMessage(int64_t utime, const Pose2& pose,
                                const Eigen::Vector3d& body_velocity = Eigen::Vector3d::Zero());
-bot_core::planar_lidar_t ToLidarMessage(const LaserScan& scan);
 anchormap::encounter_t ToEncounterMessage(const SimEncounter& encounter);
 
 // Reads the pose back (x, y, yaw from the quaternion).

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "bot_core/planar_lidar_t.hpp"
 #include "common/bus/lcm_log.h"
 
 namespace anchormap::sim {
