@@ -6,31 +6,13 @@
 
 #include <Eigen/Dense>
 
+#include "common/solver/block_givens.h"
+
 namespace anchormap {
 namespace {
 
 constexpr int64_t kDiagonalNonZeros = 6;
 constexpr int64_t kBlockNonZeros = 9;
-
-// Zeroes W(low, col) against W(high, col) with one Givens rotation applied to columns
-// col.. of both rows.
-void Rotate(Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor>& W, int width, int high,
-            int low, int col) {
-  const double a = W(high, col), b = W(low, col);
-  if (b == 0.0) return;
-  const double r = std::sqrt(a * a + b * b);  // entries are O(1e-6..1e6): no overflow
-  const double c = a / r, s = b / r;
-  // Rows high != low of a row-major matrix: two contiguous arrays that never overlap,
-  // which lets the compiler vectorise the loop.
-  double* __restrict upper = W.row(high).data();
-  double* __restrict lower = W.row(low).data();
-  for (int j = col; j < width; ++j) {
-    const double t1 = upper[j], t2 = lower[j];
-    upper[j] = c * t1 + s * t2;
-    lower[j] = -s * t1 + c * t2;
-  }
-  lower[col] = 0.0;
-}
 
 }  // namespace
 
@@ -102,10 +84,8 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
     W.block<3, 1>(0, 3 + 3 * m) = row.rhs;
     W.block<3, 1>(3, 3 + 3 * m) = rows.rhs;
 
-    // Zero the new rows' entries under the diagonal block, column by column.
-    for (int k = 0; k < 3; ++k) {
-      for (int low = 3; low < 6; ++low) Rotate(W, width, k, low, k);
-    }
+    // Zero the new rows' entries under the diagonal block.
+    EliminateBlockRow(W.data(), static_cast<int>(W.cols()), width);
 
     // Write back R's row (new fill registers in the column index) and the new rows.
     const size_t old_right = row.right.size();

@@ -1,0 +1,81 @@
+#include "common/solver/block_givens.h"
+
+#include <cmath>
+
+// Two builds of the kernel, chosen at load time by the CPU (GCC's function multiversioning;
+// needs ifunc, so glibc on x86-64 only). Elsewhere the baseline build is the only one.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__)
+#define ANCHORMAP_CPU_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define ANCHORMAP_CPU_CLONES
+#endif
+
+namespace anchormap {
+namespace {
+
+// The nine rotations on `n` columns of the six rows, one column at a time, all in
+// registers. Separate restrict parameters: the rows never overlap, and saying so lets the
+// compiler vectorise across columns.
+inline __attribute__((always_inline)) void ApplyRotations(
+    const double* c, const double* s, double* __restrict r0, double* __restrict r1,
+    double* __restrict r2, double* __restrict r3, double* __restrict r4, double* __restrict r5,
+    int n) {
+  for (int j = 0; j < n; ++j) {
+    double v0 = r0[j], v1 = r1[j], v2 = r2[j], v3 = r3[j], v4 = r4[j], v5 = r5[j];
+    auto rotate = [](double cg, double sg, double& upper, double& lower) {
+      const double t1 = upper, t2 = lower;
+      upper = cg * t1 + sg * t2;
+      lower = -sg * t1 + cg * t2;
+    };
+    rotate(c[0], s[0], v0, v3);
+    rotate(c[1], s[1], v0, v4);
+    rotate(c[2], s[2], v0, v5);
+    rotate(c[3], s[3], v1, v3);
+    rotate(c[4], s[4], v1, v4);
+    rotate(c[5], s[5], v1, v5);
+    rotate(c[6], s[6], v2, v3);
+    rotate(c[7], s[7], v2, v4);
+    rotate(c[8], s[8], v2, v5);
+    r0[j] = v0;
+    r1[j] = v1;
+    r2[j] = v2;
+    r3[j] = v3;
+    r4[j] = v4;
+    r5[j] = v5;
+  }
+}
+
+}  // namespace
+
+ANCHORMAP_CPU_CLONES void EliminateBlockRow(double* work, int stride, int width) {
+  double* row[6];
+  for (int r = 0; r < 6; ++r) row[r] = work + r * stride;
+
+  // The nine rotations, in order: column k of row k against rows 3, 4, 5. Rotation
+  // (c, s) = (1, 0) where the entry is already zero (leaves both rows exactly as they are).
+  double c[9], s[9];
+  for (int k = 0, g = 0; k < 3; ++k) {
+    for (int low = 3; low < 6; ++low, ++g) {
+      const double a = row[k][k], b = row[low][k];
+      if (b == 0.0) {
+        c[g] = 1.0;
+        s[g] = 0.0;
+        continue;
+      }
+      const double r = std::sqrt(a * a + b * b);  // entries are O(1e-6..1e6): no overflow
+      c[g] = a / r;
+      s[g] = b / r;
+      for (int j = k; j < 3; ++j) {
+        const double t1 = row[k][j], t2 = row[low][j];
+        row[k][j] = c[g] * t1 + s[g] * t2;
+        row[low][j] = -s[g] * t1 + c[g] * t2;
+      }
+      row[low][k] = 0.0;
+    }
+  }
+
+  ApplyRotations(c, s, row[0] + 3, row[1] + 3, row[2] + 3, row[3] + 3, row[4] + 3, row[5] + 3,
+                 width - 3);
+}
+
+}  // namespace anchormap
