@@ -1,6 +1,7 @@
 #include "common/solver/batch_factorization.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <cholmod.h>
 
@@ -15,7 +16,7 @@ struct BatchFactorization::Cholmod {
     common.method[0].ordering = CHOLMOD_NATURAL;  // we order with CCOLAMD ourselves
     common.postorder = 0;
     common.supernodal = CHOLMOD_SIMPLICIAL;
-    common.final_ll = 1;
+    common.final_asis = 1;  // keep L D L^T: Factor() reads R = sqrt(D) L^T from it
     common.print = 0;
     common.error_handler = nullptr;
   }
@@ -29,35 +30,53 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
                                 std::vector<RBlockRow>* rows, std::string* error) {
   cholmod_common* c = &cholmod_->common;
 
-  // Normal equations by 3x3 blocks: upper triangle of A^T A by block column, and A^T b.
-  std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns(n);
+  // Normal equations by 3x3 blocks: upper triangle of A^T A by block column (flat arrays:
+  // one counting pass, one filling pass, then sort and merge each column), and A^T b.
+  std::vector<int> start(n + 1, 0);
   std::vector<Eigen::Vector3d> gradient(n, Eigen::Vector3d::Zero());
-  for (const PositionedFactor& f : factors) {
+  auto for_each_pair = [](const PositionedFactor& f, auto&& visit) {
     for (int a = 0; a < f.num_keys; ++a) {
-      gradient[f.positions[a]].noalias() += f.jacobians[a].transpose() * f.rhs;
       for (int b = 0; b < f.num_keys; ++b) {
         if (f.positions[a] > f.positions[b]) continue;
         if (f.positions[a] == f.positions[b] && a > b) continue;  // repeated key: once per pair
+        visit(a, b);
+      }
+    }
+  };
+  for (const PositionedFactor& f : factors) {
+    for_each_pair(f, [&](int, int b) { ++start[f.positions[b] + 1]; });
+  }
+  for (int p = 0; p < n; ++p) start[p + 1] += start[p];
+  std::vector<std::pair<int, Eigen::Matrix3d>> blocks(start[n]);
+  {
+    std::vector<int> next(start.begin(), start.end() - 1);
+    for (const PositionedFactor& f : factors) {
+      for (int a = 0; a < f.num_keys; ++a) {
+        gradient[f.positions[a]].noalias() += f.jacobians[a].transpose() * f.rhs;
+      }
+      for_each_pair(f, [&](int a, int b) {
         Eigen::Matrix3d block = f.jacobians[a].transpose() * f.jacobians[b];
         if (f.positions[a] == f.positions[b] && a != b) block += block.transpose().eval();
-        columns[f.positions[b]].emplace_back(f.positions[a], block);
-      }
+        blocks[next[f.positions[b]]++] = {f.positions[a], block};
+      });
     }
   }
+  // Per column: sort by row and sum duplicates in place; `length[p]` blocks remain.
+  std::vector<int> length(n);
   size_t nnz = 0;
-  for (auto& column : columns) {
-    std::sort(column.begin(), column.end(),
-              [](const auto& x, const auto& y) { return x.first < y.first; });
-    size_t out = 0;
-    for (size_t k = 0; k < column.size(); ++k) {
-      if (out > 0 && column[out - 1].first == column[k].first) {
-        column[out - 1].second += column[k].second;
+  for (int p = 0; p < n; ++p) {
+    auto first = blocks.begin() + start[p], last = blocks.begin() + start[p + 1];
+    std::sort(first, last, [](const auto& x, const auto& y) { return x.first < y.first; });
+    int out = 0;
+    for (auto it = first; it != last; ++it) {
+      if (out > 0 && first[out - 1].first == it->first) {
+        first[out - 1].second += it->second;
       } else {
-        column[out++] = column[k];
+        first[out++] = *it;
       }
     }
-    column.resize(out);
-    nnz += 9 * out;
+    length[p] = out;
+    nnz += 9 * static_cast<size_t>(out);
   }
 
   const size_t dim = 3 * static_cast<size_t>(n);
@@ -69,7 +88,8 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
   for (int pb = 0; pb < n; ++pb) {
     for (int cb = 0; cb < 3; ++cb) {
       Ap[3 * pb + cb] = static_cast<int>(k);
-      for (const auto& [pa, block] : columns[pb]) {
+      for (int e = start[pb]; e < start[pb] + length[pb]; ++e) {
+        const auto& [pa, block] = blocks[e];
         for (int ra = 0; ra < 3; ++ra) {
           if (pa == pb && ra > cb) break;
           Ai[k] = 3 * pa + ra;
@@ -81,44 +101,62 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
   }
   Ap[dim] = static_cast<int>(k);
 
+  // CHOLMOD's simplicial factorisation is L D L^T (unit-diagonal L, D first in each column);
+  // R = sqrt(D) L^T is read from it directly, without CHOLMOD converting it to L L^T.
   cholmod_factor* L = cholmod_analyze(A, c);
-  bool ok = L != nullptr && cholmod_factorize(A, L, c) && c->status == CHOLMOD_OK;
-  if (ok) ok = cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, L, c) && L->is_ll;
+  bool ok = L != nullptr && cholmod_factorize(A, L, c) && c->status == CHOLMOD_OK && !L->is_super;
+  size_t failed_column = L ? L->minor : 0;
+  if (ok) {
+    const auto* Lp = static_cast<const int*>(L->p);
+    const auto* Lx = static_cast<const double*>(L->x);
+    for (size_t j = 0; j < dim && ok; ++j) {
+      // LDL': D(j) > 0 and finite; LL': L(j,j) > 0. Either way the first entry of column j.
+      const double pivot = Lx[Lp[j]];
+      if (!(pivot > 0.0) || !std::isfinite(pivot)) {
+        ok = false;
+        failed_column = j;
+      }
+    }
+  }
   if (!ok) {
     if (error) {
-      const size_t minor = L ? L->minor : 0;
       *error = "batch factorisation failed (CHOLMOD status " + std::to_string(c->status) +
-               "): the system is not positive definite at scalar column " + std::to_string(minor) +
-               " (block " + std::to_string(minor / 3) + "); a variable is not constrained";
+               "): the system is not positive definite at scalar column " +
+               std::to_string(failed_column) + " (block " + std::to_string(failed_column / 3) +
+               "); a variable is not constrained";
     }
     cholmod_free_factor(&L, c);
     cholmod_free_sparse(&A, c);
     return false;
   }
 
-  // R = L^T: scalar column j of L is scalar row j of R.
+  // R row j (scalar) = column j of L^T: scale sqrt(D_j) for LDL' (unit diagonal implied).
   rows->assign(n, RBlockRow());
   const auto* Lp = static_cast<const int*>(L->p);
   const auto* Li = static_cast<const int*>(L->i);
   const auto* Lx = static_cast<const double*>(L->x);
   const auto* Lnz = static_cast<const int*>(L->nz);
+  const bool is_ll = L->is_ll;
   std::vector<int> slot(n, -1);
   for (int p = 0; p < n; ++p) {
     RBlockRow& row = (*rows)[p];
     for (int rj = 0; rj < 3; ++rj) {
       const int j = 3 * p + rj;
-      for (int e = Lp[j]; e < Lp[j] + Lnz[j]; ++e) {
+      const double scale = is_ll ? 1.0 : std::sqrt(Lx[Lp[j]]);
+      row.diagonal(rj, rj) = is_ll ? Lx[Lp[j]] : scale;
+      for (int e = Lp[j] + 1; e < Lp[j] + Lnz[j]; ++e) {
         const int i = Li[e];
         const int q = i / 3;
+        const double value = scale * Lx[e];
         if (q == p) {
-          row.diagonal(rj, i % 3) = Lx[e];
+          row.diagonal(rj, i % 3) = value;
           continue;
         }
         if (slot[q] < 0) {
           slot[q] = static_cast<int>(row.right.size());
           row.right.emplace_back(q, Eigen::Matrix3d::Zero());
         }
-        row.right[slot[q]].second(rj, i % 3) = Lx[e];
+        row.right[slot[q]].second(rj, i % 3) = value;
       }
     }
     for (const auto& [q, block] : row.right) slot[q] = -1;

@@ -1,8 +1,8 @@
 #pragma once
 // A batch step's factorisation: forms the normal equations A^T A, A^T b of all
 // linearised factors in a given variable order, factors them with CHOLMOD (simplicial
-// LL^T, no further permutation) and returns R = L^T and d with R^T d = A^T b, so that the
-// incremental updates continue from it exactly as from a QR factorisation of A.
+// L D L^T, no further permutation) and returns R = sqrt(D) L^T and d with R^T d = A^T b, so that
+// the incremental updates continue from it exactly as from a QR factorisation of A.
 
 #include <memory>
 #include <string>

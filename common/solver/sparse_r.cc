@@ -32,87 +32,127 @@ void SparseR::Assign(std::vector<RBlockRow> rows) {
 }
 
 double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
+  // The new rows, as a row-major panel by sorted column (a key repeated within one
+  // measurement has its blocks summed).
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
   std::sort(rows.blocks.begin(), rows.blocks.end(), by_column);
-  std::vector<std::pair<int, Eigen::Matrix3d>>& next_blocks = scratch_blocks_;
-  std::vector<int>& columns = scratch_columns_;
-  Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor>& W = scratch_;
+  carry_columns_.clear();
+  for (const auto& [q, block] : rows.blocks) {
+    if (carry_columns_.empty() || carry_columns_.back() != q) carry_columns_.push_back(q);
+  }
+  const int initial = static_cast<int>(carry_columns_.size());
+  if (carry_.cols() < 3 * initial + 1) carry_.resize(3, 2 * (3 * initial + 1));
+  carry_.leftCols(3 * initial + 1).setZero();
+  for (size_t b = 0, k = 0; b < rows.blocks.size(); ++b) {
+    while (carry_columns_[k] != rows.blocks[b].first) ++k;
+    carry_.block(0, 3 * k, 3, 3) += rows.blocks[b].second;
+  }
+  carry_.col(3 * initial) = rows.rhs;
 
-  while (!rows.blocks.empty()) {
-    const int c = rows.blocks.front().first;
+  while (!carry_columns_.empty()) {
+    const int c = carry_columns_.front();
     RBlockRow& row = rows_[c];
     if (touched) touched->push_back(c);
     const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
 
-    // Union of the columns right of c in R's row and in the new rows (both sorted).
-    columns.clear();
+    // Union of the columns right of c in R's row and in the carried rows (both sorted),
+    // remembering where each came from.
+    union_.clear();
     {
-      auto r = row.right.begin();
-      auto n = rows.blocks.begin() + 1;
-      while (r != row.right.end() || n != rows.blocks.end()) {
-        if (n == rows.blocks.end() || (r != row.right.end() && r->first < n->first)) {
-          columns.push_back((r++)->first);
-        } else if (r == row.right.end() || n->first < r->first) {
-          columns.push_back((n++)->first);
+      const int nr = static_cast<int>(row.right.size());
+      const int nc = static_cast<int>(carry_columns_.size());
+      int r = 0, n = 1;
+      while (r < nr || n < nc) {
+        if (n == nc || (r < nr && row.right[r].first < carry_columns_[n])) {
+          union_.push_back({row.right[r].first, r, -1});
+          ++r;
+        } else if (r == nr || carry_columns_[n] < row.right[r].first) {
+          union_.push_back({carry_columns_[n], -1, n});
+          ++n;
         } else {
-          columns.push_back(r->first);
+          union_.push_back({carry_columns_[n], r, n});
           ++r;
           ++n;
         }
       }
     }
-    const int m = static_cast<int>(columns.size());
+    const int m = static_cast<int>(union_.size());
     ++eliminated_block_rows_;
     eliminated_block_columns_ += m + 1;
-    if (W.cols() < 3 + 3 * m + 1) W.resize(6, 2 * (3 + 3 * m + 1));  // amortised growth
     const int width = 3 + 3 * m + 1;
-    W.leftCols(width).setZero();
-    W.block<3, 3>(0, 0) = row.diagonal;
-    W.block<3, 3>(3, 0) = rows.blocks.front().second;
-    {
-      int k = 0;
-      for (const auto& [q, block] : row.right) {
-        while (columns[k] != q) ++k;
-        W.block<3, 3>(0, 3 + 3 * k) = block;
-      }
-      k = 0;
-      for (auto n = rows.blocks.begin() + 1; n != rows.blocks.end(); ++n) {
-        while (columns[k] != n->first) ++k;
-        W.block<3, 3>(3, 3 + 3 * k) = n->second;
-      }
-    }
-    W.block<3, 1>(0, 3 + 3 * m) = row.rhs;
-    W.block<3, 1>(3, 3 + 3 * m) = rows.rhs;
+    if (work_.cols() < width) work_.resize(6, 2 * width);  // amortised growth
+    const int carry_rhs = 3 * static_cast<int>(carry_columns_.size());
 
-    // Zero the new rows' entries under the diagonal block.
-    EliminateBlockRow(W.data(), static_cast<int>(W.cols()), width);
-
-    // Write back R's row (new fill registers in the column index) and the new rows.
-    const size_t old_right = row.right.size();
-    if (static_cast<size_t>(m) != old_right) {
-      for (int k = 0, r = 0; k < m; ++k) {
-        if (r < static_cast<int>(old_right) && row.right[r].first == columns[k]) {
-          ++r;
+    // Rows 0-2: R's row; rows 3-5: the carried rows. Each block is written once (zeros
+    // where one side has no block), so the panel needs no clearing.
+    for (int i = 0; i < 3; ++i) {
+      double* upper = work_.row(i).data();
+      double* lower = work_.row(3 + i).data();
+      const double* carried = carry_.row(i).data();
+      for (int j = 0; j < 3; ++j) {
+        upper[j] = row.diagonal(i, j);
+        lower[j] = carried[j];
+      }
+      for (int k = 0; k < m; ++k) {
+        const UnionColumn& u = union_[k];
+        double* up = upper + 3 + 3 * k;
+        double* low = lower + 3 + 3 * k;
+        if (u.in_row >= 0) {
+          const Eigen::Matrix3d& block = row.right[u.in_row].second;
+          up[0] = block(i, 0);
+          up[1] = block(i, 1);
+          up[2] = block(i, 2);
         } else {
-          column_rows_[columns[k]].push_back(c);
+          up[0] = up[1] = up[2] = 0.0;
+        }
+        if (u.in_carry >= 0) {
+          const double* from = carried + 3 * u.in_carry;
+          low[0] = from[0];
+          low[1] = from[1];
+          low[2] = from[2];
+        } else {
+          low[0] = low[1] = low[2] = 0.0;
         }
       }
+      upper[width - 1] = row.rhs(i);
+      lower[width - 1] = carried[carry_rhs];
     }
-    row.diagonal = W.block<3, 3>(0, 0);
+
+    // Zero the carried rows under the diagonal block.
+    EliminateBlockRow(work_.data(), static_cast<int>(work_.cols()), width);
+
+    // Write back R's row (new fill registers in the column index).
+    const size_t old_right = row.right.size();
+    if (static_cast<size_t>(m) != old_right) {
+      for (const UnionColumn& u : union_) {
+        if (u.in_row < 0) column_rows_[u.column].push_back(c);
+      }
+    }
+    row.diagonal = work_.block<3, 3>(0, 0);
     row.right.resize(m);
-    next_blocks.clear();
     for (int k = 0; k < m; ++k) {
-      row.right[k] = {columns[k], W.block<3, 3>(0, 3 + 3 * k)};
-      const Eigen::Matrix3d low = W.block<3, 3>(3, 3 + 3 * k);
-      if (!low.isZero(0.0)) next_blocks.emplace_back(columns[k], low);
+      row.right[k].first = union_[k].column;
+      row.right[k].second = work_.block<3, 3>(0, 3 + 3 * k);
     }
-    row.rhs = W.block<3, 1>(0, 3 + 3 * m);
-    rows.rhs = W.block<3, 1>(3, 3 + 3 * m);
+    row.rhs = work_.block<3, 1>(0, width - 1);
     nonzeros_ +=
         kBlockNonZeros * static_cast<int64_t>(m - old_right) + (was_empty ? kDiagonalNonZeros : 0);
-    rows.blocks.swap(next_blocks);
+
+    // The carried rows for the next block row: every column where they are not all zero.
+    next_carry_columns_.clear();
+    if (next_carry_.cols() < 3 * m + 1) next_carry_.resize(3, 2 * (3 * m + 1));
+    for (int k = 0; k < m; ++k) {
+      const auto low = work_.block<3, 3>(3, 3 + 3 * k);
+      if (low.isZero(0.0)) continue;
+      next_carry_.block<3, 3>(0, 3 * static_cast<int>(next_carry_columns_.size())) = low;
+      next_carry_columns_.push_back(union_[k].column);
+    }
+    next_carry_.block<3, 1>(0, 3 * static_cast<int>(next_carry_columns_.size())) =
+        work_.block<3, 1>(3, width - 1);
+    carry_.swap(next_carry_);
+    carry_columns_.swap(next_carry_columns_);
   }
-  return rows.rhs.squaredNorm();
+  return carry_.block<3, 1>(0, 0).squaredNorm();
 }
 
 Eigen::Vector3d SparseR::SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const {

@@ -68,10 +68,21 @@ class SparseR {
 
   std::vector<RBlockRow> rows_;
   std::vector<std::vector<int>> column_rows_;
-  // Work space of Eliminate, kept to avoid an allocation per block row.
-  Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> scratch_;
-  std::vector<std::pair<int, Eigen::Matrix3d>> scratch_blocks_;
-  std::vector<int> scratch_columns_;
+  // Work space of Eliminate, kept to avoid an allocation per block row: the 6-row
+  // rotation panel, the new rows carried from one block row to the next (3 rows, 3
+  // columns per block, rhs last; row-major like the panel) and the column bookkeeping.
+  using Panel = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  Panel work_;
+  Panel carry_;
+  Panel next_carry_;
+  std::vector<int> carry_columns_;
+  std::vector<int> next_carry_columns_;
+  struct UnionColumn {
+    int column;
+    int in_row;    // index in the R row's `right`, or -1
+    int in_carry;  // index in carry_columns_, or -1
+  };
+  std::vector<UnionColumn> union_;
   std::vector<char> scratch_dirty_;
   int64_t nonzeros_ = 0;
   int64_t eliminated_block_rows_ = 0;
