@@ -1,0 +1,93 @@
+#include "common/solver/batch_factorization.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+namespace anchormap {
+namespace {
+
+// Random factors over `n` block positions: a strong unary block on each, plus pairs.
+struct RandomSystem {
+  std::vector<std::vector<Eigen::Matrix3d>> jacobians;
+  std::vector<PositionedFactor> factors;
+  Eigen::MatrixXd A;
+  Eigen::VectorXd b;
+};
+
+RandomSystem MakeSystem(int n, int pairs, std::mt19937* rng) {
+  RandomSystem s;
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::vector<std::vector<int>> keys;
+  for (int p = 0; p < n; ++p) keys.push_back({p});
+  for (int k = 0; k < pairs; ++k) keys.push_back({pick(*rng), pick(*rng)});  // may repeat a key
+  s.jacobians.resize(keys.size());
+  s.factors.resize(keys.size());
+  s.A = Eigen::MatrixXd::Zero(3 * keys.size(), 3 * n);
+  s.b = Eigen::VectorXd::Random(3 * keys.size());
+  for (size_t f = 0; f < keys.size(); ++f) {
+    for (size_t j = 0; j < keys[f].size(); ++j) {
+      Eigen::Matrix3d J = Eigen::Matrix3d::Random();
+      if (keys[f].size() == 1) J += 4.0 * Eigen::Matrix3d::Identity();
+      s.jacobians[f].push_back(J);
+      s.A.block<3, 3>(3 * f, 3 * keys[f][j]) += J;
+      s.factors[f].positions[j] = keys[f][j];
+    }
+    s.factors[f].num_keys = static_cast<int>(keys[f].size());
+    s.factors[f].jacobians = s.jacobians[f].data();
+    s.factors[f].rhs = s.b.segment<3>(3 * f);
+  }
+  return s;
+}
+
+Eigen::MatrixXd Dense(const std::vector<RBlockRow>& rows) {
+  const int n = static_cast<int>(rows.size());
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int p = 0; p < n; ++p) {
+    R.block<3, 3>(3 * p, 3 * p) = rows[p].diagonal;
+    for (const auto& [q, block] : rows[p].right) {
+      EXPECT_GT(q, p);
+      R.block<3, 3>(3 * p, 3 * q) = block;
+    }
+  }
+  return R;
+}
+
+TEST(BatchFactorizationTest, SquareRootInformationOfTheNormalEquations) {
+  std::mt19937 rng(5);
+  const int n = 12;
+  RandomSystem s = MakeSystem(n, 25, &rng);
+  BatchFactorization batch;
+  std::vector<RBlockRow> rows;
+  std::string error;
+  ASSERT_TRUE(batch.Factor(n, s.factors, &rows, &error)) << error;
+  const Eigen::MatrixXd R = Dense(rows);
+  const Eigen::MatrixXd AtA = s.A.transpose() * s.A;
+  EXPECT_LE((R.transpose() * R - AtA).cwiseAbs().maxCoeff(), 1e-10 * AtA.cwiseAbs().maxCoeff());
+  // Upper triangular with a positive diagonal, and R delta = d solves the least squares.
+  EXPECT_LE(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(R.diagonal().minCoeff(), 0.0);
+  Eigen::VectorXd d(3 * n);
+  for (int p = 0; p < n; ++p) d.segment<3>(3 * p) = rows[p].rhs;
+  const Eigen::VectorXd delta = R.triangularView<Eigen::Upper>().solve(d);
+  const Eigen::VectorXd expected = AtA.ldlt().solve(s.A.transpose() * s.b);
+  EXPECT_LE((delta - expected).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(BatchFactorizationTest, UnconstrainedVariableIsAnErrorNamingItsBlock) {
+  std::mt19937 rng(9);
+  const int n = 4;
+  RandomSystem s = MakeSystem(n, 0, &rng);
+  // Block 2's only factor leaves its heading unconstrained (third Jacobian column zero).
+  s.jacobians[2][0].col(2).setZero();
+  BatchFactorization batch;
+  std::vector<RBlockRow> rows;
+  std::string error;
+  EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
+  EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
+      << error;
+}
+
+}  // namespace
+}  // namespace anchormap
