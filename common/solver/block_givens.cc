@@ -47,9 +47,12 @@ inline __attribute__((always_inline)) void ApplyRotations(
 
 }  // namespace
 
-ANCHORMAP_CPU_CLONES void EliminateBlockRow(double* work, int stride, int width) {
+ANCHORMAP_CPU_CLONES void EliminateBlockRow(double* upper, double* lower, int stride, int width) {
   double* row[6];
-  for (int r = 0; r < 6; ++r) row[r] = work + r * stride;
+  for (int r = 0; r < 3; ++r) {
+    row[r] = upper + r * stride;
+    row[3 + r] = lower + r * stride;
+  }
 
   // The nine rotations, in order: column k of row k against rows 3, 4, 5. Rotation
   // (c, s) = (1, 0) where the entry is already zero (leaves both rows exactly as they are).

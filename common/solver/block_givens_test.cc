@@ -27,7 +27,7 @@ TEST(BlockGivensTest, TriangularisesAndPreservesTheNormalEquations) {
     const int stride = width + 5;  // the work space is wider than the row being processed
     WorkSpace W = RandomWorkSpace(width, stride, &rng);
     const Eigen::MatrixXd before = W.leftCols(width);
-    EliminateBlockRow(W.data(), stride, width);
+    EliminateBlockRow(W.data(), W.data() + 3 * stride, stride, width);
     const Eigen::MatrixXd after = W.leftCols(width);
 
     // New rows are zero under the diagonal block, R's diagonal block stays upper triangular.
@@ -52,7 +52,7 @@ TEST(BlockGivensTest, MatchesHouseholderQrUpToRowSigns) {
   const int width = 13;
   WorkSpace W = RandomWorkSpace(width, width, &rng);
   const Eigen::MatrixXd before = W.leftCols(width);
-  EliminateBlockRow(W.data(), width, width);
+  EliminateBlockRow(W.data(), W.data() + 3 * width, width, width);
   const Eigen::MatrixXd qr = Eigen::HouseholderQR<Eigen::MatrixXd>(before)
                                  .matrixQR()
                                  .topRows(3)
@@ -69,7 +69,7 @@ TEST(BlockGivensTest, ZeroEntriesLeaveRowsExactlyUnchanged) {
   WorkSpace W = RandomWorkSpace(10, 10, &rng);
   W.block(3, 0, 3, 3).setZero();
   const WorkSpace before = W;
-  EliminateBlockRow(W.data(), 10, 10);
+  EliminateBlockRow(W.data(), W.data() + 30, 10, 10);
   EXPECT_EQ((W - before).cwiseAbs().maxCoeff(), 0.0);
 }
 

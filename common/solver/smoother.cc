@@ -386,6 +386,8 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
 
   std::vector<int> touched;
   std::array<Pose2, kMaxFactorKeys> values;
+  std::vector<NewRows> new_rows;
+  new_rows.reserve(ready.size());
   for (int64_t id : ready) {
     const FactorRecord& f = factors_[id];
     for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
@@ -399,8 +401,10 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
       rows.blocks.emplace_back(position, lin.jacobians[j]);
       rows.rhs += lin.jacobians[j] * delta_[position];
     }
-    R.Eliminate(std::move(rows), &touched);
+    new_rows.push_back(std::move(rows));
   }
+  // All at once: their paths up R share the rows near the root.
+  R.Eliminate(std::move(new_rows), &touched);
   result->factors_added = static_cast<int>(ready.size());
   TakeOutOfPending(ready);
 

@@ -32,127 +32,209 @@ void SparseR::Assign(std::vector<RBlockRow> rows) {
 }
 
 double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
-  // The new rows, as a row-major panel by sorted column (a key repeated within one
-  // measurement has its blocks summed).
-  auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
-  std::sort(rows.blocks.begin(), rows.blocks.end(), by_column);
-  carry_columns_.clear();
-  for (const auto& [q, block] : rows.blocks) {
-    if (carry_columns_.empty() || carry_columns_.back() != q) carry_columns_.push_back(q);
-  }
-  const int initial = static_cast<int>(carry_columns_.size());
-  if (carry_.cols() < 3 * initial + 1) carry_.resize(3, 2 * (3 * initial + 1));
-  carry_.leftCols(3 * initial + 1).setZero();
-  for (size_t b = 0, k = 0; b < rows.blocks.size(); ++b) {
-    while (carry_columns_[k] != rows.blocks[b].first) ++k;
-    carry_.block(0, 3 * k, 3, 3) += rows.blocks[b].second;
-  }
-  carry_.col(3 * initial) = rows.rhs;
+  std::vector<NewRows> one;
+  one.push_back(std::move(rows));
+  return Eliminate(std::move(one), touched);
+}
 
-  while (!carry_columns_.empty()) {
-    const int c = carry_columns_.front();
+double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) {
+  // Each measurement starts as its own carry: a row-major panel by sorted column (a key
+  // repeated within one measurement has its blocks summed).
+  auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
+  if (carries_.size() < rows.size()) carries_.resize(rows.size());
+  for (size_t i = 0; i < rows.size(); ++i) {
+    Carry& carry = carries_[i];
+    std::sort(rows[i].blocks.begin(), rows[i].blocks.end(), by_column);
+    carry.columns.clear();
+    for (const auto& [q, block] : rows[i].blocks) {
+      if (carry.columns.empty() || carry.columns.back() != q) carry.columns.push_back(q);
+    }
+    const int width = 3 * static_cast<int>(carry.columns.size()) + 1;
+    if (carry.panel.rows() < 3 || carry.panel.cols() < width) carry.panel.resize(3, 2 * width);
+    carry.panel.topLeftCorner(3, width).setZero();
+    for (size_t b = 0, k = 0; b < rows[i].blocks.size(); ++b) {
+      while (carry.columns[k] != rows[i].blocks[b].first) ++k;
+      carry.panel.block(0, 3 * k, 3, 3) += rows[i].blocks[b].second;
+    }
+    carry.panel.block<3, 1>(0, width - 1) = rows[i].rhs;
+    carry.triples = 1;
+    carry.alive = !carry.columns.empty();
+  }
+  double leftover = 0.0;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (!carries_[i].alive) leftover += rows[i].rhs.squaredNorm();
+  }
+
+  while (true) {
+    // The lowest column any carry still has a block in; every carry that leads with it
+    // meets R's row there together.
+    int c = -1;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const Carry& carry = carries_[i];
+      if (carry.alive && (c < 0 || carry.columns.front() < c)) c = carry.columns.front();
+    }
+    if (c < 0) break;
+    meeting_.clear();
+    int triples = 0;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      if (carries_[i].alive && carries_[i].columns.front() == c) {
+        meeting_.push_back(static_cast<int>(i));
+        triples += carries_[i].triples;
+      }
+    }
     RBlockRow& row = rows_[c];
     if (touched) touched->push_back(c);
     const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
 
-    // Union of the columns right of c in R's row and in the carried rows (both sorted),
-    // remembering where each came from.
-    union_.clear();
-    {
-      const int nr = static_cast<int>(row.right.size());
-      const int nc = static_cast<int>(carry_columns_.size());
-      int r = 0, n = 1;
-      while (r < nr || n < nc) {
-        if (n == nc || (r < nr && row.right[r].first < carry_columns_[n])) {
-          union_.push_back({row.right[r].first, r, -1});
-          ++r;
-        } else if (r == nr || carry_columns_[n] < row.right[r].first) {
-          union_.push_back({carry_columns_[n], -1, n});
-          ++n;
-        } else {
-          union_.push_back({carry_columns_[n], r, n});
-          ++r;
-          ++n;
-        }
-      }
+    // Union of the columns right of c in R's row and in the meeting carries (all sorted).
+    union_columns_.clear();
+    for (const auto& entry : row.right) union_columns_.push_back(entry.first);
+    for (int i : meeting_) {
+      const std::vector<int>& columns = carries_[i].columns;
+      const size_t before = union_columns_.size();
+      union_columns_.insert(union_columns_.end(), columns.begin() + 1, columns.end());
+      std::inplace_merge(union_columns_.begin(), union_columns_.begin() + before,
+                         union_columns_.end());
+      union_columns_.erase(std::unique(union_columns_.begin(), union_columns_.end()),
+                           union_columns_.end());
     }
-    const int m = static_cast<int>(union_.size());
+    const int m = static_cast<int>(union_columns_.size());
+    union_in_row_.assign(m, -1);
+    for (int k = 0, r = 0; r < static_cast<int>(row.right.size()); ++k) {
+      if (union_columns_[k] == row.right[r].first) union_in_row_[k] = r++;
+    }
     ++eliminated_block_rows_;
     eliminated_block_columns_ += m + 1;
     const int width = 3 + 3 * m + 1;
-    if (work_.cols() < width) work_.resize(6, 2 * width);  // amortised growth
-    const int carry_rhs = 3 * static_cast<int>(carry_columns_.size());
+    const int panel_rows = 3 + 3 * triples;
+    if (work_.rows() < panel_rows || work_.cols() < width) {
+      work_.resize(std::max<Eigen::Index>(work_.rows(), panel_rows), 2 * width);
+    }
+    const int stride = static_cast<int>(work_.cols());
 
-    // Rows 0-2: R's row; rows 3-5: the carried rows. Each block is written once (zeros
-    // where one side has no block), so the panel needs no clearing.
+    // Rows 0-2: R's row.
     for (int i = 0; i < 3; ++i) {
       double* upper = work_.row(i).data();
-      double* lower = work_.row(3 + i).data();
-      const double* carried = carry_.row(i).data();
-      for (int j = 0; j < 3; ++j) {
-        upper[j] = row.diagonal(i, j);
-        lower[j] = carried[j];
-      }
+      for (int j = 0; j < 3; ++j) upper[j] = row.diagonal(i, j);
       for (int k = 0; k < m; ++k) {
-        const UnionColumn& u = union_[k];
         double* up = upper + 3 + 3 * k;
-        double* low = lower + 3 + 3 * k;
-        if (u.in_row >= 0) {
-          const Eigen::Matrix3d& block = row.right[u.in_row].second;
+        if (union_in_row_[k] >= 0) {
+          const Eigen::Matrix3d& block = row.right[union_in_row_[k]].second;
           up[0] = block(i, 0);
           up[1] = block(i, 1);
           up[2] = block(i, 2);
         } else {
           up[0] = up[1] = up[2] = 0.0;
         }
-        if (u.in_carry >= 0) {
-          const double* from = carried + 3 * u.in_carry;
-          low[0] = from[0];
-          low[1] = from[1];
-          low[2] = from[2];
-        } else {
-          low[0] = low[1] = low[2] = 0.0;
-        }
       }
       upper[width - 1] = row.rhs(i);
-      lower[width - 1] = carried[carry_rhs];
+    }
+    // Then each meeting carry's rows, spread over the union's columns.
+    int next_row = 3;
+    for (int i : meeting_) {
+      Carry& carry = carries_[i];
+      const int n = static_cast<int>(carry.columns.size());
+      carry.in_union.resize(n);
+      for (int j = 1, k = 0; j < n; ++j) {
+        while (union_columns_[k] != carry.columns[j]) ++k;
+        carry.in_union[j] = k;
+      }
+      for (int r = 0; r < 3 * carry.triples; ++r, ++next_row) {
+        double* lower = work_.row(next_row).data();
+        const double* from = carry.panel.row(r).data();
+        std::fill(lower + 3, lower + width - 1, 0.0);
+        lower[0] = from[0];
+        lower[1] = from[1];
+        lower[2] = from[2];
+        for (int j = 1; j < n; ++j) {
+          double* to = lower + 3 + 3 * carry.in_union[j];
+          to[0] = from[3 * j];
+          to[1] = from[3 * j + 1];
+          to[2] = from[3 * j + 2];
+        }
+        lower[width - 1] = from[3 * n];
+      }
     }
 
-    // Zero the carried rows under the diagonal block.
-    EliminateBlockRow(work_.data(), static_cast<int>(work_.cols()), width);
+    // Zero the carried rows under the diagonal block, one triple after another.
+    for (int t = 0; t < triples; ++t) {
+      EliminateBlockRow(work_.data(), work_.row(3 + 3 * t).data(), stride, width);
+    }
 
     // Write back R's row (new fill registers in the column index).
     const size_t old_right = row.right.size();
     if (static_cast<size_t>(m) != old_right) {
-      for (const UnionColumn& u : union_) {
-        if (u.in_row < 0) column_rows_[u.column].push_back(c);
+      for (int k = 0; k < m; ++k) {
+        if (union_in_row_[k] < 0) column_rows_[union_columns_[k]].push_back(c);
       }
     }
     row.diagonal = work_.block<3, 3>(0, 0);
     row.right.resize(m);
     for (int k = 0; k < m; ++k) {
-      row.right[k].first = union_[k].column;
+      row.right[k].first = union_columns_[k];
       row.right[k].second = work_.block<3, 3>(0, 3 + 3 * k);
     }
     row.rhs = work_.block<3, 1>(0, width - 1);
     nonzeros_ +=
         kBlockNonZeros * static_cast<int64_t>(m - old_right) + (was_empty ? kDiagonalNonZeros : 0);
 
-    // The carried rows for the next block row: every column where they are not all zero.
-    next_carry_columns_.clear();
-    if (next_carry_.cols() < 3 * m + 1) next_carry_.resize(3, 2 * (3 * m + 1));
-    for (int k = 0; k < m; ++k) {
-      const auto low = work_.block<3, 3>(3, 3 + 3 * k);
-      if (low.isZero(0.0)) continue;
-      next_carry_.block<3, 3>(0, 3 * static_cast<int>(next_carry_columns_.size())) = low;
-      next_carry_columns_.push_back(union_[k].column);
+    // The meeting carries continue as one: the triples that still have a block anywhere,
+    // over the columns where some row is not zero. A triple with no block left has only
+    // its residual, which no variable can absorb.
+    Carry& merged = carries_[meeting_.front()];
+    for (size_t k = 1; k < meeting_.size(); ++k) carries_[meeting_[k]].alive = false;
+    auto all_zero = [](const double* first, const double* last) {
+      for (; first != last; ++first) {
+        if (*first != 0.0) return false;
+      }
+      return true;
+    };
+    int kept = 0;
+    for (int t = 0; t < triples; ++t) {
+      bool empty = true;
+      for (int r = 0; r < 3 && empty; ++r) {
+        const double* lower = work_.row(3 + 3 * t + r).data();
+        empty = all_zero(lower + 3, lower + width - 1);
+      }
+      if (empty) {
+        for (int r = 0; r < 3; ++r) leftover += std::pow(work_(3 + 3 * t + r, width - 1), 2);
+        continue;
+      }
+      if (kept != t) {
+        work_.block(3 + 3 * kept, 0, 3, width) = work_.block(3 + 3 * t, 0, 3, width);
+      }
+      ++kept;
     }
-    next_carry_.block<3, 1>(0, 3 * static_cast<int>(next_carry_columns_.size())) =
-        work_.block<3, 1>(3, width - 1);
-    carry_.swap(next_carry_);
-    carry_columns_.swap(next_carry_columns_);
+    merged.columns.clear();
+    merged.triples = kept;
+    merged.alive = kept > 0;
+    if (!merged.alive) continue;
+    const int kept_rows = 3 * kept;
+    if (merged.panel.rows() < kept_rows || merged.panel.cols() < 3 * m + 1) {
+      merged.panel.resize(std::max<Eigen::Index>(merged.panel.rows(), kept_rows), 2 * (3 * m + 1));
+    }
+    for (int k = 0; k < m; ++k) {
+      const int from = 3 + 3 * k;
+      bool zero = true;
+      for (int r = 0; r < kept_rows && zero; ++r) {
+        const double* lower = work_.row(3 + r).data() + from;
+        zero = lower[0] == 0.0 && lower[1] == 0.0 && lower[2] == 0.0;
+      }
+      if (zero) continue;
+      const int to = 3 * static_cast<int>(merged.columns.size());
+      for (int r = 0; r < kept_rows; ++r) {
+        const double* lower = work_.row(3 + r).data() + from;
+        double* out = merged.panel.row(r).data() + to;
+        out[0] = lower[0];
+        out[1] = lower[1];
+        out[2] = lower[2];
+      }
+      merged.columns.push_back(union_columns_[k]);
+    }
+    const int rhs = 3 * static_cast<int>(merged.columns.size());
+    for (int r = 0; r < kept_rows; ++r) merged.panel(r, rhs) = work_(3 + r, width - 1);
   }
-  return carry_.block<3, 1>(0, 0).squaredNorm();
+  return leftover;
 }
 
 Eigen::Vector3d SparseR::SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const {

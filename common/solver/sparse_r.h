@@ -42,6 +42,10 @@ class SparseR {
   // rows' residual that no variable can absorb. Cost: proportional to the fill of the
   // rows met on the way (only the right part of R changes for recent variables).
   double Eliminate(NewRows rows, std::vector<int>* touched);
+  // The same for several measurements at once (one update's): where their paths up R
+  // meet, each block row of R is read and written once for all of them instead of once
+  // per measurement. Returns the summed leftover.
+  double Eliminate(std::vector<NewRows> rows, std::vector<int>* touched);
 
   // delta = R^-1 d by full back-substitution.
   void BackSubstitute(std::vector<Eigen::Vector3d>* delta) const;
@@ -68,21 +72,22 @@ class SparseR {
 
   std::vector<RBlockRow> rows_;
   std::vector<std::vector<int>> column_rows_;
-  // Work space of Eliminate, kept to avoid an allocation per block row: the 6-row
-  // rotation panel, the new rows carried from one block row to the next (3 rows, 3
-  // columns per block, rhs last; row-major like the panel) and the column bookkeeping.
+  // New rows on their way up R: 3 * triples rows over `columns` (sorted; 3 scalar
+  // columns per block, rhs last), row-major in `panel` (capacity kept between calls).
   using Panel = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  Panel work_;
-  Panel carry_;
-  Panel next_carry_;
-  std::vector<int> carry_columns_;
-  std::vector<int> next_carry_columns_;
-  struct UnionColumn {
-    int column;
-    int in_row;    // index in the R row's `right`, or -1
-    int in_carry;  // index in carry_columns_, or -1
+  struct Carry {
+    std::vector<int> columns;
+    std::vector<int> in_union;  // work space: union index of each column
+    Panel panel;
+    int triples = 0;
+    bool alive = false;
   };
-  std::vector<UnionColumn> union_;
+  // Work space of Eliminate, kept to avoid allocations per block row.
+  std::vector<Carry> carries_;
+  Panel work_;
+  std::vector<int> union_columns_;
+  std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
+  std::vector<int> meeting_;       // carries whose leading column is the current row
   std::vector<char> scratch_dirty_;
   int64_t nonzeros_ = 0;
   int64_t eliminated_block_rows_ = 0;

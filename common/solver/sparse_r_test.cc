@@ -1,5 +1,6 @@
 #include "common/solver/sparse_r.h"
 
+#include <algorithm>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -84,6 +85,56 @@ TEST(SparseRTest, GivensUpdatesEqualDenseLeastSquaresAfterEveryRow) {
     for (int p = 0; p < n; ++p) nnz += 6 + 9 * static_cast<int64_t>(r.row(p).right.size());
     return nnz;
   }());
+}
+
+TEST(SparseRTest, SeveralMeasurementsAtOnceEqualDenseLeastSquares) {
+  // Groups of 1-4 measurements eliminated together (as one update's), including a repeated
+  // key within a measurement and a group whose rows end up entirely absorbed.
+  std::mt19937 rng(23);
+  const int n = 15;
+  SparseR r;
+  r.Append(n);
+  Eigen::MatrixXd A(0, 3 * n);
+  Eigen::VectorXd b(0);
+  double leftover = 0.0;
+  std::vector<NewRows> all = RandomRows(n, 40, &rng);
+  NewRows repeated;
+  repeated.blocks.emplace_back(4, Eigen::Matrix3d::Random());
+  repeated.blocks.emplace_back(9, Eigen::Matrix3d::Random());
+  repeated.blocks.emplace_back(4, Eigen::Matrix3d::Random());
+  repeated.rhs = Eigen::Vector3d::Random();
+  all.push_back(repeated);
+  std::uniform_int_distribution<int> group_size(1, 4);
+  int64_t rows_met = 0;
+  for (size_t k = 0; k < all.size();) {
+    std::vector<NewRows> group;
+    for (int g = group_size(rng); g > 0 && k < all.size(); --g) group.push_back(all[k++]);
+    for (const NewRows& rows : group) {
+      Eigen::MatrixXd block_rows = Eigen::MatrixXd::Zero(3, 3 * n);
+      for (const auto& [q, m] : rows.blocks) block_rows.block<3, 3>(0, 3 * q) += m;
+      A.conservativeResize(A.rows() + 3, Eigen::NoChange);
+      A.bottomRows(3) = block_rows;
+      b.conservativeResize(b.size() + 3);
+      b.tail(3) = rows.rhs;
+    }
+    std::vector<int> touched;
+    leftover += r.Eliminate(std::move(group), &touched);
+    rows_met += static_cast<int64_t>(touched.size());
+    std::sort(touched.begin(), touched.end());
+    EXPECT_EQ(std::adjacent_find(touched.begin(), touched.end()), touched.end())
+        << "a block row was visited twice in one call";
+
+    const Eigen::MatrixXd R = Dense(r);
+    EXPECT_EQ(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_LT((R.transpose() * R - A.transpose() * A).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((R.transpose() * DenseRhs(r) - A.transpose() * b).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  EXPECT_EQ(r.eliminated_block_rows(), rows_met);
+  std::vector<Eigen::Vector3d> delta;
+  r.BackSubstitute(&delta);
+  const Eigen::VectorXd expected = A.colPivHouseholderQr().solve(b);
+  for (int p = 0; p < n; ++p) EXPECT_LT((delta[p] - expected.segment<3>(3 * p)).norm(), 1e-9);
+  EXPECT_NEAR(leftover, (A * expected - b).squaredNorm(), 1e-9);
 }
 
 TEST(SparseRTest, PartialBackSubstitutionWithZeroThresholdIsExact) {
