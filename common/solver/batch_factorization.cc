@@ -140,6 +140,9 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
   std::vector<int> slot(n, -1);
   for (int p = 0; p < n; ++p) {
     RBlockRow& row = (*rows)[p];
+    // Scalar column 3p of L: its diagonal, two entries within the block, and three per
+    // block below it (the pattern comes in 3x3 blocks): the block count of R's row p.
+    row.right.reserve(std::max(0, (Lnz[3 * p] - 3) / 3));
     for (int rj = 0; rj < 3; ++rj) {
       const int j = 3 * p + rj;
       const double scale = is_ll ? 1.0 : std::sqrt(Lx[Lp[j]]);
