@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #include <Eigen/Dense>
@@ -91,12 +92,10 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
     for (const auto& entry : row.right) union_columns_.push_back(entry.first);
     for (int i : meeting_) {
       const std::vector<int>& columns = carries_[i].columns;
-      const size_t before = union_columns_.size();
-      union_columns_.insert(union_columns_.end(), columns.begin() + 1, columns.end());
-      std::inplace_merge(union_columns_.begin(), union_columns_.begin() + before,
-                         union_columns_.end());
-      union_columns_.erase(std::unique(union_columns_.begin(), union_columns_.end()),
-                           union_columns_.end());
+      merged_columns_.clear();
+      std::set_union(union_columns_.begin(), union_columns_.end(), columns.begin() + 1,
+                     columns.end(), std::back_inserter(merged_columns_));
+      union_columns_.swap(merged_columns_);
     }
     const int m = static_cast<int>(union_columns_.size());
     union_in_row_.assign(m, -1);

@@ -86,6 +86,7 @@ class SparseR {
   std::vector<Carry> carries_;
   Panel work_;
   std::vector<int> union_columns_;
+  std::vector<int> merged_columns_;
   std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
   std::vector<int> meeting_;       // carries whose leading column is the current row
   std::vector<char> scratch_dirty_;
