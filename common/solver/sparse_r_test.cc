@@ -49,40 +49,59 @@ std::vector<NewRows> RandomRows(int n, int extra, std::mt19937* rng) {
   return rows;
 }
 
-TEST(SparseRTest, GivensUpdatesEqualDenseLeastSquaresAfterEveryRow) {
-  std::mt19937 rng(11);
-  const int n = 12;
-  SparseR r;
-  r.Append(n);
-  Eigen::MatrixXd A(0, 3 * n);
-  Eigen::VectorXd b(0);
-  double leftover = 0.0;
-  for (const NewRows& rows : RandomRows(n, 25, &rng)) {
-    Eigen::MatrixXd block_rows = Eigen::MatrixXd::Zero(3, 3 * n);
-    for (const auto& [q, m] : rows.blocks) block_rows.block<3, 3>(0, 3 * q) = m;
+// A SparseR next to the dense system A x = b of the same measurements, as an oracle.
+struct DenseMirror {
+  explicit DenseMirror(int n) : A(0, 3 * n), b(0) { r.Append(n); }
+
+  // Appends the measurement's rows to A x = b (blocks of a repeated key add).
+  void AppendDense(const NewRows& rows) {
     A.conservativeResize(A.rows() + 3, Eigen::NoChange);
-    A.bottomRows(3) = block_rows;
+    A.bottomRows(3).setZero();
+    for (const auto& [q, m] : rows.blocks) A.block<3, 3>(A.rows() - 3, 3 * q) += m;
     b.conservativeResize(b.size() + 3);
     b.tail(3) = rows.rhs;
-    std::vector<int> touched;
-    leftover += r.Eliminate(rows, &touched);
-    EXPECT_FALSE(touched.empty());
+  }
 
+  // R is upper triangular and carries the normal equations of A x = b.
+  void ExpectSameNormalEquations() const {
     const Eigen::MatrixXd R = Dense(r);
-    // Strictly upper triangular below the diagonal.
     EXPECT_EQ(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
     EXPECT_LT((R.transpose() * R - A.transpose() * A).cwiseAbs().maxCoeff(), 1e-9);
     EXPECT_LT((R.transpose() * DenseRhs(r) - A.transpose() * b).cwiseAbs().maxCoeff(), 1e-9);
   }
-  // Solution equals the dense least-squares solution; the leftover equals its residual.
-  std::vector<Eigen::Vector3d> delta;
-  r.BackSubstitute(&delta);
-  const Eigen::VectorXd expected = A.colPivHouseholderQr().solve(b);
-  for (int p = 0; p < n; ++p) EXPECT_LT((delta[p] - expected.segment<3>(3 * p)).norm(), 1e-9);
-  EXPECT_NEAR(leftover, (A * expected - b).squaredNorm(), 1e-9);
-  EXPECT_EQ(r.NonZeros(), [&] {
+
+  // The solution equals the dense least-squares solution; the summed leftover its residual.
+  void ExpectSolutionAndResidual() const {
+    std::vector<Eigen::Vector3d> delta;
+    r.BackSubstitute(&delta);
+    const Eigen::VectorXd expected = A.colPivHouseholderQr().solve(b);
+    for (int p = 0; p < r.size(); ++p) {
+      EXPECT_LT((delta[p] - expected.segment<3>(3 * p)).norm(), 1e-9);
+    }
+    EXPECT_NEAR(leftover, (A * expected - b).squaredNorm(), 1e-9);
+  }
+
+  SparseR r;
+  Eigen::MatrixXd A;
+  Eigen::VectorXd b;
+  double leftover = 0.0;
+};
+
+TEST(SparseRTest, GivensUpdatesEqualDenseLeastSquaresAfterEveryRow) {
+  std::mt19937 rng(11);
+  const int n = 12;
+  DenseMirror mirror(n);
+  for (const NewRows& rows : RandomRows(n, 25, &rng)) {
+    mirror.AppendDense(rows);
+    std::vector<int> touched;
+    mirror.leftover += mirror.r.Eliminate(rows, &touched);
+    EXPECT_FALSE(touched.empty());
+    mirror.ExpectSameNormalEquations();
+  }
+  mirror.ExpectSolutionAndResidual();
+  EXPECT_EQ(mirror.r.NonZeros(), [&] {
     int64_t nnz = 0;
-    for (int p = 0; p < n; ++p) nnz += 6 + 9 * static_cast<int64_t>(r.row(p).right.size());
+    for (int p = 0; p < n; ++p) nnz += 6 + 9 * static_cast<int64_t>(mirror.r.row(p).right.size());
     return nnz;
   }());
 }
@@ -92,11 +111,7 @@ TEST(SparseRTest, SeveralMeasurementsAtOnceEqualDenseLeastSquares) {
   // key within a measurement and a group whose rows end up entirely absorbed.
   std::mt19937 rng(23);
   const int n = 15;
-  SparseR r;
-  r.Append(n);
-  Eigen::MatrixXd A(0, 3 * n);
-  Eigen::VectorXd b(0);
-  double leftover = 0.0;
+  DenseMirror mirror(n);
   std::vector<NewRows> all = RandomRows(n, 40, &rng);
   NewRows repeated;
   repeated.blocks.emplace_back(4, Eigen::Matrix3d::Random());
@@ -109,32 +124,17 @@ TEST(SparseRTest, SeveralMeasurementsAtOnceEqualDenseLeastSquares) {
   for (size_t k = 0; k < all.size();) {
     std::vector<NewRows> group;
     for (int g = group_size(rng); g > 0 && k < all.size(); --g) group.push_back(all[k++]);
-    for (const NewRows& rows : group) {
-      Eigen::MatrixXd block_rows = Eigen::MatrixXd::Zero(3, 3 * n);
-      for (const auto& [q, m] : rows.blocks) block_rows.block<3, 3>(0, 3 * q) += m;
-      A.conservativeResize(A.rows() + 3, Eigen::NoChange);
-      A.bottomRows(3) = block_rows;
-      b.conservativeResize(b.size() + 3);
-      b.tail(3) = rows.rhs;
-    }
+    for (const NewRows& rows : group) mirror.AppendDense(rows);
     std::vector<int> touched;
-    leftover += r.Eliminate(std::move(group), &touched);
+    mirror.leftover += mirror.r.Eliminate(std::move(group), &touched);
     rows_met += static_cast<int64_t>(touched.size());
     std::sort(touched.begin(), touched.end());
     EXPECT_EQ(std::adjacent_find(touched.begin(), touched.end()), touched.end())
         << "a block row was visited twice in one call";
-
-    const Eigen::MatrixXd R = Dense(r);
-    EXPECT_EQ(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
-    EXPECT_LT((R.transpose() * R - A.transpose() * A).cwiseAbs().maxCoeff(), 1e-9);
-    EXPECT_LT((R.transpose() * DenseRhs(r) - A.transpose() * b).cwiseAbs().maxCoeff(), 1e-9);
+    mirror.ExpectSameNormalEquations();
   }
-  EXPECT_EQ(r.eliminated_block_rows(), rows_met);
-  std::vector<Eigen::Vector3d> delta;
-  r.BackSubstitute(&delta);
-  const Eigen::VectorXd expected = A.colPivHouseholderQr().solve(b);
-  for (int p = 0; p < n; ++p) EXPECT_LT((delta[p] - expected.segment<3>(3 * p)).norm(), 1e-9);
-  EXPECT_NEAR(leftover, (A * expected - b).squaredNorm(), 1e-9);
+  EXPECT_EQ(mirror.r.eliminated_block_rows(), rows_met);
+  mirror.ExpectSolutionAndResidual();
 }
 
 TEST(SparseRTest, PartialBackSubstitutionWithZeroThresholdIsExact) {
