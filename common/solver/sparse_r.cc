@@ -1,7 +1,6 @@
 #include "common/solver/sparse_r.h"
 
 #include <algorithm>
-#include <cmath>
 #include <iterator>
 #include <limits>
 
@@ -43,6 +42,7 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
   // repeated within one measurement has its blocks summed).
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
   if (carries_.size() < rows.size()) carries_.resize(rows.size());
+  double leftover = 0.0;
   for (size_t i = 0; i < rows.size(); ++i) {
     Carry& carry = carries_[i];
     std::sort(rows[i].blocks.begin(), rows[i].blocks.end(), by_column);
@@ -60,10 +60,7 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
     carry.panel.block<3, 1>(0, width - 1) = rows[i].rhs;
     carry.triples = 1;
     carry.alive = !carry.columns.empty();
-  }
-  double leftover = 0.0;
-  for (size_t i = 0; i < rows.size(); ++i) {
-    if (!carries_[i].alive) leftover += rows[i].rhs.squaredNorm();
+    if (!carry.alive) leftover += rows[i].rhs.squaredNorm();  // no variable to absorb it
   }
 
   while (true) {
@@ -196,7 +193,7 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
         empty = all_zero(lower + 3, lower + width - 1);
       }
       if (empty) {
-        for (int r = 0; r < 3; ++r) leftover += std::pow(work_(3 + 3 * t + r, width - 1), 2);
+        leftover += work_.block(3 + 3 * t, width - 1, 3, 1).squaredNorm();
         continue;
       }
       if (kept != t) {

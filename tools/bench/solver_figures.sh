@@ -3,12 +3,14 @@
 # M3500 and city10000, incremental (solution after every step) and batch, exact and
 # thresholded back-substitution; iterations to 1e-4 for relative vs global formulations
 # on 2- and 3-robot splits (BENCHMARKS.md: batch steps only every 100 updates, as the
-# iSAM 1.6 reference, so no fill-triggered ones, each iterated to convergence). Run on a quiet machine after a Release build:
+# iSAM 1.6 reference, so no fill-triggered ones, each iterated to convergence). Run on a
+# quiet machine after a Release build:
 #
 #   tools/bench/solver_figures.sh [DATA_DIR]     (default ../shared/data or $ANCHORMAP_DATA_DIR)
 #
-# Times in the first table are medians of REPEAT runs (default 3; this machine kind is
-# noisy); every other column is deterministic and comes from the last run.
+# "total s" in the first table is the median of REPEAT runs (default 3; this machine kind
+# is noisy); the step times come from the last run, and the other columns are the same
+# in every run.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 DATA=${1:-${ANCHORMAP_DATA_DIR:-../shared/data}}/posegraph

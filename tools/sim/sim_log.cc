@@ -76,6 +76,11 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
     ++result.events;
     return writer.Write(channel, utime, message);
   };
+  auto write_encoded = [&](const std::string& channel, int64_t utime,
+                           const std::vector<uint8_t>& bytes) {
+    ++result.events;
+    return writer.WriteRaw(channel, utime, bytes.data(), bytes.size());
+  };
 
   while (!simulator->Done()) {
     const SimFrame frame = simulator->Step();
@@ -90,9 +95,7 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
     if (!frame.has_scans) continue;
     for (int i = 0; i < simulator->num_robots(); ++i) {
       const SimRobot& robot = simulator->robot(i);
-      const std::vector<uint8_t> scan = EncodeLaser(frame.scans[i]);
-      ++result.events;
-      Status status = writer.WriteRaw(laser_channels[i], frame.utime, scan.data(), scan.size());
+      Status status = write_encoded(laser_channels[i], frame.utime, EncodeLaser(frame.scans[i]));
       if (status.ok()) {
         status = write(truth_channels[i], frame.utime,
                        ToPoseMessage(frame.utime, robot.T_world_body(), robot.body_velocity()));

@@ -36,8 +36,8 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
                           SimTrace* trace = nullptr);
 
 // Message conversions (also used by tests; scans are encoded by common/bus/codec's
-// EncodeLaser). Velocities are body-frame (forward, lateral,
-// yaw rate) and are rotated into the pose's frame for pose_t.vel.
+// EncodeLaser). Velocities are body-frame (forward, lateral, yaw rate) and are rotated
+// into the pose's frame for pose_t.vel.
 bot_core::pose_t ToPoseMessage(int64_t utime, const Pose2& pose,
                                const Eigen::Vector3d& body_velocity = Eigen::Vector3d::Zero());
 anchormap::encounter_t ToEncounterMessage(const SimEncounter& encounter);
