@@ -22,17 +22,17 @@ Agent::Agent(const AgentOptions& options)
       odometry_(options.odometry),
       keyframer_(options.keyframer) {}
 
-std::optional<RejectReason> Agent::OnOdometry(const OdometrySample& sample, AgentOutput* out) {
+std::optional<ErrorCode> Agent::OnOdometry(const OdometrySample& sample, AgentOutput* out) {
   if (auto reason = odometry_.Add(sample)) return reason;
   ++stats_.odometry_readings;
   DrainPendingScans(out);
   return std::nullopt;
 }
 
-std::optional<RejectReason> Agent::OnScan(const LaserScan& scan, AgentOutput* out) {
+std::optional<ErrorCode> Agent::OnScan(const LaserScan& scan, AgentOutput* out) {
   const int64_t newest_seen =
       pending_scans_.empty() ? last_scan_utime_ : pending_scans_.back().utime;
-  if (scan.utime <= newest_seen) return RejectReason::kOutOfOrder;
+  if (scan.utime <= newest_seen) return ErrorCode::kOutOfOrder;
   ++stats_.scans;
   LaserScan copy = scan;
   copy.T_body_sensor = T_body_sensor_;
@@ -42,7 +42,7 @@ std::optional<RejectReason> Agent::OnScan(const LaserScan& scan, AgentOutput* ou
     pending_scans_.push_back(std::move(copy));
     if (pending_scans_.size() > static_cast<size_t>(options_.max_pending_scans)) {
       pending_scans_.pop_front();
-      out->late_rejections.push_back(RejectReason::kQueueFull);
+      out->late_rejections.push_back(ErrorCode::kQueueFull);
     }
     return std::nullopt;
   }
@@ -50,7 +50,7 @@ std::optional<RejectReason> Agent::OnScan(const LaserScan& scan, AgentOutput* ou
   const auto pose = odometry_.PoseAt(scan.utime);
   if (!pose) {
     last_scan_utime_ = scan.utime;
-    return RejectReason::kNoOdometry;
+    return ErrorCode::kNoOdometry;
   }
   ProcessScan(copy, *pose, out);
   return std::nullopt;
@@ -63,7 +63,7 @@ void Agent::DrainPendingScans(AgentOutput* out) {
     const auto pose = odometry_.PoseAt(scan.utime);
     if (!pose) {
       last_scan_utime_ = scan.utime;
-      out->late_rejections.push_back(RejectReason::kNoOdometry);
+      out->late_rejections.push_back(ErrorCode::kNoOdometry);
       continue;
     }
     ProcessScan(scan, *pose, out);
@@ -93,9 +93,9 @@ void Agent::ProcessScan(const LaserScan& scan, const Pose2& T_odom_body, AgentOu
   out->keyframes.push_back(std::move(keyframe));
 }
 
-std::optional<RejectReason> Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {
-  if (encounter.observer != options_.robot) return RejectReason::kWrongRobot;
-  if (encounter.observed == options_.robot) return RejectReason::kSelfEncounter;
+std::optional<ErrorCode> Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {
+  if (encounter.observer != options_.robot) return ErrorCode::kWrongRobot;
+  if (encounter.observed == options_.robot) return ErrorCode::kSelfEncounter;
   Encounter relayed = encounter;
   relayed.observer_trajectory_id = options_.trajectory_id;
   // Keyframe at the first scan at or after the encounter (or the next scan if the

@@ -32,7 +32,7 @@ struct AgentOutput {
   std::vector<Encounter> encounters;
   // Earlier inputs refused later (a waiting scan the odometry never covered, or pushed
   // out of the full waiting list); the caller counts them like direct refusals.
-  std::vector<RejectReason> late_rejections;
+  std::vector<ErrorCode> late_rejections;
 };
 
 struct AgentStats {
@@ -53,12 +53,12 @@ class Agent {
   explicit Agent(const AgentOptions& options);
 
   // Each returns the reason when the input is refused (the caller counts it).
-  std::optional<RejectReason> OnOdometry(const OdometrySample& sample, AgentOutput* out);
+  std::optional<ErrorCode> OnOdometry(const OdometrySample& sample, AgentOutput* out);
   // Scans must come in increasing time. A scan newer than the newest odometry waits (up
   // to max_pending_scans) until odometry covers its time.
-  std::optional<RejectReason> OnScan(const LaserScan& scan, AgentOutput* out);
+  std::optional<ErrorCode> OnScan(const LaserScan& scan, AgentOutput* out);
   // An encounter this robot observed (its sensor channel): observer must be this robot.
-  std::optional<RejectReason> OnEncounter(const Encounter& encounter, AgentOutput* out);
+  std::optional<ErrorCode> OnEncounter(const Encounter& encounter, AgentOutput* out);
   // An encounter seen on the server's channel: if this robot is the observed one, a
   // keyframe is forced near its time too.
   void OnRelayedEncounter(const Encounter& encounter);

@@ -25,7 +25,7 @@ std::vector<std::string> AgentNode::InputChannels() const {
 
 bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
   AgentOutput out;
-  std::optional<RejectReason> refused;
+  std::optional<ErrorCode> refused;
   std::string detail;
   if (channel == options_.channels.odometry) {
     const Decoded<OdometrySample> odometry = DecodeOdometry(data, size);
@@ -68,7 +68,7 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
 }
 
 void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
-  for (RejectReason reason : out.late_rejections) {
+  for (ErrorCode reason : out.late_rejections) {
     rejects_.Count(reason, context, "a scan waiting for odometry was dropped");
   }
   for (const Keyframe& keyframe : out.keyframes) {

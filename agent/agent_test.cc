@@ -82,12 +82,12 @@ TEST(AgentTest, RefusesOutOfOrderScansAndScansBeforeTheOdometryHistory) {
   Agent agent(TestOptions());
   AgentOutput out;
   ASSERT_FALSE(agent.OnOdometry({1'000'000, Pose2()}, &out));
-  EXPECT_EQ(agent.OnScan(Scan(500'000), &out), RejectReason::kNoOdometry);
+  EXPECT_EQ(agent.OnScan(Scan(500'000), &out), ErrorCode::kNoOdometry);
   ASSERT_FALSE(agent.OnOdometry({1'020'000, Pose2()}, &out));
   ASSERT_FALSE(agent.OnScan(Scan(1'010'000), &out));
-  EXPECT_EQ(agent.OnScan(Scan(1'010'000), &out), RejectReason::kOutOfOrder);
-  EXPECT_EQ(agent.OnScan(Scan(1'000'000), &out), RejectReason::kOutOfOrder);
-  EXPECT_EQ(agent.OnOdometry({1'020'000, Pose2()}, &out), RejectReason::kOutOfOrder);
+  EXPECT_EQ(agent.OnScan(Scan(1'010'000), &out), ErrorCode::kOutOfOrder);
+  EXPECT_EQ(agent.OnScan(Scan(1'000'000), &out), ErrorCode::kOutOfOrder);
+  EXPECT_EQ(agent.OnOdometry({1'020'000, Pose2()}, &out), ErrorCode::kOutOfOrder);
 }
 
 TEST(AgentTest, PendingScansAreBounded) {
@@ -98,7 +98,7 @@ TEST(AgentTest, PendingScansAreBounded) {
   for (int i = 1; i <= 5; ++i) ASSERT_FALSE(agent.OnScan(Scan(i * 100'000), &out));
   EXPECT_EQ(agent.pending_scans(), 3u);
   ASSERT_EQ(out.late_rejections.size(), 2u);
-  EXPECT_EQ(out.late_rejections[0], RejectReason::kQueueFull);
+  EXPECT_EQ(out.late_rejections[0], ErrorCode::kQueueFull);
 }
 
 TEST(AgentTest, RelaysEncounterWithTrajectoryIdAndForcesAKeyframe) {
@@ -130,7 +130,7 @@ TEST(AgentTest, RelaysEncounterWithTrajectoryIdAndForcesAKeyframe) {
   EXPECT_EQ(agent.stats().forced_keyframes, 1);
 
   encounter.observer = "R3";
-  EXPECT_EQ(agent.OnEncounter(encounter, &relay), RejectReason::kWrongRobot);
+  EXPECT_EQ(agent.OnEncounter(encounter, &relay), ErrorCode::kWrongRobot);
 }
 
 TEST(AgentTest, BeingObservedAlsoForcesAKeyframe) {

@@ -9,9 +9,9 @@ Pose2 InterpolatePose(const Pose2& a, const Pose2& b, double fraction) {
                a.theta() + fraction * AngleDifference(b.theta(), a.theta()));
 }
 
-std::optional<RejectReason> OdometryBuffer::Add(const OdometrySample& sample) {
+std::optional<ErrorCode> OdometryBuffer::Add(const OdometrySample& sample) {
   if (!samples_.empty() && sample.utime <= samples_.back().utime) {
-    return RejectReason::kOutOfOrder;
+    return ErrorCode::kOutOfOrder;
   }
   samples_.push_back(sample);
   while (samples_.size() > static_cast<size_t>(options_.capacity)) samples_.pop_front();

@@ -34,7 +34,7 @@ class OdometryBuffer {
 
   // Appends a reading; readings must come in strictly increasing time, otherwise
   // kOutOfOrder is returned and the reading is dropped.
-  std::optional<RejectReason> Add(const OdometrySample& sample);
+  std::optional<ErrorCode> Add(const OdometrySample& sample);
 
   // The body pose at `utime`, interpolated (linear in x, y; shortest way in theta) between
   // the readings just before and just after; exact at a reading's time. nullopt when

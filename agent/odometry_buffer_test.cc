@@ -29,8 +29,8 @@ TEST(OdometryBufferTest, InterpolatesThetaTheShortWayAcrossPi) {
 TEST(OdometryBufferTest, RefusesOutOfOrderAndDuplicateTimes) {
   OdometryBuffer buffer;
   ASSERT_FALSE(buffer.Add({100, Pose2()}));
-  EXPECT_EQ(buffer.Add({100, Pose2(1, 0, 0)}), RejectReason::kOutOfOrder);
-  EXPECT_EQ(buffer.Add({50, Pose2(1, 0, 0)}), RejectReason::kOutOfOrder);
+  EXPECT_EQ(buffer.Add({100, Pose2(1, 0, 0)}), ErrorCode::kOutOfOrder);
+  EXPECT_EQ(buffer.Add({50, Pose2(1, 0, 0)}), ErrorCode::kOutOfOrder);
   EXPECT_EQ(buffer.size(), 1u);
 }
 

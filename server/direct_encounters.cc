@@ -70,7 +70,7 @@ void DirectEncounters::OnEncounterMessage(const Encounter& encounter, const Grap
   pending_.push_back(encounter);
   if (pending_.size() > static_cast<size_t>(options_.max_pending)) {
     const Encounter& dropped = pending_.front();
-    out->rejections.emplace_back(RejectReason::kQueueFull,
+    out->rejections.emplace_back(ErrorCode::kQueueFull,
                                  "too many waiting encounters; dropped " + dropped.observer + "->" +
                                      dropped.observed + " at " + Seconds(dropped.utime) + " s");
     pending_.pop_front();
@@ -111,10 +111,10 @@ void DirectEncounters::Resolve(const TrajectoryTable& table, bool flush,
         still_waiting.push_back(e);
       } else if (!table.TrajectoryOfRobotAt(e.observer, t) ||
                  !table.TrajectoryOfRobotAt(e.observed, t)) {
-        out->rejections.emplace_back(RejectReason::kUnknownRobot,
+        out->rejections.emplace_back(ErrorCode::kUnknownRobot,
                                      "encounter " + name + " names a robot with no keyframes");
       } else {
-        out->rejections.emplace_back(RejectReason::kEncounterTimeout,
+        out->rejections.emplace_back(ErrorCode::kEncounterTimeout,
                                      "encounter " + name + ": observer trajectory " +
                                          std::to_string(e.observer_trajectory_id) + " unknown");
       }

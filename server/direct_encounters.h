@@ -52,7 +52,7 @@ struct DirectEncounterOptions {
 // Returns the constraint, or the reason it cannot be tied (kNoKeyframeNearTime).
 struct TieResult {
   std::optional<EncounterConstraint> constraint;
-  RejectReason reason = RejectReason::kNoKeyframeNearTime;
+  ErrorCode reason = ErrorCode::kNoKeyframeNearTime;
   std::string detail;
 };
 TieResult TieEncounter(const Encounter& encounter, const TrajectoryRecord& observer,

@@ -128,12 +128,12 @@ TEST_F(DirectEncountersTest, UnknownRobotIsRefusedAfterTheWaitAndFarKeyframesAre
   EXPECT_TRUE(out.rejections.empty());
   source.Poll(6'100'000, View(), &out);
   ASSERT_EQ(out.rejections.size(), 1u);
-  EXPECT_EQ(out.rejections[0].first, RejectReason::kUnknownRobot);
+  EXPECT_EQ(out.rejections[0].first, ErrorCode::kUnknownRobot);
 
   AddKeyframes("B", 2, {0.0, 3.0}, World::LocalB);  // nothing within 0.5 s of 0.8 s
   source.OnEncounterMessage(MakeEncounter(0.8), View(), &out);
   ASSERT_EQ(out.rejections.size(), 2u);
-  EXPECT_EQ(out.rejections[1].first, RejectReason::kNoKeyframeNearTime);
+  EXPECT_EQ(out.rejections[1].first, ErrorCode::kNoKeyframeNearTime);
   EXPECT_TRUE(out.constraints.empty());
 }
 
@@ -146,7 +146,7 @@ TEST_F(DirectEncountersTest, FlushTiesWhatItCanAndBoundsThePendingList) {
   AddKeyframes("B", 2, {0.0, 0.9}, World::LocalB);
   for (double t : {0.95, 0.96, 0.97}) source.OnEncounterMessage(MakeEncounter(t), View(), &out);
   ASSERT_EQ(out.rejections.size(), 1u);  // the first one pushed out
-  EXPECT_EQ(out.rejections[0].first, RejectReason::kQueueFull);
+  EXPECT_EQ(out.rejections[0].first, ErrorCode::kQueueFull);
   EXPECT_EQ(source.pending(), 2u);  // B has no keyframe after 0.9 s yet
   source.Flush(View(), &out);
   EXPECT_EQ(out.constraints.size(), 2u);

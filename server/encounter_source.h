@@ -35,7 +35,7 @@ struct EncounterConstraint {
 // What a source produced in one call.
 struct EncounterSourceOutput {
   std::vector<EncounterConstraint> constraints;
-  std::vector<std::pair<RejectReason, std::string>> rejections;  // (reason, detail)
+  std::vector<std::pair<ErrorCode, std::string>> rejections;  // (reason, detail)
 };
 
 // Read-only view of the graph handed to sources.

@@ -21,12 +21,12 @@ void MappingServer::AddEncounterSource(std::unique_ptr<EncounterSource> source) 
   sources_.push_back(std::move(source));
 }
 
-void MappingServer::CountRejection(RejectReason reason, const std::string& context,
+void MappingServer::CountRejection(ErrorCode reason, const std::string& context,
                                    const std::string& detail) {
   rejects_.Count(reason, context, detail);
 }
 
-std::optional<RejectReason> MappingServer::OnKeyframe(const Keyframe& keyframe) {
+std::optional<ErrorCode> MappingServer::OnKeyframe(const Keyframe& keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
@@ -44,12 +44,12 @@ std::optional<RejectReason> MappingServer::OnKeyframe(const Keyframe& keyframe) 
   return std::nullopt;
 }
 
-std::optional<RejectReason> MappingServer::OnEncounter(const Encounter& encounter) {
+std::optional<ErrorCode> MappingServer::OnEncounter(const Encounter& encounter) {
   ++stats_.encounters_received;
   data_utime_ = std::max(data_utime_, encounter.utime);
   if (encounter.observer == encounter.observed) {
-    rejects_.Count(RejectReason::kSelfEncounter, "encounter", encounter.observer);
-    return RejectReason::kSelfEncounter;
+    rejects_.Count(ErrorCode::kSelfEncounter, "encounter", encounter.observer);
+    return ErrorCode::kSelfEncounter;
   }
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_};
@@ -96,7 +96,7 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
     }
     if (!status.ok()) {
       // The codec validated the numbers, so this is an inconsistency worth seeing.
-      rejects_.Count(RejectReason::kSolverRejected, "keyframe", status.message());
+      rejects_.Count(ErrorCode::kSolverRejected, "keyframe", status.message());
       continue;
     }
     const GraphView graph{table_, smoother_};
@@ -112,7 +112,7 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
         !smoother_.IsAnchored(c.a.trajectory) || !smoother_.IsAnchored(c.b.trajectory);
     const Status status = smoother_.AddEncounter(c.a, c.b, c.measured_T_a_b, c.covariance);
     if (!status.ok()) {
-      rejects_.Count(RejectReason::kSolverRejected, "encounter", status.message());
+      rejects_.Count(ErrorCode::kSolverRejected, "encounter", status.message());
       continue;
     }
     changed = true;

@@ -76,13 +76,13 @@ class MappingServer {
 
   // Each returns the reason when the input is refused (already counted). Accepted inputs
   // update the smoother before returning. Cost: one incremental update.
-  std::optional<RejectReason> OnKeyframe(const Keyframe& keyframe);
-  std::optional<RejectReason> OnEncounter(const Encounter& encounter);
+  std::optional<ErrorCode> OnKeyframe(const Keyframe& keyframe);
+  std::optional<ErrorCode> OnEncounter(const Encounter& encounter);
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).
   void Flush();
   // Counts a refusal that happened before the logic (e.g. in the codec).
-  void CountRejection(RejectReason reason, const std::string& context, const std::string& detail);
+  void CountRejection(ErrorCode reason, const std::string& context, const std::string& detail);
 
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;

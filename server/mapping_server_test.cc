@@ -263,19 +263,19 @@ TEST_F(MappingServerTest, BadInputsAreCountedAndChangeNothing) {
 
   Keyframe reused = *scenario.inputs[3].keyframe;  // R1 seq 1, again
   reused.T_local_pose = Pose2(100, 100, 0);
-  EXPECT_EQ(server.OnKeyframe(reused), RejectReason::kDuplicateSequence);
+  EXPECT_EQ(server.OnKeyframe(reused), ErrorCode::kDuplicateSequence);
   Encounter self = encounter;
   self.observed = self.observer;
-  EXPECT_EQ(server.OnEncounter(self), RejectReason::kSelfEncounter);
-  server.CountRejection(RejectReason::kNotFinite, "ANCHORMAP_KEYFRAMES", "from the codec");
+  EXPECT_EQ(server.OnEncounter(self), ErrorCode::kSelfEncounter);
+  server.CountRejection(ErrorCode::kNotFinite, "ANCHORMAP_KEYFRAMES", "from the codec");
   Encounter ghost = encounter;
   ghost.observed = "R9";
   EXPECT_FALSE(server.OnEncounter(ghost));  // waits for R9 ...
   server.Flush();                           // ... which never comes
-  EXPECT_EQ(server.rejects().count(RejectReason::kDuplicateSequence), 1);
-  EXPECT_EQ(server.rejects().count(RejectReason::kSelfEncounter), 1);
-  EXPECT_EQ(server.rejects().count(RejectReason::kNotFinite), 1);
-  EXPECT_EQ(server.rejects().count(RejectReason::kUnknownRobot), 1);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kDuplicateSequence), 1);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kSelfEncounter), 1);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kNotFinite), 1);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kUnknownRobot), 1);
   EXPECT_EQ(server.table().num_keyframes(), keyframes);  // nothing was added
   EXPECT_EQ(server.stats().encounters_added, 1);
   const MergedMap after = server.BuildMergedMap();

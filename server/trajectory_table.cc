@@ -48,14 +48,14 @@ TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* cre
   return records_.back();
 }
 
-std::optional<RejectReason> TrajectoryTable::Offer(const Keyframe& keyframe,
+std::optional<ErrorCode> TrajectoryTable::Offer(const Keyframe& keyframe,
                                                    std::vector<AdmittedKeyframe>* out) {
   bool created = false;
   TrajectoryRecord& record = RecordFor(keyframe, &created);
   const size_t record_index = static_cast<size_t>(record.solver_id);
   Pending& pending = pending_[record_index];
   if ((pending.started && keyframe.seq < pending.next_seq) || pending.held.count(keyframe.seq)) {
-    return RejectReason::kDuplicateSequence;
+    return ErrorCode::kDuplicateSequence;
   }
   pending.held.emplace(keyframe.seq, keyframe);
   Drain(record_index, &pending, /*force=*/false, out);

@@ -79,7 +79,7 @@ class TrajectoryTable {
 
   // Offers a keyframe; returns the keyframes (this one and/or waiting ones) that may now
   // enter the graph, in order, already recorded here; or the reason for refusing it.
-  std::optional<RejectReason> Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
+  std::optional<ErrorCode> Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
   // Admits every waiting keyframe, bridging gaps (end of input).
   void FlushHeld(std::vector<AdmittedKeyframe>* out);
 

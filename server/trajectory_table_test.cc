@@ -51,10 +51,10 @@ TEST(TrajectoryTableTest, ReusedSequenceNumbersAreRefused) {
   std::vector<AdmittedKeyframe> out;
   ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 0), &out));
   ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 1), &out));
-  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 1), &out), RejectReason::kDuplicateSequence);
-  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 0), &out), RejectReason::kDuplicateSequence);
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 1), &out), ErrorCode::kDuplicateSequence);
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 0), &out), ErrorCode::kDuplicateSequence);
   ASSERT_FALSE(table.Offer(MakeKeyframe("R1", 1, 3), &out));  // waits for 2
-  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 3), &out), RejectReason::kDuplicateSequence);
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 3), &out), ErrorCode::kDuplicateSequence);
   EXPECT_EQ(out.size(), 2u);
   EXPECT_EQ(table.num_held(), 1u);
   // The same seq in another session is a different keyframe.

@@ -317,11 +317,11 @@ TEST_F(AgentServerTest, BadMessagesAreCountedWhereTheyArriveAndChangeNothing) {
   ASSERT_TRUE(loop_->Publish("ANCHORMAP_KEYFRAMES", EncodeKeyframe(bad)).ok());
   loop_->HandlePending();
   Play(sim);
-  EXPECT_EQ(agents_[0]->rejects().count(RejectReason::kDecodeFailed), 1);
-  EXPECT_EQ(agents_[0]->rejects().count(RejectReason::kNotFinite), 1);
+  EXPECT_EQ(agents_[0]->rejects().count(ErrorCode::kDecodeFailed), 1);
+  EXPECT_EQ(agents_[0]->rejects().count(ErrorCode::kNotFinite), 1);
   const RejectCounter& server_rejects = server_->server().rejects();
-  EXPECT_EQ(server_rejects.count(RejectReason::kDecodeFailed), 1);
-  EXPECT_EQ(server_rejects.count(RejectReason::kCovarianceNotSpd), 1);
+  EXPECT_EQ(server_rejects.count(ErrorCode::kDecodeFailed), 1);
+  EXPECT_EQ(server_rejects.count(ErrorCode::kCovarianceNotSpd), 1);
   EXPECT_EQ(server_rejects.total(), 2);
   const MergedMap& last = outputs_.maps.back();
   ASSERT_EQ(last.trajectories.size(), 3u);

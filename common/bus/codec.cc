@@ -47,18 +47,18 @@ Decoded<OdometrySample> DecodeOdometry(const void* data, size_t size) {
   if (auto p = SafeDecode(data, size, CheckPoseWire, &message))
     return FromProblem<OdometrySample>(*p);
   if (!AllFinite(message.pos, 3) || !AllFinite(message.orientation, 4)) {
-    return Decoded<OdometrySample>::Fail(RejectReason::kNotFinite, "position or orientation");
+    return Decoded<OdometrySample>::Fail(ErrorCode::kNotFinite, "position or orientation");
   }
   const double norm = std::sqrt(message.orientation[0] * message.orientation[0] +
                                 message.orientation[1] * message.orientation[1] +
                                 message.orientation[2] * message.orientation[2] +
                                 message.orientation[3] * message.orientation[3]);
   if (std::abs(norm - 1.0) > 0.1) {
-    return Decoded<OdometrySample>::Fail(RejectReason::kInvalidValue,
+    return Decoded<OdometrySample>::Fail(ErrorCode::kInvalidValue,
                                          "orientation is not a unit quaternion");
   }
   if (message.utime < 0) {
-    return Decoded<OdometrySample>::Fail(RejectReason::kInvalidValue, "negative utime");
+    return Decoded<OdometrySample>::Fail(ErrorCode::kInvalidValue, "negative utime");
   }
   OdometrySample sample;
   sample.utime = message.utime;
@@ -81,9 +81,9 @@ Decoded<LaserScan> DecodeLaser(const void* data, size_t size, float max_range_m,
   if (auto p = SafeDecode(data, size, CheckPlanarLidarWire, &message))
     return FromProblem<LaserScan>(*p);
   if (message.nranges < 1)
-    return Decoded<LaserScan>::Fail(RejectReason::kInvalidValue, "no ranges");
+    return Decoded<LaserScan>::Fail(ErrorCode::kInvalidValue, "no ranges");
   if (message.utime < 0)
-    return Decoded<LaserScan>::Fail(RejectReason::kInvalidValue, "negative utime");
+    return Decoded<LaserScan>::Fail(ErrorCode::kInvalidValue, "negative utime");
   if (auto p = CheckScanGeometry(message.rad0, message.radstep, message.ranges.size())) {
     return FromProblem<LaserScan>(*p);
   }
@@ -113,18 +113,18 @@ Decoded<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   anchormap::keyframe_t m;
   if (auto p = SafeDecode(data, size, CheckKeyframeWire, &m)) return FromProblem<Keyframe>(*p);
   if (auto p = CheckName(m.robot, "robot")) return FromProblem<Keyframe>(*p);
-  if (m.seq < 0) return Decoded<Keyframe>::Fail(RejectReason::kBadSequence, "negative seq");
-  if (m.utime < 0) return Decoded<Keyframe>::Fail(RejectReason::kInvalidValue, "negative utime");
+  if (m.seq < 0) return Decoded<Keyframe>::Fail(ErrorCode::kBadSequence, "negative seq");
+  if (m.utime < 0) return Decoded<Keyframe>::Fail(ErrorCode::kInvalidValue, "negative utime");
   if (!AllFinite(m.pose, 3) || !AllFinite(m.delta, 3) || !AllFinite(m.delta_covariance, 9) ||
       !AllFinite(m.sensor_offset, 3) || !std::isfinite(m.max_range)) {
-    return Decoded<Keyframe>::Fail(RejectReason::kNotFinite, "pose, delta, covariance or offset");
+    return Decoded<Keyframe>::Fail(ErrorCode::kNotFinite, "pose, delta, covariance or offset");
   }
   const Eigen::Matrix3d covariance = MatrixFromRowMajor(m.delta_covariance);
   if (auto why = CheckSymmetricPositiveDefinite(covariance)) {
-    return Decoded<Keyframe>::Fail(RejectReason::kCovarianceNotSpd, "delta_covariance: " + *why);
+    return Decoded<Keyframe>::Fail(ErrorCode::kCovarianceNotSpd, "delta_covariance: " + *why);
   }
   if (!(m.max_range > 0.0f))
-    return Decoded<Keyframe>::Fail(RejectReason::kInvalidValue, "max_range <= 0");
+    return Decoded<Keyframe>::Fail(ErrorCode::kInvalidValue, "max_range <= 0");
   if (auto p = CheckScanGeometry(m.rad0, m.radstep, m.ranges.size()))
     return FromProblem<Keyframe>(*p);
   if (auto p = CheckRanges(m.ranges)) return FromProblem<Keyframe>(*p);
@@ -170,15 +170,15 @@ Decoded<Encounter> DecodeEncounter(const void* data, size_t size) {
   if (auto p = CheckName(m.observer, "observer")) return FromProblem<Encounter>(*p);
   if (auto p = CheckName(m.observed, "observed")) return FromProblem<Encounter>(*p);
   if (m.observer == m.observed) {
-    return Decoded<Encounter>::Fail(RejectReason::kSelfEncounter, m.observer + " observed itself");
+    return Decoded<Encounter>::Fail(ErrorCode::kSelfEncounter, m.observer + " observed itself");
   }
-  if (m.utime < 0) return Decoded<Encounter>::Fail(RejectReason::kInvalidValue, "negative utime");
+  if (m.utime < 0) return Decoded<Encounter>::Fail(ErrorCode::kInvalidValue, "negative utime");
   if (!AllFinite(m.relative_pose, 3) || !AllFinite(m.covariance, 9)) {
-    return Decoded<Encounter>::Fail(RejectReason::kNotFinite, "relative pose or covariance");
+    return Decoded<Encounter>::Fail(ErrorCode::kNotFinite, "relative pose or covariance");
   }
   const Eigen::Matrix3d covariance = MatrixFromRowMajor(m.covariance);
   if (auto why = CheckSymmetricPositiveDefinite(covariance)) {
-    return Decoded<Encounter>::Fail(RejectReason::kCovarianceNotSpd, "covariance: " + *why);
+    return Decoded<Encounter>::Fail(ErrorCode::kCovarianceNotSpd, "covariance: " + *why);
   }
   Encounter e;
   e.utime = m.utime;

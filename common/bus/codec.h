@@ -3,7 +3,7 @@
 // values meet LCM-generated types. Decoding never throws and never trusts a length field:
 // sizes are checked against the buffer before anything is allocated, numbers must be
 // finite, covariances symmetric positive definite, names non-empty. Every failure is a
-// RejectReason with a one-line detail, for the caller's RejectCounter.
+// ErrorCode with a one-line detail, for the caller's RejectCounter.
 // This header includes no LCM header, so callers stay free of the bus.
 
 #include <cstddef>
@@ -25,10 +25,10 @@ namespace anchormap {
 template <typename T>
 struct Decoded {
   std::optional<T> value;
-  RejectReason reason = RejectReason::kDecodeFailed;  // meaningful when !value
+  ErrorCode reason = ErrorCode::kDecodeFailed;  // meaningful when !value
   std::string detail;
   bool ok() const { return value.has_value(); }
-  static Decoded Fail(RejectReason why, std::string text) {
+  static Decoded Fail(ErrorCode why, std::string text) {
     Decoded d;
     d.reason = why;
     d.detail = std::move(text);

@@ -30,11 +30,11 @@ std::optional<WireProblem> SafeDecode(const void* data, size_t size, Check check
   try {
     const int used = message->decode(data, 0, static_cast<int>(size));
     if (used < 0 || static_cast<size_t>(used) != size) {
-      return WireProblem{RejectReason::kDecodeFailed,
+      return WireProblem{ErrorCode::kDecodeFailed,
                          "does not decode as " + std::string(T::getTypeName())};
     }
   } catch (const std::exception& error) {
-    return WireProblem{RejectReason::kDecodeFailed, error.what()};
+    return WireProblem{ErrorCode::kDecodeFailed, error.what()};
   }
   return std::nullopt;
 }
@@ -72,10 +72,10 @@ inline Pose2 PoseFromArray(const double values[3]) {
 // Empty, overlong or non-printable names are refused.
 inline std::optional<WireProblem> CheckName(const std::string& name, const char* field) {
   if (name.empty())
-    return WireProblem{RejectReason::kEmptyRobotName, std::string(field) + " is empty"};
+    return WireProblem{ErrorCode::kEmptyRobotName, std::string(field) + " is empty"};
   for (char ch : name) {
     if (ch <= ' ' || ch > '~') {
-      return WireProblem{RejectReason::kInvalidValue,
+      return WireProblem{ErrorCode::kInvalidValue,
                          std::string(field) + " has a non-printable character"};
     }
   }
@@ -84,14 +84,14 @@ inline std::optional<WireProblem> CheckName(const std::string& name, const char*
 
 inline std::optional<WireProblem> CheckScanGeometry(float rad0, float radstep, size_t nranges) {
   if (!std::isfinite(rad0) || !std::isfinite(radstep)) {
-    return WireProblem{RejectReason::kNotFinite, "rad0 or radstep is not finite"};
+    return WireProblem{ErrorCode::kNotFinite, "rad0 or radstep is not finite"};
   }
   if (nranges > 1 && radstep == 0.0f) {
-    return WireProblem{RejectReason::kInvalidValue, "radstep is 0"};
+    return WireProblem{ErrorCode::kInvalidValue, "radstep is 0"};
   }
   if (std::abs(static_cast<double>(radstep)) * (static_cast<double>(nranges) - 1.0) >
       2.0 * kPi + 1e-3) {
-    return WireProblem{RejectReason::kInvalidValue, "scan covers more than 360 degrees"};
+    return WireProblem{ErrorCode::kInvalidValue, "scan covers more than 360 degrees"};
   }
   return std::nullopt;
 }
@@ -99,7 +99,7 @@ inline std::optional<WireProblem> CheckScanGeometry(float rad0, float radstep, s
 inline std::optional<WireProblem> CheckRanges(const std::vector<float>& ranges) {
   for (size_t i = 0; i < ranges.size(); ++i) {
     if (!std::isfinite(ranges[i])) {
-      return WireProblem{RejectReason::kNotFinite, "range " + std::to_string(i) + " is not finite"};
+      return WireProblem{ErrorCode::kNotFinite, "range " + std::to_string(i) + " is not finite"};
     }
   }
   return std::nullopt;

@@ -62,22 +62,22 @@ TEST(CodecTest, OdometryRoundTripsYawThroughTheQuaternion) {
 
 TEST(CodecTest, OdometryRejectsNanBadQuaternionTruncationAndWrongType) {
   auto bytes = EncodeOdometry({1, Pose2(std::numeric_limits<double>::quiet_NaN(), 0, 0)});
-  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).reason, RejectReason::kNotFinite);
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).reason, ErrorCode::kNotFinite);
 
   bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
   // orientation[0] (w) sits after hash 8 + utime 8 + pos 24 + vel 24: make it 0.
   for (size_t i = 64; i < 72; ++i) bytes[i] = 0;
   const auto zero_quaternion = DecodeOdometry(bytes.data(), bytes.size());
   EXPECT_FALSE(zero_quaternion.ok());
-  EXPECT_EQ(zero_quaternion.reason, RejectReason::kInvalidValue);
+  EXPECT_EQ(zero_quaternion.reason, ErrorCode::kInvalidValue);
 
   bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
-  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size() - 1).reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size() - 1).reason, ErrorCode::kDecodeFailed);
   const auto laser = EncodeLaser(MakeScan(10));
   const auto wrong = DecodeOdometry(laser.data(), laser.size());
-  EXPECT_EQ(wrong.reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(wrong.reason, ErrorCode::kDecodeFailed);
   EXPECT_NE(wrong.detail.find("fingerprint"), std::string::npos) << wrong.detail;
-  EXPECT_EQ(DecodeOdometry(nullptr, 0).reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(DecodeOdometry(nullptr, 0).reason, ErrorCode::kDecodeFailed);
 }
 
 TEST(CodecTest, LaserRoundTripsWithCallerMaxRangeAndOffset) {
@@ -97,32 +97,32 @@ TEST(CodecTest, LaserRejectsNanRangeZeroStepAndAbsurdCountWithoutAllocating) {
   scan.ranges[17] = std::numeric_limits<float>::quiet_NaN();
   auto bytes = EncodeLaser(scan);
   auto decoded = DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2());
-  EXPECT_EQ(decoded.reason, RejectReason::kNotFinite);
+  EXPECT_EQ(decoded.reason, ErrorCode::kNotFinite);
   EXPECT_NE(decoded.detail.find("range 17"), std::string::npos);
 
   scan = MakeScan(50);
   scan.radstep = 0.0f;
   bytes = EncodeLaser(scan);
   EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            RejectReason::kInvalidValue);
+            ErrorCode::kInvalidValue);
 
   // nranges sits after hash 8 + utime 8. 2^31 - 1 ranges would be an 8 GB resize inside
   // lcm-gen's decoder; the pre-flight check refuses it first.
   bytes = EncodeLaser(MakeScan(3));
   PatchInt32(&bytes, 16, std::numeric_limits<int32_t>::max());
   EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            RejectReason::kAbsurdSize);
+            ErrorCode::kAbsurdSize);
   PatchInt32(&bytes, 16, -5);
   EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            RejectReason::kAbsurdSize);
+            ErrorCode::kAbsurdSize);
   PatchInt32(&bytes, 16, 5000);  // plausible count, but the bytes are not there
   EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            RejectReason::kDecodeFailed);
+            ErrorCode::kDecodeFailed);
   scan = MakeScan(CodecLimits::kMaxRanges + 1);
   scan.radstep = 1e-4f;
   bytes = EncodeLaser(scan);
   EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            RejectReason::kAbsurdSize);
+            ErrorCode::kAbsurdSize);
 }
 
 TEST(CodecTest, KeyframeRoundTripsEveryField) {
@@ -149,43 +149,43 @@ TEST(CodecTest, KeyframeRejectsEachKindOfBadContent) {
   Keyframe k = MakeKeyframe();
   k.robot = "";
   auto bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kEmptyRobotName);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kEmptyRobotName);
 
   k = MakeKeyframe();
   k.seq = -1;
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kBadSequence);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kBadSequence);
 
   k = MakeKeyframe();
   k.delta_covariance(2, 2) = -0.1;
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
 
   k = MakeKeyframe();
   k.delta_covariance(0, 2) = 0.5;  // not symmetric
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
 
   k = MakeKeyframe();
   k.T_local_pose = Pose2(std::numeric_limits<double>::infinity(), 0, 0);
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kNotFinite);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kNotFinite);
 
   k = MakeKeyframe();
   k.robot = std::string(200, 'R');
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kAbsurdSize);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kAbsurdSize);
 
   // The robot string's length field (after hash 8 + utime 8) forged to 0 and to -3.
   bytes = EncodeKeyframe(MakeKeyframe());
   PatchInt32(&bytes, 16, 0);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
   PatchInt32(&bytes, 16, -3);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
 
   bytes = EncodeKeyframe(MakeKeyframe());
   bytes.push_back(0);  // trailing garbage
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, RejectReason::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
 }
 
 TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
@@ -208,17 +208,17 @@ TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
   Encounter self = e;
   self.observed = "R1";
   bytes = EncodeEncounter(self);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kSelfEncounter);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kSelfEncounter);
 
   Encounter bad = e;
   bad.covariance.setZero();
   bytes = EncodeEncounter(bad);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
 
   Encounter unnamed = e;
   unnamed.observed = "";
   bytes = EncodeEncounter(unnamed);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, RejectReason::kEmptyRobotName);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kEmptyRobotName);
 }
 
 // Mutated and truncated messages of every input type: decoding must return (a value or a

@@ -83,7 +83,7 @@ TEST(MapCodecTest, ForgedCountsAreRefused) {
   bytes[24] = 0x7f;
   const auto d = DecodeMergedMap(bytes.data(), bytes.size());
   EXPECT_FALSE(d.ok());
-  EXPECT_EQ(d.reason, RejectReason::kAbsurdSize);
+  EXPECT_EQ(d.reason, ErrorCode::kAbsurdSize);
 }
 
 }  // namespace

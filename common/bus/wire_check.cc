@@ -14,7 +14,7 @@ namespace anchormap {
 namespace {
 
 WireProblem Truncated(const char* where) {
-  return {RejectReason::kDecodeFailed, std::string("truncated message at ") + where};
+  return {ErrorCode::kDecodeFailed, std::string("truncated message at ") + where};
 }
 
 // The 8-byte fingerprint at the start of every message must be T's.
@@ -23,7 +23,7 @@ std::optional<WireProblem> CheckHash(WireCursor* cursor) {
   uint64_t hash = 0;
   if (!cursor->ReadUint64(&hash)) return Truncated("fingerprint");
   if (hash != static_cast<uint64_t>(T::getHash())) {
-    return WireProblem{RejectReason::kDecodeFailed,
+    return WireProblem{ErrorCode::kDecodeFailed,
                        std::string("fingerprint is not ") + T::getTypeName()};
   }
   return std::nullopt;
@@ -64,11 +64,11 @@ std::optional<WireProblem> WireCursor::SkipString(const char* field, size_t max_
   int32_t length_with_nul = 0;
   if (!ReadInt32(&length_with_nul)) return Truncated(field);
   if (length_with_nul < 1) {
-    return WireProblem{RejectReason::kDecodeFailed,
+    return WireProblem{ErrorCode::kDecodeFailed,
                        std::string(field) + " has an invalid string length"};
   }
   if (static_cast<size_t>(length_with_nul) - 1 > max_length) {
-    return WireProblem{RejectReason::kAbsurdSize,
+    return WireProblem{ErrorCode::kAbsurdSize,
                        std::string(field) + " is " + std::to_string(length_with_nul - 1) +
                            " bytes long (limit " + std::to_string(max_length) + ")"};
   }
@@ -80,7 +80,7 @@ std::optional<WireProblem> WireCursor::ReadCount(const char* field, int32_t max_
                                                  size_t min_element_bytes, int32_t* count) {
   if (!ReadInt32(count)) return Truncated(field);
   if (*count < 0 || *count > max_count) {
-    return WireProblem{RejectReason::kAbsurdSize, std::string(field) + " = " +
+    return WireProblem{ErrorCode::kAbsurdSize, std::string(field) + " = " +
                                                       std::to_string(*count) + " (limit " +
                                                       std::to_string(max_count) + ")"};
   }

@@ -18,7 +18,7 @@
 namespace anchormap {
 
 struct WireProblem {
-  RejectReason reason = RejectReason::kDecodeFailed;
+  ErrorCode reason = ErrorCode::kDecodeFailed;
   std::string detail;
 };
 

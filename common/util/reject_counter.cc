@@ -1,57 +1,73 @@
 #include "common/util/reject_counter.h"
 
+#include "common/util/status.h"
+
 namespace anchormap {
 
-const char* ToString(RejectReason reason) {
-  switch (reason) {
-    case RejectReason::kDecodeFailed:
+const char* ToString(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kDecodeFailed:
       return "decode_failed";
-    case RejectReason::kNotFinite:
+    case ErrorCode::kNotFinite:
       return "not_finite";
-    case RejectReason::kAbsurdSize:
+    case ErrorCode::kAbsurdSize:
       return "absurd_size";
-    case RejectReason::kInvalidValue:
+    case ErrorCode::kInvalidValue:
       return "invalid_value";
-    case RejectReason::kCovarianceNotSpd:
+    case ErrorCode::kCovarianceNotSpd:
       return "covariance_not_spd";
-    case RejectReason::kEmptyRobotName:
+    case ErrorCode::kEmptyRobotName:
       return "empty_robot_name";
-    case RejectReason::kBadSequence:
+    case ErrorCode::kBadSequence:
       return "bad_sequence";
-    case RejectReason::kDuplicateSequence:
+    case ErrorCode::kDuplicateSequence:
       return "duplicate_sequence";
-    case RejectReason::kOutOfOrder:
+    case ErrorCode::kOutOfOrder:
       return "out_of_order";
-    case RejectReason::kNoOdometry:
+    case ErrorCode::kNoOdometry:
       return "no_odometry";
-    case RejectReason::kWrongRobot:
+    case ErrorCode::kWrongRobot:
       return "wrong_robot";
-    case RejectReason::kSelfEncounter:
+    case ErrorCode::kSelfEncounter:
       return "self_encounter";
-    case RejectReason::kUnknownRobot:
+    case ErrorCode::kUnknownRobot:
       return "unknown_robot";
-    case RejectReason::kEncounterTimeout:
+    case ErrorCode::kEncounterTimeout:
       return "encounter_timeout";
-    case RejectReason::kNoKeyframeNearTime:
+    case ErrorCode::kNoKeyframeNearTime:
       return "no_keyframe_near_time";
-    case RejectReason::kQueueFull:
+    case ErrorCode::kQueueFull:
       return "queue_full";
-    case RejectReason::kSolverRejected:
+    case ErrorCode::kSolverRejected:
       return "solver_rejected";
-    case RejectReason::kNumReasons:
+    case ErrorCode::kInvalidArgument:
+      return "invalid_argument";
+    case ErrorCode::kIoError:
+      return "io_error";
+    case ErrorCode::kNumericalFailure:
+      return "numerical_failure";
+    case ErrorCode::kNumCodes:
       break;
   }
-  return "unknown_reason";
+  return "unknown_code";
 }
 
-void RejectCounter::Count(RejectReason reason, const std::string& context,
-                          const std::string& detail) {
+std::string Status::ToString() const {
+  if (ok()) return "ok";
+  return std::string(anchormap::ToString(code_)) + ": " + message_;
+}
+
+void RejectCounter::Count(ErrorCode reason, const std::string& context, const std::string& detail) {
   const int index = static_cast<int>(reason);
-  if (index < 0 || index >= static_cast<int>(RejectReason::kNumReasons)) return;
+  if (index < 0 || index >= static_cast<int>(ErrorCode::kNumCodes)) return;
   ++counts_[index];
   const std::string kind = std::string(ToString(reason)) + "@" + context;
   once_.Log(LogLevel::kWarning, kind,
             "rejected input on " + context + ": " + ToString(reason) + ": " + detail);
+}
+
+void RejectCounter::Count(const Status& refusal, const std::string& context) {
+  Count(refusal.code(), context, refusal.message());
 }
 
 int64_t RejectCounter::total() const {
@@ -62,8 +78,8 @@ int64_t RejectCounter::total() const {
 
 std::vector<std::pair<std::string, int64_t>> RejectCounter::NonZero() const {
   std::vector<std::pair<std::string, int64_t>> out;
-  for (int i = 0; i < static_cast<int>(RejectReason::kNumReasons); ++i) {
-    if (counts_[i] > 0) out.emplace_back(ToString(static_cast<RejectReason>(i)), counts_[i]);
+  for (int i = 0; i < static_cast<int>(ErrorCode::kNumCodes); ++i) {
+    if (counts_[i] > 0) out.emplace_back(ToString(static_cast<ErrorCode>(i)), counts_[i]);
   }
   return out;
 }

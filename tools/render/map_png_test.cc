@@ -24,7 +24,7 @@ struct Rendered {
 Rendered RenderTestLog(bool with_grid, const MapPngOptions& options = MapPngOptions{}) {
   Rendered r;
   const std::string log = TempPath("map_png_test.lcmlog");
-  testing::WriteTestServerLog(log);
+  EXPECT_TRUE(testing::WriteTestServerLog(log).ok());
   EXPECT_TRUE(ReadServerOutput(log, ChannelNames{}, &r.output).ok());
   if (with_grid) r.raster = AssembleGrid(r.output.grid);
   const std::string png = TempPath(with_grid ? "map_grid.png" : "map_nogrid.png");

@@ -11,7 +11,7 @@ namespace {
 
 TEST(MergedGraphTest, VerticesChainsAndEncounterEdges) {
   const std::string log = (std::filesystem::path(::testing::TempDir()) / "graph.lcmlog").string();
-  testing::WriteTestServerLog(log);
+  ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(log, ChannelNames{}, &output).ok());
   int skipped = -1;

@@ -25,7 +25,7 @@ TEST(RenderMainTest, WritesEveryOutput) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string log = (dir / "run.lcmlog").string();
-  testing::WriteTestServerLog(log);
+  ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
   ASSERT_EQ(RunRender("--map " + log + " --png " + (dir / "map.png").string() + " --pgm " +
                       (dir / "map.pgm").string() + " --g2o " + (dir / "merged.g2o").string() +
                       " --uncertainty-png " + (dir / "anchors.png").string()),
@@ -59,7 +59,7 @@ TEST(RenderMainTest, PgmWithoutGridFailsButPngIsStillWritten) {
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(log).ok());
-    writer.Write("ANCHORMAP_MERGED_MAP", 1, testing::TestMergedMap(1));
+    EXPECT_TRUE(writer.Write("ANCHORMAP_MERGED_MAP", 1, testing::TestMergedMap(1)).ok());
   }
   EXPECT_EQ(RunRender("--map " + log + " --png " + (dir / "map.png").string() + " --pgm " +
                       (dir / "map.pgm").string()),

@@ -16,7 +16,7 @@ std::string TempPath(const std::string& name) {
 
 TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
   const std::string path = TempPath("server_output.lcmlog");
-  testing::WriteTestServerLog(path);
+  ASSERT_TRUE(testing::WriteTestServerLog(path).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
   ASSERT_TRUE(output.map);
@@ -59,15 +59,15 @@ TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
     const uint8_t garbage[5] = {1, 2, 3, 4, 5};
-    writer.WriteRaw("ANCHORMAP_MERGED_MAP", 1, garbage, sizeof(garbage));
-    writer.WriteRaw("ANCHORMAP_GRID_TILES", 2, garbage, sizeof(garbage));
-    writer.Write("ANCHORMAP_MERGED_MAP", 3, testing::TestMergedMap(2));
+    EXPECT_TRUE(writer.WriteRaw("ANCHORMAP_MERGED_MAP", 1, garbage, sizeof(garbage)).ok());
+    EXPECT_TRUE(writer.WriteRaw("ANCHORMAP_GRID_TILES", 2, garbage, sizeof(garbage)).ok());
+    EXPECT_TRUE(writer.Write("ANCHORMAP_MERGED_MAP", 3, testing::TestMergedMap(2)).ok());
     anchormap::merged_map_t broken = testing::TestMergedMap(3);  // poses with NaN
     broken.trajectories[0].poses[1][0] = std::nan("");
-    writer.Write("ANCHORMAP_MERGED_MAP", 4, broken);
+    EXPECT_TRUE(writer.Write("ANCHORMAP_MERGED_MAP", 4, broken).ok());
     anchormap::grid_tile_t wrong = testing::TestTile(1, 0, 0);
     wrong.resolution = 0.0;
-    writer.Write("ANCHORMAP_GRID_TILES", 5, wrong);
+    EXPECT_TRUE(writer.Write("ANCHORMAP_GRID_TILES", 5, wrong).ok());
     // A tile whose height field says -1: lcm-gen's decoder would resize a vector to
     // 2^64 - 1 elements and throw; the reader must count it, not crash.
     const anchormap::grid_tile_t tile = testing::TestTile(1, 0, 0);
@@ -76,8 +76,8 @@ TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
     for (int i = 44; i < 48; ++i)
       bytes[i] = 0xff;  // hash 8, utime 8, update 8, resolution 8,
                         // tile_x 4, tile_y 4, width 4, then height
-    writer.WriteRaw("ANCHORMAP_GRID_TILES", 6, bytes.data(), bytes.size());
-    writer.WriteRaw("OTHER_CHANNEL", 6, garbage, sizeof(garbage));
+    EXPECT_TRUE(writer.WriteRaw("ANCHORMAP_GRID_TILES", 6, bytes.data(), bytes.size()).ok());
+    EXPECT_TRUE(writer.WriteRaw("OTHER_CHANNEL", 6, garbage, sizeof(garbage)).ok());
   }
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
@@ -93,10 +93,11 @@ TEST(ServerOutputTest, TilesMissingFromTheLastUpdateComeFromRecentOnes) {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
     // Update 4 has a tile (9, 9) that no later update has.
-    writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(4, 9, 9));
+    EXPECT_TRUE(writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(4, 9, 9)).ok());
     for (int tx = 0; tx < 3; ++tx)
-      writer.Write("ANCHORMAP_GRID_TILES", 2, testing::TestTile(5, tx, 0));
-    writer.Write("ANCHORMAP_GRID_TILES", 3, testing::TestTile(6, 1, 0));  // then stopped
+      EXPECT_TRUE(writer.Write("ANCHORMAP_GRID_TILES", 2, testing::TestTile(5, tx, 0)).ok());
+    EXPECT_TRUE(writer.Write("ANCHORMAP_GRID_TILES", 3, testing::TestTile(6, 1, 0)).ok());
+    // then stopped
   }
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
@@ -115,9 +116,10 @@ TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
-    writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(1, 9, 9));
+    EXPECT_TRUE(writer.Write("ANCHORMAP_GRID_TILES", 1, testing::TestTile(1, 9, 9)).ok());
     for (int update = 2; update <= 7; ++update) {
-      writer.Write("ANCHORMAP_GRID_TILES", update, testing::TestTile(update, 0, 0));
+      EXPECT_TRUE(
+          writer.Write("ANCHORMAP_GRID_TILES", update, testing::TestTile(update, 0, 0)).ok());
     }
   }
   ServerOutput output;

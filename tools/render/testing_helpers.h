@@ -13,6 +13,7 @@
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
+#include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
 #include "tools/render/colors.h"
 
@@ -117,17 +118,20 @@ inline anchormap::anchor_covariances_t TestCovariances(int64_t update, double r2
 // Writes a server output log: two merged maps (updates 4 and 9), a 2 x 2 tile grid of
 // update 9 covering [0, 10] x [0, 10], covariances for updates 1..9 in which R2's
 // sigma_xy shrinks from 2 m to 0.4 m, and a server status (2 duplicates rejected).
-inline void WriteTestServerLog(const std::string& path) {
+inline Status WriteTestServerLog(const std::string& path) {
   LcmLogWriter writer;
-  if (!writer.Open(path).ok()) return;
-  writer.Write("ANCHORMAP_MERGED_MAP", 1, TestMergedMap(4));
-  writer.Write("ANCHORMAP_GRID_TILES", 2, TestTile(4, 0, 0));
+  Status written = writer.Open(path);
+  auto write = [&](const char* channel, int64_t utime, const auto& message) {
+    if (written.ok()) written = writer.Write(channel, utime, message);
+  };
+  write(channels::kMergedMap, 1, TestMergedMap(4));
+  write(channels::kGridTiles, 2, TestTile(4, 0, 0));
   for (int update = 1; update <= 9; ++update) {
     const double sigma_xy = 2.0 - 0.2 * (update - 1);  // 2.0 .. 0.4
-    writer.Write("ANCHORMAP_ANCHOR_COVARIANCES", 3 + update,
-                 TestCovariances(update, sigma_xy * sigma_xy / 2));
+    write(channels::kAnchorCovariances, 3 + update,
+          TestCovariances(update, sigma_xy * sigma_xy / 2));
   }
-  writer.Write("ANCHORMAP_MERGED_MAP", 20, TestMergedMap(9));
+  write(channels::kMergedMap, 20, TestMergedMap(9));
   anchormap::server_status_t status;
   status.utime = 20;
   status.update = 9;
@@ -140,11 +144,12 @@ inline void WriteTestServerLog(const std::string& path) {
   status.num_reasons = 1;
   status.rejection_reasons = {"duplicate_seq"};
   status.rejection_counts = {2};
-  writer.Write("ANCHORMAP_SERVER_STATUS", 20, status);
+  write(channels::kServerStatus, 20, status);
   for (int ty = 0; ty < 2; ++ty) {
-    for (int tx = 0; tx < 2; ++tx) writer.Write("ANCHORMAP_GRID_TILES", 21, TestTile(9, tx, ty));
+    for (int tx = 0; tx < 2; ++tx) write(channels::kGridTiles, 21, TestTile(9, tx, ty));
   }
   writer.Close();
+  return written;
 }
 
 }  // namespace anchormap::render::testing

@@ -21,7 +21,7 @@ bool NearColor(const Rgb& a, const Rgb& b, int tolerance) {
 
 TEST(UncertaintyPlotTest, OneLinePerAnchorAtItsValues) {
   const std::string log = TempPath("plot.lcmlog");
-  testing::WriteTestServerLog(log);
+  ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(log, ChannelNames{}, &output).ok());
   const ColorAssignment colors({{"R1", 11}, {"R2", 12}});
