@@ -6,9 +6,9 @@
 namespace anchormap {
 
 Eigen::Matrix3d OdometryDeltaCovariance(const OdometryNoiseOptions& noise,
-                                        const Pose2& T_previous_pose) {
-  const double distance = T_previous_pose.translation().norm();
-  const double angle = std::abs(T_previous_pose.theta());
+                                        const Pose2& T_previous_this) {
+  const double distance = T_previous_this.translation().norm();
+  const double angle = std::abs(T_previous_this.theta());
   const double sigma_xy = noise.xy_base_m + noise.xy_per_m * distance;
   const double sigma_theta =
       noise.theta_base_rad + noise.theta_per_rad * angle + noise.theta_per_m * distance;
@@ -22,55 +22,64 @@ Agent::Agent(const AgentOptions& options)
       odometry_(options.odometry),
       keyframer_(options.keyframer) {}
 
-std::optional<ErrorCode> Agent::OnOdometry(const OdometrySample& sample, AgentOutput* out) {
-  if (auto reason = odometry_.Add(sample)) return reason;
+Status Agent::OnOdometry(const OdometrySample& sample, AgentOutput* out) {
+  if (Status added = odometry_.Add(sample); !added.ok()) return added;
   ++stats_.odometry_readings;
   DrainPendingScans(out);
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<ErrorCode> Agent::OnScan(const LaserScan& scan, AgentOutput* out) {
+Status Agent::OnScan(LaserScan scan, AgentOutput* out) {
   const int64_t newest_seen =
       pending_scans_.empty() ? last_scan_utime_ : pending_scans_.back().utime;
-  if (scan.utime <= newest_seen) return ErrorCode::kOutOfOrder;
+  if (scan.utime <= newest_seen) {
+    return Status::Error(
+        ErrorCode::kOutOfOrder,
+        "scan at " + std::to_string(scan.utime) + " is not after " + std::to_string(newest_seen));
+  }
   ++stats_.scans;
-  LaserScan copy = scan;
-  copy.T_body_sensor = T_body_sensor_;
-  copy.max_range = static_cast<float>(options_.max_range_m);
+  // The one place where the robot's mounting pose and range limit join the scan.
+  scan.T_body_sensor = T_body_sensor_;
+  scan.max_range = static_cast<float>(options_.max_range_m);
   if (odometry_.empty() || scan.utime > odometry_.newest_utime()) {
     // Odometry has not reached this scan's time yet: wait for it (bounded).
-    pending_scans_.push_back(std::move(copy));
+    pending_scans_.push_back(std::move(scan));
     if (pending_scans_.size() > static_cast<size_t>(options_.max_pending_scans)) {
+      out->late_rejections.push_back(Status::Error(
+          ErrorCode::kQueueFull, "scan at " + std::to_string(pending_scans_.front().utime) +
+                                     " waited for odometry in a full queue"));
       pending_scans_.pop_front();
-      out->late_rejections.push_back(ErrorCode::kQueueFull);
     }
-    return std::nullopt;
+    return Status::Ok();
   }
   if (!pending_scans_.empty()) DrainPendingScans(out);
   const auto pose = odometry_.PoseAt(scan.utime);
   if (!pose) {
     last_scan_utime_ = scan.utime;
-    return ErrorCode::kNoOdometry;
+    return Status::Error(ErrorCode::kNoOdometry,
+                         "no odometry around the scan at " + std::to_string(scan.utime));
   }
-  ProcessScan(copy, *pose, out);
-  return std::nullopt;
+  ProcessScan(std::move(scan), *pose, out);
+  return Status::Ok();
 }
 
 void Agent::DrainPendingScans(AgentOutput* out) {
   while (!pending_scans_.empty() && pending_scans_.front().utime <= odometry_.newest_utime()) {
-    const LaserScan scan = std::move(pending_scans_.front());
+    LaserScan scan = std::move(pending_scans_.front());
     pending_scans_.pop_front();
     const auto pose = odometry_.PoseAt(scan.utime);
     if (!pose) {
       last_scan_utime_ = scan.utime;
-      out->late_rejections.push_back(ErrorCode::kNoOdometry);
+      out->late_rejections.push_back(
+          Status::Error(ErrorCode::kNoOdometry,
+                        "no odometry around the waiting scan at " + std::to_string(scan.utime)));
       continue;
     }
-    ProcessScan(scan, *pose, out);
+    ProcessScan(std::move(scan), *pose, out);
   }
 }
 
-void Agent::ProcessScan(const LaserScan& scan, const Pose2& T_odom_body, AgentOutput* out) {
+void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* out) {
   last_scan_utime_ = scan.utime;
   if (!keyframer_.ShouldMake(T_odom_body, scan.utime)) return;
   if (keyframer_.IsForcedAt(scan.utime)) ++stats_.forced_keyframes;
@@ -84,18 +93,24 @@ void Agent::ProcessScan(const LaserScan& scan, const Pose2& T_odom_body, AgentOu
   // The odometry frame is the trajectory's local frame.
   keyframe.T_local_pose = T_odom_body;
   if (last_keyframe_pose_) {
-    keyframe.T_previous_pose = Between(*last_keyframe_pose_, T_odom_body);
-    keyframe.delta_covariance = OdometryDeltaCovariance(options_.noise, keyframe.T_previous_pose);
+    keyframe.T_previous_this = Between(*last_keyframe_pose_, T_odom_body);
+    keyframe.T_previous_this_covariance =
+        OdometryDeltaCovariance(options_.noise, keyframe.T_previous_this);
   }
-  keyframe.scan = scan;
+  keyframe.scan = std::move(scan);
   last_keyframe_pose_ = T_odom_body;
   ++stats_.keyframes;
   out->keyframes.push_back(std::move(keyframe));
 }
 
-std::optional<ErrorCode> Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {
-  if (encounter.observer != options_.robot) return ErrorCode::kWrongRobot;
-  if (encounter.observed == options_.robot) return ErrorCode::kSelfEncounter;
+Status Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {
+  if (encounter.observer != options_.robot) {
+    return Status::Error(ErrorCode::kWrongRobot,
+                         "observer " + encounter.observer + " is not " + options_.robot);
+  }
+  if (encounter.observed == options_.robot) {
+    return Status::Error(ErrorCode::kSelfEncounter, encounter.observer + " observed itself");
+  }
   Encounter relayed = encounter;
   relayed.observer_trajectory_id = options_.trajectory_id;
   // Keyframe at the first scan at or after the encounter (or the next scan if the
@@ -103,7 +118,7 @@ std::optional<ErrorCode> Agent::OnEncounter(const Encounter& encounter, AgentOut
   keyframer_.ForceAtOrAfter(std::max(encounter.utime, last_scan_utime_ + 1));
   ++stats_.encounters_relayed;
   out->encounters.push_back(std::move(relayed));
-  return std::nullopt;
+  return Status::Ok();
 }
 
 void Agent::OnRelayedEncounter(const Encounter& encounter) {

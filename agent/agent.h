@@ -22,7 +22,7 @@
 #include "common/types/keyframe.h"
 #include "common/types/laser_scan.h"
 #include "common/types/odometry.h"
-#include "common/util/reject_counter.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -32,7 +32,7 @@ struct AgentOutput {
   std::vector<Encounter> encounters;
   // Earlier inputs refused later (a waiting scan the odometry never covered, or pushed
   // out of the full waiting list); the caller counts them like direct refusals.
-  std::vector<ErrorCode> late_rejections;
+  std::vector<Status> late_rejections;
 };
 
 struct AgentStats {
@@ -45,20 +45,20 @@ struct AgentStats {
 
 // The delta covariance of the noise model (see OdometryNoiseOptions).
 Eigen::Matrix3d OdometryDeltaCovariance(const OdometryNoiseOptions& noise,
-                                        const Pose2& T_previous_pose);
+                                        const Pose2& T_previous_this);
 
 class Agent {
  public:
   // `options` must be valid (Validate()), with trajectory_id already chosen.
   explicit Agent(const AgentOptions& options);
 
-  // Each returns the reason when the input is refused (the caller counts it).
-  std::optional<ErrorCode> OnOdometry(const OdometrySample& sample, AgentOutput* out);
+  // Each returns why the input is refused, if it is (the caller counts it).
+  Status OnOdometry(const OdometrySample& sample, AgentOutput* out);
   // Scans must come in increasing time. A scan newer than the newest odometry waits (up
   // to max_pending_scans) until odometry covers its time.
-  std::optional<ErrorCode> OnScan(const LaserScan& scan, AgentOutput* out);
+  Status OnScan(LaserScan scan, AgentOutput* out);
   // An encounter this robot observed (its sensor channel): observer must be this robot.
-  std::optional<ErrorCode> OnEncounter(const Encounter& encounter, AgentOutput* out);
+  Status OnEncounter(const Encounter& encounter, AgentOutput* out);
   // An encounter seen on the server's channel: if this robot is the observed one, a
   // keyframe is forced near its time too.
   void OnRelayedEncounter(const Encounter& encounter);
@@ -69,7 +69,7 @@ class Agent {
 
  private:
   // Turns a scan whose pose is known into a keyframe when the Keyframer says so.
-  void ProcessScan(const LaserScan& scan, const Pose2& T_odom_body, AgentOutput* out);
+  void ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* out);
   // Processes waiting scans that the odometry now covers; drops those it never will.
   void DrainPendingScans(AgentOutput* out);
 

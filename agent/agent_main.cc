@@ -69,11 +69,11 @@ int Main(int argc, char** argv) {
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   LogLevel level = LogLevel::kInfo;
-  std::optional<std::string> problem = options.Validate();
+  Status problem = options.Validate();
   if (!ParseLogLevel(options.log_level, &level))
-    problem = "--log-level: '" + options.log_level + "'";
-  if (problem) {
-    std::cerr << "anchormap-agent: " << *problem << "\n(see anchormap-agent --help)\n";
+    problem = Status::Error("--log-level: '" + options.log_level + "'");
+  if (!problem.ok()) {
+    std::cerr << "anchormap-agent: " << problem.message() << "\n(see anchormap-agent --help)\n";
     return 2;
   }
   if (options.trajectory_id == 0) {

@@ -25,52 +25,31 @@ std::vector<std::string> AgentNode::InputChannels() const {
 
 bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
   AgentOutput out;
-  std::optional<ErrorCode> refused;
-  std::string detail;
+  Status refused;
   if (channel == options_.channels.odometry) {
-    const Decoded<OdometrySample> odometry = DecodeOdometry(data, size);
-    if (!odometry.ok()) {
-      rejects_.Count(odometry.reason, channel, odometry.detail);
-      return true;
-    }
-    refused = agent_.OnOdometry(*odometry.value, &out);
-    detail = "odometry at " + std::to_string(odometry.value->utime);
+    const Result<OdometrySample> odometry = DecodeOdometry(data, size);
+    refused = odometry.ok() ? agent_.OnOdometry(*odometry, &out) : odometry.status();
   } else if (channel == options_.channels.laser) {
-    const Decoded<LaserScan> scan =
-        DecodeLaser(data, size, static_cast<float>(options_.max_range_m),
-                    Pose2(options_.sensor_x_m, options_.sensor_y_m, options_.sensor_theta_rad));
-    if (!scan.ok()) {
-      rejects_.Count(scan.reason, channel, scan.detail);
-      return true;
-    }
-    refused = agent_.OnScan(*scan.value, &out);
-    detail = "scan at " + std::to_string(scan.value->utime);
+    Result<LaserScan> scan = DecodeLaser(data, size);
+    refused = scan.ok() ? agent_.OnScan(std::move(*scan), &out) : scan.status();
   } else if (channel == options_.channels.encounter || channel == options_.channels.encounters) {
-    const Decoded<Encounter> encounter = DecodeEncounter(data, size);
-    if (!encounter.ok()) {
-      // Others' bad relays on the shared channel are the server's to count.
-      if (channel == options_.channels.encounter)
-        rejects_.Count(encounter.reason, channel, encounter.detail);
-      return true;
-    }
+    const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (channel == options_.channels.encounters) {
-      agent_.OnRelayedEncounter(*encounter.value);
+      // Others' bad relays on the shared channel are the server's to count.
+      if (encounter.ok()) agent_.OnRelayedEncounter(*encounter);
       return true;
     }
-    refused = agent_.OnEncounter(*encounter.value, &out);
-    detail = "encounter " + encounter.value->observer + "->" + encounter.value->observed;
+    refused = encounter.ok() ? agent_.OnEncounter(*encounter, &out) : encounter.status();
   } else {
     return false;
   }
-  if (refused) rejects_.Count(*refused, channel, detail);
+  if (!refused.ok()) rejects_.Count(refused, channel);
   Emit(out, channel);
   return true;
 }
 
 void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
-  for (ErrorCode reason : out.late_rejections) {
-    rejects_.Count(reason, context, "a scan waiting for odometry was dropped");
-  }
+  for (const Status& refused : out.late_rejections) rejects_.Count(refused, context);
   for (const Keyframe& keyframe : out.keyframes) {
     publish_(options_.channels.keyframes, EncodeKeyframe(keyframe));
   }

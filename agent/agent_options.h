@@ -8,6 +8,7 @@
 
 #include "agent/keyframer.h"
 #include "agent/odometry_buffer.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -22,15 +23,16 @@ struct OdometryNoiseOptions {
   double theta_per_rad = 0.05;  // 5 % of the turn
   double theta_per_m = 0.02;    // heading drift while driving straight
 
-  std::optional<std::string> Validate() const {
+  Status Validate() const {
     if (!(xy_base_m > 0) || !(theta_base_rad > 0)) {
-      return "noise.xy_base_m and noise.theta_base_rad must be > 0 (a covariance must be "
-             "positive definite even for a zero motion)";
+      return Status::Error(
+          "noise.xy_base_m and noise.theta_base_rad must be > 0 (a covariance must be "
+          "positive definite even for a zero motion)");
     }
     if (xy_per_m < 0 || theta_per_rad < 0 || theta_per_m < 0) {
-      return "noise.*_per_* must be >= 0";
+      return Status::Error("noise.*_per_* must be >= 0");
     }
-    return std::nullopt;
+    return Status::Ok();
   }
 };
 
@@ -62,17 +64,17 @@ struct AgentOptions {
   OdometryBufferOptions odometry;
   AgentChannels channels;
 
-  std::optional<std::string> Validate() const {
-    if (robot.empty()) return "robot must be set";
+  Status Validate() const {
+    if (robot.empty()) return Status::Error("robot must be set");
     for (char c : robot) {
-      if (c <= ' ' || c > '~') return "robot must be a printable token";
+      if (c <= ' ' || c > '~') return Status::Error("robot must be a printable token");
     }
-    if (trajectory_id < 0) return "trajectory_id must be >= 0";
-    if (!(max_range_m > 0)) return "max_range_m must be > 0";
-    if (max_pending_scans < 1) return "max_pending_scans must be >= 1";
-    if (status_period_s < 0) return "status_period_s must be >= 0";
-    if (auto e = keyframer.Validate()) return e;
-    if (auto e = noise.Validate()) return e;
+    if (trajectory_id < 0) return Status::Error("trajectory_id must be >= 0");
+    if (!(max_range_m > 0)) return Status::Error("max_range_m must be > 0");
+    if (max_pending_scans < 1) return Status::Error("max_pending_scans must be >= 1");
+    if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
+    if (Status e = keyframer.Validate(); !e.ok()) return e;
+    if (Status e = noise.Validate(); !e.ok()) return e;
     return odometry.Validate();
   }
 };

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "common/geometry/pose2.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -21,11 +22,12 @@ struct KeyframerOptions {
   // that the robot is alive; 0 disables).
   double max_interval_s = 10.0;
 
-  std::optional<std::string> Validate() const {
-    if (!(max_distance_m > 0)) return "keyframer.max_distance_m must be > 0";
-    if (!(max_angle_rad > 0)) return "keyframer.max_angle_rad must be > 0";
-    if (!(max_interval_s >= 0)) return "keyframer.max_interval_s must be >= 0 (0 = off)";
-    return std::nullopt;
+  Status Validate() const {
+    if (!(max_distance_m > 0)) return Status::Error("keyframer.max_distance_m must be > 0");
+    if (!(max_angle_rad > 0)) return Status::Error("keyframer.max_angle_rad must be > 0");
+    if (!(max_interval_s >= 0))
+      return Status::Error("keyframer.max_interval_s must be >= 0 (0 = off)");
+    return Status::Ok();
   }
 };
 

@@ -10,7 +10,7 @@ TEST(KeyframerTest, FirstScanThenDistanceAngleAndTimeThresholds) {
   options.max_distance_m = 0.5;
   options.max_angle_rad = 0.3;
   options.max_interval_s = 2.0;
-  ASSERT_FALSE(options.Validate());
+  ASSERT_TRUE(options.Validate().ok());
   Keyframer keyframer(options);
   EXPECT_TRUE(keyframer.ShouldMake(Pose2(), 0));
   keyframer.Accept(Pose2(1, 1, 0.5), 0);
@@ -47,7 +47,7 @@ TEST(KeyframerTest, TimeLimitZeroDisablesIt) {
   keyframer.Accept(Pose2(), 0);
   EXPECT_FALSE(keyframer.ShouldMake(Pose2(), 3'600'000'000));
   options.max_distance_m = -1;
-  EXPECT_TRUE(options.Validate());
+  EXPECT_FALSE(options.Validate().ok());
 }
 
 }  // namespace

@@ -9,13 +9,15 @@ Pose2 InterpolatePose(const Pose2& a, const Pose2& b, double fraction) {
                a.theta() + fraction * AngleDifference(b.theta(), a.theta()));
 }
 
-std::optional<ErrorCode> OdometryBuffer::Add(const OdometrySample& sample) {
+Status OdometryBuffer::Add(const OdometrySample& sample) {
   if (!samples_.empty() && sample.utime <= samples_.back().utime) {
-    return ErrorCode::kOutOfOrder;
+    return Status::Error(ErrorCode::kOutOfOrder, "odometry at " + std::to_string(sample.utime) +
+                                                     " is not after " +
+                                                     std::to_string(samples_.back().utime));
   }
   samples_.push_back(sample);
   while (samples_.size() > static_cast<size_t>(options_.capacity)) samples_.pop_front();
-  return std::nullopt;
+  return Status::Ok();
 }
 
 std::optional<Pose2> OdometryBuffer::PoseAt(int64_t utime) const {

@@ -12,6 +12,7 @@
 #include "common/geometry/pose2.h"
 #include "common/types/odometry.h"
 #include "common/util/reject_counter.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -21,10 +22,10 @@ struct OdometryBufferOptions {
   // No interpolation across a gap longer than this between two readings (odometry outage).
   double max_gap_s = 1.0;
 
-  std::optional<std::string> Validate() const {
-    if (capacity < 2) return "odometry.capacity must be >= 2";
-    if (!(max_gap_s > 0)) return "odometry.max_gap_s must be > 0";
-    return std::nullopt;
+  Status Validate() const {
+    if (capacity < 2) return Status::Error("odometry.capacity must be >= 2");
+    if (!(max_gap_s > 0)) return Status::Error("odometry.max_gap_s must be > 0");
+    return Status::Ok();
   }
 };
 
@@ -33,8 +34,8 @@ class OdometryBuffer {
   explicit OdometryBuffer(const OdometryBufferOptions& options = {}) : options_(options) {}
 
   // Appends a reading; readings must come in strictly increasing time, otherwise
-  // kOutOfOrder is returned and the reading is dropped.
-  std::optional<ErrorCode> Add(const OdometrySample& sample);
+  // the reading is dropped and the Status says kOutOfOrder.
+  Status Add(const OdometrySample& sample);
 
   // The body pose at `utime`, interpolated (linear in x, y; shortest way in theta) between
   // the readings just before and just after; exact at a reading's time. nullopt when

@@ -21,9 +21,10 @@ std::string Seconds(int64_t utime) { return std::to_string(1e-6 * static_cast<do
 
 }  // namespace
 
-TieResult TieEncounter(const Encounter& encounter, const TrajectoryRecord& observer,
-                       const TrajectoryRecord& observed, const DirectEncounterOptions& options) {
-  TieResult result;
+Result<EncounterConstraint> TieEncounter(const Encounter& encounter,
+                                         const TrajectoryRecord& observer,
+                                         const TrajectoryRecord& observed,
+                                         const DirectEncounterOptions& options) {
   const int64_t t = encounter.utime;
   const int ia = observer.NearestIndex(t);
   const int ib = observed.NearestIndex(t);
@@ -32,10 +33,10 @@ TieResult TieEncounter(const Encounter& encounter, const TrajectoryRecord& obser
   const int64_t offset_b = std::llabs(observed.utimes[static_cast<size_t>(ib)] - t);
   if (static_cast<double>(offset_a) > max_offset_us ||
       static_cast<double>(offset_b) > max_offset_us) {
-    result.detail = "encounter " + encounter.observer + "->" + encounter.observed + " at " +
-                    Seconds(t) + " s: nearest keyframes are " + Seconds(offset_a) + " s and " +
-                    Seconds(offset_b) + " s away";
-    return result;
+    return Status::Error(ErrorCode::kNoKeyframeNearTime,
+                         "encounter " + encounter.observer + "->" + encounter.observed + " at " +
+                             Seconds(t) + " s: nearest keyframes are " + Seconds(offset_a) +
+                             " s and " + Seconds(offset_b) + " s away");
   }
   // Motion between each keyframe and the encounter time, in the keyframe's frame.
   const Pose2 T_ka_ta =
@@ -61,8 +62,7 @@ TieResult TieEncounter(const Encounter& encounter, const TrajectoryRecord& obser
   constraint.covariance = covariance;
   constraint.utime = t;
   constraint.source = "direct";
-  result.constraint = constraint;
-  return result;
+  return constraint;
 }
 
 void DirectEncounters::OnEncounterMessage(const Encounter& encounter, const GraphView& graph,
@@ -70,9 +70,9 @@ void DirectEncounters::OnEncounterMessage(const Encounter& encounter, const Grap
   pending_.push_back(encounter);
   if (pending_.size() > static_cast<size_t>(options_.max_pending)) {
     const Encounter& dropped = pending_.front();
-    out->rejections.emplace_back(ErrorCode::kQueueFull,
-                                 "too many waiting encounters; dropped " + dropped.observer + "->" +
-                                     dropped.observed + " at " + Seconds(dropped.utime) + " s");
+    out->rejections.push_back(Status::Error(
+        ErrorCode::kQueueFull, "too many waiting encounters; dropped " + dropped.observer + "->" +
+                                   dropped.observed + " at " + Seconds(dropped.utime) + " s"));
     pending_.pop_front();
   }
   Resolve(graph.table, /*flush=*/false, out);
@@ -111,12 +111,13 @@ void DirectEncounters::Resolve(const TrajectoryTable& table, bool flush,
         still_waiting.push_back(e);
       } else if (!table.TrajectoryOfRobotAt(e.observer, t) ||
                  !table.TrajectoryOfRobotAt(e.observed, t)) {
-        out->rejections.emplace_back(ErrorCode::kUnknownRobot,
-                                     "encounter " + name + " names a robot with no keyframes");
+        out->rejections.push_back(Status::Error(
+            ErrorCode::kUnknownRobot, "encounter " + name + " names a robot with no keyframes"));
       } else {
-        out->rejections.emplace_back(ErrorCode::kEncounterTimeout,
-                                     "encounter " + name + ": observer trajectory " +
-                                         std::to_string(e.observer_trajectory_id) + " unknown");
+        out->rejections.push_back(Status::Error(ErrorCode::kEncounterTimeout,
+                                                "encounter " + name + ": observer trajectory " +
+                                                    std::to_string(e.observer_trajectory_id) +
+                                                    " unknown"));
       }
       continue;
     }
@@ -125,11 +126,11 @@ void DirectEncounters::Resolve(const TrajectoryTable& table, bool flush,
       still_waiting.push_back(e);
       continue;
     }
-    TieResult tie = TieEncounter(e, *observer, *observed, options_);
-    if (tie.constraint) {
-      out->constraints.push_back(*tie.constraint);
+    Result<EncounterConstraint> tie = TieEncounter(e, *observer, *observed, options_);
+    if (tie.ok()) {
+      out->constraints.push_back(std::move(*tie));
     } else {
-      out->rejections.emplace_back(tie.reason, tie.detail);
+      out->rejections.push_back(tie.status());
     }
   }
   pending_.swap(still_waiting);

@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 
+#include "common/util/status.h"
 #include "server/encounter_source.h"
 #include "server/trajectory_table.h"
 
@@ -36,27 +37,24 @@ struct DirectEncounterOptions {
   double inflation_theta_per_rad = 0.05;
   double inflation_theta_per_m = 0.02;
 
-  std::optional<std::string> Validate() const {
-    if (!(max_wait_s >= 0)) return "direct.max_wait_s must be >= 0";
-    if (max_pending < 1) return "direct.max_pending must be >= 1";
-    if (!(max_time_offset_s > 0)) return "direct.max_time_offset_s must be > 0";
+  Status Validate() const {
+    if (!(max_wait_s >= 0)) return Status::Error("direct.max_wait_s must be >= 0");
+    if (max_pending < 1) return Status::Error("direct.max_pending must be >= 1");
+    if (!(max_time_offset_s > 0)) return Status::Error("direct.max_time_offset_s must be > 0");
     if (inflation_xy_base_m < 0 || inflation_xy_per_m < 0 || inflation_theta_base_rad < 0 ||
         inflation_theta_per_rad < 0 || inflation_theta_per_m < 0) {
-      return "direct.inflation_* must be >= 0";
+      return Status::Error("direct.inflation_* must be >= 0");
     }
-    return std::nullopt;
+    return Status::Ok();
   }
 };
 
 // Ties one encounter to the keyframes of `observer` and `observed` nearest to its time.
-// Returns the constraint, or the reason it cannot be tied (kNoKeyframeNearTime).
-struct TieResult {
-  std::optional<EncounterConstraint> constraint;
-  ErrorCode reason = ErrorCode::kNoKeyframeNearTime;
-  std::string detail;
-};
-TieResult TieEncounter(const Encounter& encounter, const TrajectoryRecord& observer,
-                       const TrajectoryRecord& observed, const DirectEncounterOptions& options);
+// Returns the constraint, or why it cannot be tied (kNoKeyframeNearTime).
+Result<EncounterConstraint> TieEncounter(const Encounter& encounter,
+                                         const TrajectoryRecord& observer,
+                                         const TrajectoryRecord& observed,
+                                         const DirectEncounterOptions& options);
 
 class DirectEncounters : public EncounterSource {
  public:

@@ -35,10 +35,11 @@ class DirectEncountersTest : public ::testing::Test {
     std::vector<AdmittedKeyframe> admitted;
     for (size_t i = 0; i < times.size(); ++i) {
       const int64_t seq = next_seq_[robot]++;
-      ASSERT_FALSE(
-          table_.Offer(MakeKeyframe(robot, trajectory, static_cast<int32_t>(seq),
-                                    static_cast<int64_t>(times[i] * 1e6), pose_at(times[i])),
-                       &admitted));
+      ASSERT_TRUE(table_
+                      .Offer(MakeKeyframe(robot, trajectory, static_cast<int32_t>(seq),
+                                          static_cast<int64_t>(times[i] * 1e6), pose_at(times[i])),
+                             &admitted)
+                      .ok());
     }
   }
   Encounter MakeEncounter(double t) const {
@@ -66,35 +67,35 @@ TEST_F(DirectEncountersTest, TieCorrectsForTheMotionBetweenEncounterAndKeyframes
   AddKeyframes("A", 1, {0.0, 1.0, 1.1}, World::LocalA);
   AddKeyframes("B", 2, {0.0, 0.95, 1.3}, World::LocalB);
   const Encounter e = MakeEncounter(1.04);
-  const TieResult tie =
+  const Result<EncounterConstraint> tie =
       TieEncounter(e, *table_.Find("A", 1), *table_.Find("B", 2), DirectEncounterOptions{});
-  ASSERT_TRUE(tie.constraint) << tie.detail;
-  EXPECT_EQ(tie.constraint->a, (PoseKey{0, 1}));
-  EXPECT_EQ(tie.constraint->b, (PoseKey{1, 1}));
+  ASSERT_TRUE(tie.ok()) << tie.status().message();
+  EXPECT_EQ(tie->a, (PoseKey{0, 1}));
+  EXPECT_EQ(tie->b, (PoseKey{1, 1}));
   // The truth: keyframe B(0.95) seen from keyframe A(1.0).
   const Pose2 truth = Between(Compose(world_.T_world_local_a, World::LocalA(1.0)),
                               Compose(world_.T_world_local_b, World::LocalB(0.95)));
-  const Eigen::Vector3d error = PoseError(tie.constraint->measured_T_a_b, truth);
+  const Eigen::Vector3d error = PoseError(tie->measured_T_a_b, truth);
   // Interpolating B's curved motion over 0.35 s leaves a few mm.
   EXPECT_LT(error.head<2>().norm(), 5e-3) << error.transpose();
   EXPECT_LT(std::abs(error.z()), 1e-9);  // headings interpolate exactly (linear in time)
   // Without the correction the error would be the 4 cm A drove plus B's motion.
   EXPECT_GT(PoseError(e.T_observer_observed, truth).head<2>().norm(), 0.04);
   // Covariance: the measurement's plus the corrections' inflation, still SPD.
-  EXPECT_GT(tie.constraint->covariance(0, 0) + tie.constraint->covariance(1, 1), 0.02);
-  EXPECT_GT(tie.constraint->covariance(2, 2), 0.001);
-  EXPECT_LT(tie.constraint->covariance.trace(), 0.03);
-  EXPECT_TRUE(tie.constraint->covariance.isApprox(tie.constraint->covariance.transpose()));
+  EXPECT_GT(tie->covariance(0, 0) + tie->covariance(1, 1), 0.02);
+  EXPECT_GT(tie->covariance(2, 2), 0.001);
+  EXPECT_LT(tie->covariance.trace(), 0.03);
+  EXPECT_TRUE(tie->covariance.isApprox(tie->covariance.transpose()));
 }
 
 TEST_F(DirectEncountersTest, ExactWhenKeyframesAreAtTheEncounterTime) {
   AddKeyframes("A", 1, {0.0, 2.0}, World::LocalA);
   AddKeyframes("B", 2, {0.0, 2.0}, World::LocalB);
   const Encounter e = MakeEncounter(2.0);
-  const TieResult tie =
+  const Result<EncounterConstraint> tie =
       TieEncounter(e, *table_.Find("A", 1), *table_.Find("B", 2), DirectEncounterOptions{});
-  ASSERT_TRUE(tie.constraint);
-  EXPECT_LT(PoseError(tie.constraint->measured_T_a_b, e.T_observer_observed).norm(), 1e-12);
+  ASSERT_TRUE(tie.ok());
+  EXPECT_LT(PoseError(tie->measured_T_a_b, e.T_observer_observed).norm(), 1e-12);
 }
 
 TEST_F(DirectEncountersTest, WaitsUntilBothRobotsHaveAKeyframeAfterTheEncounter) {
@@ -128,12 +129,12 @@ TEST_F(DirectEncountersTest, UnknownRobotIsRefusedAfterTheWaitAndFarKeyframesAre
   EXPECT_TRUE(out.rejections.empty());
   source.Poll(6'100'000, View(), &out);
   ASSERT_EQ(out.rejections.size(), 1u);
-  EXPECT_EQ(out.rejections[0].first, ErrorCode::kUnknownRobot);
+  EXPECT_EQ(out.rejections[0].code(), ErrorCode::kUnknownRobot);
 
   AddKeyframes("B", 2, {0.0, 3.0}, World::LocalB);  // nothing within 0.5 s of 0.8 s
   source.OnEncounterMessage(MakeEncounter(0.8), View(), &out);
   ASSERT_EQ(out.rejections.size(), 2u);
-  EXPECT_EQ(out.rejections[1].first, ErrorCode::kNoKeyframeNearTime);
+  EXPECT_EQ(out.rejections[1].code(), ErrorCode::kNoKeyframeNearTime);
   EXPECT_TRUE(out.constraints.empty());
 }
 
@@ -146,7 +147,7 @@ TEST_F(DirectEncountersTest, FlushTiesWhatItCanAndBoundsThePendingList) {
   AddKeyframes("B", 2, {0.0, 0.9}, World::LocalB);
   for (double t : {0.95, 0.96, 0.97}) source.OnEncounterMessage(MakeEncounter(t), View(), &out);
   ASSERT_EQ(out.rejections.size(), 1u);  // the first one pushed out
-  EXPECT_EQ(out.rejections[0].first, ErrorCode::kQueueFull);
+  EXPECT_EQ(out.rejections[0].code(), ErrorCode::kQueueFull);
   EXPECT_EQ(source.pending(), 2u);  // B has no keyframe after 0.9 s yet
   source.Flush(View(), &out);
   EXPECT_EQ(out.constraints.size(), 2u);

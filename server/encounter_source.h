@@ -15,7 +15,7 @@
 #include "common/geometry/pose2.h"
 #include "common/solver/keys.h"
 #include "common/types/encounter.h"
-#include "common/util/reject_counter.h"
+#include "common/util/status.h"
 #include "server/trajectory_table.h"
 
 namespace anchormap {
@@ -35,7 +35,7 @@ struct EncounterConstraint {
 // What a source produced in one call.
 struct EncounterSourceOutput {
   std::vector<EncounterConstraint> constraints;
-  std::vector<std::pair<ErrorCode, std::string>> rejections;  // (reason, detail)
+  std::vector<Status> rejections;
 };
 
 // Read-only view of the graph handed to sources.

@@ -15,6 +15,7 @@
 #include "common/scan/occupancy_grid.h"
 #include "common/solver/smoother.h"
 #include "common/types/map_outputs.h"
+#include "common/util/status.h"
 #include "server/trajectory_table.h"
 
 namespace anchormap {
@@ -29,9 +30,9 @@ struct MapPublisherOptions {
   // together, or the largest single unanchored trajectory before any encounter).
   OccupancyGridOptions grid;
 
-  std::optional<std::string> Validate() const {
-    if (!(map_period_s >= 0)) return "publish.map_period_s must be >= 0";
-    if (!(grid_period_s >= 0)) return "publish.grid_period_s must be >= 0";
+  Status Validate() const {
+    if (!(map_period_s >= 0)) return Status::Error("publish.map_period_s must be >= 0");
+    if (!(grid_period_s >= 0)) return Status::Error("publish.grid_period_s must be >= 0");
     return grid.Validate();
   }
 };

@@ -21,35 +21,34 @@ void MappingServer::AddEncounterSource(std::unique_ptr<EncounterSource> source) 
   sources_.push_back(std::move(source));
 }
 
-void MappingServer::CountRejection(ErrorCode reason, const std::string& context,
-                                   const std::string& detail) {
-  rejects_.Count(reason, context, detail);
+void MappingServer::CountRejection(const Status& refusal, const std::string& context) {
+  rejects_.Count(refusal, context);
 }
 
-std::optional<ErrorCode> MappingServer::OnKeyframe(const Keyframe& keyframe) {
+Status MappingServer::OnKeyframe(const Keyframe& keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
-  if (auto reason = table_.Offer(keyframe, &admitted)) {
-    rejects_.Count(*reason, "keyframe",
-                   keyframe.robot + " trajectory " + std::to_string(keyframe.trajectory_id) +
-                       " seq " + std::to_string(keyframe.seq));
-    return reason;
+  if (Status offered = table_.Offer(keyframe, &admitted); !offered.ok()) {
+    rejects_.Count(offered, "keyframe");
+    return offered;
   }
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
   const GraphView graph{table_, smoother_};
   for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
   Commit(found, !admitted.empty(), "keyframe");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<ErrorCode> MappingServer::OnEncounter(const Encounter& encounter) {
+Status MappingServer::OnEncounter(const Encounter& encounter) {
   ++stats_.encounters_received;
   data_utime_ = std::max(data_utime_, encounter.utime);
   if (encounter.observer == encounter.observed) {
-    rejects_.Count(ErrorCode::kSelfEncounter, "encounter", encounter.observer);
-    return ErrorCode::kSelfEncounter;
+    const Status refused =
+        Status::Error(ErrorCode::kSelfEncounter, encounter.observer + " observed itself");
+    rejects_.Count(refused, "encounter");
+    return refused;
   }
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_};
@@ -58,7 +57,7 @@ std::optional<ErrorCode> MappingServer::OnEncounter(const Encounter& encounter) 
     source->Poll(data_utime_, graph, &found);
   }
   Commit(found, false, "encounter");
-  return std::nullopt;
+  return Status::Ok();
 }
 
 void MappingServer::Flush() {
@@ -86,13 +85,13 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
     // delta, not the agent's raw odometry pose. Once encounters have corrected the local
     // trajectory the raw pose is off by that correction, and iSAM would linearise the new
     // rows there until the next batch step (measured: anchor covariances 10-35 % low).
-    const Pose2 initial =
-        a.previous && smoother_.HasPose(*a.previous)
-            ? Compose(smoother_.LocalPose(*a.previous), a.measured_T_previous_this)
-            : a.T_local_pose;
+    const Pose2 initial = a.previous && smoother_.HasPose(*a.previous)
+                              ? Compose(smoother_.LocalPose(*a.previous), a.T_previous_this)
+                              : a.T_local_pose;
     Status status = smoother_.AddPose(a.key, initial);
     if (status.ok() && a.previous) {
-      status = smoother_.AddBetween(*a.previous, a.key, a.measured_T_previous_this, a.covariance);
+      status =
+          smoother_.AddBetween(*a.previous, a.key, a.T_previous_this, a.T_previous_this_covariance);
     }
     if (!status.ok()) {
       // The codec validated the numbers, so this is an inconsistency worth seeing.
@@ -106,7 +105,7 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
 
 void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
                            const std::string& context) {
-  for (const auto& [reason, detail] : found.rejections) rejects_.Count(reason, context, detail);
+  for (const Status& refused : found.rejections) rejects_.Count(refused, context);
   for (const EncounterConstraint& c : found.constraints) {
     const bool first =
         !smoother_.IsAnchored(c.a.trajectory) || !smoother_.IsAnchored(c.b.trajectory);

@@ -18,6 +18,7 @@
 #include "common/types/keyframe.h"
 #include "common/types/map_outputs.h"
 #include "common/util/reject_counter.h"
+#include "common/util/status.h"
 #include "server/direct_encounters.h"
 #include "server/encounter_source.h"
 #include "server/map_publisher.h"
@@ -48,10 +49,10 @@ struct MappingServerOptions {
   DirectEncounterOptions direct;
   MapPublisherOptions publish;
 
-  std::optional<std::string> Validate() const {
-    if (auto e = smoother.Validate()) return "smoother: " + *e;
-    if (auto e = table.Validate()) return e;
-    if (auto e = direct.Validate()) return e;
+  Status Validate() const {
+    if (Status e = smoother.Validate(); !e.ok()) return Status::Error("smoother: " + e.message());
+    if (Status e = table.Validate(); !e.ok()) return e;
+    if (Status e = direct.Validate(); !e.ok()) return e;
     return publish.Validate();
   }
 };
@@ -74,15 +75,15 @@ class MappingServer {
   // Adds another encounter source (e.g. scan matching, later); called on every input.
   void AddEncounterSource(std::unique_ptr<EncounterSource> source);
 
-  // Each returns the reason when the input is refused (already counted). Accepted inputs
+  // Each returns why the input is refused, if it is (already counted). Accepted inputs
   // update the smoother before returning. Cost: one incremental update.
-  std::optional<ErrorCode> OnKeyframe(const Keyframe& keyframe);
-  std::optional<ErrorCode> OnEncounter(const Encounter& encounter);
+  Status OnKeyframe(const Keyframe& keyframe);
+  Status OnEncounter(const Encounter& encounter);
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).
   void Flush();
   // Counts a refusal that happened before the logic (e.g. in the codec).
-  void CountRejection(ErrorCode reason, const std::string& context, const std::string& detail);
+  void CountRejection(const Status& refusal, const std::string& context);
 
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;

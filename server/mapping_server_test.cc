@@ -53,11 +53,11 @@ struct Scenario {
         k.utime = static_cast<int64_t>(t * 1e6) + 1'000'000;
         if (s > 0) {
           const Pose2 true_delta = Between(WorldPose(r, t - 0.5), WorldPose(r, t));
-          k.T_previous_pose =
+          k.T_previous_this =
               Pose2(true_delta.x() + 0.02 * normal(rng), true_delta.y() + 0.02 * normal(rng),
                     true_delta.theta() + 0.01 * normal(rng));
-          k.delta_covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
-          odometry[r] = Compose(odometry[r], k.T_previous_pose);
+          k.T_previous_this_covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
+          odometry[r] = Compose(odometry[r], k.T_previous_this);
         }
         k.T_local_pose = odometry[r];
         k.scan.rad0 = -1.5f;
@@ -87,8 +87,8 @@ struct Scenario {
 
 // Feeds one input; true when it was accepted.
 bool Feed(MappingServer* server, const Scenario::Input& input) {
-  if (input.keyframe) return !server->OnKeyframe(*input.keyframe);
-  return !server->OnEncounter(*input.encounter);
+  if (input.keyframe) return server->OnKeyframe(*input.keyframe).ok();
+  return server->OnEncounter(*input.encounter).ok();
 }
 
 MappingServerOptions ExactTieOptions() {
@@ -115,9 +115,9 @@ TEST_F(MappingServerTest, AnchorsAppearExactlyAtFirstEncounters) {
   int encounters_seen = 0;
   for (const auto& input : scenario.inputs) {
     if (input.keyframe) {
-      ASSERT_FALSE(server.OnKeyframe(*input.keyframe));
+      ASSERT_TRUE(server.OnKeyframe(*input.keyframe).ok());
     } else {
-      ASSERT_FALSE(server.OnEncounter(*input.encounter));
+      ASSERT_TRUE(server.OnEncounter(*input.encounter).ok());
       met.insert(input.encounter->observer);
       met.insert(input.encounter->observed);
       ++encounters_seen;
@@ -158,18 +158,19 @@ TEST_F(MappingServerTest, MergedPosesAndAnchorCovariancesMatchADirectSolve) {
   for (const auto& input : scenario.inputs) {
     if (input.keyframe) {
       const Keyframe& k = *input.keyframe;
-      ASSERT_FALSE(server.OnKeyframe(k));
+      ASSERT_TRUE(server.OnKeyframe(k).ok());
       const TrajectoryId id =
           ids.emplace(k.robot, static_cast<TrajectoryId>(ids.size())).first->second;
       ASSERT_TRUE(direct.AddPose({id, k.seq}, k.T_local_pose).ok());
       if (k.seq > 0) {
-        ASSERT_TRUE(
-            direct.AddBetween({id, k.seq - 1}, {id, k.seq}, k.T_previous_pose, k.delta_covariance)
-                .ok());
+        ASSERT_TRUE(direct
+                        .AddBetween({id, k.seq - 1}, {id, k.seq}, k.T_previous_this,
+                                    k.T_previous_this_covariance)
+                        .ok());
       }
     } else {
       const Encounter& e = *input.encounter;
-      ASSERT_FALSE(server.OnEncounter(e));
+      ASSERT_TRUE(server.OnEncounter(e).ok());
       const int index = static_cast<int>((e.utime - 1'000'000) / 500'000);
       ASSERT_TRUE(direct
                       .AddEncounter({ids.at(e.observer), index}, {ids.at(e.observed), index},
@@ -228,7 +229,7 @@ TEST_F(MappingServerTest, AnchorCovarianceShrinksAsEncountersAccumulate) {
   Scenario scenario(25.0, {{5.0, 0, 1}, {10.0, 0, 1}, {15.0, 1, 0}, {20.0, 0, 1}});
   for (auto& input : scenario.inputs) {
     if (input.keyframe && input.keyframe->seq > 0) {
-      input.keyframe->delta_covariance = 1e-8 * Eigen::Matrix3d::Identity();
+      input.keyframe->T_previous_this_covariance = 1e-8 * Eigen::Matrix3d::Identity();
     }
     if (input.encounter)
       input.encounter->covariance = Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal();
@@ -263,15 +264,16 @@ TEST_F(MappingServerTest, BadInputsAreCountedAndChangeNothing) {
 
   Keyframe reused = *scenario.inputs[3].keyframe;  // R1 seq 1, again
   reused.T_local_pose = Pose2(100, 100, 0);
-  EXPECT_EQ(server.OnKeyframe(reused), ErrorCode::kDuplicateSequence);
+  EXPECT_EQ(server.OnKeyframe(reused).code(), ErrorCode::kDuplicateSequence);
   Encounter self = encounter;
   self.observed = self.observer;
-  EXPECT_EQ(server.OnEncounter(self), ErrorCode::kSelfEncounter);
-  server.CountRejection(ErrorCode::kNotFinite, "ANCHORMAP_KEYFRAMES", "from the codec");
+  EXPECT_EQ(server.OnEncounter(self).code(), ErrorCode::kSelfEncounter);
+  server.CountRejection(Status::Error(ErrorCode::kNotFinite, "from the codec"),
+                        "ANCHORMAP_KEYFRAMES");
   Encounter ghost = encounter;
   ghost.observed = "R9";
-  EXPECT_FALSE(server.OnEncounter(ghost));  // waits for R9 ...
-  server.Flush();                           // ... which never comes
+  EXPECT_TRUE(server.OnEncounter(ghost).ok());  // waits for R9 ...
+  server.Flush();                               // ... which never comes
   EXPECT_EQ(server.rejects().count(ErrorCode::kDuplicateSequence), 1);
   EXPECT_EQ(server.rejects().count(ErrorCode::kSelfEncounter), 1);
   EXPECT_EQ(server.rejects().count(ErrorCode::kNotFinite), 1);

@@ -217,13 +217,14 @@ int Main(int argc, char** argv) {
   if (!outcome.run) return outcome.exit_code;
   const auto parsed_formulation = ParseFormulation(formulation);
   LogLevel level = LogLevel::kInfo;
-  std::optional<std::string> problem = options.Validate();
+  Status problem = options.Validate();
   if (!parsed_formulation)
-    problem = "--formulation: '" + formulation + "' is not relative, global or global-moved";
+    problem = Status::Error("--formulation: '" + formulation +
+                            "' is not relative, global or global-moved");
   if (!ParseLogLevel(options.log_level, &level))
-    problem = "--log-level: '" + options.log_level + "'";
-  if (problem) {
-    std::cerr << "anchormap-server: " << *problem << "\n(see anchormap-server --help)\n";
+    problem = Status::Error("--log-level: '" + options.log_level + "'");
+  if (!problem.ok()) {
+    std::cerr << "anchormap-server: " << problem.message() << "\n(see anchormap-server --help)\n";
     return 2;
   }
   options.server.smoother.formulation = *parsed_formulation;

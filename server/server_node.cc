@@ -9,22 +9,17 @@ ServerNode::ServerNode(const ServerOptions& options, Publish publish)
     : options_(options), publish_(std::move(publish)), server_(options.server) {}
 
 bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
+  // The logic counts its own refusals; the node counts what does not decode.
   if (channel == options_.channels.keyframes) {
-    const Decoded<Keyframe> keyframe = DecodeKeyframe(data, size);
-    if (!keyframe.ok()) {
-      server_.CountRejection(keyframe.reason, channel, keyframe.detail);
-    } else {
-      server_.OnKeyframe(*keyframe.value);
-    }
+    const Result<Keyframe> keyframe = DecodeKeyframe(data, size);
+    if (!keyframe.ok()) server_.CountRejection(keyframe.status(), channel);
+    if (keyframe.ok()) (void)server_.OnKeyframe(*keyframe);
     return true;
   }
   if (channel == options_.channels.encounters) {
-    const Decoded<Encounter> encounter = DecodeEncounter(data, size);
-    if (!encounter.ok()) {
-      server_.CountRejection(encounter.reason, channel, encounter.detail);
-    } else {
-      server_.OnEncounter(*encounter.value);
-    }
+    const Result<Encounter> encounter = DecodeEncounter(data, size);
+    if (!encounter.ok()) server_.CountRejection(encounter.status(), channel);
+    if (encounter.ok()) (void)server_.OnEncounter(*encounter);
     return true;
   }
   return false;

@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 
+#include "common/util/status.h"
 #include "server/mapping_server.h"
 
 namespace anchormap {
@@ -32,11 +33,13 @@ struct ServerOptions {
   MappingServerOptions server;
   ServerChannels channels;
 
-  std::optional<std::string> Validate() const {
-    if (log_input.empty() != log_output.empty()) return "--log and --output go together";
-    if (!log_input.empty() && log_input == log_output) return "--output must differ from --log";
-    if (!(status_period_s >= 0)) return "status_period_s must be >= 0";
-    if (queue_capacity < 30) return "queue_capacity must be >= 30";
+  Status Validate() const {
+    if (log_input.empty() != log_output.empty())
+      return Status::Error("--log and --output go together");
+    if (!log_input.empty() && log_input == log_output)
+      return Status::Error("--output must differ from --log");
+    if (!(status_period_s >= 0)) return Status::Error("status_period_s must be >= 0");
+    if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
     return server.Validate();
   }
 };

@@ -48,18 +48,19 @@ TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* cre
   return records_.back();
 }
 
-std::optional<ErrorCode> TrajectoryTable::Offer(const Keyframe& keyframe,
-                                                   std::vector<AdmittedKeyframe>* out) {
+Status TrajectoryTable::Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out) {
   bool created = false;
   TrajectoryRecord& record = RecordFor(keyframe, &created);
   const size_t record_index = static_cast<size_t>(record.solver_id);
   Pending& pending = pending_[record_index];
   if ((pending.started && keyframe.seq < pending.next_seq) || pending.held.count(keyframe.seq)) {
-    return ErrorCode::kDuplicateSequence;
+    return Status::Error(ErrorCode::kDuplicateSequence, keyframe.robot + " trajectory " +
+                                                            std::to_string(keyframe.trajectory_id) +
+                                                            " seq " + std::to_string(keyframe.seq));
   }
   pending.held.emplace(keyframe.seq, keyframe);
   Drain(record_index, &pending, /*force=*/false, out);
-  return std::nullopt;
+  return Status::Ok();
 }
 
 void TrajectoryTable::FlushHeld(std::vector<AdmittedKeyframe>* out) {
@@ -96,18 +97,17 @@ void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, const Ke
     admitted.previous = PoseKey{record->solver_id, index - 1};
     admitted.missing_steps = keyframe.seq - record->seqs.back() - 1;
     if (admitted.missing_steps == 0) {
-      admitted.measured_T_previous_this = keyframe.T_previous_pose;
-      admitted.covariance = keyframe.delta_covariance;
+      admitted.T_previous_this = keyframe.T_previous_this;
+      admitted.T_previous_this_covariance = keyframe.T_previous_this_covariance;
     } else {
       // The agent's odometry frame is continuous within a session, so the two poses
       // give the motion across the gap; its noise grows with the steps it spans.
       admitted.bridged_gap = true;
       ++num_bridged_gaps_;
-      admitted.measured_T_previous_this =
-          Between(record->odometry_poses.back(), keyframe.T_local_pose);
-      admitted.covariance = keyframe.delta_covariance *
-                            static_cast<double>(admitted.missing_steps + 1) *
-                            options_.gap_covariance_scale;
+      admitted.T_previous_this = Between(record->odometry_poses.back(), keyframe.T_local_pose);
+      admitted.T_previous_this_covariance = keyframe.T_previous_this_covariance *
+                                            static_cast<double>(admitted.missing_steps + 1) *
+                                            options_.gap_covariance_scale;
     }
   }
   record->seqs.push_back(keyframe.seq);

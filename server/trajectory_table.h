@@ -24,6 +24,7 @@
 #include "common/solver/keys.h"
 #include "common/types/keyframe.h"
 #include "common/util/reject_counter.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -34,11 +35,12 @@ struct TrajectoryTableOptions {
   // A bridged gap's covariance: the delta covariance times (missing steps + 1) times this.
   double gap_covariance_scale = 2.0;
 
-  std::optional<std::string> Validate() const {
-    if (max_held < 1) return "table.max_held must be >= 1";
-    if (!(max_hold_s >= 0)) return "table.max_hold_s must be >= 0";
-    if (!(gap_covariance_scale >= 1)) return "table.gap_covariance_scale must be >= 1";
-    return std::nullopt;
+  Status Validate() const {
+    if (max_held < 1) return Status::Error("table.max_held must be >= 1");
+    if (!(max_hold_s >= 0)) return Status::Error("table.max_hold_s must be >= 0");
+    if (!(gap_covariance_scale >= 1))
+      return Status::Error("table.gap_covariance_scale must be >= 1");
+    return Status::Ok();
   }
 };
 
@@ -66,8 +68,8 @@ struct AdmittedKeyframe {
   PoseKey key;
   Pose2 T_local_pose;
   std::optional<PoseKey> previous;
-  Pose2 measured_T_previous_this;
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  Pose2 T_previous_this;
+  Eigen::Matrix3d T_previous_this_covariance = Eigen::Matrix3d::Identity();
   bool bridged_gap = false;
   int missing_steps = 0;
   bool new_trajectory = false;
@@ -78,8 +80,8 @@ class TrajectoryTable {
   explicit TrajectoryTable(const TrajectoryTableOptions& options = {}) : options_(options) {}
 
   // Offers a keyframe; returns the keyframes (this one and/or waiting ones) that may now
-  // enter the graph, in order, already recorded here; or the reason for refusing it.
-  std::optional<ErrorCode> Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
+  // enter the graph, in order, already recorded here; or why it is refused.
+  Status Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
   // Admits every waiting keyframe, bridging gaps (end of input).
   void FlushHeld(std::vector<AdmittedKeyframe>* out);
 

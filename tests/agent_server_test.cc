@@ -179,16 +179,16 @@ class AgentServerTest : public ::testing::Test {
                                 [this](const std::string& c, const uint8_t* d, size_t n) {
                                   if (c == "ANCHORMAP_MERGED_MAP") {
                                     auto map = DecodeMergedMap(d, n);
-                                    ASSERT_TRUE(map.ok()) << map.detail;
-                                    outputs_.maps.push_back(*map.value);
+                                    ASSERT_TRUE(map.ok()) << map.status().message();
+                                    outputs_.maps.push_back(*map);
                                   } else if (c == "ANCHORMAP_ANCHOR_COVARIANCES") {
                                     auto cov = DecodeAnchorCovariances(d, n);
-                                    ASSERT_TRUE(cov.ok()) << cov.detail;
-                                    outputs_.covariances.push_back(*cov.value);
+                                    ASSERT_TRUE(cov.ok()) << cov.status().message();
+                                    outputs_.covariances.push_back(*cov);
                                   } else if (c == "ANCHORMAP_SERVER_STATUS") {
                                     auto status = DecodeServerStatus(d, n);
                                     ASSERT_TRUE(status.ok());
-                                    outputs_.statuses.push_back(*status.value);
+                                    outputs_.statuses.push_back(*status);
                                   } else {
                                     ++outputs_.tiles;
                                   }
@@ -313,7 +313,7 @@ TEST_F(AgentServerTest, BadMessagesAreCountedWhereTheyArriveAndChangeNothing) {
   bad.robot = "R1";
   bad.trajectory_id = 500;
   bad.seq = 99;
-  bad.delta_covariance = -Eigen::Matrix3d::Identity();
+  bad.T_previous_this_covariance = -Eigen::Matrix3d::Identity();
   ASSERT_TRUE(loop_->Publish("ANCHORMAP_KEYFRAMES", EncodeKeyframe(bad)).ok());
   loop_->HandlePending();
   Play(sim);
@@ -373,7 +373,7 @@ TEST_F(AgentServerTest, OfflineServerOnARecordedLogIsDeterministicAndAgrees) {
     if (event->channel != "ANCHORMAP_MERGED_MAP") continue;
     auto map = DecodeMergedMap(event->data.data(), event->data.size());
     ASSERT_TRUE(map.ok());
-    last = *map.value;
+    last = *map;
   }
   ASSERT_TRUE(last);
   const MergedMap& online = outputs_.maps.back();

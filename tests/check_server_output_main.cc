@@ -78,14 +78,14 @@ int Check(const Options& options) {
     if (EndsWith(event->channel, "_GROUND_TRUTH")) {
       const auto pose = DecodeOdometry(event->data.data(), event->data.size());
       if (pose.ok()) {
-        truth[event->channel.substr(0, event->channel.size() - 13)].samples.push_back(*pose.value);
+        truth[event->channel.substr(0, event->channel.size() - 13)].samples.push_back(*pose);
       }
     } else if (EndsWith(event->channel, "_ENCOUNTER")) {
       const auto e = DecodeEncounter(event->data.data(), event->data.size());
       if (!e.ok()) continue;
-      for (const std::string& robot : {e.value->observer, e.value->observed}) {
-        if (!first_encounter.count(robot) || e.value->utime < first_encounter[robot]) {
-          first_encounter[robot] = e.value->utime;
+      for (const std::string& robot : {e->observer, e->observed}) {
+        if (!first_encounter.count(robot) || e->utime < first_encounter[robot]) {
+          first_encounter[robot] = e->utime;
         }
       }
     }
@@ -104,10 +104,10 @@ int Check(const Options& options) {
   while (auto event = out.Next()) {
     if (event->channel == "ANCHORMAP_MERGED_MAP") {
       auto map = DecodeMergedMap(event->data.data(), event->data.size());
-      map.ok() ? maps.push_back(*map.value) : void(++undecodable);
+      map.ok() ? maps.push_back(*map) : void(++undecodable);
     } else if (event->channel == "ANCHORMAP_ANCHOR_COVARIANCES") {
       auto c = DecodeAnchorCovariances(event->data.data(), event->data.size());
-      c.ok() ? covariances.push_back(*c.value) : void(++undecodable);
+      c.ok() ? covariances.push_back(*c) : void(++undecodable);
     } else if (event->channel == "ANCHORMAP_GRID_TILES") {
       ++tiles;
     }

@@ -22,7 +22,6 @@ using codec_internal::CheckName;
 using codec_internal::CheckRanges;
 using codec_internal::CheckScanGeometry;
 using codec_internal::Encode;
-using codec_internal::FromProblem;
 using codec_internal::MatrixFromRowMajor;
 using codec_internal::MatrixToRowMajor;
 using codec_internal::PoseFromArray;
@@ -42,23 +41,21 @@ double QuaternionToYaw(const double q[4]) {
   return std::atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
 }
 
-Decoded<OdometrySample> DecodeOdometry(const void* data, size_t size) {
+Result<OdometrySample> DecodeOdometry(const void* data, size_t size) {
   bot_core::pose_t message;
-  if (auto p = SafeDecode(data, size, CheckPoseWire, &message))
-    return FromProblem<OdometrySample>(*p);
+  if (Status p = SafeDecode(data, size, CheckPoseWire, &message); !p.ok()) return p;
   if (!AllFinite(message.pos, 3) || !AllFinite(message.orientation, 4)) {
-    return Decoded<OdometrySample>::Fail(ErrorCode::kNotFinite, "position or orientation");
+    return Status::Error(ErrorCode::kNotFinite, "position or orientation");
   }
   const double norm = std::sqrt(message.orientation[0] * message.orientation[0] +
                                 message.orientation[1] * message.orientation[1] +
                                 message.orientation[2] * message.orientation[2] +
                                 message.orientation[3] * message.orientation[3]);
   if (std::abs(norm - 1.0) > 0.1) {
-    return Decoded<OdometrySample>::Fail(ErrorCode::kInvalidValue,
-                                         "orientation is not a unit quaternion");
+    return Status::Error(ErrorCode::kInvalidValue, "orientation is not a unit quaternion");
   }
   if (message.utime < 0) {
-    return Decoded<OdometrySample>::Fail(ErrorCode::kInvalidValue, "negative utime");
+    return Status::Error(ErrorCode::kInvalidValue, "negative utime");
   }
   OdometrySample sample;
   sample.utime = message.utime;
@@ -75,26 +72,20 @@ std::vector<uint8_t> EncodeOdometry(const OdometrySample& sample) {
   return Encode(message);
 }
 
-Decoded<LaserScan> DecodeLaser(const void* data, size_t size, float max_range_m,
-                               const Pose2& T_body_sensor) {
+Result<LaserScan> DecodeLaser(const void* data, size_t size) {
   bot_core::planar_lidar_t message;
-  if (auto p = SafeDecode(data, size, CheckPlanarLidarWire, &message))
-    return FromProblem<LaserScan>(*p);
-  if (message.nranges < 1)
-    return Decoded<LaserScan>::Fail(ErrorCode::kInvalidValue, "no ranges");
-  if (message.utime < 0)
-    return Decoded<LaserScan>::Fail(ErrorCode::kInvalidValue, "negative utime");
-  if (auto p = CheckScanGeometry(message.rad0, message.radstep, message.ranges.size())) {
-    return FromProblem<LaserScan>(*p);
+  if (Status p = SafeDecode(data, size, CheckPlanarLidarWire, &message); !p.ok()) return p;
+  if (message.nranges < 1) return Status::Error(ErrorCode::kInvalidValue, "no ranges");
+  if (message.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (Status p = CheckScanGeometry(message.rad0, message.radstep, message.ranges.size()); !p.ok()) {
+    return p;
   }
-  if (auto p = CheckRanges(message.ranges)) return FromProblem<LaserScan>(*p);
+  if (Status p = CheckRanges(message.ranges); !p.ok()) return p;
   LaserScan scan;
   scan.utime = message.utime;
   scan.rad0 = message.rad0;
   scan.radstep = message.radstep;
-  scan.max_range = max_range_m;
   scan.ranges = std::move(message.ranges);
-  scan.T_body_sensor = T_body_sensor;
   return Success(std::move(scan));
 }
 
@@ -109,25 +100,25 @@ std::vector<uint8_t> EncodeLaser(const LaserScan& scan) {
   return Encode(message);
 }
 
-Decoded<Keyframe> DecodeKeyframe(const void* data, size_t size) {
+Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   anchormap::keyframe_t m;
-  if (auto p = SafeDecode(data, size, CheckKeyframeWire, &m)) return FromProblem<Keyframe>(*p);
-  if (auto p = CheckName(m.robot, "robot")) return FromProblem<Keyframe>(*p);
-  if (m.seq < 0) return Decoded<Keyframe>::Fail(ErrorCode::kBadSequence, "negative seq");
-  if (m.utime < 0) return Decoded<Keyframe>::Fail(ErrorCode::kInvalidValue, "negative utime");
-  if (!AllFinite(m.pose, 3) || !AllFinite(m.delta, 3) || !AllFinite(m.delta_covariance, 9) ||
-      !AllFinite(m.sensor_offset, 3) || !std::isfinite(m.max_range)) {
-    return Decoded<Keyframe>::Fail(ErrorCode::kNotFinite, "pose, delta, covariance or offset");
+  if (Status p = SafeDecode(data, size, CheckKeyframeWire, &m); !p.ok()) return p;
+  if (Status p = CheckName(m.robot, "robot"); !p.ok()) return p;
+  if (m.seq < 0) return Status::Error(ErrorCode::kBadSequence, "negative seq");
+  if (m.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (!AllFinite(m.pose, 3) || !AllFinite(m.T_previous_this, 3) ||
+      !AllFinite(m.T_previous_this_covariance, 9) || !AllFinite(m.sensor_offset, 3) ||
+      !std::isfinite(m.max_range)) {
+    return Status::Error(ErrorCode::kNotFinite,
+                         "pose, T_previous_this, its covariance or sensor_offset");
   }
-  const Eigen::Matrix3d covariance = MatrixFromRowMajor(m.delta_covariance);
-  if (auto why = CheckSymmetricPositiveDefinite(covariance)) {
-    return Decoded<Keyframe>::Fail(ErrorCode::kCovarianceNotSpd, "delta_covariance: " + *why);
+  const Eigen::Matrix3d covariance = MatrixFromRowMajor(m.T_previous_this_covariance);
+  if (Status why = CheckSymmetricPositiveDefinite(covariance); !why.ok()) {
+    return Status::Error(why.code(), "T_previous_this_covariance: " + why.message());
   }
-  if (!(m.max_range > 0.0f))
-    return Decoded<Keyframe>::Fail(ErrorCode::kInvalidValue, "max_range <= 0");
-  if (auto p = CheckScanGeometry(m.rad0, m.radstep, m.ranges.size()))
-    return FromProblem<Keyframe>(*p);
-  if (auto p = CheckRanges(m.ranges)) return FromProblem<Keyframe>(*p);
+  if (!(m.max_range > 0.0f)) return Status::Error(ErrorCode::kInvalidValue, "max_range <= 0");
+  if (Status p = CheckScanGeometry(m.rad0, m.radstep, m.ranges.size()); !p.ok()) return p;
+  if (Status p = CheckRanges(m.ranges); !p.ok()) return p;
 
   Keyframe k;
   k.robot = m.robot;
@@ -135,8 +126,8 @@ Decoded<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   k.seq = m.seq;
   k.utime = m.utime;
   k.T_local_pose = PoseFromArray(m.pose);
-  k.T_previous_pose = PoseFromArray(m.delta);
-  k.delta_covariance = covariance;
+  k.T_previous_this = PoseFromArray(m.T_previous_this);
+  k.T_previous_this_covariance = covariance;
   k.scan.utime = m.utime;
   k.scan.rad0 = m.rad0;
   k.scan.radstep = m.radstep;
@@ -153,8 +144,8 @@ std::vector<uint8_t> EncodeKeyframe(const Keyframe& k) {
   m.trajectory_id = k.trajectory_id;
   m.seq = k.seq;
   PoseToArray(k.T_local_pose, m.pose);
-  PoseToArray(k.T_previous_pose, m.delta);
-  MatrixToRowMajor(k.delta_covariance, m.delta_covariance);
+  PoseToArray(k.T_previous_this, m.T_previous_this);
+  MatrixToRowMajor(k.T_previous_this_covariance, m.T_previous_this_covariance);
   PoseToArray(k.scan.T_body_sensor, m.sensor_offset);
   m.rad0 = k.scan.rad0;
   m.radstep = k.scan.radstep;
@@ -164,21 +155,21 @@ std::vector<uint8_t> EncodeKeyframe(const Keyframe& k) {
   return Encode(m);
 }
 
-Decoded<Encounter> DecodeEncounter(const void* data, size_t size) {
+Result<Encounter> DecodeEncounter(const void* data, size_t size) {
   anchormap::encounter_t m;
-  if (auto p = SafeDecode(data, size, CheckEncounterWire, &m)) return FromProblem<Encounter>(*p);
-  if (auto p = CheckName(m.observer, "observer")) return FromProblem<Encounter>(*p);
-  if (auto p = CheckName(m.observed, "observed")) return FromProblem<Encounter>(*p);
+  if (Status p = SafeDecode(data, size, CheckEncounterWire, &m); !p.ok()) return p;
+  if (Status p = CheckName(m.observer, "observer"); !p.ok()) return p;
+  if (Status p = CheckName(m.observed, "observed"); !p.ok()) return p;
   if (m.observer == m.observed) {
-    return Decoded<Encounter>::Fail(ErrorCode::kSelfEncounter, m.observer + " observed itself");
+    return Status::Error(ErrorCode::kSelfEncounter, m.observer + " observed itself");
   }
-  if (m.utime < 0) return Decoded<Encounter>::Fail(ErrorCode::kInvalidValue, "negative utime");
+  if (m.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
   if (!AllFinite(m.relative_pose, 3) || !AllFinite(m.covariance, 9)) {
-    return Decoded<Encounter>::Fail(ErrorCode::kNotFinite, "relative pose or covariance");
+    return Status::Error(ErrorCode::kNotFinite, "relative pose or covariance");
   }
   const Eigen::Matrix3d covariance = MatrixFromRowMajor(m.covariance);
-  if (auto why = CheckSymmetricPositiveDefinite(covariance)) {
-    return Decoded<Encounter>::Fail(ErrorCode::kCovarianceNotSpd, "covariance: " + *why);
+  if (Status why = CheckSymmetricPositiveDefinite(covariance); !why.ok()) {
+    return Status::Error(why.code(), "covariance: " + why.message());
   }
   Encounter e;
   e.utime = m.utime;

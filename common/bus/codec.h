@@ -3,7 +3,7 @@
 // values meet LCM-generated types. Decoding never throws and never trusts a length field:
 // sizes are checked against the buffer before anything is allocated, numbers must be
 // finite, covariances symmetric positive definite, names non-empty. Every failure is a
-// ErrorCode with a one-line detail, for the caller's RejectCounter.
+// Status (an ErrorCode and a one-line message) for the caller's RejectCounter.
 // This header includes no LCM header, so callers stay free of the bus.
 
 #include <cstddef>
@@ -17,24 +17,9 @@
 #include "common/types/keyframe.h"
 #include "common/types/laser_scan.h"
 #include "common/types/odometry.h"
-#include "common/util/reject_counter.h"
+#include "common/util/status.h"
 
 namespace anchormap {
-
-// A decoded value, or why there is none.
-template <typename T>
-struct Decoded {
-  std::optional<T> value;
-  ErrorCode reason = ErrorCode::kDecodeFailed;  // meaningful when !value
-  std::string detail;
-  bool ok() const { return value.has_value(); }
-  static Decoded Fail(ErrorCode why, std::string text) {
-    Decoded d;
-    d.reason = why;
-    d.detail = std::move(text);
-    return d;
-  }
-};
 
 // Sanity limits for decoded messages (a scan of more beams than this is "absurd").
 struct CodecLimits {
@@ -46,21 +31,21 @@ struct CodecLimits {
 };
 
 // bot_core.pose_t: position (x, y, -), orientation quaternion (w, x, y, z) of a yaw.
-Decoded<OdometrySample> DecodeOdometry(const void* data, size_t size);
+Result<OdometrySample> DecodeOdometry(const void* data, size_t size);
 std::vector<uint8_t> EncodeOdometry(const OdometrySample& sample);
 
-// bot_core.planar_lidar_t. The wire type carries no max range nor mounting pose: the
-// caller supplies them (agent flags). Non-finite ranges are refused.
-Decoded<LaserScan> DecodeLaser(const void* data, size_t size, float max_range_m,
-                               const Pose2& T_body_sensor);
+// bot_core.planar_lidar_t. The wire type carries no max range nor mounting pose: they
+// stay 0 and identity here, and the agent sets them from its flags (Agent::OnScan).
+// Non-finite ranges are refused.
+Result<LaserScan> DecodeLaser(const void* data, size_t size);
 std::vector<uint8_t> EncodeLaser(const LaserScan& scan);
 
 // anchormap.keyframe_t
-Decoded<Keyframe> DecodeKeyframe(const void* data, size_t size);
+Result<Keyframe> DecodeKeyframe(const void* data, size_t size);
 std::vector<uint8_t> EncodeKeyframe(const Keyframe& keyframe);
 
 // anchormap.encounter_t
-Decoded<Encounter> DecodeEncounter(const void* data, size_t size);
+Result<Encounter> DecodeEncounter(const void* data, size_t size);
 std::vector<uint8_t> EncodeEncounter(const Encounter& encounter);
 
 // Quaternion (w, x, y, z) of a rotation by `yaw` about z, and back (the yaw of any

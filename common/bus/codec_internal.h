@@ -3,7 +3,6 @@
 
 #include <cmath>
 #include <exception>
-#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -25,18 +24,18 @@ std::vector<uint8_t> Encode(const T& message) {
 // Runs the pre-flight size check, then lcm-gen's decode; exceptions (a string length
 // the check did not foresee) become decode failures.
 template <typename T, typename Check>
-std::optional<WireProblem> SafeDecode(const void* data, size_t size, Check check, T* message) {
-  if (auto problem = check(data, size)) return problem;
+Status SafeDecode(const void* data, size_t size, Check check, T* message) {
+  if (Status problem = check(data, size); !problem.ok()) return problem;
   try {
     const int used = message->decode(data, 0, static_cast<int>(size));
     if (used < 0 || static_cast<size_t>(used) != size) {
-      return WireProblem{ErrorCode::kDecodeFailed,
-                         "does not decode as " + std::string(T::getTypeName())};
+      return Status::Error(ErrorCode::kDecodeFailed,
+                           "does not decode as " + std::string(T::getTypeName()));
     }
   } catch (const std::exception& error) {
-    return WireProblem{ErrorCode::kDecodeFailed, error.what()};
+    return Status::Error(ErrorCode::kDecodeFailed, error.what());
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
 inline bool AllFinite(const double* values, int n) {
@@ -70,51 +69,45 @@ inline Pose2 PoseFromArray(const double values[3]) {
 }
 
 // Empty, overlong or non-printable names are refused.
-inline std::optional<WireProblem> CheckName(const std::string& name, const char* field) {
+inline Status CheckName(const std::string& name, const char* field) {
   if (name.empty())
-    return WireProblem{ErrorCode::kEmptyRobotName, std::string(field) + " is empty"};
+    return Status::Error(ErrorCode::kEmptyRobotName, std::string(field) + " is empty");
   for (char ch : name) {
     if (ch <= ' ' || ch > '~') {
-      return WireProblem{ErrorCode::kInvalidValue,
-                         std::string(field) + " has a non-printable character"};
+      return Status::Error(ErrorCode::kInvalidValue,
+                           std::string(field) + " has a non-printable character");
     }
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
-inline std::optional<WireProblem> CheckScanGeometry(float rad0, float radstep, size_t nranges) {
+inline Status CheckScanGeometry(float rad0, float radstep, size_t nranges) {
   if (!std::isfinite(rad0) || !std::isfinite(radstep)) {
-    return WireProblem{ErrorCode::kNotFinite, "rad0 or radstep is not finite"};
+    return Status::Error(ErrorCode::kNotFinite, "rad0 or radstep is not finite");
   }
   if (nranges > 1 && radstep == 0.0f) {
-    return WireProblem{ErrorCode::kInvalidValue, "radstep is 0"};
+    return Status::Error(ErrorCode::kInvalidValue, "radstep is 0");
   }
   if (std::abs(static_cast<double>(radstep)) * (static_cast<double>(nranges) - 1.0) >
       2.0 * kPi + 1e-3) {
-    return WireProblem{ErrorCode::kInvalidValue, "scan covers more than 360 degrees"};
+    return Status::Error(ErrorCode::kInvalidValue, "scan covers more than 360 degrees");
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
-inline std::optional<WireProblem> CheckRanges(const std::vector<float>& ranges) {
+inline Status CheckRanges(const std::vector<float>& ranges) {
   for (size_t i = 0; i < ranges.size(); ++i) {
     if (!std::isfinite(ranges[i])) {
-      return WireProblem{ErrorCode::kNotFinite, "range " + std::to_string(i) + " is not finite"};
+      return Status::Error(ErrorCode::kNotFinite, "range " + std::to_string(i) + " is not finite");
     }
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
+// A decoded value (named for the reader: every path ends in a Status or a Success).
 template <typename T>
-Decoded<T> FromProblem(const WireProblem& problem) {
-  return Decoded<T>::Fail(problem.reason, problem.detail);
-}
-
-template <typename T>
-Decoded<T> Success(T value) {
-  Decoded<T> d;
-  d.value = std::move(value);
-  return d;
+Result<T> Success(T value) {
+  return Result<T>(std::move(value));
 }
 
 }  // namespace anchormap::codec_internal

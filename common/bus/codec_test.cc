@@ -29,9 +29,9 @@ Keyframe MakeKeyframe() {
   k.seq = 7;
   k.utime = 5'000'000;
   k.T_local_pose = Pose2(1.5, -2.0, 0.3);
-  k.T_previous_pose = Pose2(0.5, 0.01, 0.02);
-  k.delta_covariance = Eigen::Vector3d(0.01, 0.02, 0.003).asDiagonal();
-  k.delta_covariance(0, 1) = k.delta_covariance(1, 0) = 0.001;
+  k.T_previous_this = Pose2(0.5, 0.01, 0.02);
+  k.T_previous_this_covariance = Eigen::Vector3d(0.01, 0.02, 0.003).asDiagonal();
+  k.T_previous_this_covariance(0, 1) = k.T_previous_this_covariance(1, 0) = 0.001;
   k.scan = MakeScan(181);
   k.scan.utime = k.utime;
   return k;
@@ -49,11 +49,11 @@ void PatchInt32(std::vector<uint8_t>* bytes, size_t offset, int32_t value) {
 TEST(CodecTest, OdometryRoundTripsYawThroughTheQuaternion) {
   const auto bytes = EncodeOdometry({123, Pose2(1.0, -2.0, 2.5)});
   const auto decoded = DecodeOdometry(bytes.data(), bytes.size());
-  ASSERT_TRUE(decoded.ok()) << decoded.detail;
-  EXPECT_EQ(decoded.value->utime, 123);
-  EXPECT_DOUBLE_EQ(decoded.value->T_odom_body.x(), 1.0);
-  EXPECT_DOUBLE_EQ(decoded.value->T_odom_body.y(), -2.0);
-  EXPECT_NEAR(decoded.value->T_odom_body.theta(), 2.5, 1e-12);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  EXPECT_EQ(decoded->utime, 123);
+  EXPECT_DOUBLE_EQ(decoded->T_odom_body.x(), 1.0);
+  EXPECT_DOUBLE_EQ(decoded->T_odom_body.y(), -2.0);
+  EXPECT_NEAR(decoded->T_odom_body.theta(), 2.5, 1e-12);
   double q[4];
   YawToQuaternion(-3.0, q);
   EXPECT_NEAR(QuaternionToYaw(q), -3.0, 1e-12);
@@ -62,83 +62,83 @@ TEST(CodecTest, OdometryRoundTripsYawThroughTheQuaternion) {
 
 TEST(CodecTest, OdometryRejectsNanBadQuaternionTruncationAndWrongType) {
   auto bytes = EncodeOdometry({1, Pose2(std::numeric_limits<double>::quiet_NaN(), 0, 0)});
-  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).reason, ErrorCode::kNotFinite);
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).status().code(), ErrorCode::kNotFinite);
 
   bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
   // orientation[0] (w) sits after hash 8 + utime 8 + pos 24 + vel 24: make it 0.
   for (size_t i = 64; i < 72; ++i) bytes[i] = 0;
   const auto zero_quaternion = DecodeOdometry(bytes.data(), bytes.size());
   EXPECT_FALSE(zero_quaternion.ok());
-  EXPECT_EQ(zero_quaternion.reason, ErrorCode::kInvalidValue);
+  EXPECT_EQ(zero_quaternion.status().code(), ErrorCode::kInvalidValue);
 
   bytes = EncodeOdometry({1, Pose2(0, 0, 0)});
-  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size() - 1).reason, ErrorCode::kDecodeFailed);
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size() - 1).status().code(),
+            ErrorCode::kDecodeFailed);
   const auto laser = EncodeLaser(MakeScan(10));
   const auto wrong = DecodeOdometry(laser.data(), laser.size());
-  EXPECT_EQ(wrong.reason, ErrorCode::kDecodeFailed);
-  EXPECT_NE(wrong.detail.find("fingerprint"), std::string::npos) << wrong.detail;
-  EXPECT_EQ(DecodeOdometry(nullptr, 0).reason, ErrorCode::kDecodeFailed);
+  EXPECT_EQ(wrong.status().code(), ErrorCode::kDecodeFailed);
+  EXPECT_NE(wrong.status().message().find("fingerprint"), std::string::npos)
+      << wrong.status().message();
+  EXPECT_EQ(DecodeOdometry(nullptr, 0).status().code(), ErrorCode::kDecodeFailed);
 }
 
-TEST(CodecTest, LaserRoundTripsWithCallerMaxRangeAndOffset) {
-  const LaserScan scan = MakeScan(361);
+TEST(CodecTest, LaserRoundTripsWithoutMaxRangeAndOffset) {
+  LaserScan scan = MakeScan(361);
+  scan.max_range = 25.0f;
+  scan.T_body_sensor = Pose2(0.1, 0.2, 0.3);
   const auto bytes = EncodeLaser(scan);
-  const auto decoded = DecodeLaser(bytes.data(), bytes.size(), 25.0f, Pose2(0.1, 0.2, 0.3));
-  ASSERT_TRUE(decoded.ok()) << decoded.detail;
-  EXPECT_EQ(decoded.value->ranges, scan.ranges);
-  EXPECT_EQ(decoded.value->utime, scan.utime);
-  EXPECT_FLOAT_EQ(decoded.value->radstep, scan.radstep);
-  EXPECT_FLOAT_EQ(decoded.value->max_range, 25.0f);
-  EXPECT_DOUBLE_EQ(decoded.value->T_body_sensor.y(), 0.2);
+  const auto decoded = DecodeLaser(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  EXPECT_EQ(decoded->ranges, scan.ranges);
+  EXPECT_EQ(decoded->utime, scan.utime);
+  EXPECT_FLOAT_EQ(decoded->radstep, scan.radstep);
+  // Not on the wire: the agent sets both from its flags.
+  EXPECT_EQ(decoded->max_range, 0.0f);
+  EXPECT_EQ(decoded->T_body_sensor.y(), 0.0);
 }
 
 TEST(CodecTest, LaserRejectsNanRangeZeroStepAndAbsurdCountWithoutAllocating) {
   LaserScan scan = MakeScan(50);
   scan.ranges[17] = std::numeric_limits<float>::quiet_NaN();
   auto bytes = EncodeLaser(scan);
-  auto decoded = DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2());
-  EXPECT_EQ(decoded.reason, ErrorCode::kNotFinite);
-  EXPECT_NE(decoded.detail.find("range 17"), std::string::npos);
+  auto decoded = DecodeLaser(bytes.data(), bytes.size());
+  EXPECT_EQ(decoded.status().code(), ErrorCode::kNotFinite);
+  EXPECT_NE(decoded.status().message().find("range 17"), std::string::npos);
 
   scan = MakeScan(50);
   scan.radstep = 0.0f;
   bytes = EncodeLaser(scan);
-  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            ErrorCode::kInvalidValue);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
 
   // nranges sits after hash 8 + utime 8. 2^31 - 1 ranges would be an 8 GB resize inside
   // lcm-gen's decoder; the pre-flight check refuses it first.
   bytes = EncodeLaser(MakeScan(3));
   PatchInt32(&bytes, 16, std::numeric_limits<int32_t>::max());
-  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            ErrorCode::kAbsurdSize);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kAbsurdSize);
   PatchInt32(&bytes, 16, -5);
-  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            ErrorCode::kAbsurdSize);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kAbsurdSize);
   PatchInt32(&bytes, 16, 5000);  // plausible count, but the bytes are not there
-  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            ErrorCode::kDecodeFailed);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
   scan = MakeScan(CodecLimits::kMaxRanges + 1);
   scan.radstep = 1e-4f;
   bytes = EncodeLaser(scan);
-  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).reason,
-            ErrorCode::kAbsurdSize);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kAbsurdSize);
 }
 
 TEST(CodecTest, KeyframeRoundTripsEveryField) {
   const Keyframe k = MakeKeyframe();
   const auto bytes = EncodeKeyframe(k);
   const auto decoded = DecodeKeyframe(bytes.data(), bytes.size());
-  ASSERT_TRUE(decoded.ok()) << decoded.detail;
-  const Keyframe& d = *decoded.value;
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  const Keyframe& d = *decoded;
   EXPECT_EQ(d.robot, "R2");
   EXPECT_EQ(d.trajectory_id, k.trajectory_id);
   EXPECT_EQ(d.seq, 7);
   EXPECT_EQ(d.utime, 5'000'000);
   EXPECT_DOUBLE_EQ(d.T_local_pose.y(), -2.0);
-  EXPECT_DOUBLE_EQ(d.T_previous_pose.theta(), 0.02);
-  EXPECT_DOUBLE_EQ(d.delta_covariance(1, 0), 0.001);
-  EXPECT_DOUBLE_EQ(d.delta_covariance(2, 2), 0.003);
+  EXPECT_DOUBLE_EQ(d.T_previous_this.theta(), 0.02);
+  EXPECT_DOUBLE_EQ(d.T_previous_this_covariance(1, 0), 0.001);
+  EXPECT_DOUBLE_EQ(d.T_previous_this_covariance(2, 2), 0.003);
   EXPECT_EQ(d.scan.ranges, k.scan.ranges);
   EXPECT_EQ(d.scan.utime, k.utime);
   EXPECT_FLOAT_EQ(d.scan.max_range, 30.0f);
@@ -149,43 +149,45 @@ TEST(CodecTest, KeyframeRejectsEachKindOfBadContent) {
   Keyframe k = MakeKeyframe();
   k.robot = "";
   auto bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kEmptyRobotName);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kEmptyRobotName);
 
   k = MakeKeyframe();
   k.seq = -1;
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kBadSequence);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kBadSequence);
 
   k = MakeKeyframe();
-  k.delta_covariance(2, 2) = -0.1;
+  k.T_previous_this_covariance(2, 2) = -0.1;
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(),
+            ErrorCode::kCovarianceNotSpd);
 
   k = MakeKeyframe();
-  k.delta_covariance(0, 2) = 0.5;  // not symmetric
+  k.T_previous_this_covariance(0, 2) = 0.5;  // not symmetric
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(),
+            ErrorCode::kCovarianceNotSpd);
 
   k = MakeKeyframe();
   k.T_local_pose = Pose2(std::numeric_limits<double>::infinity(), 0, 0);
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kNotFinite);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kNotFinite);
 
   k = MakeKeyframe();
   k.robot = std::string(200, 'R');
   bytes = EncodeKeyframe(k);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kAbsurdSize);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kAbsurdSize);
 
   // The robot string's length field (after hash 8 + utime 8) forged to 0 and to -3.
   bytes = EncodeKeyframe(MakeKeyframe());
   PatchInt32(&bytes, 16, 0);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
   PatchInt32(&bytes, 16, -3);
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
 
   bytes = EncodeKeyframe(MakeKeyframe());
   bytes.push_back(0);  // trailing garbage
-  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).reason, ErrorCode::kDecodeFailed);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
 }
 
 TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
@@ -198,27 +200,29 @@ TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
   e.covariance = Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal();
   auto bytes = EncodeEncounter(e);
   auto decoded = DecodeEncounter(bytes.data(), bytes.size());
-  ASSERT_TRUE(decoded.ok()) << decoded.detail;
-  EXPECT_EQ(decoded.value->observer, "R1");
-  EXPECT_EQ(decoded.value->observed, "R3");
-  EXPECT_EQ(decoded.value->observer_trajectory_id, 99);
-  EXPECT_DOUBLE_EQ(decoded.value->T_observer_observed.theta(), -0.4);
-  EXPECT_DOUBLE_EQ(decoded.value->covariance(2, 2), 0.01);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  EXPECT_EQ(decoded->observer, "R1");
+  EXPECT_EQ(decoded->observed, "R3");
+  EXPECT_EQ(decoded->observer_trajectory_id, 99);
+  EXPECT_DOUBLE_EQ(decoded->T_observer_observed.theta(), -0.4);
+  EXPECT_DOUBLE_EQ(decoded->covariance(2, 2), 0.01);
 
   Encounter self = e;
   self.observed = "R1";
   bytes = EncodeEncounter(self);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kSelfEncounter);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).status().code(), ErrorCode::kSelfEncounter);
 
   Encounter bad = e;
   bad.covariance.setZero();
   bytes = EncodeEncounter(bad);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kCovarianceNotSpd);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).status().code(),
+            ErrorCode::kCovarianceNotSpd);
 
   Encounter unnamed = e;
   unnamed.observed = "";
   bytes = EncodeEncounter(unnamed);
-  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).reason, ErrorCode::kEmptyRobotName);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).status().code(),
+            ErrorCode::kEmptyRobotName);
 }
 
 // Mutated and truncated messages of every input type: decoding must return (a value or a
@@ -237,7 +241,7 @@ TEST(CodecTest, RandomCorruptionNeverCrashes) {
     for (int f = 0; f < flips; ++f) bytes[position(rng)] = static_cast<uint8_t>(rng());
     if (trial % 5 == 0) bytes.resize(position(rng));
     const bool ok = DecodeKeyframe(bytes.data(), bytes.size()).ok() |
-                    DecodeLaser(bytes.data(), bytes.size(), 30.0f, Pose2()).ok() |
+                    DecodeLaser(bytes.data(), bytes.size()).ok() |
                     DecodeOdometry(bytes.data(), bytes.size()).ok() |
                     DecodeEncounter(bytes.data(), bytes.size()).ok();
     if (!ok) ++rejected;

@@ -9,7 +9,6 @@
 namespace anchormap {
 
 using codec_internal::Encode;
-using codec_internal::FromProblem;
 using codec_internal::MatrixFromRowMajor;
 using codec_internal::MatrixToRowMajor;
 using codec_internal::PoseFromArray;
@@ -49,9 +48,9 @@ std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
   return Encode(m);
 }
 
-Decoded<MergedMap> DecodeMergedMap(const void* data, size_t size) {
+Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
   anchormap::merged_map_t m;
-  if (auto p = SafeDecode(data, size, CheckMergedMapWire, &m)) return FromProblem<MergedMap>(*p);
+  if (Status p = SafeDecode(data, size, CheckMergedMapWire, &m); !p.ok()) return p;
   MergedMap map;
   map.utime = m.utime;
   map.update = m.update;
@@ -87,10 +86,10 @@ std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors) {
   return Encode(m);
 }
 
-Decoded<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size) {
+Result<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size) {
   anchormap::anchor_covariances_t m;
-  if (auto p = SafeDecode(data, size, CheckAnchorCovariancesWire, &m)) {
-    return FromProblem<AnchorCovariances>(*p);
+  if (Status p = SafeDecode(data, size, CheckAnchorCovariancesWire, &m); !p.ok()) {
+    return p;
   }
   AnchorCovariances anchors;
   anchors.utime = m.utime;
@@ -123,9 +122,9 @@ std::vector<uint8_t> EncodeGridTile(const GridTile& tile) {
   return Encode(m);
 }
 
-Decoded<GridTile> DecodeGridTile(const void* data, size_t size) {
+Result<GridTile> DecodeGridTile(const void* data, size_t size) {
   anchormap::grid_tile_t m;
-  if (auto p = SafeDecode(data, size, CheckGridTileWire, &m)) return FromProblem<GridTile>(*p);
+  if (Status p = SafeDecode(data, size, CheckGridTileWire, &m); !p.ok()) return p;
   GridTile tile;
   tile.utime = m.utime;
   tile.update = m.update;
@@ -156,10 +155,9 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   return Encode(m);
 }
 
-Decoded<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
+Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   anchormap::server_status_t m;
-  if (auto p = SafeDecode(data, size, CheckServerStatusWire, &m))
-    return FromProblem<ServerStatus>(*p);
+  if (Status p = SafeDecode(data, size, CheckServerStatusWire, &m); !p.ok()) return p;
   ServerStatus s;
   s.utime = m.utime;
   s.update = m.update;

@@ -13,12 +13,12 @@
 namespace anchormap {
 
 std::vector<uint8_t> EncodeMergedMap(const MergedMap& map);
-Decoded<MergedMap> DecodeMergedMap(const void* data, size_t size);
+Result<MergedMap> DecodeMergedMap(const void* data, size_t size);
 std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors);
-Decoded<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size);
+Result<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size);
 std::vector<uint8_t> EncodeGridTile(const GridTile& tile);
-Decoded<GridTile> DecodeGridTile(const void* data, size_t size);
+Result<GridTile> DecodeGridTile(const void* data, size_t size);
 std::vector<uint8_t> EncodeServerStatus(const ServerStatus& status);
-Decoded<ServerStatus> DecodeServerStatus(const void* data, size_t size);
+Result<ServerStatus> DecodeServerStatus(const void* data, size_t size);
 
 }  // namespace anchormap

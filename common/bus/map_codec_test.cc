@@ -21,8 +21,8 @@ TEST(MapCodecTest, MergedMapRoundTrips) {
   map.encounters.push_back({77, 1, 78, 0});
   const auto bytes = EncodeMergedMap(map);
   const auto decoded = DecodeMergedMap(bytes.data(), bytes.size());
-  ASSERT_TRUE(decoded.ok()) << decoded.detail;
-  const MergedMap& d = *decoded.value;
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  const MergedMap& d = *decoded;
   EXPECT_EQ(d.update, 3);
   ASSERT_EQ(d.trajectories.size(), 2u);
   EXPECT_TRUE(d.trajectories[0].anchored);
@@ -43,10 +43,10 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   anchors.anchors.push_back({"R3", 5, Pose2(3, 4, 1), cov});
   auto bytes = EncodeAnchorCovariances(anchors);
   const auto a = DecodeAnchorCovariances(bytes.data(), bytes.size());
-  ASSERT_TRUE(a.ok()) << a.detail;
-  ASSERT_EQ(a.value->anchors.size(), 1u);
-  EXPECT_EQ(a.value->anchors[0].robot, "R3");
-  EXPECT_DOUBLE_EQ(a.value->anchors[0].covariance(1, 2), 0.02);
+  ASSERT_TRUE(a.ok()) << a.status().message();
+  ASSERT_EQ(a->anchors.size(), 1u);
+  EXPECT_EQ(a->anchors[0].robot, "R3");
+  EXPECT_DOUBLE_EQ(a->anchors[0].covariance(1, 2), 0.02);
 
   GridTile tile;
   tile.resolution_m = 0.1;
@@ -57,10 +57,10 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   tile.cells = {-1, 0, 100, 50, 1, 2, 3, 4};
   bytes = EncodeGridTile(tile);
   const auto g = DecodeGridTile(bytes.data(), bytes.size());
-  ASSERT_TRUE(g.ok()) << g.detail;
-  EXPECT_EQ(g.value->cells, tile.cells);
-  EXPECT_EQ(g.value->tile_x, -2);
-  EXPECT_DOUBLE_EQ(g.value->resolution_m, 0.1);
+  ASSERT_TRUE(g.ok()) << g.status().message();
+  EXPECT_EQ(g->cells, tile.cells);
+  EXPECT_EQ(g->tile_x, -2);
+  EXPECT_DOUBLE_EQ(g->resolution_m, 0.1);
 
   ServerStatus status;
   status.num_robots = 3;
@@ -68,11 +68,11 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   status.rejections = {{"not_finite", 2}, {"duplicate_sequence", 1}};
   bytes = EncodeServerStatus(status);
   const auto s = DecodeServerStatus(bytes.data(), bytes.size());
-  ASSERT_TRUE(s.ok()) << s.detail;
-  EXPECT_EQ(s.value->keyframes, 400);
-  ASSERT_EQ(s.value->rejections.size(), 2u);
-  EXPECT_EQ(s.value->rejections[1].first, "duplicate_sequence");
-  EXPECT_EQ(s.value->rejections[1].second, 1);
+  ASSERT_TRUE(s.ok()) << s.status().message();
+  EXPECT_EQ(s->keyframes, 400);
+  ASSERT_EQ(s->rejections.size(), 2u);
+  EXPECT_EQ(s->rejections[1].first, "duplicate_sequence");
+  EXPECT_EQ(s->rejections[1].second, 1);
 }
 
 TEST(MapCodecTest, ForgedCountsAreRefused) {
@@ -83,7 +83,7 @@ TEST(MapCodecTest, ForgedCountsAreRefused) {
   bytes[24] = 0x7f;
   const auto d = DecodeMergedMap(bytes.data(), bytes.size());
   EXPECT_FALSE(d.ok());
-  EXPECT_EQ(d.reason, ErrorCode::kAbsurdSize);
+  EXPECT_EQ(d.status().code(), ErrorCode::kAbsurdSize);
 }
 
 }  // namespace

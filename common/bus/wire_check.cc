@@ -13,26 +13,26 @@
 namespace anchormap {
 namespace {
 
-WireProblem Truncated(const char* where) {
-  return {ErrorCode::kDecodeFailed, std::string("truncated message at ") + where};
+Status Truncated(const char* where) {
+  return Status::Error(ErrorCode::kDecodeFailed, std::string("truncated message at ") + where);
 }
 
 // The 8-byte fingerprint at the start of every message must be T's.
 template <typename T>
-std::optional<WireProblem> CheckHash(WireCursor* cursor) {
+Status CheckHash(WireCursor* cursor) {
   uint64_t hash = 0;
   if (!cursor->ReadUint64(&hash)) return Truncated("fingerprint");
   if (hash != static_cast<uint64_t>(T::getHash())) {
-    return WireProblem{ErrorCode::kDecodeFailed,
-                       std::string("fingerprint is not ") + T::getTypeName()};
+    return Status::Error(ErrorCode::kDecodeFailed,
+                         std::string("fingerprint is not ") + T::getTypeName());
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
 #define WIRE_SKIP(cursor, n, where) \
   if (!(cursor).Skip(n)) return Truncated(where)
 #define WIRE_TRY(expr) \
-  if (auto problem = (expr)) return problem
+  if (Status problem = (expr); !problem.ok()) return problem
 
 }  // namespace
 
@@ -60,35 +60,35 @@ bool WireCursor::ReadUint64(uint64_t* value) {
   return true;
 }
 
-std::optional<WireProblem> WireCursor::SkipString(const char* field, size_t max_length) {
+Status WireCursor::SkipString(const char* field, size_t max_length) {
   int32_t length_with_nul = 0;
   if (!ReadInt32(&length_with_nul)) return Truncated(field);
   if (length_with_nul < 1) {
-    return WireProblem{ErrorCode::kDecodeFailed,
-                       std::string(field) + " has an invalid string length"};
+    return Status::Error(ErrorCode::kDecodeFailed,
+                         std::string(field) + " has an invalid string length");
   }
   if (static_cast<size_t>(length_with_nul) - 1 > max_length) {
-    return WireProblem{ErrorCode::kAbsurdSize,
-                       std::string(field) + " is " + std::to_string(length_with_nul - 1) +
-                           " bytes long (limit " + std::to_string(max_length) + ")"};
+    return Status::Error(ErrorCode::kAbsurdSize,
+                         std::string(field) + " is " + std::to_string(length_with_nul - 1) +
+                             " bytes long (limit " + std::to_string(max_length) + ")");
   }
   if (!Skip(static_cast<size_t>(length_with_nul))) return Truncated(field);
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> WireCursor::ReadCount(const char* field, int32_t max_count,
-                                                 size_t min_element_bytes, int32_t* count) {
+Status WireCursor::ReadCount(const char* field, int32_t max_count, size_t min_element_bytes,
+                             int32_t* count) {
   if (!ReadInt32(count)) return Truncated(field);
   if (*count < 0 || *count > max_count) {
-    return WireProblem{ErrorCode::kAbsurdSize, std::string(field) + " = " +
-                                                      std::to_string(*count) + " (limit " +
-                                                      std::to_string(max_count) + ")"};
+    return Status::Error(ErrorCode::kAbsurdSize, std::string(field) + " = " +
+                                                     std::to_string(*count) + " (limit " +
+                                                     std::to_string(max_count) + ")");
   }
   if (static_cast<size_t>(*count) * min_element_bytes > remaining()) return Truncated(field);
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckPlanarLidarWire(const void* data, size_t size) {
+Status CheckPlanarLidarWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<bot_core::planar_lidar_t>(&c));
   WIRE_SKIP(c, 8, "utime");
@@ -98,17 +98,17 @@ std::optional<WireProblem> CheckPlanarLidarWire(const void* data, size_t size) {
   WIRE_TRY(c.ReadCount("nintensities", CodecLimits::kMaxRanges, 4, &n));
   WIRE_SKIP(c, 4 * static_cast<size_t>(n), "intensities");
   WIRE_SKIP(c, 8, "rad0/radstep");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckPoseWire(const void* data, size_t size) {
+Status CheckPoseWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<bot_core::pose_t>(&c));
   WIRE_SKIP(c, 8 + 8 * (3 + 3 + 4 + 3 + 3), "pose fields");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckKeyframeWire(const void* data, size_t size) {
+Status CheckKeyframeWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::keyframe_t>(&c));
   WIRE_SKIP(c, 8, "utime");
@@ -117,10 +117,10 @@ std::optional<WireProblem> CheckKeyframeWire(const void* data, size_t size) {
   int32_t n = 0;
   WIRE_TRY(c.ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
   WIRE_SKIP(c, 4 * static_cast<size_t>(n), "ranges");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckEncounterWire(const void* data, size_t size) {
+Status CheckEncounterWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::encounter_t>(&c));
   WIRE_SKIP(c, 8, "utime");
@@ -128,10 +128,10 @@ std::optional<WireProblem> CheckEncounterWire(const void* data, size_t size) {
   WIRE_SKIP(c, 8, "observer_trajectory_id");
   WIRE_TRY(c.SkipString("observed", CodecLimits::kMaxNameLength));
   WIRE_SKIP(c, 8 * (3 + 9), "relative_pose/covariance");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckMergedMapWire(const void* data, size_t size) {
+Status CheckMergedMapWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::merged_map_t>(&c));
   WIRE_SKIP(c, 16, "utime/update");
@@ -148,10 +148,10 @@ std::optional<WireProblem> CheckMergedMapWire(const void* data, size_t size) {
   int32_t encounters = 0;
   WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 24, &encounters));
   WIRE_SKIP(c, 24 * static_cast<size_t>(encounters), "encounters");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckAnchorCovariancesWire(const void* data, size_t size) {
+Status CheckAnchorCovariancesWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::anchor_covariances_t>(&c));
   WIRE_SKIP(c, 16, "utime/update");
@@ -161,10 +161,10 @@ std::optional<WireProblem> CheckAnchorCovariancesWire(const void* data, size_t s
     WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
     WIRE_SKIP(c, 8 + 24 + 72, "anchor fields");
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckGridTileWire(const void* data, size_t size) {
+Status CheckGridTileWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::grid_tile_t>(&c));
   WIRE_SKIP(c, 8 + 8 + 8 + 4 + 4, "tile header");
@@ -173,10 +173,10 @@ std::optional<WireProblem> CheckGridTileWire(const void* data, size_t size) {
   WIRE_TRY(c.ReadCount("height", 4096, 0, &height));
   const size_t cells = static_cast<size_t>(width) * static_cast<size_t>(height);
   WIRE_SKIP(c, cells, "cells");
-  return std::nullopt;
+  return Status::Ok();
 }
 
-std::optional<WireProblem> CheckServerStatusWire(const void* data, size_t size) {
+Status CheckServerStatusWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::server_status_t>(&c));
   WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8, "status fields");
@@ -184,7 +184,7 @@ std::optional<WireProblem> CheckServerStatusWire(const void* data, size_t size) 
   WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));
   for (int32_t r = 0; r < reasons; ++r) WIRE_TRY(c.SkipString("reason", 256));
   WIRE_SKIP(c, 8 * static_cast<size_t>(reasons), "rejection_counts");
-  return std::nullopt;
+  return Status::Ok();
 }
 
 }  // namespace anchormap

@@ -10,17 +10,11 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <optional>
 #include <string>
 
-#include "common/util/reject_counter.h"
+#include "common/util/status.h"
 
 namespace anchormap {
-
-struct WireProblem {
-  ErrorCode reason = ErrorCode::kDecodeFailed;
-  std::string detail;
-};
 
 // Reads big-endian LCM primitives from a byte buffer without ever reading past its end.
 class WireCursor {
@@ -33,11 +27,10 @@ class WireCursor {
   bool ReadInt32(int32_t* value);
   bool ReadUint64(uint64_t* value);
   // An LCM string: int32 length including the terminating NUL, then the bytes.
-  std::optional<WireProblem> SkipString(const char* field, size_t max_length);
+  Status SkipString(const char* field, size_t max_length);
   // An int32 element count, checked against [0, max_count] and against the bytes left
   // for `count * min_element_bytes`.
-  std::optional<WireProblem> ReadCount(const char* field, int32_t max_count,
-                                       size_t min_element_bytes, int32_t* count);
+  Status ReadCount(const char* field, int32_t max_count, size_t min_element_bytes, int32_t* count);
 
  private:
   const uint8_t* bytes_;
@@ -45,14 +38,14 @@ class WireCursor {
   size_t position_ = 0;
 };
 
-// One walker per wire type; each returns nullopt when the sizes are consistent.
-std::optional<WireProblem> CheckPlanarLidarWire(const void* data, size_t size);
-std::optional<WireProblem> CheckPoseWire(const void* data, size_t size);
-std::optional<WireProblem> CheckKeyframeWire(const void* data, size_t size);
-std::optional<WireProblem> CheckEncounterWire(const void* data, size_t size);
-std::optional<WireProblem> CheckMergedMapWire(const void* data, size_t size);
-std::optional<WireProblem> CheckAnchorCovariancesWire(const void* data, size_t size);
-std::optional<WireProblem> CheckGridTileWire(const void* data, size_t size);
-std::optional<WireProblem> CheckServerStatusWire(const void* data, size_t size);
+// One walker per wire type; each is ok when the sizes are consistent.
+Status CheckPlanarLidarWire(const void* data, size_t size);
+Status CheckPoseWire(const void* data, size_t size);
+Status CheckKeyframeWire(const void* data, size_t size);
+Status CheckEncounterWire(const void* data, size_t size);
+Status CheckMergedMapWire(const void* data, size_t size);
+Status CheckAnchorCovariancesWire(const void* data, size_t size);
+Status CheckGridTileWire(const void* data, size_t size);
+Status CheckServerStatusWire(const void* data, size_t size);
 
 }  // namespace anchormap

@@ -7,22 +7,26 @@
 
 namespace anchormap {
 
-std::optional<std::string> CheckSymmetricPositiveDefinite(const Eigen::Matrix3d& m) {
-  if (!m.allFinite()) return "matrix has a NaN or infinite entry";
+Status CheckSymmetricPositiveDefinite(const Eigen::Matrix3d& m) {
+  if (!m.allFinite()) {
+    return Status::Error(ErrorCode::kNotFinite, "matrix has a NaN or infinite entry");
+  }
   const double scale = m.cwiseAbs().maxCoeff();
   if ((m - m.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(scale, 1e-300)) {
-    return "matrix is not symmetric";
+    return Status::Error(ErrorCode::kCovarianceNotSpd, "matrix is not symmetric");
   }
   Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (m + m.transpose()));
-  if (llt.info() != Eigen::Success) return "matrix is not positive definite";
+  if (llt.info() != Eigen::Success) {
+    return Status::Error(ErrorCode::kCovarianceNotSpd, "matrix is not positive definite");
+  }
   const Eigen::Vector3d diagonal = llt.matrixL().toDenseMatrix().diagonal();
   if (diagonal.minCoeff() <= 1e-12 * std::sqrt(scale)) {
     std::ostringstream out;
     out << "matrix is singular to working precision (Cholesky diagonal " << diagonal.transpose()
         << ")";
-    return out.str();
+    return Status::Error(ErrorCode::kCovarianceNotSpd, out.str());
   }
-  return std::nullopt;
+  return Status::Ok();
 }
 
 Eigen::Matrix3d SqrtInformationFromInformation(const Eigen::Matrix3d& information) {

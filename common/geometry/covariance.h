@@ -1,16 +1,15 @@
 #pragma once
 // 3x3 covariance and information matrices: validation and conversions.
 
-#include <optional>
-#include <string>
-
 #include <Eigen/Dense>
+
+#include "common/util/status.h"
 
 namespace anchormap {
 
-// Returns an explanation when `m` is not a finite, symmetric (to a relative 1e-9) and
-// positive-definite 3x3 matrix; std::nullopt when it is fine.
-std::optional<std::string> CheckSymmetricPositiveDefinite(const Eigen::Matrix3d& m);
+// Ok when `m` is a finite, symmetric (to a relative 1e-9) and positive-definite 3x3
+// matrix; otherwise kNotFinite or kCovarianceNotSpd with the explanation.
+Status CheckSymmetricPositiveDefinite(const Eigen::Matrix3d& m);
 
 // The upper-triangular square root S of information = S^T S, so that the squared
 // Mahalanobis norm e^T information e equals |S e|^2 (the "whitening" of ALGORITHM.md 2).

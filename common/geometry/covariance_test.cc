@@ -10,20 +10,24 @@ namespace {
 TEST(CovarianceTest, AcceptsSymmetricPositiveDefinite) {
   Eigen::Matrix3d m;
   m << 4, 1, 0, 1, 3, 0.5, 0, 0.5, 2;
-  EXPECT_FALSE(CheckSymmetricPositiveDefinite(m).has_value());
+  EXPECT_TRUE(CheckSymmetricPositiveDefinite(m).ok());
 }
 
 TEST(CovarianceTest, RejectsBadMatrices) {
   Eigen::Matrix3d asymmetric;
   asymmetric << 1, 0.5, 0, 0, 1, 0, 0, 0, 1;
-  EXPECT_EQ(*CheckSymmetricPositiveDefinite(asymmetric), "matrix is not symmetric");
+  EXPECT_EQ(CheckSymmetricPositiveDefinite(asymmetric).message(), "matrix is not symmetric");
   Eigen::Matrix3d indefinite = Eigen::Matrix3d::Identity();
   indefinite(2, 2) = -1;
-  EXPECT_EQ(*CheckSymmetricPositiveDefinite(indefinite), "matrix is not positive definite");
+  EXPECT_EQ(CheckSymmetricPositiveDefinite(indefinite).message(),
+            "matrix is not positive definite");
   Eigen::Matrix3d with_nan = Eigen::Matrix3d::Identity();
   with_nan(1, 1) = std::nan("");
-  EXPECT_EQ(*CheckSymmetricPositiveDefinite(with_nan), "matrix has a NaN or infinite entry");
-  EXPECT_TRUE(CheckSymmetricPositiveDefinite(Eigen::Matrix3d::Zero()).has_value());
+  EXPECT_EQ(CheckSymmetricPositiveDefinite(with_nan).message(),
+            "matrix has a NaN or infinite entry");
+  EXPECT_EQ(CheckSymmetricPositiveDefinite(Eigen::Matrix3d::Zero()).code(),
+            ErrorCode::kCovarianceNotSpd);
+  EXPECT_EQ(CheckSymmetricPositiveDefinite(with_nan).code(), ErrorCode::kNotFinite);
 }
 
 TEST(CovarianceTest, SqrtInformationWhitens) {

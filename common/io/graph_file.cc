@@ -97,8 +97,8 @@ Status ParsePoseGraph(const std::string& text, const std::string& name, PoseGrap
         const double upper[6] = {v[3], v[4], v[7], v[5], v[8], v[6]};
         edge.information = InformationFromUpperTriangle(upper);
       }
-      if (auto problem = CheckSymmetricPositiveDefinite(edge.information)) {
-        return LineError(name, number, tag + ": information " + *problem);
+      if (Status problem = CheckSymmetricPositiveDefinite(edge.information); !problem.ok()) {
+        return LineError(name, number, tag + ": information " + problem.message());
       }
       graph->edges.push_back(edge);
     } else {

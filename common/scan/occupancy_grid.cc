@@ -21,16 +21,18 @@ int8_t OccupancyFromLogOdds(double log_odds) {
 
 }  // namespace
 
-std::optional<std::string> OccupancyGridOptions::Validate() const {
-  if (!(resolution_m > 0)) return "grid resolution_m must be > 0";
-  if (tile_size_cells < 8 || tile_size_cells > 4096) return "grid tile_size_cells must be 8..4096";
-  if (!(log_odds_hit > 0)) return "grid log_odds_hit must be > 0";
-  if (!(log_odds_miss < 0)) return "grid log_odds_miss must be < 0";
-  if (!(log_odds_min < 0) || !(log_odds_max > 0)) return "grid log_odds_min < 0 < log_odds_max";
-  if (!(max_ray_length_m > 0)) return "grid max_ray_length_m must be > 0";
+Status OccupancyGridOptions::Validate() const {
+  if (!(resolution_m > 0)) return Status::Error("grid resolution_m must be > 0");
+  if (tile_size_cells < 8 || tile_size_cells > 4096)
+    return Status::Error("grid tile_size_cells must be 8..4096");
+  if (!(log_odds_hit > 0)) return Status::Error("grid log_odds_hit must be > 0");
+  if (!(log_odds_miss < 0)) return Status::Error("grid log_odds_miss must be < 0");
+  if (!(log_odds_min < 0) || !(log_odds_max > 0))
+    return Status::Error("grid log_odds_min < 0 < log_odds_max");
+  if (!(max_ray_length_m > 0)) return Status::Error("grid max_ray_length_m must be > 0");
   if (max_ray_length_m / resolution_m > 1e6)
-    return "grid max_ray_length_m / resolution_m too large";
-  return std::nullopt;
+    return Status::Error("grid max_ray_length_m / resolution_m too large");
+  return Status::Ok();
 }
 
 OccupancyGrid::OccupancyGrid(const OccupancyGridOptions& options) : options_(options) {}

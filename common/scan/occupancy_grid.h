@@ -19,6 +19,7 @@
 #include "common/geometry/pose2.h"
 #include "common/types/laser_scan.h"
 #include "common/types/map_outputs.h"
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -39,7 +40,7 @@ struct OccupancyGridOptions {
   // information about where the free space ends, and glass or black surfaces give none).
   bool no_return_as_free = false;
 
-  std::optional<std::string> Validate() const;
+  Status Validate() const;
 };
 
 class OccupancyGrid {

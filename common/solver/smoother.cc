@@ -177,8 +177,8 @@ void Smoother::Impl::SetValue(int var, const Pose2& value) {
 
 Status Smoother::Impl::CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const {
   if (!z.IsFinite()) return Status::Error("measurement is not finite");
-  if (auto problem = CheckSymmetricPositiveDefinite(covariance)) {
-    return Status::Error("covariance rejected: " + *problem);
+  if (Status problem = CheckSymmetricPositiveDefinite(covariance); !problem.ok()) {
+    return Status::Error("covariance rejected: " + problem.message());
   }
   return Status::Ok();
 }

@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include "common/util/status.h"
 
 namespace anchormap {
 
@@ -69,18 +70,19 @@ struct SmootherOptions {
   double gauge_prior_sigma = 1e-3;
 
   // Returns a readable error for an inconsistent setting.
-  std::optional<std::string> Validate() const {
-    if (batch_every_updates < 0) return "batch_every_updates must be >= 0";
+  Status Validate() const {
+    if (batch_every_updates < 0) return Status::Error("batch_every_updates must be >= 0");
     if (batch_when_fill_grows != 0 && batch_when_fill_grows <= 1.0) {
-      return "batch_when_fill_grows must be 0 (off) or > 1";
+      return Status::Error("batch_when_fill_grows must be 0 (off) or > 1");
     }
-    if (!(relinearize_threshold >= 0)) return "relinearize_threshold must be >= 0";
-    if (backsubstitution_threshold < 0) return "backsubstitution_threshold must be >= 0";
-    if (!(convergence_step > 0)) return "convergence_step must be > 0";
-    if (max_batch_iterations < 1) return "max_batch_iterations must be >= 1";
-    if (!(dogleg_initial_radius > 0)) return "dogleg_initial_radius must be > 0";
-    if (!(gauge_prior_sigma > 0)) return "gauge_prior_sigma must be > 0";
-    return std::nullopt;
+    if (!(relinearize_threshold >= 0)) return Status::Error("relinearize_threshold must be >= 0");
+    if (backsubstitution_threshold < 0)
+      return Status::Error("backsubstitution_threshold must be >= 0");
+    if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");
+    if (max_batch_iterations < 1) return Status::Error("max_batch_iterations must be >= 1");
+    if (!(dogleg_initial_radius > 0)) return Status::Error("dogleg_initial_radius must be > 0");
+    if (!(gauge_prior_sigma > 0)) return Status::Error("gauge_prior_sigma must be > 0");
+    return Status::Ok();
   }
 };
 

@@ -21,8 +21,8 @@ struct Keyframe {
   Pose2 T_local_pose;
   // This keyframe in the frame of keyframe seq-1 (identity for seq 0), and its covariance
   // (x, y, theta; identity for seq 0).
-  Pose2 T_previous_pose;
-  Eigen::Matrix3d delta_covariance = Eigen::Matrix3d::Identity();
+  Pose2 T_previous_this;
+  Eigen::Matrix3d T_previous_this_covariance = Eigen::Matrix3d::Identity();
   // The scan taken at `utime`; scan.T_body_sensor is the laser's mounting pose.
   LaserScan scan;
 };

@@ -111,7 +111,7 @@ Flags ParseFlags(int argc, char** argv) {
     }
   }
   if (flags.graph.empty()) Fail("no graph file given");
-  if (auto error = flags.smoother.Validate()) Fail(*error);
+  if (Status valid = flags.smoother.Validate(); !valid.ok()) Fail(valid.message());
   return flags;
 }
 

@@ -82,7 +82,7 @@ int Run(const ReplayOptions& options) {
     agent_options.max_range_m = options.max_range_m;
     agent_options.keyframer.max_distance_m = options.keyframe_distance_m;
     agent_options.keyframer.max_angle_rad = options.keyframe_angle_rad;
-    if (auto problem = agent_options.Validate()) return LogError(*problem), 2;
+    if (Status valid = agent_options.Validate(); !valid.ok()) return LogError(valid.message()), 2;
     agents.push_back(std::make_unique<AgentNode>(agent_options, publish));
     AgentNode* agent = agents.back().get();
     for (const std::string& channel : agent->InputChannels()) {
@@ -149,12 +149,12 @@ int Main(int argc, char** argv) {
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   LogLevel level = LogLevel::kInfo;
-  std::optional<std::string> problem = options.server.Validate();
+  Status problem = options.server.Validate();
   if (!ParseLogLevel(options.log_level, &level))
-    problem = "--log-level: '" + options.log_level + "'";
-  if (options.input == options.output) problem = "--output must differ from --log";
-  if (problem) {
-    std::cerr << "anchormap-replay: " << *problem << "\n(see anchormap-replay --help)\n";
+    problem = Status::Error("--log-level: '" + options.log_level + "'");
+  if (options.input == options.output) problem = Status::Error("--output must differ from --log");
+  if (!problem.ok()) {
+    std::cerr << "anchormap-replay: " << problem.message() << "\n(see anchormap-replay --help)\n";
     return 2;
   }
   SetMinLogLevel(level);

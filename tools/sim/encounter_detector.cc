@@ -5,17 +5,19 @@
 
 namespace anchormap::sim {
 
-std::string EncounterOptions::Validate() const {
-  if (!(max_range_m > 0.0 && max_range_m <= 100.0)) return "encounter range must be in (0, 100] m";
+Status EncounterOptions::Validate() const {
+  if (!(max_range_m > 0.0 && max_range_m <= 100.0))
+    return Status::Error("encounter range must be in (0, 100] m");
   if (!(field_of_view_deg > 0.0 && field_of_view_deg <= 360.0)) {
-    return "encounter field of view must be in (0, 360] deg";
+    return Status::Error("encounter field of view must be in (0, 360] deg");
   }
   if (!(min_period_s >= 0.0 && min_period_s <= 3600.0))
-    return "encounter period must be in [0, 3600] s";
-  if (!(sigma_xy_m > 0.0 && sigma_xy_m < 10.0)) return "encounter sigma xy must be in (0, 10) m";
+    return Status::Error("encounter period must be in [0, 3600] s");
+  if (!(sigma_xy_m > 0.0 && sigma_xy_m < 10.0))
+    return Status::Error("encounter sigma xy must be in (0, 10) m");
   if (!(sigma_theta_rad > 0.0 && sigma_theta_rad < 1.0))
-    return "encounter sigma theta must be in (0, 1) rad";
-  return "";
+    return Status::Error("encounter sigma theta must be in (0, 1) rad");
+  return Status::Ok();
 }
 
 EncounterDetector::EncounterDetector(const EncounterOptions& options, int num_robots)

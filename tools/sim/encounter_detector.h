@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/util/status.h"
 #include "tools/sim/random.h"
 #include "tools/sim/world.h"
 
@@ -23,7 +24,7 @@ struct EncounterOptions {
   double sigma_xy_m = 0.05;          // noise of the measured relative position
   double sigma_theta_rad = 0.02;     // noise of the measured relative heading
 
-  std::string Validate() const;  // empty when valid
+  Status Validate() const;  // empty when valid
 };
 
 struct SimEncounter {

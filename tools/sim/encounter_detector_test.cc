@@ -80,10 +80,10 @@ TEST(EncounterDetectorTest, FieldOfViewLimitsTheObserver) {
 }
 
 TEST(EncounterDetectorTest, ValidateRejectsZeroSigma) {
-  EXPECT_TRUE(EncounterOptions{}.Validate().empty());
+  EXPECT_TRUE(EncounterOptions{}.Validate().ok());
   EncounterOptions bad;
   bad.sigma_xy_m = 0.0;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace

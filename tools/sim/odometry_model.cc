@@ -4,20 +4,20 @@
 
 namespace anchormap::sim {
 
-std::string OdometryNoiseOptions::Validate() const {
+Status OdometryNoiseOptions::Validate() const {
   if (!(translation_noise_m_per_sqrt_m >= 0.0 && translation_noise_m_per_sqrt_m < 1.0)) {
-    return "odometry translation noise must be in [0, 1) m/sqrt(m)";
+    return Status::Error("odometry translation noise must be in [0, 1) m/sqrt(m)");
   }
   if (!(rotation_noise_rad_per_sqrt_m >= 0.0 && rotation_noise_rad_per_sqrt_m < 1.0)) {
-    return "odometry rotation noise per sqrt(m) must be in [0, 1) rad";
+    return Status::Error("odometry rotation noise per sqrt(m) must be in [0, 1) rad");
   }
   if (!(rotation_noise_rad_per_sqrt_rad >= 0.0 && rotation_noise_rad_per_sqrt_rad < 1.0)) {
-    return "odometry rotation noise per sqrt(rad) must be in [0, 1) rad";
+    return Status::Error("odometry rotation noise per sqrt(rad) must be in [0, 1) rad");
   }
   if (!(scale_error_stddev >= 0.0 && scale_error_stddev < 0.2)) {
-    return "odometry scale error stddev must be in [0, 0.2)";
+    return Status::Error("odometry scale error stddev must be in [0, 0.2)");
   }
-  return "";
+  return Status::Ok();
 }
 
 NoisyOdometry::NoisyOdometry(const OdometryNoiseOptions& options, Rng rng)

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "common/geometry/pose2.h"
+#include "common/util/status.h"
 #include "tools/sim/random.h"
 
 namespace anchormap::sim {
@@ -23,7 +24,7 @@ struct OdometryNoiseOptions {
   // Standard deviation of the per-robot distance scale error (0.005 = 0.5 %).
   double scale_error_stddev = 0.005;
 
-  std::string Validate() const;  // empty when valid
+  Status Validate() const;  // empty when valid
 };
 
 class NoisyOdometry {

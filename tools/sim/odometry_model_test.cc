@@ -82,10 +82,10 @@ TEST(NoisyOdometryTest, ScaleErrorIsConstantPerRobot) {
 }
 
 TEST(NoisyOdometryTest, ValidateRejectsNegativeNoise) {
-  EXPECT_TRUE(OdometryNoiseOptions{}.Validate().empty());
+  EXPECT_TRUE(OdometryNoiseOptions{}.Validate().ok());
   OdometryNoiseOptions bad;
   bad.translation_noise_m_per_sqrt_m = -1.0;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace

@@ -122,13 +122,14 @@ void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) 
 
 }  // namespace
 
-std::string OfficePlanOptions::Validate() const {
-  if (tiles_x < 1 || tiles_y < 1) return "office tiles must be at least 1 x 1";
-  if (static_cast<long>(tiles_x) * tiles_y > 10000) return "at most 10000 office tiles";
+Status OfficePlanOptions::Validate() const {
+  if (tiles_x < 1 || tiles_y < 1) return Status::Error("office tiles must be at least 1 x 1");
+  if (static_cast<long>(tiles_x) * tiles_y > 10000)
+    return Status::Error("at most 10000 office tiles");
   if (!(door_width_m >= 0.8 && door_width_m <= 2.0)) {
-    return "office door width must be in [0.8, 2.0] m";
+    return Status::Error("office door width must be in [0.8, 2.0] m");
   }
-  return "";
+  return Status::Ok();
 }
 
 FloorPlan BuildOfficePlan(const OfficePlanOptions& options) {

@@ -9,6 +9,7 @@
 
 #include <string>
 
+#include "common/util/status.h"
 #include "tools/sim/floor_plan.h"
 
 namespace anchormap::sim {
@@ -19,7 +20,7 @@ struct OfficePlanOptions {
   double door_width_m = 1.6;  // every door; must exceed twice the robots' clearance
 
   // Empty when valid, else the reason.
-  std::string Validate() const;
+  Status Validate() const;
 };
 
 constexpr double kOfficeTileWidthM = 40.0;

@@ -69,10 +69,10 @@ TEST(OfficePlanTest, TilesForRobots) {
   const OfficePlanOptions hundred = OfficeTilesForRobots(100, 6);  // 17 tiles -> 5 x 4
   EXPECT_EQ(hundred.tiles_x, 5);
   EXPECT_EQ(hundred.tiles_y, 4);
-  EXPECT_TRUE(hundred.Validate().empty());
+  EXPECT_TRUE(hundred.Validate().ok());
   OfficePlanOptions bad;
   bad.tiles_x = 0;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace

@@ -5,12 +5,13 @@
 
 namespace anchormap::sim {
 
-std::string MotionOptions::Validate() const {
-  if (!(speed_mps > 0.0 && speed_mps <= 10.0)) return "speed must be in (0, 10] m/s";
+Status MotionOptions::Validate() const {
+  if (!(speed_mps > 0.0 && speed_mps <= 10.0)) return Status::Error("speed must be in (0, 10] m/s");
   if (!(turn_rate_radps > 0.0 && turn_rate_radps <= 10.0))
-    return "turn rate must be in (0, 10] rad/s";
-  if (!(max_dwell_s >= 0.0 && max_dwell_s <= 600.0)) return "dwell must be in [0, 600] s";
-  return "";
+    return Status::Error("turn rate must be in (0, 10] rad/s");
+  if (!(max_dwell_s >= 0.0 && max_dwell_s <= 600.0))
+    return Status::Error("dwell must be in [0, 600] s");
+  return Status::Ok();
 }
 
 double RouteFollower::Advance(double dt_s) {

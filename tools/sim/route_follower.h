@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/util/status.h"
 
 namespace anchormap::sim {
 
@@ -17,7 +18,7 @@ struct MotionOptions {
   double turn_rate_radps = 0.8;  // turning speed in place
   double max_dwell_s = 3.0;      // pause at each destination, uniform in [0, max]
 
-  std::string Validate() const;  // empty when valid
+  Status Validate() const;  // empty when valid
 };
 
 class RouteFollower {

@@ -39,10 +39,10 @@ TEST(RouteFollowerTest, TurnsTheShortWay) {
 }
 
 TEST(RouteFollowerTest, ValidateRejectsZeroSpeed) {
-  EXPECT_TRUE(MotionOptions{}.Validate().empty());
+  EXPECT_TRUE(MotionOptions{}.Validate().ok());
   MotionOptions bad;
   bad.speed_mps = 0.0;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace

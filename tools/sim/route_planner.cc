@@ -48,13 +48,15 @@ void DistanceTransform1d(std::vector<float>* f_inout, std::vector<int>* v_buf,
 
 }  // namespace
 
-std::string RoutePlannerOptions::Validate() const {
+Status RoutePlannerOptions::Validate() const {
   if (!(resolution_m >= 0.02 && resolution_m <= 1.0))
-    return "planner resolution must be in [0.02, 1] m";
-  if (!(clearance_m > 0.0 && clearance_m < 5.0)) return "clearance must be in (0, 5) m";
-  if (!(preferred_clearance_m >= clearance_m)) return "preferred clearance must be >= clearance";
-  if (!(wall_cost_weight >= 0.0)) return "wall cost weight must be >= 0";
-  return "";
+    return Status::Error("planner resolution must be in [0.02, 1] m");
+  if (!(clearance_m > 0.0 && clearance_m < 5.0))
+    return Status::Error("clearance must be in (0, 5) m");
+  if (!(preferred_clearance_m >= clearance_m))
+    return Status::Error("preferred clearance must be >= clearance");
+  if (!(wall_cost_weight >= 0.0)) return Status::Error("wall cost weight must be >= 0");
+  return Status::Ok();
 }
 
 RoutePlanner::RoutePlanner(const FloorPlan& plan, const RoutePlannerOptions& options)

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "common/util/status.h"
 #include "tools/sim/floor_plan.h"
 #include "tools/sim/random.h"
 
@@ -22,7 +23,7 @@ struct RoutePlannerOptions {
   double preferred_clearance_m = 1.0;
   double wall_cost_weight = 4.0;  // extra cost factor at the required clearance
 
-  std::string Validate() const;  // empty when valid
+  Status Validate() const;  // empty when valid
 };
 
 class RoutePlanner {

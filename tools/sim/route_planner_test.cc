@@ -96,10 +96,10 @@ TEST(RoutePlannerTest, PlansAreRepeatable) {
 }
 
 TEST(RoutePlannerTest, ValidateChecksClearances) {
-  EXPECT_TRUE(RoutePlannerOptions{}.Validate().empty());
+  EXPECT_TRUE(RoutePlannerOptions{}.Validate().ok());
   RoutePlannerOptions bad;
   bad.preferred_clearance_m = 0.1;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace

@@ -171,8 +171,8 @@ int main(int argc, char** argv) {
   options.odometry.rotation_noise_rad_per_sqrt_m = rotation_noise_deg_per_sqrt_m / kDegPerRad;
   options.planner.preferred_clearance_m =
       std::max(options.planner.preferred_clearance_m, options.planner.clearance_m);
-  if (const std::string error = options.Validate(); !error.empty()) {
-    std::cerr << "anchormap-sim: " << error << "\n";
+  if (const anchormap::Status valid = options.Validate(); !valid.ok()) {
+    std::cerr << "anchormap-sim: " << valid.message() << "\n";
     return 2;
   }
 

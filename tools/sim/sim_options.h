@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string>
 
+#include "common/util/status.h"
 #include "tools/sim/encounter_detector.h"
 #include "tools/sim/odometry_model.h"
 #include "tools/sim/route_follower.h"
@@ -32,7 +33,7 @@ struct SimOptions {
   MotionOptions motion;
   RoutePlannerOptions planner;
 
-  std::string Validate() const;  // empty when valid, else the first problem found
+  Status Validate() const;  // empty when valid, else the first problem found
   // Odometry steps per laser scan (odometry_rate_hz / laser.rate_hz).
   int OdometryStepsPerScan() const;
 };

@@ -5,18 +5,20 @@
 
 namespace anchormap::sim {
 
-std::string LaserOptions::Validate() const {
-  if (beams < 2 || beams > 10000) return "laser beams must be in [2, 10000]";
-  if (!(fov_deg > 0.0 && fov_deg <= 360.0)) return "laser field of view must be in (0, 360] deg";
+Status LaserOptions::Validate() const {
+  if (beams < 2 || beams > 10000) return Status::Error("laser beams must be in [2, 10000]");
+  if (!(fov_deg > 0.0 && fov_deg <= 360.0))
+    return Status::Error("laser field of view must be in (0, 360] deg");
   if (!(max_range_m > 0.1 && max_range_m <= 1000.0))
-    return "laser max range must be in (0.1, 1000] m";
+    return Status::Error("laser max range must be in (0.1, 1000] m");
   if (!(range_noise_m >= 0.0 && range_noise_m < 1.0))
-    return "laser range noise must be in [0, 1) m";
+    return Status::Error("laser range noise must be in [0, 1) m");
   if (!(dropout_probability >= 0.0 && dropout_probability <= 1.0)) {
-    return "laser dropout probability must be in [0, 1]";
+    return Status::Error("laser dropout probability must be in [0, 1]");
   }
-  if (!(rate_hz > 0.0 && rate_hz <= 100.0)) return "laser rate must be in (0, 100] Hz";
-  return "";
+  if (!(rate_hz > 0.0 && rate_hz <= 100.0))
+    return Status::Error("laser rate must be in (0, 100] Hz");
+  return Status::Ok();
 }
 
 double LaserOptions::radstep() const { return fov_deg * kPi / 180.0 / (beams - 1); }

@@ -8,6 +8,7 @@
 
 #include "common/geometry/pose2.h"
 #include "common/types/laser_scan.h"
+#include "common/util/status.h"
 #include "tools/sim/random.h"
 #include "tools/sim/world.h"
 
@@ -21,9 +22,9 @@ struct LaserOptions {
   double dropout_probability = 0.0;  // chance that a beam returns nothing although it hits
   double rate_hz = 10.0;             // scans per second
 
-  std::string Validate() const;  // empty when valid
-  double radstep() const;        // angle between beams
-  double rad0() const;           // angle of the first beam
+  Status Validate() const;  // empty when valid
+  double radstep() const;   // angle between beams
+  double rad0() const;      // angle of the first beam
 };
 
 class SimulatedLaser {

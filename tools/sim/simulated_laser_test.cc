@@ -115,16 +115,16 @@ TEST(SimulatedLaserTest, NoiseHasTheConfiguredSpreadAndDropoutGivesNoReturn) {
 }
 
 TEST(SimulatedLaserTest, ValidateRejectsBadOptions) {
-  EXPECT_TRUE(LaserOptions{}.Validate().empty());
+  EXPECT_TRUE(LaserOptions{}.Validate().ok());
   LaserOptions bad;
   bad.beams = 1;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
   bad = LaserOptions{};
   bad.fov_deg = 400.0;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
   bad = LaserOptions{};
   bad.range_noise_m = -0.1;
-  EXPECT_FALSE(bad.Validate().empty());
+  EXPECT_FALSE(bad.Validate().ok());
 }
 
 }  // namespace
