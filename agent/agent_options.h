@@ -36,19 +36,9 @@ struct OdometryNoiseOptions {
   }
 };
 
-struct AgentChannels {
-  // Empty: derived from the robot name (R1_ODOMETRY, R1_LASER, R1_ENCOUNTER).
-  std::string odometry;
-  std::string laser;
-  std::string encounter;
-  std::string keyframes = "ANCHORMAP_KEYFRAMES";
-  std::string encounters = "ANCHORMAP_ENCOUNTERS";
-};
-
 struct AgentOptions {
   std::string robot;          // required: upper-case name, e.g. R1
   int64_t trajectory_id = 0;  // 0: wall-clock microseconds at start (a fresh session)
-  std::string lcm_url;        // empty: LCM's default ($LCM_DEFAULT_URL or udpm default)
   // planar_lidar_t carries no max range: ranges at or beyond this are "no return".
   double max_range_m = 30.0;
   // The laser's mounting pose on the robot body.
@@ -57,12 +47,9 @@ struct AgentOptions {
   double sensor_theta_rad = 0.0;
   // Scans newer than the newest odometry wait here for odometry to catch up.
   int max_pending_scans = 20;
-  double status_period_s = 5.0;  // status line period (0 = off)
-  std::string log_level = "info";
   KeyframerOptions keyframer;
   OdometryNoiseOptions noise;
   OdometryBufferOptions odometry;
-  AgentChannels channels;
 
   Status Validate() const {
     if (robot.empty()) return Status::Error("robot must be set");
@@ -72,7 +59,6 @@ struct AgentOptions {
     if (trajectory_id < 0) return Status::Error("trajectory_id must be >= 0");
     if (!(max_range_m > 0)) return Status::Error("max_range_m must be > 0");
     if (max_pending_scans < 1) return Status::Error("max_pending_scans must be >= 1");
-    if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
     if (Status e = keyframer.Validate(); !e.ok()) return e;
     if (Status e = noise.Validate(); !e.ok()) return e;
     return odometry.Validate();

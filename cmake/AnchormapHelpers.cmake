@@ -5,10 +5,22 @@
 #   becomes a GoogleTest executable registered with ctest; each foo_main.cc becomes
 #   build/bin/anchormap-<foo with '_' -> '-'> (override the name with MAIN_PREFIX).
 # A header-only folder (no .cc) gives an INTERFACE library.
+#
+# Layering: every module records its folder, its DEPS and TEST_DEPS. After all folders
+# are added, anchormap_check_layering() (root CMakeLists.txt) makes a build step that reads
+# each source's #include lines and fails the build when a file includes a header of a
+# module its own module does not depend on (directly or through its DEPS; a test may also
+# use its TEST_DEPS). So agent/ including common/bus/ fails to build, not only to link.
 
 function(anchormap_module)
   cmake_parse_arguments(ARG "" "NAME;MAIN_PREFIX" "DEPS;TEST_DEPS" ${ARGN})
   file(GLOB all_sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
+  file(GLOB all_headers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
+  file(RELATIVE_PATH module_dir ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
+  set_property(GLOBAL APPEND PROPERTY ANCHORMAP_MODULES ${ARG_NAME})
+  set_property(GLOBAL PROPERTY ANCHORMAP_DIR_${ARG_NAME} ${module_dir})
+  set_property(GLOBAL PROPERTY ANCHORMAP_DEPS_${ARG_NAME} ${ARG_DEPS})
+  set_property(GLOBAL PROPERTY ANCHORMAP_TEST_DEPS_${ARG_NAME} ${ARG_TEST_DEPS})
   set(lib_sources "")
   set(test_sources "")
   set(main_sources "")
@@ -21,6 +33,9 @@ function(anchormap_module)
       list(APPEND lib_sources ${src})
     endif()
   endforeach()
+  set_property(GLOBAL PROPERTY ANCHORMAP_SOURCES_${ARG_NAME} ${lib_sources} ${main_sources}
+                                                             ${all_headers})
+  set_property(GLOBAL PROPERTY ANCHORMAP_TEST_SOURCES_${ARG_NAME} ${test_sources})
 
   if(lib_sources)
     add_library(${ARG_NAME} STATIC ${lib_sources})
@@ -57,5 +72,64 @@ function(anchormap_module)
     endif()
     add_executable(${exe_name} ${src})
     target_link_libraries(${exe_name} PRIVATE ${ARG_NAME})
+  endforeach()
+endfunction()
+
+# The anchormap modules `target` may use: itself and its DEPS, transitively.
+function(anchormap_closure out)
+  set(todo ${ARGN})
+  set(seen "")
+  while(todo)
+    list(POP_FRONT todo t)
+    if(t IN_LIST seen)
+      continue()
+    endif()
+    list(APPEND seen ${t})
+    get_property(deps GLOBAL PROPERTY ANCHORMAP_DEPS_${t})
+    list(APPEND todo ${deps})
+  endwhile()
+  set(${out} ${seen} PARENT_SCOPE)
+endfunction()
+
+function(anchormap_check_layering)
+  get_property(modules GLOBAL PROPERTY ANCHORMAP_MODULES)
+  # Module folders, and the generated message headers (anchormap/, bot_core/) and LCM's own
+  # (lcm/), which belong to the lcmtypes and lcm targets.
+  set(table "set(MODULE_DIRS \"lcmtypes_generated/anchormap;lcmtypes_generated/bot_core;lcm")
+  set(owners "set(OWNER_lcmtypes_generated/anchormap anchormap_lcmtypes)\n")
+  string(APPEND owners "set(OWNER_lcmtypes_generated/bot_core anchormap_lcmtypes)\n")
+  string(APPEND owners "set(OWNER_lcm anchormap_lcm)\n")
+  foreach(m ${modules})
+    get_property(dir GLOBAL PROPERTY ANCHORMAP_DIR_${m})
+    string(APPEND table ";${dir}")
+    string(APPEND owners "set(OWNER_${dir} ${m})\n")
+  endforeach()
+  string(APPEND table "\")\n")
+  set(checks "")
+  foreach(m ${modules})
+    get_property(deps GLOBAL PROPERTY ANCHORMAP_DEPS_${m})
+    get_property(test_deps GLOBAL PROPERTY ANCHORMAP_TEST_DEPS_${m})
+    anchormap_closure(allowed ${m} ${deps})
+    anchormap_closure(test_allowed ${m} ${deps} ${test_deps})
+    # lcmtypes' INTERFACE target links anchormap_lcm.
+    if(anchormap_lcmtypes IN_LIST allowed)
+      list(APPEND allowed anchormap_lcm)
+    endif()
+    if(anchormap_lcmtypes IN_LIST test_allowed)
+      list(APPEND test_allowed anchormap_lcm)
+    endif()
+    get_property(sources GLOBAL PROPERTY ANCHORMAP_SOURCES_${m})
+    get_property(test_sources GLOBAL PROPERTY ANCHORMAP_TEST_SOURCES_${m})
+    string(APPEND checks "check(${m} \"${allowed}\" \"${sources}\")\n")
+    string(APPEND checks "check(${m} \"${test_allowed}\" \"${test_sources}\")\n")
+  endforeach()
+  file(WRITE ${CMAKE_BINARY_DIR}/layering_table.cmake "${table}${owners}${checks}")
+  add_custom_target(anchormap_layering ALL
+                    COMMAND ${CMAKE_COMMAND} -DTABLE=${CMAKE_BINARY_DIR}/layering_table.cmake
+                            -P ${PROJECT_SOURCE_DIR}/cmake/CheckLayering.cmake
+                    COMMENT "Checking that every #include follows the module dependencies"
+                    VERBATIM)
+  foreach(m ${modules})
+    add_dependencies(${m} anchormap_layering)
   endforeach()
 endfunction()

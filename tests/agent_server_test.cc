@@ -15,13 +15,13 @@
 
 #include <gtest/gtest.h>
 
-#include "agent/agent_node.h"
+#include "agent/node/agent_node.h"
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/bus/map_codec.h"
 #include "common/util/log.h"
-#include "server/server_node.h"
+#include "server/node/server_node.h"
 
 namespace anchormap {
 namespace {
@@ -143,9 +143,9 @@ class AgentServerTest : public ::testing::Test {
       ASSERT_TRUE(loop_->Publish(channel, bytes).ok());
     };
     for (int r = 0; r < 3; ++r) {
-      AgentOptions options;
-      options.robot = MiniSim::Name(r);
-      options.trajectory_id = 500 + r;
+      AgentNodeOptions options;
+      options.agent.robot = MiniSim::Name(r);
+      options.agent.trajectory_id = 500 + r;
       agents_.push_back(std::make_unique<AgentNode>(options, publish));
       for (const std::string& channel : agents_.back()->InputChannels()) {
         AgentNode* agent = agents_.back().get();

@@ -11,13 +11,13 @@
 #include <set>
 #include <sstream>
 
-#include "agent/agent_node.h"
+#include "agent/node/agent_node.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
-#include "server/server_node.h"
+#include "server/node/server_node.h"
 
 namespace anchormap {
 namespace {
@@ -76,12 +76,12 @@ int Run(const ReplayOptions& options) {
   std::vector<std::unique_ptr<AgentNode>> agents;
   int64_t trajectory_id = 1;
   for (const std::string& robot : robots) {
-    AgentOptions agent_options;
-    agent_options.robot = robot;
-    agent_options.trajectory_id = trajectory_id++;  // deterministic ids
-    agent_options.max_range_m = options.max_range_m;
-    agent_options.keyframer.max_distance_m = options.keyframe_distance_m;
-    agent_options.keyframer.max_angle_rad = options.keyframe_angle_rad;
+    AgentNodeOptions agent_options;
+    agent_options.agent.robot = robot;
+    agent_options.agent.trajectory_id = trajectory_id++;  // deterministic ids
+    agent_options.agent.max_range_m = options.max_range_m;
+    agent_options.agent.keyframer.max_distance_m = options.keyframe_distance_m;
+    agent_options.agent.keyframer.max_angle_rad = options.keyframe_angle_rad;
     if (Status valid = agent_options.Validate(); !valid.ok()) return LogError(valid.message()), 2;
     agents.push_back(std::make_unique<AgentNode>(agent_options, publish));
     AgentNode* agent = agents.back().get();

@@ -1,4 +1,4 @@
-#include "server/server_node.h"
+#include "server/node/server_node.h"
 
 #include "common/bus/codec.h"
 #include "common/bus/map_codec.h"

@@ -1,22 +1,22 @@
-#include "agent/agent_node.h"
+#include "agent/node/agent_node.h"
 
 #include "common/bus/channels.h"
 #include "common/bus/codec.h"
 
 namespace anchormap {
 
-AgentOptions WithDefaultChannels(AgentOptions options) {
-  if (options.channels.odometry.empty())
-    options.channels.odometry = channels::Odometry(options.robot);
-  if (options.channels.laser.empty()) options.channels.laser = channels::Laser(options.robot);
-  if (options.channels.encounter.empty()) {
-    options.channels.encounter = channels::Encounter(options.robot);
-  }
+AgentNodeOptions WithDefaultChannels(AgentNodeOptions options) {
+  const std::string& robot = options.agent.robot;
+  if (options.channels.odometry.empty()) options.channels.odometry = channels::Odometry(robot);
+  if (options.channels.laser.empty()) options.channels.laser = channels::Laser(robot);
+  if (options.channels.encounter.empty()) options.channels.encounter = channels::Encounter(robot);
   return options;
 }
 
-AgentNode::AgentNode(const AgentOptions& options, Publish publish)
-    : options_(WithDefaultChannels(options)), publish_(std::move(publish)), agent_(options_) {}
+AgentNode::AgentNode(const AgentNodeOptions& options, Publish publish)
+    : options_(WithDefaultChannels(options)),
+      publish_(std::move(publish)),
+      agent_(options_.agent) {}
 
 std::vector<std::string> AgentNode::InputChannels() const {
   return {options_.channels.odometry, options_.channels.laser, options_.channels.encounter,
@@ -60,10 +60,11 @@ void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
 
 std::string AgentNode::StatusLine() const {
   const AgentStats& s = agent_.stats();
-  return options_.robot + " trajectory " + std::to_string(options_.trajectory_id) + ": odometry " +
-         std::to_string(s.odometry_readings) + " scans " + std::to_string(s.scans) + " keyframes " +
-         std::to_string(s.keyframes) + " (forced " + std::to_string(s.forced_keyframes) +
-         ") encounters relayed " + std::to_string(s.encounters_relayed) + " waiting scans " +
+  return options_.agent.robot + " trajectory " + std::to_string(options_.agent.trajectory_id) +
+         ": odometry " + std::to_string(s.odometry_readings) + " scans " + std::to_string(s.scans) +
+         " keyframes " + std::to_string(s.keyframes) + " (forced " +
+         std::to_string(s.forced_keyframes) + ") encounters relayed " +
+         std::to_string(s.encounters_relayed) + " waiting scans " +
          std::to_string(agent_.pending_scans()) + " rejected: " + rejects_.Summary();
 }
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "server/mapping_server.h"
-#include "server/server_options.h"
+#include "server/node/server_options.h"
 
 namespace anchormap {
 

@@ -5,8 +5,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "agent/agent_node.h"
-#include "agent/agent_options.h"
+#include "agent/node/agent_node.h"
+#include "agent/node/agent_node_options.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
@@ -14,11 +14,13 @@
 namespace anchormap {
 namespace {
 
-void Register(OptionsLoader* l, AgentOptions* o) {
+void Register(OptionsLoader* l, AgentNodeOptions* node) {
+  AgentOptions* o = &node->agent;
   l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
   l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
          "this session's trajectory id (0: wall-clock microseconds at start, a new one per run)");
-  l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  l->Add("lcm_url", "lcm-url", &node->lcm_url,
+         "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
   l->Add("max_range_m", "max-range-m", &o->max_range_m,
          "ranges at or beyond this are no-returns (planar_lidar_t carries no max range), m");
   l->Add("sensor.x_m", "sensor-x-m", &o->sensor_x_m, "laser position on the robot, forward (m)");
@@ -46,22 +48,22 @@ void Register(OptionsLoader* l, AgentOptions* o) {
          "no interpolation across a longer odometry gap (s)");
   l->Add("max_pending_scans", "max-pending-scans", &o->max_pending_scans,
          "scans waiting for odometry to reach their time");
-  l->Add("status_period_s", "status-period-s", &o->status_period_s,
+  l->Add("status_period_s", "status-period-s", &node->status_period_s,
          "status line period (s; 0 = off)");
-  l->Add("log_level", "log-level", &o->log_level, "debug, info, warning or error");
-  l->Add("channels.odometry", "odometry-channel", &o->channels.odometry,
+  l->Add("log_level", "log-level", &node->log_level, "debug, info, warning or error");
+  l->Add("channels.odometry", "odometry-channel", &node->channels.odometry,
          "pose_t input (empty: <ROBOT>_ODOMETRY)");
-  l->Add("channels.laser", "laser-channel", &o->channels.laser,
+  l->Add("channels.laser", "laser-channel", &node->channels.laser,
          "planar_lidar_t input (empty: <ROBOT>_LASER)");
-  l->Add("channels.encounter", "encounter-channel", &o->channels.encounter,
+  l->Add("channels.encounter", "encounter-channel", &node->channels.encounter,
          "encounter_t input from the robot's detector (empty: <ROBOT>_ENCOUNTER)");
-  l->Add("channels.keyframes", "keyframes-channel", &o->channels.keyframes, "keyframe_t output");
-  l->Add("channels.encounters", "encounters-channel", &o->channels.encounters,
+  l->Add("channels.keyframes", "keyframes-channel", &node->channels.keyframes, "keyframe_t output");
+  l->Add("channels.encounters", "encounters-channel", &node->channels.encounters,
          "encounter_t output (relays; also read, to see this robot being observed)");
 }
 
 int Main(int argc, char** argv) {
-  AgentOptions options;
+  AgentNodeOptions options;
   OptionsLoader loader("anchormap-agent", "--robot R1 [--lcm-url URL] [--config FILE] [options]",
                        "The anchormap agent (one per robot): turns odometry and laser scans into\n"
                        "keyframes for anchormap-server and relays the robot's direct encounters.");
@@ -76,16 +78,17 @@ int Main(int argc, char** argv) {
     std::cerr << "anchormap-agent: " << problem.message() << "\n(see anchormap-agent --help)\n";
     return 2;
   }
-  if (options.trajectory_id == 0) {
-    options.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
-                                std::chrono::system_clock::now().time_since_epoch())
-                                .count();
+  if (options.agent.trajectory_id == 0) {
+    options.agent.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
+                                      std::chrono::system_clock::now().time_since_epoch())
+                                      .count();
   }
   options = WithDefaultChannels(options);
   SetMinLogLevel(level);
-  SetLogComponent("anchormap-agent " + options.robot);
+  SetLogComponent("anchormap-agent " + options.agent.robot);
   std::istringstream config(loader.EffectiveConfig());
-  LogInfo("effective configuration (trajectory id " + std::to_string(options.trajectory_id) + "):");
+  LogInfo("effective configuration (trajectory id " + std::to_string(options.agent.trajectory_id) +
+          "):");
   for (std::string line; std::getline(config, line);) LogInfo("  " + line);
 
   std::string error;

@@ -14,8 +14,8 @@
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
-#include "server/server_node.h"
-#include "server/server_options.h"
+#include "server/node/server_node.h"
+#include "server/node/server_options.h"
 
 namespace anchormap {
 namespace {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "agent/agent.h"
-#include "agent/agent_options.h"
+#include "agent/node/agent_node_options.h"
 #include "common/util/reject_counter.h"
 
 namespace anchormap {
@@ -23,7 +23,7 @@ class AgentNode {
 
   // `options` must be valid with a trajectory id chosen; empty input channels are
   // derived from the robot name.
-  AgentNode(const AgentOptions& options, Publish publish);
+  AgentNode(const AgentNodeOptions& options, Publish publish);
 
   // The channels to subscribe to: odometry, laser, the robot's encounter channel, and
   // the server's encounter channel (to force a keyframe when this robot is observed).
@@ -35,18 +35,15 @@ class AgentNode {
 
   const Agent& agent() const { return agent_; }
   const RejectCounter& rejects() const { return rejects_; }
-  const AgentOptions& options() const { return options_; }
+  const AgentNodeOptions& options() const { return options_; }
 
  private:
   void Emit(const AgentOutput& out, const std::string& context);
 
-  AgentOptions options_;
+  AgentNodeOptions options_;
   Publish publish_;
   Agent agent_;
   RejectCounter rejects_;
 };
-
-// The options with empty channel names filled from the robot name.
-AgentOptions WithDefaultChannels(AgentOptions options);
 
 }  // namespace anchormap

@@ -1,0 +1,39 @@
+#pragma once
+// Options of anchormap-agent's bus side: the logic's options (AgentOptions) plus channels,
+// the LCM URL, the status period and the log level. One source of defaults: --help, the
+// config keys and docs/DAEMONS.md come from the registration in agent_main.cc.
+
+#include <string>
+
+#include "agent/agent_options.h"
+#include "common/bus/channels.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct AgentChannels {
+  // Empty: derived from the robot name (R1_ODOMETRY, R1_LASER, R1_ENCOUNTER).
+  std::string odometry;
+  std::string laser;
+  std::string encounter;
+  std::string keyframes = channels::kKeyframes;
+  std::string encounters = channels::kEncounters;
+};
+
+struct AgentNodeOptions {
+  AgentOptions agent;
+  AgentChannels channels;
+  std::string lcm_url;           // empty: LCM's default ($LCM_DEFAULT_URL or udpm default)
+  double status_period_s = 5.0;  // status line period (0 = off)
+  std::string log_level = "info";
+
+  Status Validate() const {
+    if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
+    return agent.Validate();
+  }
+};
+
+// The options with empty channel names filled from the robot name.
+AgentNodeOptions WithDefaultChannels(AgentNodeOptions options);
+
+}  // namespace anchormap

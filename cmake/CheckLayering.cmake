@@ -1,0 +1,51 @@
+# Build step (see anchormap_check_layering): fails when a source includes a header of a
+# module that its own module does not depend on. Run as
+#   cmake -DTABLE=build/layering_table.cmake -P cmake/CheckLayering.cmake
+
+cmake_minimum_required(VERSION 3.16)
+set(violations "")
+
+# The module folder that owns an include path (the longest matching folder), or "".
+function(owner_of include out)
+  set(best "")
+  set(best_length 0)
+  foreach(dir ${MODULE_DIRS})
+    string(LENGTH "${dir}" length)
+    string(REGEX REPLACE "^lcmtypes_generated/" "" prefix "${dir}")
+    string(LENGTH "${prefix}" prefix_length)
+    string(SUBSTRING "${include}" 0 ${prefix_length} head)
+    if(head STREQUAL prefix AND length GREATER best_length)
+      string(SUBSTRING "${include}" ${prefix_length} 1 next)
+      if(next STREQUAL "/")
+        set(best "${dir}")
+        set(best_length ${length})
+      endif()
+    endif()
+  endforeach()
+  set(${out} "${best}" PARENT_SCOPE)
+endfunction()
+
+function(check module allowed_list sources)
+  set(allowed ${allowed_list})
+  foreach(source ${sources})
+    file(STRINGS "${source}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]")
+    foreach(line ${lines})
+      string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*[<\"]([^>\"]+)[>\"].*" "\\1" include "${line}")
+      owner_of("${include}" dir)
+      if(dir)
+        set(owner ${OWNER_${dir}})
+        if(NOT owner IN_LIST allowed)
+          list(APPEND violations "${source}: #include \"${include}\": ${module} does not depend on ${owner}")
+        endif()
+      endif()
+    endforeach()
+  endforeach()
+  set(violations ${violations} PARENT_SCOPE)
+endfunction()
+
+include(${TABLE})
+
+if(violations)
+  list(JOIN violations "\n  " text)
+  message(FATAL_ERROR "Includes against the module dependencies (docs/ARCHITECTURE.md):\n  ${text}")
+endif()
