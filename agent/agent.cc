@@ -5,17 +5,6 @@
 
 namespace anchormap {
 
-Eigen::Matrix3d OdometryDeltaCovariance(const OdometryNoiseOptions& noise,
-                                        const Pose2& T_previous_this) {
-  const double distance = T_previous_this.translation().norm();
-  const double angle = std::abs(T_previous_this.theta());
-  const double sigma_xy = noise.xy_base_m + noise.xy_per_m * distance;
-  const double sigma_theta =
-      noise.theta_base_rad + noise.theta_per_rad * angle + noise.theta_per_m * distance;
-  return Eigen::Vector3d(sigma_xy * sigma_xy, sigma_xy * sigma_xy, sigma_theta * sigma_theta)
-      .asDiagonal();
-}
-
 Agent::Agent(const AgentOptions& options)
     : options_(options),
       T_body_sensor_(options.sensor_x_m, options.sensor_y_m, options.sensor_theta_rad),
@@ -94,8 +83,7 @@ void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* o
   keyframe.T_local_pose = T_odom_body;
   if (last_keyframe_pose_) {
     keyframe.T_previous_this = Between(*last_keyframe_pose_, T_odom_body);
-    keyframe.T_previous_this_covariance =
-        OdometryDeltaCovariance(options_.noise, keyframe.T_previous_this);
+    keyframe.T_previous_this_covariance = options_.noise.Covariance(keyframe.T_previous_this);
   }
   keyframe.scan = std::move(scan);
   last_keyframe_pose_ = T_odom_body;

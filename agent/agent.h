@@ -1,6 +1,6 @@
 #pragma once
 // The agent's logic, one per robot, with no bus: odometry readings and laser scans in,
-// keyframes out (LAYOUT.md "a keyframe's path", steps 1-2). Each scan gets the odometry
+// keyframes out (docs/ARCHITECTURE.md "A keyframe's path", steps 1-2). Each scan gets the odometry
 // pose at its own time; the Keyframer picks the scans that become keyframes; each keyframe
 // carries its pose in the trajectory's local (odometry) frame and the odometry delta from
 // the previous keyframe with a covariance from the noise model. Direct encounters the robot
@@ -42,10 +42,6 @@ struct AgentStats {
   int64_t encounters_relayed = 0;
   int64_t forced_keyframes = 0;
 };
-
-// The delta covariance of the noise model (see OdometryNoiseOptions).
-Eigen::Matrix3d OdometryDeltaCovariance(const OdometryNoiseOptions& noise,
-                                        const Pose2& T_previous_this);
 
 class Agent {
  public:

@@ -8,33 +8,22 @@
 
 #include "agent/keyframer.h"
 #include "agent/odometry_buffer.h"
+#include "common/geometry/motion_noise.h"
 #include "common/util/status.h"
 
 namespace anchormap {
 
-// Standard deviations of a keyframe's odometry delta, growing with the motion:
-//   sigma_xy    = xy_base_m + xy_per_m * distance
-//   sigma_theta = theta_base_rad + theta_per_rad * |angle| + theta_per_m * distance
-// The covariance is diagonal in the previous keyframe's frame.
-struct OdometryNoiseOptions {
-  double xy_base_m = 0.01;
-  double xy_per_m = 0.05;  // 5 cm per metre: a typical wheel odometry
-  double theta_base_rad = 0.005;
-  double theta_per_rad = 0.05;  // 5 % of the turn
-  double theta_per_m = 0.02;    // heading drift while driving straight
-
-  Status Validate() const {
-    if (!(xy_base_m > 0) || !(theta_base_rad > 0)) {
-      return Status::Error(
-          "noise.xy_base_m and noise.theta_base_rad must be > 0 (a covariance must be "
-          "positive definite even for a zero motion)");
-    }
-    if (xy_per_m < 0 || theta_per_rad < 0 || theta_per_m < 0) {
-      return Status::Error("noise.*_per_* must be >= 0");
-    }
-    return Status::Ok();
-  }
-};
+// The agent's default odometry noise: 5 cm per metre, 5 % of a turn and 0.02 rad per
+// metre of heading drift, a typical wheel odometry.
+inline MotionNoise DefaultOdometryNoise() {
+  MotionNoise noise;
+  noise.xy_base_m = 0.01;
+  noise.xy_per_m = 0.05;
+  noise.theta_base_rad = 0.005;
+  noise.theta_per_rad = 0.05;
+  noise.theta_per_m = 0.02;
+  return noise;
+}
 
 struct AgentOptions {
   std::string robot;          // required: upper-case name, e.g. R1
@@ -48,7 +37,7 @@ struct AgentOptions {
   // Scans newer than the newest odometry wait here for odometry to catch up.
   int max_pending_scans = 20;
   KeyframerOptions keyframer;
-  OdometryNoiseOptions noise;
+  MotionNoise noise = DefaultOdometryNoise();  // of the odometry between keyframes
   OdometryBufferOptions odometry;
 
   Status Validate() const {
@@ -60,7 +49,7 @@ struct AgentOptions {
     if (!(max_range_m > 0)) return Status::Error("max_range_m must be > 0");
     if (max_pending_scans < 1) return Status::Error("max_pending_scans must be >= 1");
     if (Status e = keyframer.Validate(); !e.ok()) return e;
-    if (Status e = noise.Validate(); !e.ok()) return e;
+    if (Status e = noise.Validate("noise", /*positive_base=*/true); !e.ok()) return e;
     return odometry.Validate();
   }
 };

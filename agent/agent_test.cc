@@ -152,11 +152,11 @@ TEST(AgentTest, BeingObservedAlsoForcesAKeyframe) {
 }
 
 TEST(AgentTest, NoiseModelGrowsWithTurnAndDistance) {
-  OdometryNoiseOptions noise;
-  const Eigen::Matrix3d still = OdometryDeltaCovariance(noise, Pose2());
+  const MotionNoise noise = DefaultOdometryNoise();
+  const Eigen::Matrix3d still = noise.Covariance(Pose2());
   EXPECT_NEAR(still(0, 0), 1e-4, 1e-18);
   EXPECT_NEAR(still(2, 2), 2.5e-5, 1e-18);
-  const Eigen::Matrix3d turn = OdometryDeltaCovariance(noise, Pose2(0, 0, 1.0));
+  const Eigen::Matrix3d turn = noise.Covariance(Pose2(0, 0, 1.0));
   EXPECT_NEAR(turn(2, 2), 0.055 * 0.055, 1e-15);
   EXPECT_NEAR(turn(0, 0), 1e-4, 1e-18);
 }

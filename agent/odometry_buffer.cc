@@ -4,11 +4,6 @@
 
 namespace anchormap {
 
-Pose2 InterpolatePose(const Pose2& a, const Pose2& b, double fraction) {
-  return Pose2(a.x() + fraction * (b.x() - a.x()), a.y() + fraction * (b.y() - a.y()),
-               a.theta() + fraction * AngleDifference(b.theta(), a.theta()));
-}
-
 Status OdometryBuffer::Add(const OdometrySample& sample) {
   if (!samples_.empty() && sample.utime <= samples_.back().utime) {
     return Status::Error(ErrorCode::kOutOfOrder, "odometry at " + std::to_string(sample.utime) +
@@ -34,7 +29,7 @@ std::optional<Pose2> OdometryBuffer::PoseAt(int64_t utime) const {
   if (span_s > options_.max_gap_s) return std::nullopt;
   const double fraction = static_cast<double>(utime - before->utime) /
                           static_cast<double>(after->utime - before->utime);
-  return InterpolatePose(before->T_odom_body, after->T_odom_body, fraction);
+  return Interpolate(before->T_odom_body, after->T_odom_body, fraction);
 }
 
 }  // namespace anchormap

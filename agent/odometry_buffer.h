@@ -52,7 +52,4 @@ class OdometryBuffer {
   std::deque<OdometrySample> samples_;
 };
 
-// Interpolates between two poses: fraction 0 gives a, 1 gives b.
-Pose2 InterpolatePose(const Pose2& a, const Pose2& b, double fraction);
-
 }  // namespace anchormap

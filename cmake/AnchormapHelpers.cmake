@@ -75,6 +75,24 @@ function(anchormap_module)
   endforeach()
 endfunction()
 
+# anchormap_example(NAME name SOURCE file DEPS ...): a short program that shows the API,
+# built as build/bin/anchormap-example-<name> and run by ctest (it exits non-zero when one
+# of its own checks fails). Its includes are checked like a module's.
+function(anchormap_example)
+  cmake_parse_arguments(ARG "" "NAME;SOURCE" "DEPS" ${ARGN})
+  set(target anchormap-example-${ARG_NAME})
+  add_executable(${target} ${ARG_SOURCE})
+  target_include_directories(${target} PRIVATE ${PROJECT_SOURCE_DIR})
+  target_link_libraries(${target} PRIVATE ${ARG_DEPS})
+  add_test(NAME example_${ARG_NAME} COMMAND ${target})
+  file(RELATIVE_PATH module_dir ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
+  set_property(GLOBAL APPEND PROPERTY ANCHORMAP_MODULES ${target})
+  set_property(GLOBAL PROPERTY ANCHORMAP_DIR_${target} ${module_dir})
+  set_property(GLOBAL PROPERTY ANCHORMAP_DEPS_${target} ${ARG_DEPS})
+  set_property(GLOBAL PROPERTY ANCHORMAP_SOURCES_${target}
+                               ${CMAKE_CURRENT_SOURCE_DIR}/${ARG_SOURCE})
+endfunction()
+
 # The anchormap modules `target` may use: itself and its DEPS, transitively.
 function(anchormap_closure out)
   set(todo ${ARGN})

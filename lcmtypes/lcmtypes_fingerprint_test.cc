@@ -9,7 +9,7 @@
 namespace {
 
 TEST(LcmtypesFingerprintTest, BotCoreTypesMatchLibbot2) {
-  // Fingerprints of libbot2's bot2-core/lcmtypes computed with lcm-gen 1.3.1 (BOT_CORE.md).
+  // Fingerprints of libbot2's bot2-core/lcmtypes computed with lcm-gen 1.3.1.
   EXPECT_EQ(static_cast<uint64_t>(bot_core::pose_t::getHash()), 0x2e16efb052b0105eULL);
   EXPECT_EQ(static_cast<uint64_t>(bot_core::planar_lidar_t::getHash()), 0xe3d17423180b5e8dULL);
 }

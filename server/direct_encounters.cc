@@ -6,17 +6,6 @@
 namespace anchormap {
 namespace {
 
-// Diagonal covariance of a time correction `T_k_t` (the motion between keyframe and t).
-Eigen::Matrix3d CorrectionCovariance(const Pose2& T_k_t, const DirectEncounterOptions& o) {
-  const double d = T_k_t.translation().norm();
-  const double sigma_xy = o.inflation_xy_base_m + o.inflation_xy_per_m * d;
-  const double sigma_theta = o.inflation_theta_base_rad +
-                             o.inflation_theta_per_rad * std::abs(T_k_t.theta()) +
-                             o.inflation_theta_per_m * d;
-  return Eigen::Vector3d(sigma_xy * sigma_xy, sigma_xy * sigma_xy, sigma_theta * sigma_theta)
-      .asDiagonal();
-}
-
 std::string Seconds(int64_t utime) { return std::to_string(1e-6 * static_cast<double>(utime)); }
 
 }  // namespace
@@ -50,9 +39,9 @@ Result<EncounterConstraint> TieEncounter(const Encounter& encounter,
   // First order: the measurement's covariance rotated into frame ka, plus each
   // correction's noise (the observed side's enters through the second composition).
   Eigen::Matrix3d covariance = J_measurement * encounter.covariance * J_measurement.transpose();
-  covariance += CorrectionCovariance(T_ka_ta, options);
+  covariance += options.inflation.Covariance(T_ka_ta);
   covariance = J_left * covariance * J_left.transpose();
-  covariance += J_right * CorrectionCovariance(T_kb_tb, options) * J_right.transpose();
+  covariance += J_right * options.inflation.Covariance(T_kb_tb) * J_right.transpose();
   covariance = 0.5 * (covariance + covariance.transpose());
 
   EncounterConstraint constraint;

@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 
+#include "common/geometry/motion_noise.h"
 #include "common/util/status.h"
 #include "server/encounter_source.h"
 #include "server/trajectory_table.h"
@@ -21,31 +22,31 @@
 namespace anchormap {
 
 struct DirectEncounterOptions {
+  static MotionNoise DefaultInflation() {
+    MotionNoise noise;
+    noise.xy_base_m = 0.005;
+    noise.xy_per_m = 0.05;
+    noise.theta_base_rad = 0.002;
+    noise.theta_per_rad = 0.05;
+    noise.theta_per_m = 0.02;
+    return noise;
+  }
+
   // Longest wait (data time) for both robots' keyframes or for an unknown robot.
   double max_wait_s = 30.0;
   // Encounters waiting at once; the oldest is dropped beyond this (kQueueFull).
   int max_pending = 1000;
   // The nearest keyframe must be this close in time, or the encounter is refused.
   double max_time_offset_s = 1.0;
-  // Inflation for the time correction on each side (standard deviations):
-  //   xy = xy_base_m + xy_per_m * d,  theta = theta_base_rad + theta_per_rad * |a| + theta_per_m *
-  //   d
-  // with d, a the correction's distance and angle. The base terms cover clock offsets.
-  double inflation_xy_base_m = 0.005;
-  double inflation_xy_per_m = 0.05;
-  double inflation_theta_base_rad = 0.002;
-  double inflation_theta_per_rad = 0.05;
-  double inflation_theta_per_m = 0.02;
+  // Added to an encounter for the motion between each keyframe and the encounter time
+  // (MotionNoise of that motion); the base terms cover clock offsets.
+  MotionNoise inflation = DefaultInflation();
 
   Status Validate() const {
     if (!(max_wait_s >= 0)) return Status::Error("direct.max_wait_s must be >= 0");
     if (max_pending < 1) return Status::Error("direct.max_pending must be >= 1");
     if (!(max_time_offset_s > 0)) return Status::Error("direct.max_time_offset_s must be > 0");
-    if (inflation_xy_base_m < 0 || inflation_xy_per_m < 0 || inflation_theta_base_rad < 0 ||
-        inflation_theta_per_rad < 0 || inflation_theta_per_m < 0) {
-      return Status::Error("direct.inflation_* must be >= 0");
-    }
-    return Status::Ok();
+    return inflation.Validate("direct.inflation", /*positive_base=*/false);
   }
 };
 

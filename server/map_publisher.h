@@ -1,7 +1,7 @@
 #pragma once
 // Builds the server's outputs from the current estimate: the merged map (every trajectory,
 // anchored or not, its keyframe poses in the global frame), the anchors' marginal
-// covariances (from the smoother's R, ALGORITHM.md section 6) and the occupancy grid
+// covariances (from the smoother's R, docs/METHOD.md section 6) and the occupancy grid
 // (rebuilt from every keyframe's scan at its current pose, since poses move after every
 // update). It also decides when each output is due: the map and covariances after an
 // update, at most once per map_period_s; the grid at most once per grid_period_s.

@@ -25,11 +25,11 @@ void MappingServer::CountRejection(const Status& refusal, const std::string& con
   rejects_.Count(refusal, context);
 }
 
-Status MappingServer::OnKeyframe(const Keyframe& keyframe) {
+Status MappingServer::OnKeyframe(Keyframe keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
-  if (Status offered = table_.Offer(keyframe, &admitted); !offered.ok()) {
+  if (Status offered = table_.Offer(std::move(keyframe), &admitted); !offered.ok()) {
     rejects_.Count(offered, "keyframe");
     return offered;
   }

@@ -1,9 +1,9 @@
 #pragma once
-// The mapping server's logic, with no bus (LAYOUT.md "a keyframe's path", steps 6-7):
+// The mapping server's logic, with no bus (docs/ARCHITECTURE.md "A keyframe's path", steps 6-7):
 // keyframes and encounters in, the incremental smoother updated after each, outputs as
 // plain values. One pose graph per trajectory in its own local frame (the agent's
 // odometry frame); a trajectory's anchor appears at its first encounter (the smoother's
-// relative formulation, ALGORITHM.md section 4). Encounter sources are pluggable
+// relative formulation, docs/METHOD.md section 4). Encounter sources are pluggable
 // (EncounterSource); the direct-encounter source is always present. Tests drive this class
 // directly; ServerNode connects it to bytes and server_main.cc to LCM.
 
@@ -77,7 +77,7 @@ class MappingServer {
 
   // Each returns why the input is refused, if it is (already counted). Accepted inputs
   // update the smoother before returning. Cost: one incremental update.
-  Status OnKeyframe(const Keyframe& keyframe);
+  Status OnKeyframe(Keyframe keyframe);
   Status OnEncounter(const Encounter& encounter);
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).

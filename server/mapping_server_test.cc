@@ -95,8 +95,8 @@ MappingServerOptions ExactTieOptions() {
   MappingServerOptions options;
   // Keyframes sit exactly at the encounter times: no correction, and no inflation, so the
   // constraint equals the measurement and a direct solve can use it unchanged.
-  options.direct.inflation_xy_base_m = 0;
-  options.direct.inflation_theta_base_rad = 0;
+  options.direct.inflation.xy_base_m = 0;
+  options.direct.inflation.theta_base_rad = 0;
   options.publish.grid.resolution_m = 0.2;
   return options;
 }
@@ -129,8 +129,19 @@ TEST_F(MappingServerTest, AnchorsAppearExactlyAtFirstEncounters) {
     for (const MergedTrajectory& t : map.trajectories) {
       EXPECT_EQ(t.anchored, met.count(t.robot) > 0) << t.robot << " at " << map.utime;
       if (!t.anchored) {
-        // Unanchored: published in its own local frame (poses = the agent's odometry).
-        EXPECT_NEAR(t.T_global_local.x(), 0.0, 0.0);
+        // Unanchored: published in its own local frame, T_global_local exactly the identity
+        // and every pose the smoother's local estimate.
+        EXPECT_EQ(t.T_global_local.x(), 0.0);
+        EXPECT_EQ(t.T_global_local.y(), 0.0);
+        EXPECT_EQ(t.T_global_local.theta(), 0.0);
+        const TrajectoryRecord* record = server.table().Find(t.robot, t.trajectory_id);
+        ASSERT_NE(record, nullptr);
+        ASSERT_EQ(t.poses.size(), static_cast<size_t>(record->num_keyframes()));
+        for (size_t i = 0; i < t.poses.size(); ++i) {
+          const Pose2 local =
+              server.smoother().LocalPose(PoseKey{record->solver_id, static_cast<int32_t>(i)});
+          EXPECT_EQ(PoseError(t.poses[i], local).norm(), 0.0) << t.robot << " pose " << i;
+        }
       }
     }
     EXPECT_EQ(server.num_anchored(), static_cast<int>(met.size()));

@@ -4,14 +4,6 @@
 #include <set>
 
 namespace anchormap {
-namespace {
-
-Pose2 Interpolate(const Pose2& a, const Pose2& b, double fraction) {
-  return Pose2(a.x() + fraction * (b.x() - a.x()), a.y() + fraction * (b.y() - a.y()),
-               a.theta() + fraction * AngleDifference(b.theta(), a.theta()));
-}
-
-}  // namespace
 
 int TrajectoryRecord::NearestIndex(int64_t utime) const {
   const auto after = std::lower_bound(utimes.begin(), utimes.end(), utime);
@@ -48,7 +40,7 @@ TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* cre
   return records_.back();
 }
 
-Status TrajectoryTable::Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out) {
+Status TrajectoryTable::Offer(Keyframe keyframe, std::vector<AdmittedKeyframe>* out) {
   bool created = false;
   TrajectoryRecord& record = RecordFor(keyframe, &created);
   const size_t record_index = static_cast<size_t>(record.solver_id);
@@ -58,7 +50,8 @@ Status TrajectoryTable::Offer(const Keyframe& keyframe, std::vector<AdmittedKeyf
                                                             std::to_string(keyframe.trajectory_id) +
                                                             " seq " + std::to_string(keyframe.seq));
   }
-  pending.held.emplace(keyframe.seq, keyframe);
+  const int32_t seq = keyframe.seq;
+  pending.held.emplace(seq, std::move(keyframe));
   Drain(record_index, &pending, /*force=*/false, out);
   return Status::Ok();
 }
@@ -80,13 +73,12 @@ void TrajectoryTable::Drain(size_t record_index, Pending* pending, bool force,
       over_limits = 1e-6 * static_cast<double>(newest - since) > options_.max_hold_s;
     }
     if (!in_order && !force && !over_limits) break;
-    const Keyframe keyframe = first;
-    pending->held.erase(pending->held.begin());
-    Admit(&record, pending, keyframe, out);
+    Keyframe keyframe = std::move(pending->held.extract(pending->held.begin()).mapped());
+    Admit(&record, pending, std::move(keyframe), out);
   }
 }
 
-void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, const Keyframe& keyframe,
+void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, Keyframe keyframe,
                             std::vector<AdmittedKeyframe>* out) {
   AdmittedKeyframe admitted;
   const int32_t index = record->num_keyframes();
@@ -113,7 +105,7 @@ void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, const Ke
   record->seqs.push_back(keyframe.seq);
   record->utimes.push_back(keyframe.utime);
   record->odometry_poses.push_back(keyframe.T_local_pose);
-  record->scans.push_back(keyframe.scan);
+  record->scans.push_back(std::move(keyframe.scan));
   pending->next_seq = keyframe.seq + 1;
   pending->started = true;
   ++num_keyframes_;

@@ -81,7 +81,7 @@ class TrajectoryTable {
 
   // Offers a keyframe; returns the keyframes (this one and/or waiting ones) that may now
   // enter the graph, in order, already recorded here; or why it is refused.
-  Status Offer(const Keyframe& keyframe, std::vector<AdmittedKeyframe>* out);
+  Status Offer(Keyframe keyframe, std::vector<AdmittedKeyframe>* out);
   // Admits every waiting keyframe, bridging gaps (end of input).
   void FlushHeld(std::vector<AdmittedKeyframe>* out);
 
@@ -106,7 +106,7 @@ class TrajectoryTable {
   TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool* created);
   // Moves waiting keyframes into the graph while possible (or forced).
   void Drain(size_t record_index, Pending* pending, bool force, std::vector<AdmittedKeyframe>* out);
-  void Admit(TrajectoryRecord* record, Pending* pending, const Keyframe& keyframe,
+  void Admit(TrajectoryRecord* record, Pending* pending, Keyframe keyframe,
              std::vector<AdmittedKeyframe>* out);
 
   TrajectoryTableOptions options_;

@@ -136,9 +136,9 @@ class AgentServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
     SetMinLogLevel(LogLevel::kError);
-    std::string error;
-    loop_ = LcmLoop::Create("memq://", &error);
-    ASSERT_TRUE(loop_) << error;
+    Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+    ASSERT_TRUE(created.ok()) << created.status().message();
+    loop_ = std::move(*created);
     auto publish = [this](const std::string& channel, const std::vector<uint8_t>& bytes) {
       ASSERT_TRUE(loop_->Publish(channel, bytes).ok());
     };

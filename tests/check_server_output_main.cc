@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "common/bus/channels.h"
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/map_codec.h"
@@ -47,10 +48,7 @@ struct TruthTrack {
     const OdometrySample& b = samples[i];
     if (b.utime == a.utime) return b.T_odom_body;
     const double f = static_cast<double>(utime - a.utime) / static_cast<double>(b.utime - a.utime);
-    return Pose2(
-        a.T_odom_body.x() + f * (b.T_odom_body.x() - a.T_odom_body.x()),
-        a.T_odom_body.y() + f * (b.T_odom_body.y() - a.T_odom_body.y()),
-        a.T_odom_body.theta() + f * AngleDifference(b.T_odom_body.theta(), a.T_odom_body.theta()));
+    return Interpolate(a.T_odom_body, b.T_odom_body, f);
   }
 };
 
@@ -75,12 +73,12 @@ int Check(const Options& options) {
     return 2;
   }
   while (auto event = sim.Next()) {
-    if (EndsWith(event->channel, "_GROUND_TRUTH")) {
+    if (EndsWith(event->channel, channels::kGroundTruthSuffix)) {
       const auto pose = DecodeOdometry(event->data.data(), event->data.size());
       if (pose.ok()) {
         truth[event->channel.substr(0, event->channel.size() - 13)].samples.push_back(*pose);
       }
-    } else if (EndsWith(event->channel, "_ENCOUNTER")) {
+    } else if (EndsWith(event->channel, channels::kEncounterSuffix)) {
       const auto e = DecodeEncounter(event->data.data(), event->data.size());
       if (!e.ok()) continue;
       for (const std::string& robot : {e->observer, e->observed}) {
@@ -102,13 +100,13 @@ int Check(const Options& options) {
     return 2;
   }
   while (auto event = out.Next()) {
-    if (event->channel == "ANCHORMAP_MERGED_MAP") {
+    if (event->channel == channels::kMergedMap) {
       auto map = DecodeMergedMap(event->data.data(), event->data.size());
       map.ok() ? maps.push_back(*map) : void(++undecodable);
-    } else if (event->channel == "ANCHORMAP_ANCHOR_COVARIANCES") {
+    } else if (event->channel == channels::kAnchorCovariances) {
       auto c = DecodeAnchorCovariances(event->data.data(), event->data.size());
       c.ok() ? covariances.push_back(*c) : void(++undecodable);
-    } else if (event->channel == "ANCHORMAP_GRID_TILES") {
+    } else if (event->channel == channels::kGridTiles) {
       ++tiles;
     }
   }

@@ -70,33 +70,27 @@ int Main(int argc, char** argv) {
   Register(&loader, &options);
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
-  LogLevel level = LogLevel::kInfo;
-  Status problem = options.Validate();
-  if (!ParseLogLevel(options.log_level, &level))
-    problem = Status::Error("--log-level: '" + options.log_level + "'");
-  if (!problem.ok()) {
-    std::cerr << "anchormap-agent: " << problem.message() << "\n(see anchormap-agent --help)\n";
-    return 2;
-  }
+  if (Status valid = options.Validate(); !valid.ok()) return loader.UsageError(valid);
   if (options.agent.trajectory_id == 0) {
     options.agent.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
                                       std::chrono::system_clock::now().time_since_epoch())
                                       .count();
   }
   options = WithDefaultChannels(options);
-  SetMinLogLevel(level);
-  SetLogComponent("anchormap-agent " + options.agent.robot);
-  std::istringstream config(loader.EffectiveConfig());
-  LogInfo("effective configuration (trajectory id " + std::to_string(options.agent.trajectory_id) +
-          "):");
-  for (std::string line; std::getline(config, line);) LogInfo("  " + line);
+  if (Status logging =
+          loader.StartLogging(options.log_level, "anchormap-agent " + options.agent.robot,
+                              "effective configuration (trajectory id " +
+                                  std::to_string(options.agent.trajectory_id) + ")");
+      !logging.ok()) {
+    return loader.UsageError(logging);
+  }
 
-  std::string error;
-  auto loop = LcmLoop::Create(options.lcm_url, &error);
-  if (!loop) {
-    LogError(error);
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create(options.lcm_url);
+  if (!created.ok()) {
+    LogError(created.status().message());
     return 1;
   }
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   LcmLoop* bus = loop.get();
   AgentNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
     const Status status = bus->Publish(channel, bytes);

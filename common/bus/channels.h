@@ -6,16 +6,17 @@
 
 namespace anchormap::channels {
 
-// Robot inputs, per robot ("R1_ODOMETRY", ...).
-inline std::string Odometry(const std::string& robot) { return robot + "_ODOMETRY"; }  // pose_t
-inline std::string Laser(const std::string& robot) { return robot + "_LASER"; }  // planar_lidar_t
-inline std::string Encounter(const std::string& robot) {  // encounter_t, observer = robot
-  return robot + "_ENCOUNTER";
-}
-inline std::string GroundTruth(const std::string& robot) {  // pose_t, eval only
-  return robot + "_GROUND_TRUTH";
-}
-inline std::string Reference(const std::string& robot) { return robot + "_REFERENCE"; }
+// Robot inputs, per robot: the robot's name and a suffix ("R1_ODOMETRY", ...).
+inline constexpr char kOdometrySuffix[] = "_ODOMETRY";         // pose_t
+inline constexpr char kLaserSuffix[] = "_LASER";               // planar_lidar_t
+inline constexpr char kEncounterSuffix[] = "_ENCOUNTER";       // encounter_t, observer = robot
+inline constexpr char kGroundTruthSuffix[] = "_GROUND_TRUTH";  // pose_t, simulator, eval only
+inline constexpr char kReferenceSuffix[] = "_REFERENCE";       // pose_t, importer, eval only
+inline std::string Odometry(const std::string& robot) { return robot + kOdometrySuffix; }
+inline std::string Laser(const std::string& robot) { return robot + kLaserSuffix; }
+inline std::string Encounter(const std::string& robot) { return robot + kEncounterSuffix; }
+inline std::string GroundTruth(const std::string& robot) { return robot + kGroundTruthSuffix; }
+inline std::string Reference(const std::string& robot) { return robot + kReferenceSuffix; }
 
 // Agents -> server.
 inline constexpr char kKeyframes[] = "ANCHORMAP_KEYFRAMES";    // keyframe_t

@@ -29,18 +29,6 @@ using codec_internal::PoseToArray;
 using codec_internal::SafeDecode;
 using codec_internal::Success;
 
-void YawToQuaternion(double yaw, double q[4]) {
-  q[0] = std::cos(yaw / 2.0);
-  q[1] = 0.0;
-  q[2] = 0.0;
-  q[3] = std::sin(yaw / 2.0);
-}
-
-double QuaternionToYaw(const double q[4]) {
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  return std::atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
-}
-
 Result<OdometrySample> DecodeOdometry(const void* data, size_t size) {
   bot_core::pose_t message;
   if (Status p = SafeDecode(data, size, CheckPoseWire, &message); !p.ok()) return p;
@@ -59,7 +47,9 @@ Result<OdometrySample> DecodeOdometry(const void* data, size_t size) {
   }
   OdometrySample sample;
   sample.utime = message.utime;
-  sample.T_odom_body = Pose2(message.pos[0], message.pos[1], QuaternionToYaw(message.orientation));
+  sample.T_odom_body = Pose2(message.pos[0], message.pos[1],
+                             YawOfQuaternion(message.orientation[0], message.orientation[1],
+                                             message.orientation[2], message.orientation[3]));
   return Success(sample);
 }
 
@@ -68,7 +58,8 @@ std::vector<uint8_t> EncodeOdometry(const OdometrySample& sample) {
   message.utime = sample.utime;
   message.pos[0] = sample.T_odom_body.x();
   message.pos[1] = sample.T_odom_body.y();
-  YawToQuaternion(sample.T_odom_body.theta(), message.orientation);
+  QuaternionOfYaw(sample.T_odom_body.theta(), &message.orientation[0], &message.orientation[1],
+                  &message.orientation[2], &message.orientation[3]);
   return Encode(message);
 }
 

@@ -48,9 +48,4 @@ std::vector<uint8_t> EncodeKeyframe(const Keyframe& keyframe);
 Result<Encounter> DecodeEncounter(const void* data, size_t size);
 std::vector<uint8_t> EncodeEncounter(const Encounter& encounter);
 
-// Quaternion (w, x, y, z) of a rotation by `yaw` about z, and back (the yaw of any
-// quaternion, i.e. its heading after projecting onto the plane).
-void YawToQuaternion(double yaw, double quaternion_wxyz[4]);
-double QuaternionToYaw(const double quaternion_wxyz[4]);
-
 }  // namespace anchormap

@@ -54,10 +54,6 @@ TEST(CodecTest, OdometryRoundTripsYawThroughTheQuaternion) {
   EXPECT_DOUBLE_EQ(decoded->T_odom_body.x(), 1.0);
   EXPECT_DOUBLE_EQ(decoded->T_odom_body.y(), -2.0);
   EXPECT_NEAR(decoded->T_odom_body.theta(), 2.5, 1e-12);
-  double q[4];
-  YawToQuaternion(-3.0, q);
-  EXPECT_NEAR(QuaternionToYaw(q), -3.0, 1e-12);
-  EXPECT_NEAR(q[0], std::cos(-1.5), 1e-15);
 }
 
 TEST(CodecTest, OdometryRejectsNanBadQuaternionTruncationAndWrongType) {

@@ -97,17 +97,18 @@ class LcmLoop::Impl {
 LcmLoop::LcmLoop() : impl_(std::make_unique<Impl>()) {}
 LcmLoop::~LcmLoop() = default;
 
-std::unique_ptr<LcmLoop> LcmLoop::Create(const std::string& url, std::string* error) {
+Result<std::unique_ptr<LcmLoop>> LcmLoop::Create(const std::string& url) {
   std::unique_ptr<LcmLoop> loop(new LcmLoop());
   loop->impl_->lcm = lcm_create(url.empty() ? nullptr : url.c_str());
   if (!loop->impl_->lcm) {
-    if (error) *error = "cannot open LCM at '" + (url.empty() ? std::string("default") : url) + "'";
-    return nullptr;
+    return Status::Error(
+        ErrorCode::kIoError,
+        "cannot open LCM at '" + (url.empty() ? std::string("default") : url) + "'");
   }
   const int fd = lcm_get_fileno(loop->impl_->lcm);
   if (fd < 0) {
-    if (error) *error = "LCM provider of '" + url + "' has no file descriptor";
-    return nullptr;
+    return Status::Error(ErrorCode::kIoError,
+                         "LCM provider of '" + url + "' has no file descriptor");
   }
   loop->impl_->descriptor = std::make_unique<asio::posix::stream_descriptor>(loop->impl_->io, fd);
   loop->impl_->ArmRead();

@@ -1,6 +1,6 @@
 #pragma once
-// One daemon's event loop: an LCM instance plus a Boost.Asio io_context (LAYOUT.md, "a
-// keyframe's path"). LCM's file descriptor is watched as a posix::stream_descriptor (and
+// One daemon's event loop: an LCM instance plus a Boost.Asio io_context (docs/ARCHITECTURE.md,
+// "A keyframe's path"). LCM's file descriptor is watched as a posix::stream_descriptor (and
 // released before lcm_destroy, since LCM owns it); timers run periodic work (publishing,
 // status lines); SIGINT and SIGTERM stop the loop so that main() returns and everything
 // is destroyed in order. One thread: handlers, timers and publishing never overlap.
@@ -37,9 +37,8 @@ class LcmLoop {
   using RawHandler =
       std::function<void(const std::string& channel, const uint8_t* data, size_t size)>;
 
-  // Opens LCM at `url` ("" = LCM's default, or $LCM_DEFAULT_URL). nullptr on failure, with
-  // the reason in *error.
-  static std::unique_ptr<LcmLoop> Create(const std::string& url, std::string* error);
+  // Opens LCM at `url` ("" = LCM's default, or $LCM_DEFAULT_URL).
+  static Result<std::unique_ptr<LcmLoop>> Create(const std::string& url);
   ~LcmLoop();
   LcmLoop(const LcmLoop&) = delete;
   LcmLoop& operator=(const LcmLoop&) = delete;

@@ -10,9 +10,9 @@ namespace anchormap {
 namespace {
 
 TEST(LcmLoopTest, DeliversRawBytesOverMemq) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   std::vector<std::string> received;
   ASSERT_TRUE(loop->Subscribe("R1_.*",
                               [&](const std::string& channel, const uint8_t* data, size_t size) {
@@ -33,9 +33,9 @@ TEST(LcmLoopTest, DeliversRawBytesOverMemq) {
 }
 
 TEST(LcmLoopTest, QueueCapacityAboveLcmDefaultKeepsABurstOf500) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   int count = 0;
   ASSERT_TRUE(loop->Subscribe(
                       "BURST", [&](const std::string&, const uint8_t*, size_t) { ++count; }, 1000)
@@ -46,9 +46,9 @@ TEST(LcmLoopTest, QueueCapacityAboveLcmDefaultKeepsABurstOf500) {
 }
 
 TEST(LcmLoopTest, TimersTickAndStopEndsRun) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   int ticks = 0;
   loop->Every(std::chrono::milliseconds(5), [&] {
     if (++ticks == 3) loop->Stop();
@@ -58,9 +58,9 @@ TEST(LcmLoopTest, TimersTickAndStopEndsRun) {
 }
 
 TEST(LcmLoopTest, SigtermStopsTheLoopCleanly) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   int signal_seen = 0;
   loop->StopOnSignals([&](int number) { signal_seen = number; });
   loop->Every(std::chrono::milliseconds(10), [] { std::raise(SIGTERM); });
@@ -69,9 +69,9 @@ TEST(LcmLoopTest, SigtermStopsTheLoopCleanly) {
 }
 
 TEST(LcmLoopTest, HandlerExceptionsAreContained) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   int calls = 0;
   ASSERT_TRUE(loop->Subscribe("X",
                               [&](const std::string&, const uint8_t*, size_t) {
@@ -84,9 +84,9 @@ TEST(LcmLoopTest, HandlerExceptionsAreContained) {
 }
 
 TEST(LcmLoopTest, HandlePendingDrainsChainsOfMessages) {
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  ASSERT_TRUE(loop) << error;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   int pings = 0, pongs = 0;
   ASSERT_TRUE(loop->Subscribe("PING",
                               [&](const std::string&, const uint8_t*, size_t) {
@@ -104,10 +104,10 @@ TEST(LcmLoopTest, HandlePendingDrainsChainsOfMessages) {
 }
 
 TEST(LcmLoopTest, BadUrlIsAnErrorNotACrash) {
-  std::string error;
-  auto loop = LcmLoop::Create("nosuchprovider://", &error);
-  EXPECT_FALSE(loop);
-  EXPECT_NE(error.find("nosuchprovider://"), std::string::npos);
+  const Result<std::unique_ptr<LcmLoop>> loop = LcmLoop::Create("nosuchprovider://");
+  ASSERT_FALSE(loop.ok());
+  EXPECT_EQ(loop.status().code(), ErrorCode::kIoError);
+  EXPECT_NE(loop.status().message().find("nosuchprovider://"), std::string::npos);
 }
 
 }  // namespace

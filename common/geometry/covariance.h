@@ -12,7 +12,7 @@ namespace anchormap {
 Status CheckSymmetricPositiveDefinite(const Eigen::Matrix3d& m);
 
 // The upper-triangular square root S of information = S^T S, so that the squared
-// Mahalanobis norm e^T information e equals |S e|^2 (the "whitening" of ALGORITHM.md 2).
+// Mahalanobis norm e^T information e equals |S e|^2 (the "whitening" of docs/METHOD.md section 2).
 // Preconditions: information is symmetric positive definite.
 Eigen::Matrix3d SqrtInformationFromInformation(const Eigen::Matrix3d& information);
 Eigen::Matrix3d SqrtInformationFromCovariance(const Eigen::Matrix3d& covariance);

@@ -67,4 +67,9 @@ Eigen::Vector3d PoseError(const Pose2& predicted, const Pose2& measured) {
           AngleDifference(predicted.theta(), measured.theta())};
 }
 
+Pose2 Interpolate(const Pose2& a, const Pose2& b, double fraction) {
+  return Pose2(a.x() + fraction * (b.x() - a.x()), a.y() + fraction * (b.y() - a.y()),
+               a.theta() + fraction * AngleDifference(b.theta(), a.theta()));
+}
+
 }  // namespace anchormap

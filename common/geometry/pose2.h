@@ -1,9 +1,9 @@
 #pragma once
-// SE(2) poses (x, y, theta) and the operations of ALGORITHM.md section 1.
+// SE(2) poses (x, y, theta) and the operations of docs/METHOD.md section 1.
 //
 // Naming: a pose T_a_b places frame b in frame a (small_gicp's T_target_source);
 // Compose(T_a_b, T_b_c) = T_a_c and Between(T_w_a, T_w_b) = T_a_b, the pose of b seen
-// from a, which ALGORITHM.md writes "b (-) a". Angles are wrapped to (-pi, pi].
+// from a, which the thesis writes "b (-) a". Angles are wrapped to (-pi, pi].
 
 #include <Eigen/Core>
 
@@ -50,5 +50,9 @@ Pose2 Between(const Pose2& T_w_a, const Pose2& T_w_b, Eigen::Matrix3d* J_a = nul
 // Difference of two poses as a vector (x, y, wrapped theta): the residual of a
 // measurement `measured` against a prediction `predicted`.
 Eigen::Vector3d PoseError(const Pose2& predicted, const Pose2& measured);
+
+// The pose a `fraction` of the way from a to b: linear in x and y, the short way round in
+// theta (0 gives a, 1 gives b). Used to read odometry between two time stamps.
+Pose2 Interpolate(const Pose2& a, const Pose2& b, double fraction);
 
 }  // namespace anchormap

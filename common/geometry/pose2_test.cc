@@ -87,5 +87,28 @@ TEST(Pose2Test, JacobiansEqualNumericDifferences) {
   }
 }
 
+TEST(InterpolateTest, LinearInPositionShortWayInTheta) {
+  const Pose2 mid = Interpolate(Pose2(0, 0, 3.1), Pose2(2, -4, -3.1), 0.25);
+  EXPECT_DOUBLE_EQ(mid.x(), 0.5);
+  EXPECT_DOUBLE_EQ(mid.y(), -1.0);
+  // 0.25 of the 0.083 rad arc through pi, not of the 6.2 rad arc through 0.
+  EXPECT_NEAR(mid.theta(), WrapAngle(3.1 + 0.25 * (2 * kPi - 6.2)), 1e-12);
+  const Pose2 a(1, 2, 0.3), b(-1, 5, -2.0);
+  EXPECT_LT(PoseError(Interpolate(a, b, 0.0), a).norm(), 1e-15);
+  EXPECT_LT(PoseError(Interpolate(a, b, 1.0), b).norm(), 1e-15);
+}
+
+TEST(QuaternionTest, YawRoundTripsAndHeadingOfATiltedQuaternion) {
+  for (double yaw : {-3.0, -1.0, 0.0, 0.5, 3.1, kPi}) {
+    double w, x, y, z;
+    QuaternionOfYaw(yaw, &w, &x, &y, &z);
+    EXPECT_NEAR(w, std::cos(yaw / 2), 1e-15);
+    EXPECT_NEAR(AngleDifference(YawOfQuaternion(w, x, y, z), yaw), 0.0, 1e-12);
+  }
+  // Yaw 0.7 composed with a small roll: the heading is still 0.7.
+  const double c = std::cos(0.35), s = std::sin(0.35), cr = std::cos(0.05), sr = std::sin(0.05);
+  EXPECT_NEAR(YawOfQuaternion(c * cr, c * sr, s * sr, s * cr), 0.7, 1e-12);
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -9,7 +9,7 @@
 namespace anchormap {
 namespace {
 
-constexpr const char* kFieldNames[8] = {"timestamp", "x", "y", "z", "qx", "qy", "qz", "qw"};
+const std::vector<const char*> kFieldNames = {"timestamp", "x", "y", "z", "qx", "qy", "qz", "qw"};
 
 bool IsCommentOrBlank(std::string_view line) {
   const auto fields = SplitFields(line, true);
@@ -19,17 +19,10 @@ bool IsCommentOrBlank(std::string_view line) {
 }  // namespace
 
 Status ParseTrajectoryLine(std::string_view line, StampedPose2* pose) {
-  const auto fields = SplitFields(line, true);
-  if (fields.size() != 8) {
-    return Status::Error("expected 8 fields (timestamp x y z qx qy qz qw), found " +
-                         std::to_string(fields.size()));
-  }
-  double v[8];
-  for (int i = 0; i < 8; ++i) {
-    if (!ParseFiniteDouble(fields[i], &v[i])) {
-      return Status::Error(std::string("field ") + kFieldNames[i] + " '" + Abbreviate(fields[i]) +
-                           "' is not a finite number");
-    }
+  std::vector<double> v;
+  if (Status parsed = ParseNumberFields(line, kFieldNames, /*commas_separate=*/true, &v);
+      !parsed.ok()) {
+    return parsed;
   }
   const double qx = v[4], qy = v[5], qz = v[6], qw = v[7];
   const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
@@ -37,7 +30,7 @@ Status ParseTrajectoryLine(std::string_view line, StampedPose2* pose) {
     return Status::Error("quaternion norm " + std::to_string(norm) + " is not 1");
   }
   // Yaw of the ZYX Euler decomposition; exact for a yaw-only quaternion.
-  const double yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+  const double yaw = YawOfQuaternion(qw, qx, qy, qz);
   pose->utime = std::llround(v[0] * 1e6);
   pose->pose = Pose2(v[1], v[2], yaw);
   return Status::Ok();

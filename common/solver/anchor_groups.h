@@ -1,6 +1,6 @@
 #pragma once
 // Groups of trajectories that share one frame, each with exactly one gauge prior
-// (ALGORITHM.md section 4): a union-find over trajectories in which the group created
+// (docs/METHOD.md section 4): a union-find over trajectories in which the group created
 // first survives a merge, and the absorbed group's gauge prior is handed back so the
 // smoother can remove it. Relative formulation: groups of anchored trajectories, the
 // prior sits on the group's first anchor. Global formulations: every trajectory starts

@@ -1,6 +1,6 @@
 #pragma once
 // Odometry and loop closures inside one trajectory: pose `to` measured in the frame of
-// pose `from`. Residual (to (-) from) - z, ALGORITHM.md section 2.
+// pose `from`. Residual (to (-) from) - z, docs/METHOD.md section 2.
 
 #include <vector>
 

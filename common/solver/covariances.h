@@ -1,6 +1,6 @@
 #pragma once
 // Covariance recovery from the square-root information matrix (Kaess & Dellaert, RAS
-// 2009; ALGORITHM.md section 6), by 3x3 blocks. With Sigma = (R^T R)^-1 and R Sigma =
+// 2009; docs/METHOD.md section 6), by 3x3 blocks. With Sigma = (R^T R)^-1 and R Sigma =
 // R^-T (block lower triangular, diagonal blocks R_ii^-T):
 //
 //   Sigma_ll = R_ll^-1 ( R_ll^-T - sum_{j>l, R_lj != 0} R_lj Sigma_jl )

@@ -1,5 +1,5 @@
 #pragma once
-// An encounter in the relative formulation (ALGORITHM.md section 4): four variables,
+// An encounter in the relative formulation (docs/METHOD.md section 4): four variables,
 // two poses in their trajectories' local frames and the two trajectories' anchors
 // T_global_local. Prediction h = (A_a (+) x_a)^-1 (+) (A_b (+) x_b), the pose b seen
 // from pose a in the global frame; residual h - z. Jacobians are analytic (iSAM 1

@@ -1,5 +1,5 @@
 #pragma once
-// An encounter in the global formulation (the thesis' baseline, ALGORITHM.md section 3):
+// An encounter in the global formulation (the thesis' baseline, docs/METHOD.md section 3):
 // both poses live in one shared frame, no anchors. Pose b measured in the frame of pose a.
 
 #include <vector>

@@ -1,6 +1,6 @@
 #pragma once
 // Variable keys of the multi-robot pose graph: robot poses, keyed by trajectory and
-// index, and one anchor per trajectory (ALGORITHM.md section 4).
+// index, and one anchor per trajectory (docs/METHOD.md section 4).
 
 #include <cstdint>
 #include <functional>

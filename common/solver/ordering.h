@@ -3,7 +3,7 @@
 // structure, one column per variable (pose or anchor), one row per factor. Variables
 // flagged `keep_last` (each trajectory's latest pose and every anchor) are constrained
 // to the end, so new measurements touch only the bottom right of R and anchor
-// covariances come from R's last blocks (DESIGN-NOTES.md, Solver).
+// covariances come from R's last blocks (docs/METHOD.md section 5).
 
 #include <vector>
 

@@ -1,6 +1,6 @@
 #pragma once
 // A prior on one pose or anchor: the gauge of a trajectory's local frame (its first
-// pose) or of an anchor group (its first anchor). ALGORITHM.md sections 2 and 4.
+// pose) or of an anchor group (its first anchor). docs/METHOD.md sections 2 and 4.
 
 #include <vector>
 

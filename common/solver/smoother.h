@@ -1,6 +1,6 @@
 #pragma once
 // The incremental smoother: iSAM (Kaess et al., T-RO 2008) over several robot
-// trajectories joined by anchor nodes (Kim et al., ICRA 2010). ALGORITHM.md 4-6.
+// trajectories joined by anchor nodes (Kim et al., ICRA 2010). docs/METHOD.md sections 4-6.
 //
 // Usage: AddPose / AddBetween / AddEncounter queue variables and measurements; Update()
 // folds them into the square-root information matrix R by Givens rotations (or runs a
@@ -103,7 +103,7 @@ class Smoother {
   // The trajectory whose gauge defines the frame this trajectory's group is expressed in.
   TrajectoryId GroupRoot(TrajectoryId trajectory) const;
 
-  // --- Covariances (ALGORITHM.md section 6; from R, never a dense inverse) ---
+  // --- Covariances (docs/METHOD.md section 6; from R, never a dense inverse) ---
   // Marginal 3x3 covariance of one variable, (x, y, theta) of the variable's own
   // coordinates. Memoised until the next Update().
   Eigen::Matrix3d MarginalCovariance(const Key& key);

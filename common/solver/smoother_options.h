@@ -7,7 +7,7 @@
 
 namespace anchormap {
 
-// How trajectories are tied into one map (ALGORITHM.md sections 3 and 4).
+// How trajectories are tied into one map (docs/METHOD.md sections 3 and 4).
 enum class Formulation {
   // Each trajectory in its own local frame plus an anchor T_global_local, created at its
   // first encounter (the thesis' method).

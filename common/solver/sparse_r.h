@@ -1,7 +1,7 @@
 #pragma once
 // The square-root information matrix R (upper triangular) and right-hand side d of the
 // linearised system, stored in 3x3 blocks: block row/column p is the variable at
-// elimination position p. ALGORITHM.md section 5.
+// elimination position p. docs/METHOD.md section 5.
 //
 // Rows are added by Givens rotations (each zeroing one entry below the diagonal); new
 // variables append empty block rows/columns at the end. R^T R = A^T A and R delta = d

@@ -12,28 +12,13 @@
 
 #include <boost/program_options.hpp>
 
+#include "common/util/log.h"
+#include "common/util/text_fields.h"
+
 namespace anchormap {
 namespace po = boost::program_options;
 
-bool ParseDouble(const std::string& text, double* value) {
-  if (text.empty()) return false;
-  errno = 0;
-  char* end = nullptr;
-  const double parsed = std::strtod(text.c_str(), &end);
-  if (errno != 0 || end != text.c_str() + text.size() || !std::isfinite(parsed)) return false;
-  *value = parsed;
-  return true;
-}
-
-bool ParseInt64(const std::string& text, int64_t* value) {
-  if (text.empty()) return false;
-  errno = 0;
-  char* end = nullptr;
-  const long long parsed = std::strtoll(text.c_str(), &end, 10);
-  if (errno != 0 || end != text.c_str() + text.size()) return false;
-  *value = static_cast<int64_t>(parsed);
-  return true;
-}
+namespace {
 
 bool ParseBool(const std::string& text, bool* value) {
   if (text == "true" || text == "1" || text == "yes" || text == "on") {
@@ -45,6 +30,8 @@ bool ParseBool(const std::string& text, bool* value) {
   }
   return true;
 }
+
+}  // namespace
 
 std::string FormatDouble(double value) {
   char text[40];
@@ -72,8 +59,10 @@ void OptionsLoader::Add(const std::string& key, const std::string& flag, double*
                         const std::string& help, bool required) {
   AddEntry({key, flag, "number", help, "", required, false,
             [field] { return FormatDouble(*field); },
-            [field](const std::string& text) -> std::string {
-              return ParseDouble(text, field) ? "" : "'" + text + "' is not a finite number";
+            [field](const std::string& text) {
+              return ParseFiniteDouble(text, field)
+                         ? Status::Ok()
+                         : Status::Error("'" + text + "' is not a finite number");
             }});
 }
 
@@ -81,8 +70,9 @@ void OptionsLoader::Add(const std::string& key, const std::string& flag, int64_t
                         const std::string& help, bool required) {
   AddEntry({key, flag, "integer", help, "", required, false,
             [field] { return std::to_string(*field); },
-            [field](const std::string& text) -> std::string {
-              return ParseInt64(text, field) ? "" : "'" + text + "' is not an integer";
+            [field](const std::string& text) {
+              return ParseInt64(text, field) ? Status::Ok()
+                                             : Status::Error("'" + text + "' is not an integer");
             }});
 }
 
@@ -90,13 +80,13 @@ void OptionsLoader::Add(const std::string& key, const std::string& flag, int* fi
                         const std::string& help, bool required) {
   AddEntry({key, flag, "integer", help, "", required, false,
             [field] { return std::to_string(*field); },
-            [field](const std::string& text) -> std::string {
+            [field](const std::string& text) {
               int64_t value = 0;
               if (!ParseInt64(text, &value) || value < INT_MIN || value > INT_MAX) {
-                return "'" + text + "' is not a 32-bit integer";
+                return Status::Error("'" + text + "' is not a 32-bit integer");
               }
               *field = static_cast<int>(value);
-              return "";
+              return Status::Ok();
             }});
 }
 
@@ -104,17 +94,18 @@ void OptionsLoader::Add(const std::string& key, const std::string& flag, bool* f
                         const std::string& help, bool required) {
   AddEntry({key, flag, "bool", help, "", required, false,
             [field] { return std::string(*field ? "true" : "false"); },
-            [field](const std::string& text) -> std::string {
-              return ParseBool(text, field) ? "" : "'" + text + "' is not true/false";
+            [field](const std::string& text) {
+              return ParseBool(text, field) ? Status::Ok()
+                                            : Status::Error("'" + text + "' is not true/false");
             }});
 }
 
 void OptionsLoader::Add(const std::string& key, const std::string& flag, std::string* field,
                         const std::string& help, bool required) {
   AddEntry({key, flag, "text", help, "", required, false, [field] { return *field; },
-            [field](const std::string& text) -> std::string {
+            [field](const std::string& text) {
               *field = text;
-              return "";
+              return Status::Ok();
             }});
 }
 
@@ -123,7 +114,7 @@ ParseOutcome OptionsLoader::Parse(int argc, const char* const argv[]) {
   auto fail = [&](const std::string& message) {
     outcome.run = false;
     outcome.exit_code = 2;
-    outcome.error = message;
+    outcome.error = Status::Error(message);
     std::cerr << program_ << ": " << message << "\n(see " << program_ << " --help)\n";
     return outcome;
   };
@@ -175,13 +166,13 @@ ParseOutcome OptionsLoader::Parse(int argc, const char* const argv[]) {
   for (Entry& e : entries_) {
     e.set = false;
     if (from_file.count(e.key)) {
-      const std::string err = e.assign(from_file[e.key].as<std::string>());
-      if (!err.empty()) return fail("config key '" + e.key + "': " + err);
+      const Status assigned = e.assign(from_file[e.key].as<std::string>());
+      if (!assigned.ok()) return fail("config key '" + e.key + "': " + assigned.message());
       e.set = true;
     }
     if (from_flags.count(e.flag)) {
-      const std::string err = e.assign(from_flags[e.flag].as<std::string>());
-      if (!err.empty()) return fail("--" + e.flag + ": " + err);
+      const Status assigned = e.assign(from_flags[e.flag].as<std::string>());
+      if (!assigned.ok()) return fail("--" + e.flag + ": " + assigned.message());
       e.set = true;
     }
     if (e.required && !e.set) {
@@ -194,6 +185,25 @@ ParseOutcome OptionsLoader::Parse(int argc, const char* const argv[]) {
     outcome.run = false;
   }
   return outcome;
+}
+
+Status OptionsLoader::StartLogging(const std::string& log_level, const std::string& component,
+                                   const std::string& heading) const {
+  LogLevel level = LogLevel::kInfo;
+  if (!ParseLogLevel(log_level, &level)) {
+    return Status::Error("--log-level: '" + log_level + "' is not debug, info, warning or error");
+  }
+  SetMinLogLevel(level);
+  SetLogComponent(component);
+  std::istringstream config(EffectiveConfig());
+  LogInfo(heading + ":");
+  for (std::string line; std::getline(config, line);) LogInfo("  " + line);
+  return Status::Ok();
+}
+
+int OptionsLoader::UsageError(const Status& problem) const {
+  std::cerr << program_ << ": " << problem.message() << "\n(see " << program_ << " --help)\n";
+  return 2;
 }
 
 std::string OptionsLoader::HelpText() const {

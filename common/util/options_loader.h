@@ -1,5 +1,6 @@
 #pragma once
-// Maps a config file and command-line flags onto plain options structs (LAYOUT.md rule 3).
+// Maps a config file and command-line flags onto plain options structs (one source of defaults per
+// option).
 //
 // Each option is registered once, with a pointer to its struct field, a dotted config key
 // ("keyframer.max_distance_m"), a flag ("--keyframe-distance-m") and a help text. The
@@ -15,13 +16,15 @@
 #include <string>
 #include <vector>
 
+#include "common/util/status.h"
+
 namespace anchormap {
 
 // What the caller should do after Parse().
 struct ParseOutcome {
   bool run = true;    // false: exit now with exit_code (after --help, or an error)
   int exit_code = 0;  // 0 after --help / --print-config, 2 for usage errors
-  std::string error;  // the usage error, if any (already printed to stderr by Parse)
+  Status error;       // the usage error, if any (already printed to stderr by Parse)
 };
 
 class OptionsLoader {
@@ -47,6 +50,13 @@ class OptionsLoader {
   // to stdout and errors to stderr.
   ParseOutcome Parse(int argc, const char* const argv[]);
 
+  // The common tail of a daemon's start: checks the log level, sets it and the log
+  // component, and logs the effective configuration under `heading`.
+  Status StartLogging(const std::string& log_level, const std::string& component,
+                      const std::string& heading = "effective configuration") const;
+  // Prints "<program>: <message>" and a pointer to --help to stderr; returns exit code 2.
+  int UsageError(const Status& problem) const;
+
   std::string HelpText() const;
   // "key = value" lines in registration order: the effective configuration.
   std::string EffectiveConfig() const;
@@ -65,8 +75,8 @@ class OptionsLoader {
     bool required = false;
     bool set = false;
     std::function<std::string()> get;
-    // Parses text into the field; returns an error message or "".
-    std::function<std::string(const std::string&)> assign;
+    // Parses text into the field.
+    std::function<Status(const std::string&)> assign;
   };
   void AddEntry(Entry entry);
 
@@ -76,11 +86,7 @@ class OptionsLoader {
   std::vector<Entry> entries_;
 };
 
-// Strict conversions used by the loader (whole text, finite, in range). Exposed for tests
-// and for tools that parse numbers from files.
-bool ParseDouble(const std::string& text, double* value);
-bool ParseInt64(const std::string& text, int64_t* value);
-bool ParseBool(const std::string& text, bool* value);
+// A double as the loader prints it ("%.10g").
 std::string FormatDouble(double value);
 
 }  // namespace anchormap

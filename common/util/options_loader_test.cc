@@ -90,18 +90,21 @@ TEST_F(OptionsLoaderTest, UnknownConfigKeyIsRefusedWithItsName) {
   const auto outcome = Run({"--config", path});
   EXPECT_FALSE(outcome.run);
   EXPECT_EQ(outcome.exit_code, 2);
-  EXPECT_NE(outcome.error.find("keyframer.max_distanse_m"), std::string::npos) << outcome.error;
+  EXPECT_NE(outcome.error.message().find("keyframer.max_distanse_m"), std::string::npos)
+      << outcome.error.message();
   EXPECT_NE(stderr_.find("keyframer.max_distanse_m"), std::string::npos);
 }
 
 TEST_F(OptionsLoaderTest, UnknownFlagMalformedValueAndPositionalAreUsageErrors) {
   auto outcome = Run({"--robot", "R1", "--keyframe-distanse-m", "1"});
   EXPECT_EQ(outcome.exit_code, 2);
-  EXPECT_NE(outcome.error.find("keyframe-distanse-m"), std::string::npos) << outcome.error;
+  EXPECT_NE(outcome.error.message().find("keyframe-distanse-m"), std::string::npos)
+      << outcome.error.message();
 
   outcome = Run({"--robot", "R1", "--keyframe-distance-m", "1.5x"});
   EXPECT_EQ(outcome.exit_code, 2);
-  EXPECT_NE(outcome.error.find("--keyframe-distance-m"), std::string::npos) << outcome.error;
+  EXPECT_NE(outcome.error.message().find("--keyframe-distance-m"), std::string::npos)
+      << outcome.error.message();
 
   outcome = Run({"--robot", "R1", "--keyframe-distance-m", "nan"});
   EXPECT_EQ(outcome.exit_code, 2);
@@ -118,7 +121,7 @@ TEST_F(OptionsLoaderTest, MissingRequiredOptionIsAUsageError) {
   const auto outcome = Run({"--verbose", "false"});
   EXPECT_FALSE(outcome.run);
   EXPECT_EQ(outcome.exit_code, 2);
-  EXPECT_NE(outcome.error.find("--robot"), std::string::npos) << outcome.error;
+  EXPECT_NE(outcome.error.message().find("--robot"), std::string::npos) << outcome.error.message();
   EXPECT_FALSE(options_.verbose);
 }
 
@@ -143,24 +146,20 @@ TEST_F(OptionsLoaderTest, EffectiveConfigAndMarkdownComeFromTheSameList) {
       << table;
 }
 
-TEST(ParseNumberTest, StrictConversions) {
-  double d = 0;
-  EXPECT_TRUE(ParseDouble("-1.5e-3", &d));
-  EXPECT_DOUBLE_EQ(d, -1.5e-3);
-  EXPECT_FALSE(ParseDouble("", &d));
-  EXPECT_FALSE(ParseDouble("1.0 ", &d));
-  EXPECT_FALSE(ParseDouble("inf", &d));
-  int64_t i = 0;
-  EXPECT_TRUE(ParseInt64("-42", &i));
-  EXPECT_EQ(i, -42);
-  EXPECT_FALSE(ParseInt64("4.2", &i));
-  EXPECT_FALSE(ParseInt64("99999999999999999999", &i));
-  bool b = false;
-  EXPECT_TRUE(ParseBool("on", &b));
-  EXPECT_TRUE(b);
-  EXPECT_FALSE(ParseBool("maybe", &b));
-  EXPECT_EQ(FormatDouble(0.001), "0.001");
+TEST_F(OptionsLoaderTest, BooleansAndNumbersAreStrict) {
+  EXPECT_TRUE(Run({"--robot", "R1", "--verbose", "on"}).run);
+  EXPECT_TRUE(options_.verbose);
+  EXPECT_TRUE(Run({"--robot", "R1", "--verbose", "off"}).run);
+  EXPECT_FALSE(options_.verbose);
+  const ParseOutcome maybe = Run({"--robot", "R1", "--verbose", "maybe"});
+  EXPECT_FALSE(maybe.run);
+  EXPECT_EQ(maybe.exit_code, 2);
+  EXPECT_NE(maybe.error.message().find("'maybe' is not true/false"), std::string::npos);
+  EXPECT_FALSE(Run({"--robot", "R1", "--keyframe-distance-m", "inf"}).run);
+  EXPECT_FALSE(Run({"--robot", "R1", "--keyframer-max-keyframes", "3000000000"}).run);
 }
+
+TEST(FormatDoubleTest, ShortestUsefulText) { EXPECT_EQ(FormatDouble(0.001), "0.001"); }
 
 }  // namespace
 }  // namespace anchormap

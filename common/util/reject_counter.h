@@ -4,7 +4,7 @@
 // Status with an ErrorCode, the daemon counts it here, which logs the first refusal of each kind
 // and feeds the status line and the status message.
 //
-// It lives in util/ rather than bus/ (LAYOUT.md's proposal) because the bus-free logic
+// It lives in util/ rather than bus/ because the bus-free logic
 // classes (agent/, server/) reject inputs for their own reasons (a reused sequence
 // number, an encounter that never found its keyframes) and must count them in the same
 // table without including anything from the bus.

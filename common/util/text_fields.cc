@@ -59,4 +59,23 @@ std::string Abbreviate(std::string_view text, size_t max_chars) {
   return out;
 }
 
+Status ParseNumberFields(std::string_view line, const std::vector<const char*>& names,
+                         bool commas_separate, std::vector<double>* values) {
+  const std::vector<std::string_view> fields = SplitFields(line, commas_separate);
+  if (fields.size() != names.size()) {
+    std::string layout;
+    for (const char* name : names) layout += (layout.empty() ? "" : " ") + std::string(name);
+    return Status::Error("expected " + std::to_string(names.size()) + " fields (" + layout +
+                         "), found " + std::to_string(fields.size()));
+  }
+  values->assign(fields.size(), 0.0);
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (!ParseFiniteDouble(fields[i], &(*values)[i])) {
+      return Status::Error(std::string("field ") + names[i] + " '" + Abbreviate(fields[i]) +
+                           "' is not a finite number");
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace anchormap

@@ -9,6 +9,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/util/status.h"
+
 namespace anchormap {
 
 // Splits `line` at runs of spaces, tabs, '\r' and '\n' (and ',' when `commas_separate` is
@@ -20,6 +22,12 @@ bool ParseFiniteDouble(std::string_view text, double* value);
 
 // Parses the whole of `text` as a decimal integer.
 bool ParseInt64(std::string_view text, int64_t* value);
+
+// Parses a line of exactly `names.size()` finite numbers (split as SplitFields does) into
+// `values`, in order. The error names the field, e.g. "field qw 'x' is not a finite number",
+// or the expected layout "expected 8 fields (t1 t2 x y z roll pitch yaw), found 7".
+Status ParseNumberFields(std::string_view line, const std::vector<const char*>& names,
+                         bool commas_separate, std::vector<double>* values);
 
 // `text` for an error message: at most `max_chars` characters ("..." appended when cut),
 // bytes outside printable ASCII written as \xNN.

@@ -52,5 +52,17 @@ TEST(AbbreviateTest, CutsLongText) {
   EXPECT_EQ(Abbreviate(std::string("1\0\x0b\xff", 4)), "1\\x00\\x0b\\xff");
 }
 
+TEST(ParseNumberFieldsTest, NamedFieldsInOrderOrWhichOneIsWrong) {
+  const std::vector<const char*> names = {"t", "x", "y"};
+  std::vector<double> v;
+  ASSERT_TRUE(ParseNumberFields("1.5, -2 3e2", names, /*commas_separate=*/true, &v).ok());
+  EXPECT_EQ(v, (std::vector<double>{1.5, -2.0, 300.0}));
+  EXPECT_EQ(ParseNumberFields("1 2", names, false, &v).message(),
+            "expected 3 fields (t x y), found 2");
+  EXPECT_EQ(ParseNumberFields("1 nan 3", names, false, &v).message(),
+            "field x 'nan' is not a finite number");
+  EXPECT_FALSE(ParseNumberFields("1,2,3", names, /*commas_separate=*/false, &v).ok());
+}
+
 }  // namespace
 }  // namespace anchormap

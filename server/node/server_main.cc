@@ -77,11 +77,11 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("direct.max_time_offset_s", "encounter-max-time-offset-s", &s.direct.max_time_offset_s,
          "an encounter's nearest keyframes must be this close in time (s)");
   l->Add("direct.inflation_xy_base_m", "encounter-inflation-xy-base-m",
-         &s.direct.inflation_xy_base_m, "sigma added to an encounter for clock offsets (m)");
-  l->Add("direct.inflation_xy_per_m", "encounter-inflation-xy-per-m", &s.direct.inflation_xy_per_m,
+         &s.direct.inflation.xy_base_m, "sigma added to an encounter for clock offsets (m)");
+  l->Add("direct.inflation_xy_per_m", "encounter-inflation-xy-per-m", &s.direct.inflation.xy_per_m,
          "sigma added per metre of time correction");
   l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
-         &s.direct.inflation_theta_base_rad, "heading sigma added for clock offsets (rad)");
+         &s.direct.inflation.theta_base_rad, "heading sigma added for clock offsets (rad)");
   l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
          "cells per tile side");
@@ -92,12 +92,12 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
 }
 
 int RunOnline(const ServerOptions& options) {
-  std::string error;
-  auto loop = LcmLoop::Create(options.lcm_url, &error);
-  if (!loop) {
-    LogError(error);
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create(options.lcm_url);
+  if (!created.ok()) {
+    LogError(created.status().message());
     return 1;
   }
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
   LcmLoop* bus = loop.get();
   ServerNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
     const Status status = bus->Publish(channel, bytes);
@@ -216,23 +216,14 @@ int Main(int argc, char** argv) {
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   const auto parsed_formulation = ParseFormulation(formulation);
-  LogLevel level = LogLevel::kInfo;
-  Status problem = options.Validate();
-  if (!parsed_formulation)
-    problem = Status::Error("--formulation: '" + formulation +
-                            "' is not relative, global or global-moved");
-  if (!ParseLogLevel(options.log_level, &level))
-    problem = Status::Error("--log-level: '" + options.log_level + "'");
-  if (!problem.ok()) {
-    std::cerr << "anchormap-server: " << problem.message() << "\n(see anchormap-server --help)\n";
-    return 2;
+  if (!parsed_formulation) {
+    return loader.UsageError(Status::Error("--formulation: '" + formulation +
+                                           "' is not relative, global or global-moved"));
   }
   options.server.smoother.formulation = *parsed_formulation;
-  SetMinLogLevel(level);
-  SetLogComponent("anchormap-server");
-  std::istringstream config(loader.EffectiveConfig());
-  LogInfo("effective configuration:");
-  for (std::string line; std::getline(config, line);) LogInfo("  " + line);
+  Status valid = options.Validate();
+  if (valid.ok()) valid = loader.StartLogging(options.log_level, "anchormap-server");
+  if (!valid.ok()) return loader.UsageError(valid);
   return options.log_input.empty() ? RunOnline(options) : RunOffline(options);
 }
 

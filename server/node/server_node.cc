@@ -11,9 +11,9 @@ ServerNode::ServerNode(const ServerOptions& options, Publish publish)
 bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
   // The logic counts its own refusals; the node counts what does not decode.
   if (channel == options_.channels.keyframes) {
-    const Result<Keyframe> keyframe = DecodeKeyframe(data, size);
+    Result<Keyframe> keyframe = DecodeKeyframe(data, size);
     if (!keyframe.ok()) server_.CountRejection(keyframe.status(), channel);
-    if (keyframe.ok()) (void)server_.OnKeyframe(*keyframe);
+    if (keyframe.ok()) (void)server_.OnKeyframe(std::move(*keyframe));
     return true;
   }
   if (channel == options_.channels.encounters) {

@@ -5,18 +5,19 @@
 #include <optional>
 #include <string>
 
+#include "common/bus/channels.h"
 #include "common/util/status.h"
 #include "server/mapping_server.h"
 
 namespace anchormap {
 
 struct ServerChannels {
-  std::string keyframes = "ANCHORMAP_KEYFRAMES";
-  std::string encounters = "ANCHORMAP_ENCOUNTERS";
-  std::string merged_map = "ANCHORMAP_MERGED_MAP";
-  std::string anchor_covariances = "ANCHORMAP_ANCHOR_COVARIANCES";
-  std::string grid_tiles = "ANCHORMAP_GRID_TILES";
-  std::string status = "ANCHORMAP_SERVER_STATUS";
+  std::string keyframes = channels::kKeyframes;
+  std::string encounters = channels::kEncounters;
+  std::string merged_map = channels::kMergedMap;
+  std::string anchor_covariances = channels::kAnchorCovariances;
+  std::string grid_tiles = channels::kGridTiles;
+  std::string status = channels::kServerStatus;
 };
 
 struct ServerOptions {

@@ -1,5 +1,5 @@
 // anchormap-bench-solver: replays a 2D pose graph into the smoother, as one robot or cut
-// into N robots (BENCHMARKS.md), and prints timing, accuracy and convergence figures.
+// into N robots (docs/METHOD.md section 9), and prints timing, accuracy and convergence figures.
 
 #include <algorithm>
 #include <chrono>

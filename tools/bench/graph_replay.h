@@ -1,6 +1,6 @@
 #pragma once
 // Replays one recorded pose graph into the smoother as iSAM does (pose by pose), or cut
-// into N robots as the thesis' experiment did (BENCHMARKS.md): poses 0..n-1 are cut into
+// into N robots as the thesis' experiment did (docs/METHOD.md section 9): poses 0..n-1 are cut into
 // N consecutive pieces of equal length, each its own trajectory in its own local frame;
 // the odometry edge across each cut is dropped; edges between pieces become encounters.
 // Step k adds the k-th pose of every piece, each new pose's odometry edge first, then

@@ -2,7 +2,7 @@
 # Prints the solver's benchmark figures (the solver issue's closing table) as markdown:
 # M3500 and city10000, incremental (solution after every step) and batch, exact and
 # thresholded back-substitution; iterations to 1e-4 for relative vs global formulations
-# on 2- and 3-robot splits (BENCHMARKS.md: batch steps only every 100 updates, as the
+# on 2- and 3-robot splits (docs/METHOD.md section 9: batch steps only every 100 updates, as the
 # iSAM 1.6 reference, so no fill-triggered ones, each iterated to convergence). Run on a
 # quiet machine after a Release build:
 #

@@ -6,6 +6,7 @@
 #include <numeric>
 
 #include "bot_core/pose_t.hpp"
+#include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
 #include "common/io/trajectory_file.h"
 
@@ -139,10 +140,6 @@ Status ReadMapEstimate(const std::string& path, const std::string& channel,
   return Status::Ok();
 }
 
-double YawOfQuaternion(double w, double x, double y, double z) {
-  return std::atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
-}
-
 Status ReadPoseChannels(const std::string& path, const std::string& suffix,
                         std::map<std::string, StampedTrajectory>* by_robot, int64_t* undecodable) {
   by_robot->clear();
@@ -182,7 +179,8 @@ Status ReadReferences(const std::string& path, const std::string& tum_robot,
     references->source_by_robot[tum_robot] = path;
     return Status::Ok();
   }
-  static const char* const kSuffixes[2] = {"_GROUND_TRUTH", "_REFERENCE"};  // preference order
+  static const char* const kSuffixes[2] = {channels::kGroundTruthSuffix,
+                                           channels::kReferenceSuffix};  // preference order
   std::map<std::string, StampedTrajectory> by_suffix[2];
   for (int k = 0; k < 2; ++k) {
     if (Status s = ReadPoseChannels(path, kSuffixes[k], &by_suffix[k], &references->undecodable);

@@ -55,9 +55,6 @@ struct ReferenceSet {
   int64_t undecodable = 0;
 };
 
-// Yaw of a unit quaternion (w, x, y, z) (bot_core.pose_t's orientation).
-double YawOfQuaternion(double w, double x, double y, double z);
-
 // Every channel <ROBOT><suffix> of an LCM log decoded as bot_core.pose_t, per robot, sorted by
 // time; messages that do not decode or carry non-finite poses are counted in *undecodable.
 Status ReadPoseChannels(const std::string& path, const std::string& suffix,

@@ -149,11 +149,5 @@ TEST(ReadReferencesTest, GroundTruthPreferredQuaternionDecodedTumAccepted) {
   std::filesystem::remove(tum);
 }
 
-TEST(YawOfQuaternionTest, YawOnly) {
-  for (double theta : {-3.0, -1.0, 0.0, 0.5, 3.1}) {
-    EXPECT_NEAR(YawOfQuaternion(std::cos(theta / 2), 0, 0, std::sin(theta / 2)), theta, 1e-12);
-  }
-}
-
 }  // namespace
 }  // namespace anchormap

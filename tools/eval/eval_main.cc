@@ -13,6 +13,7 @@
 
 #include <boost/program_options.hpp>
 
+#include "common/bus/channels.h"
 #include "tools/eval/eval_inputs.h"
 #include "tools/eval/eval_report.h"
 #include "tools/eval/map_evaluation.h"
@@ -40,7 +41,7 @@ int Fail(const std::string& message, int code) {
 
 int main(int argc, char** argv) {
   std::string map_path, truth_path, relations_path, robot, odometry_path;
-  std::string map_channel = "ANCHORMAP_MERGED_MAP";
+  std::string map_channel = channels::kMergedMap;
   RelationsOptions relations_options;
   bool json = false;
   po::options_description visible("Options");
@@ -115,7 +116,8 @@ int main(int argc, char** argv) {
   int completed_trajectories = 0;
   if (!odometry_path.empty()) {
     int64_t undecodable = 0;
-    if (Status s = ReadPoseChannels(odometry_path, "_ODOMETRY", &odometry_by_robot, &undecodable);
+    if (Status s = ReadPoseChannels(odometry_path, channels::kOdometrySuffix, &odometry_by_robot,
+                                    &undecodable);
         !s.ok()) {
       return Fail(s.message(), 1);
     }

@@ -21,9 +21,7 @@ std::optional<Pose2> InterpolateOdometry(const StampedTrajectory& odometry, int6
   const StampedPose2& b = *after;
   if (b.utime - a.utime > max_sample_gap_us) return std::nullopt;
   const double s = static_cast<double>(utime - a.utime) / static_cast<double>(b.utime - a.utime);
-  return Pose2(a.pose.x() + s * (b.pose.x() - a.pose.x()),
-               a.pose.y() + s * (b.pose.y() - a.pose.y()),
-               a.pose.theta() + s * AngleDifference(b.pose.theta(), a.pose.theta()));
+  return Interpolate(a.pose, b.pose, s);
 }
 
 StampedTrajectory CompleteWithOdometry(const StampedTrajectory& keyframes,

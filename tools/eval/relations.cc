@@ -10,7 +10,7 @@
 namespace anchormap {
 namespace {
 
-constexpr const char* kFieldNames[8] = {"t1", "t2", "x", "y", "z", "roll", "pitch", "yaw"};
+const std::vector<const char*> kFieldNames = {"t1", "t2", "x", "y", "z", "roll", "pitch", "yaw"};
 
 // Index of the pose nearest in time to `utime` (poses sorted by time, not empty).
 size_t Nearest(const StampedTrajectory& poses, int64_t utime) {
@@ -26,17 +26,10 @@ size_t Nearest(const StampedTrajectory& poses, int64_t utime) {
 }  // namespace
 
 Status ParseRelationLine(std::string_view line, Relation* relation) {
-  const auto fields = SplitFields(line);
-  if (fields.size() != 8) {
-    return Status::Error("expected 8 fields (t1 t2 x y z roll pitch yaw), found " +
-                         std::to_string(fields.size()));
-  }
-  double v[8];
-  for (int i = 0; i < 8; ++i) {
-    if (!ParseFiniteDouble(fields[i], &v[i])) {
-      return Status::Error(std::string("field ") + kFieldNames[i] + " '" + Abbreviate(fields[i]) +
-                           "' is not a finite number");
-    }
+  std::vector<double> v;
+  if (Status parsed = ParseNumberFields(line, kFieldNames, /*commas_separate=*/false, &v);
+      !parsed.ok()) {
+    return parsed;
   }
   relation->t1_s = v[0];
   relation->t2_s = v[1];

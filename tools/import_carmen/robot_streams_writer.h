@@ -9,15 +9,16 @@
 
 #include "bot_core/planar_lidar_t.hpp"
 #include "bot_core/pose_t.hpp"
+#include "common/bus/channels.h"
 #include "common/util/status.h"
 #include "tools/import_carmen/robot_streams.h"
 
 namespace anchormap {
 
 struct ImportChannels {
-  std::string odometry = "{robot}_ODOMETRY";
-  std::string laser = "{robot}_LASER";
-  std::string reference = "{robot}_REFERENCE";
+  std::string odometry = std::string("{robot}") + channels::kOdometrySuffix;
+  std::string laser = std::string("{robot}") + channels::kLaserSuffix;
+  std::string reference = std::string("{robot}") + channels::kReferenceSuffix;
 
   // Each pattern must contain "{robot}" and give an upper-case channel name.
   Status Validate() const;

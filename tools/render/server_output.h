@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "common/bus/channels.h"
 #include "common/geometry/pose2.h"
 #include "common/util/status.h"
 #include "tools/render/colors.h"
@@ -71,10 +72,10 @@ struct ServerStatus {
 };
 
 struct ChannelNames {
-  std::string merged_map = "ANCHORMAP_MERGED_MAP";
-  std::string server_status = "ANCHORMAP_SERVER_STATUS";
-  std::string grid_tiles = "ANCHORMAP_GRID_TILES";
-  std::string anchor_covariances = "ANCHORMAP_ANCHOR_COVARIANCES";
+  std::string merged_map = channels::kMergedMap;
+  std::string server_status = channels::kServerStatus;
+  std::string grid_tiles = channels::kGridTiles;
+  std::string anchor_covariances = channels::kAnchorCovariances;
 };
 
 struct ServerOutput {

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "agent/node/agent_node.h"
+#include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
@@ -37,7 +38,7 @@ std::set<std::string> RobotsInLog(const std::string& path) {
   std::set<std::string> robots;
   LcmLogReader reader;
   if (!reader.Open(path).ok()) return robots;
-  const std::string suffix = "_ODOMETRY";
+  const std::string suffix = channels::kOdometrySuffix;
   while (auto event = reader.Next()) {
     const std::string& c = event->channel;
     if (c.size() > suffix.size() &&
@@ -66,9 +67,9 @@ int Run(const ReplayOptions& options) {
   LcmLogWriter writer;
   if (Status s = reader.Open(options.input); !s.ok()) return LogError(s.message()), 1;
   if (Status s = writer.Open(options.output); !s.ok()) return LogError(s.message()), 1;
-  std::string error;
-  auto loop = LcmLoop::Create("memq://", &error);
-  if (!loop) return LogError(error), 1;
+  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+  if (!created.ok()) return LogError(created.status().message()), 1;
+  std::unique_ptr<LcmLoop> loop = std::move(*created);
 
   auto publish = [&loop](const std::string& channel, const std::vector<uint8_t>& bytes) {
     (void)loop->Publish(channel, bytes);
@@ -148,17 +149,10 @@ int Main(int argc, char** argv) {
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
-  LogLevel level = LogLevel::kInfo;
-  Status problem = options.server.Validate();
-  if (!ParseLogLevel(options.log_level, &level))
-    problem = Status::Error("--log-level: '" + options.log_level + "'");
-  if (options.input == options.output) problem = Status::Error("--output must differ from --log");
-  if (!problem.ok()) {
-    std::cerr << "anchormap-replay: " << problem.message() << "\n(see anchormap-replay --help)\n";
-    return 2;
-  }
-  SetMinLogLevel(level);
-  SetLogComponent("anchormap-replay");
+  Status valid = options.server.Validate();
+  if (options.input == options.output) valid = Status::Error("--output must differ from --log");
+  if (valid.ok()) valid = loader.StartLogging(options.log_level, "anchormap-replay");
+  if (!valid.ok()) return loader.UsageError(valid);
   return Run(options);
 }
 

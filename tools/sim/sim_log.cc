@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/bus/channels.h"
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 
@@ -65,10 +66,10 @@ Status WriteSimulationLog(const SimOptions& options, const std::string& path, Si
   std::vector<std::string> odometry_channels, laser_channels, truth_channels, encounter_channels;
   for (int i = 0; i < simulator->num_robots(); ++i) {
     const std::string& name = simulator->robot(i).name();
-    odometry_channels.push_back(name + "_ODOMETRY");
-    laser_channels.push_back(name + "_LASER");
-    truth_channels.push_back(name + "_GROUND_TRUTH");
-    encounter_channels.push_back(name + "_ENCOUNTER");
+    odometry_channels.push_back(channels::Odometry(name));
+    laser_channels.push_back(channels::Laser(name));
+    truth_channels.push_back(channels::GroundTruth(name));
+    encounter_channels.push_back(channels::Encounter(name));
   }
   if (trace)
     *trace = SimTrace{std::vector<std::vector<Eigen::Vector2d>>(simulator->num_robots()), {}};

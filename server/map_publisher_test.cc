@@ -1,0 +1,168 @@
+#include "server/map_publisher.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/angle.h"
+
+namespace anchormap {
+namespace {
+
+// Two robots driving along their own x axes, 1 m per keyframe; each keyframe's scan is one
+// beam straight ahead hitting a wall 2 m away. Robot B starts at (10, 5) facing north in
+// A's frame; one encounter joins them.
+class MapPublisherTest : public ::testing::Test {
+ protected:
+  static constexpr int kKeyframes = 4;
+
+  MapPublisherTest() {
+    for (const char* robot : {"A", "B"}) {
+      const int64_t trajectory = robot[0] == 'A' ? 7 : 8;
+      for (int32_t seq = 0; seq < kKeyframes; ++seq) {
+        Keyframe k;
+        k.robot = robot;
+        k.trajectory_id = trajectory;
+        k.seq = seq;
+        k.utime = 1'000'000 * (seq + 1);
+        k.T_local_pose = Pose2(seq, 0.0, 0.0);
+        if (seq > 0) {
+          k.T_previous_this = Pose2(1.0, 0.0, 0.0);
+          k.T_previous_this_covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+        }
+        k.scan.rad0 = 0.0f;
+        k.scan.radstep = 0.0f;
+        k.scan.max_range = 10.0f;
+        k.scan.ranges = {2.0f};
+        std::vector<AdmittedKeyframe> admitted;
+        EXPECT_TRUE(table_.Offer(k, &admitted).ok());
+        for (const AdmittedKeyframe& a : admitted) {
+          EXPECT_TRUE(smoother_.AddPose(a.key, a.T_local_pose).ok());
+          if (a.previous) {
+            EXPECT_TRUE(
+                smoother_
+                    .AddBetween(*a.previous, a.key, a.T_previous_this, a.T_previous_this_covariance)
+                    .ok());
+          }
+        }
+      }
+    }
+    EXPECT_EQ(smoother_.Update().status.ToString(), "ok");
+  }
+
+  // A's pose 2 sees B's pose 1, exactly.
+  void Encounter() {
+    const Pose2 world_T_b0(10.0, 5.0, kPi / 2);
+    const Pose2 seen = Between(Pose2(2.0, 0.0, 0.0), Compose(world_T_b0, Pose2(1.0, 0.0, 0.0)));
+    ASSERT_TRUE(
+        smoother_.AddEncounter({0, 2}, {1, 1}, seen, Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal())
+            .ok());
+    ASSERT_TRUE(smoother_.Update().status.ok());
+    links_.push_back({7, 2, 8, 1});
+  }
+
+  TrajectoryTable table_;
+  Smoother smoother_;
+  std::vector<EncounterLink> links_;
+};
+
+TEST_F(MapPublisherTest, MergedMapHoldsEveryTrajectoryLocalUntilAnchoredThenGlobal) {
+  MapPublisher publisher;
+  const MergedMap before = publisher.BuildMergedMap(smoother_, table_, links_, 42, 1);
+  EXPECT_EQ(before.utime, 42);
+  EXPECT_EQ(before.update, 1);
+  ASSERT_EQ(before.trajectories.size(), 2u);
+  for (const MergedTrajectory& t : before.trajectories) {
+    EXPECT_FALSE(t.anchored) << t.robot;
+    ASSERT_EQ(t.poses.size(), static_cast<size_t>(kKeyframes));
+    EXPECT_LT(PoseError(t.poses[3], Pose2(3.0, 0.0, 0.0)).norm(), 1e-9) << t.robot;
+    EXPECT_EQ(t.pose_utimes[3], 4'000'000);
+  }
+
+  Encounter();
+  const MergedMap after = publisher.BuildMergedMap(smoother_, table_, links_, 43, 2);
+  ASSERT_EQ(after.trajectories.size(), 2u);
+  const MergedTrajectory& a = after.trajectories[0];
+  const MergedTrajectory& b = after.trajectories[1];
+  EXPECT_EQ(a.robot, "A");
+  EXPECT_EQ(b.trajectory_id, 8);
+  EXPECT_TRUE(a.anchored && b.anchored);
+  // A's frame is the global frame; B's anchor is its start in A's frame, and its poses are
+  // the anchor composed with its local poses.
+  EXPECT_LT(PoseError(a.T_global_local, Pose2()).norm(), 1e-9);
+  EXPECT_LT(PoseError(b.T_global_local, Pose2(10.0, 5.0, kPi / 2)).norm(), 1e-9);
+  for (int i = 0; i < kKeyframes; ++i) {
+    EXPECT_LT(PoseError(b.poses[i], Compose(b.T_global_local, Pose2(i, 0.0, 0.0))).norm(), 1e-9);
+  }
+  ASSERT_EQ(after.encounters.size(), 1u);
+  EXPECT_EQ(after.encounters[0].index_b, 1);
+}
+
+TEST_F(MapPublisherTest, AnchorCovariancesAreTheSmoothersMarginals) {
+  MapPublisher publisher;
+  EXPECT_TRUE(publisher.BuildAnchorCovariances(&smoother_, table_, 1, 1).anchors.empty());
+  Encounter();
+  const AnchorCovariances out = publisher.BuildAnchorCovariances(&smoother_, table_, 5, 2);
+  ASSERT_EQ(out.anchors.size(), 2u);
+  EXPECT_EQ(out.anchors[1].robot, "B");
+  EXPECT_EQ(out.anchors[1].trajectory_id, 8);
+  const Eigen::Matrix3d expected = smoother_.MarginalCovariance(Key(AnchorKey{1}));
+  EXPECT_LT((out.anchors[1].covariance - expected).norm(), 1e-15);
+  // B's anchor is known through one encounter and A's odometry: looser than A's, which
+  // carries the group's gauge prior.
+  EXPECT_GT(out.anchors[1].covariance.trace(), out.anchors[0].covariance.trace());
+}
+
+TEST_F(MapPublisherTest, GridComesFromTheLargestGroupWithWallsWhereTheScansHit) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  MapPublisher publisher(options);
+  // Before the encounter the two groups are equal: the first one (A) is drawn.
+  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_), (std::vector<TrajectoryId>{0}));
+  Encounter();
+  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_), (std::vector<TrajectoryId>{0, 1}));
+
+  const std::vector<GridTile> tiles = publisher.BuildGridTiles(smoother_, table_, 9, 2);
+  ASSERT_FALSE(tiles.empty());
+  auto occupancy_at = [&](double x, double y) {
+    const int64_t cx = static_cast<int64_t>(std::floor(x / 0.1));
+    const int64_t cy = static_cast<int64_t>(std::floor(y / 0.1));
+    for (const GridTile& t : tiles) {
+      const int64_t local_x = cx - int64_t{t.tile_x} * t.width;
+      const int64_t local_y = cy - int64_t{t.tile_y} * t.height;
+      if (local_x >= 0 && local_x < t.width && local_y >= 0 && local_y < t.height) {
+        return static_cast<int>(t.cells[static_cast<size_t>(local_y * t.width + local_x)]);
+      }
+    }
+    return -1;
+  };
+  // A's last keyframe at (3, 0) sees a wall at (5, 0); B's at (10, 8) facing north sees
+  // one at (10, 10). Between the last sensor and its wall (4.5, 0): free.
+  EXPECT_GT(occupancy_at(5.05, 0.05), 50);
+  EXPECT_GT(occupancy_at(10.05, 10.05), 50);
+  EXPECT_GE(occupancy_at(4.55, 0.05), 0);
+  EXPECT_LT(occupancy_at(4.55, 0.05), 50);
+  EXPECT_EQ(occupancy_at(-20.0, -20.0), -1);
+}
+
+TEST(MapPublisherRateTest, MapAfterEachNewUpdateAtMostOncePerPeriodGridOnItsOwnPeriod) {
+  MapPublisherOptions options;
+  options.map_period_s = 1.0;
+  options.grid_period_s = 5.0;
+  MapPublisher publisher(options);
+  EXPECT_FALSE(publisher.MapDue(0, 0));  // no update yet
+  EXPECT_TRUE(publisher.MapDue(0, 1));
+  publisher.MarkMapPublished(0, 1);
+  EXPECT_FALSE(publisher.MapDue(5'000'000, 1));  // nothing new
+  EXPECT_FALSE(publisher.MapDue(999'999, 2));    // too soon
+  EXPECT_TRUE(publisher.MapDue(1'000'000, 2));
+  EXPECT_TRUE(publisher.GridDue(0, 1));
+  publisher.MarkGridPublished(0, 1);
+  EXPECT_FALSE(publisher.GridDue(4'999'999, 3));
+  EXPECT_TRUE(publisher.GridDue(5'000'000, 3));
+  options.grid_period_s = 0.0;  // never
+  EXPECT_FALSE(MapPublisher(options).GridDue(100'000'000, 9));
+}
+
+}  // namespace
+}  // namespace anchormap
