@@ -370,7 +370,8 @@
       max_frame_ms: stats.maxFrameMs, mean_frame_ms: stats.frames ? stats.totalFrameMs / stats.frames : 0,
       tiles: model.tiles.size, encounters: model.links.length,
       view: { cx: view.cx, cy: view.cy, scale: view.scale, left: rect.left, top: rect.top,
-              width: canvas.width, height: canvas.height, device_pixel_ratio: window.devicePixelRatio },
+              width: canvas.width, height: canvas.height, device_pixel_ratio: window.devicePixelRatio,
+              follow: view.follow, bounds: layout.bounds },
       trajectories: layout.trajectories.map((t) => ({
         key: t.key, robot: t.robot, id: t.id, anchored: t.anchored, keyframes: t.poses.length / 3,
         color: t.color, offset: layout.offsets.get(t.key) })),
