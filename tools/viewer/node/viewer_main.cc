@@ -11,6 +11,7 @@
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
+#include "tools/viewer/log_follower.h"
 #include "tools/viewer/node/viewer_node.h"
 #include "tools/viewer/viewer_state.h"
 #include "tools/viewer/web_server.h"
@@ -20,6 +21,7 @@ namespace {
 
 struct ViewerOptions {
   std::string lcm_url;
+  std::string follow_log;
   ViewerChannels channels;
   WebServerOptions web;
   int push_period_ms = 200;
@@ -37,6 +39,9 @@ int64_t WallUtime() {
 
 void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
   l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  l->Add("follow_log", "follow-log", &o->follow_log,
+         "read the server's outputs from this LCM log file as it grows (e.g. lcm-logger's) "
+         "instead of the bus");
   l->Add("http.address", "http-address", &o->web.address,
          "address to serve the page on (0.0.0.0: every interface)");
   l->Add("http.port", "http-port", &o->web.port, "TCP port of the page (0: any free port)");
@@ -61,7 +66,8 @@ void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
 
 int Run(const ViewerOptions& options) {
   std::string error;
-  auto loop = LcmLoop::Create(options.lcm_url, &error);
+  const bool following = !options.follow_log.empty();
+  auto loop = LcmLoop::Create(following ? "memq://" : options.lcm_url, &error);
   if (!loop) {
     LogError(error);
     return 1;
@@ -86,23 +92,37 @@ int Run(const ViewerOptions& options) {
   auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
     node.OnMessage(channel, data, size, WallUtime());
   };
-  for (const std::string& channel :
-       {options.channels.merged_map, options.channels.grid_tiles,
-        options.channels.anchor_covariances, options.channels.status}) {
-    if (Status s = loop->Subscribe(channel, handler, options.queue_capacity); !s.ok()) {
-      LogError(s.message());
-      return 1;
+  LogFollower follower(options.follow_log);
+  if (following) {
+    loop->Every(std::chrono::milliseconds(100), [&] {
+      for (const FollowedEvent& e : follower.Poll()) {
+        handler(e.channel, e.data.data(), e.data.size());
+      }
+    });
+  } else {
+    for (const std::string& channel :
+         {options.channels.merged_map, options.channels.grid_tiles,
+          options.channels.anchor_covariances, options.channels.status}) {
+      if (Status s = loop->Subscribe(channel, handler, options.queue_capacity); !s.ok()) {
+        LogError(s.message());
+        return 1;
+      }
     }
   }
   loop->Every(std::chrono::milliseconds(options.push_period_ms), push);
   LcmLoop* bus = loop.get();
   auto status_line = [&] {
     std::ostringstream line;
-    line << "lcm messages " << bus->stats().messages_handled << " | map update "
-         << state.map_update() << ", " << state.num_trajectories() << " trajectories, "
-         << state.num_keyframes() << " keyframes, " << state.num_tiles() << " tiles, seq "
-         << state.seq() << ", restarts " << state.restarts() << " | " << web->StatusLine()
-         << " | rejected: "
+    if (following) {
+      line << "log events " << follower.events() << " (bytes skipped " << follower.bytes_skipped()
+           << ", reopened " << follower.reopens() << ")";
+    } else {
+      line << "lcm messages " << bus->stats().messages_handled;
+    }
+    line << " | map update " << state.map_update() << ", " << state.num_trajectories()
+         << " trajectories, " << state.num_keyframes() << " keyframes, " << state.num_tiles()
+         << " tiles, seq " << state.seq() << ", restarts " << state.restarts() << " | "
+         << web->StatusLine() << " | rejected: "
          << (node.rejections().total() + state.rejections().total() == 0
                  ? std::string("none")
                  : node.rejections().Summary() + " " + state.rejections().Summary());
