@@ -160,7 +160,7 @@
   function fitView() {
     const b = layout.bounds;
     if (!b) return;
-    const w = canvas.width, h = canvas.height, margin = 20;
+    const w = canvas.width, h = canvas.height, margin = 40;  // room for the names
     view.cx = (b.x0 + b.x1) / 2;
     view.cy = (b.y0 + b.y1) / 2;
     view.scale = Math.min((w - 2 * margin) / Math.max(b.x1 - b.x0, 1),
