@@ -38,6 +38,8 @@ void ViewerState::Clear() {
   encounters_.clear();
   tiles_.clear();
   tiles_cleared_ = true;
+  removed_tiles_.clear();
+  grid_run_update_ = -1;
   if (!covariances_.is_null()) covariances_changed_ = true;
   covariances_ = json();
   if (!status_.is_null()) status_changed_ = true;
@@ -161,7 +163,21 @@ bool ViewerState::ApplyGridTile(const GridTile& tile, int64_t wall_utime) {
   NoteUpdate(kTiles, tile.update);
   last_message_wall_utime_ = wall_utime;
   meta_changed_ = true;
+  if (tile.update != grid_run_update_) {  // a new grid run: forget tiles it left behind
+    grid_run_update_ = tile.update;
+    ++grid_run_;
+    for (auto it = tiles_.begin(); it != tiles_.end();) {
+      if (grid_run_ - it->second.run > options_.max_grid_runs_back && it->first != key) {
+        removed_tiles_.push_back(std::to_string(it->first.first) + "," +
+                                 std::to_string(it->first.second));
+        it = tiles_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
   Tile& t = tiles_[key];
+  t.run = grid_run_;
   if (t.cells == tile.cells && t.width == tile.width && t.resolution_m == tile.resolution_m) {
     t.update = tile.update;  // unchanged content: nothing to send
     return true;
@@ -219,8 +235,9 @@ bool ViewerState::ApplyStatus(const ServerStatus& status, int64_t wall_utime) {
 }
 
 bool ViewerState::HasChanges() const {
-  if (meta_changed_ || !removed_.empty() || encounters_first_changed_ != kUnchanged ||
-      tiles_cleared_ || covariances_changed_ || status_changed_) {
+  if (meta_changed_ || !removed_.empty() || !removed_tiles_.empty() ||
+      encounters_first_changed_ != kUnchanged || tiles_cleared_ || covariances_changed_ ||
+      status_changed_) {
     return true;
   }
   for (const auto& [key, t] : trajectories_) {
@@ -291,6 +308,9 @@ json ViewerState::TakeDelta() {
     t.changed = false;
   }
   delta["tiles"] = std::move(tiles);
+  // A tile dropped and then brought again within one delta is in both: removals first.
+  delta["removed_tiles"] = removed_tiles_;
+  removed_tiles_.clear();
   if (covariances_changed_) delta["covariances"] = covariances_;
   if (status_changed_) delta["status"] = status_;
   removed_.clear();
@@ -314,6 +334,7 @@ json ViewerState::Full() const {
   json tiles = json::array();
   for (const auto& [key, t] : tiles_) tiles.push_back(TileJson(t));
   full["tiles"] = std::move(tiles);
+  full["removed_tiles"] = json::array();
   full["covariances"] = covariances_;
   full["status"] = status_;
   return full;

@@ -8,8 +8,9 @@
 //   TakeDelta() {"type": "delta", ...}: only what changed since the previous TakeDelta():
 //               trajectories whose poses moved from the first moved keyframe on
 //               ("from", "poses" from there, "num_poses"), removed trajectories, the
-//               encounter list from its first change, changed grid tiles, and the anchor
-//               covariances and status when they changed.
+//               encounter list from its first change, changed grid tiles and dropped
+//               ones ("removed_tiles": "x,y"), and the anchor covariances and status when
+//               they changed.
 // The page applies both the same way, so Full() at delta k, then TakeDelta() k+1, gives
 // Full() at k+1 (the unit test checks exactly that). Poses are rounded (1 mm, 1e-4 rad)
 // before they are compared and sent, so a pose that moved by less does not travel.
@@ -33,6 +34,9 @@ struct ViewerStateOptions {
   double angle_quantum_rad = 1e-4;
   int32_t max_tiles = 20000;           // tiles held; more are refused (bounded memory)
   int32_t max_tile_side_cells = 1024;  // a tile wider or taller than this is refused
+  // A grid update is a run of tiles with one update number; a tile that none of the last
+  // this many runs refreshed is dropped (the grid moved on), as anchormap-render does.
+  int32_t max_grid_runs_back = 5;
 };
 
 class ViewerState {
@@ -76,6 +80,7 @@ class ViewerState {
     int64_t update = 0;
     std::vector<int8_t> cells;
     bool changed = false;
+    int64_t run = 0;  // the grid run that last brought it
   };
   static constexpr size_t kUnchanged = static_cast<size_t>(-1);
 
@@ -103,6 +108,9 @@ class ViewerState {
   size_t encounters_first_changed_ = kUnchanged;
   std::map<std::pair<int32_t, int32_t>, Tile> tiles_;
   bool tiles_cleared_ = false;
+  std::vector<std::string> removed_tiles_;  // "x,y", since the last delta
+  int64_t grid_run_ = 0;
+  int64_t grid_run_update_ = -1;
   nlohmann::json covariances_;  // null until the first
   bool covariances_changed_ = false;
   nlohmann::json status_;  // null until the first

@@ -48,6 +48,7 @@ void ApplyToModel(const json& m, json* model) {
     s["links"] = links;
   }
   if (m["clear_tiles"].get<bool>()) s["tiles"] = json::object();
+  for (const auto& key : m["removed_tiles"]) s["tiles"].erase(key.get<std::string>());
   for (const auto& t : m["tiles"]) {
     s["tiles"][std::to_string(t["x"].get<int>()) + "," + std::to_string(t["y"].get<int>())] = t;
   }
@@ -238,6 +239,30 @@ TEST(ViewerStateTest, EncountersGetTheirKindAndLinksToUnknownTrajectoriesAreRefu
   EXPECT_EQ(links[0], json({"R1/1", 2, "R2/2", 3, "inter_robot"}));
   EXPECT_EQ(links[1][4], "same_trajectory");
   EXPECT_EQ(state.rejections().count(ErrorCode::kInvalidValue), 1);
+}
+
+TEST(ViewerStateTest, ATileThatTheLastGridRunsDidNotRefreshIsDropped) {
+  ViewerStateOptions options;
+  options.max_grid_runs_back = 2;
+  ViewerState state(options);
+  json model;
+  ApplyToModel(state.Full(), &model);
+  ASSERT_TRUE(state.ApplyGridTile(Tile(0, 0, 1, 1), 0));  // run 1: tiles (0,0), (1,0)
+  ASSERT_TRUE(state.ApplyGridTile(Tile(1, 0, 1, 1), 0));
+  ApplyToModel(state.TakeDelta(), &model);
+  for (int64_t update = 2; update <= 4; ++update) {  // runs 2..4 bring (1,0) only
+    ASSERT_TRUE(state.ApplyGridTile(Tile(1, 0, static_cast<int8_t>(update), update), 0));
+    const json delta = state.TakeDelta();
+    ApplyToModel(delta, &model);
+    // (0,0) was last brought by run 1: kept while run - 1 <= 2, dropped at run 4.
+    EXPECT_EQ(delta["removed_tiles"].size(), update == 4 ? 1u : 0u) << update;
+  }
+  EXPECT_EQ(state.num_tiles(), 1u);
+  EXPECT_EQ(model["tiles"].size(), 1u);
+  EXPECT_TRUE(model["tiles"].contains("1,0"));
+  json full;
+  ApplyToModel(state.Full(), &full);
+  EXPECT_EQ(model, full);
 }
 
 TEST(ViewerStateTest, TilesBeyondTheLimitsAreRefused) {

@@ -70,7 +70,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void Accept(http::request<http::empty_body> request) {
     auto hub = hub_.lock();
     if (!hub) return;
-    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    // The page only listens: Beast pings it (browsers answer) so that a quiet but live
+    // connection is not taken for a dead one, and a dead one ends within a minute.
+    websocket::stream_base::timeout timeout =
+        websocket::stream_base::timeout::suggested(beast::role_type::server);
+    timeout.idle_timeout = std::chrono::seconds(60);
+    timeout.keep_alive_pings = true;
+    ws_.set_option(timeout);
     ws_.read_message_max(hub->options.max_incoming_message_bytes);
     ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& response) {
       response.set(http::field::server, "anchormap-viewer");

@@ -51,6 +51,7 @@
       for (const l of m.encounters.links) model.links.push(l);
     }
     if (m.clear_tiles) model.tiles.clear();
+    for (const key of m.removed_tiles || []) model.tiles.delete(key);
     for (const t of m.tiles || []) model.tiles.set(t.x + ',' + t.y, makeTile(t));
     if ('covariances' in m) model.covariances = m.covariances;
     if ('status' in m) model.status = m.status;
