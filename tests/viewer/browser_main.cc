@@ -36,7 +36,20 @@ struct Options {
   double timeout_s = 60;
   std::string state_out;
   std::string screenshot_out;
+  std::string save_prefix;
 };
+
+// What the page's "Save PNG" button downloads, as base64 (in chunks: a large spread
+// would overflow the call stack).
+constexpr char kSavedPngExpression[] = R"js(
+window.anchormapViewer.pngBlob().then((blob) => blob.arrayBuffer()).then((buffer) => {
+  const bytes = new Uint8Array(buffer);
+  let text = '';
+  for (let i = 0; i < bytes.length; i += 8192) {
+    text += String.fromCharCode.apply(null, bytes.subarray(i, i + 8192));
+  }
+  return btoa(text);
+}))js";
 
 // GET http://127.0.0.1:port/target; "" when anything fails.
 std::string HttpGet(int port, const std::string& target) {
@@ -92,9 +105,10 @@ class DevTools {
       if (reply.is_object() && reply.value("id", -1) == id) return reply.value("result", json());
     }
   }
-  json Evaluate(const std::string& expression) {
-    const json result =
-        Call("Runtime.evaluate", {{"expression", expression}, {"returnByValue", true}});
+  json Evaluate(const std::string& expression, bool await_promise = false) {
+    const json result = Call(
+        "Runtime.evaluate",
+        {{"expression", expression}, {"returnByValue", true}, {"awaitPromise", await_promise}});
     return result.is_object() && result.contains("result") ? result["result"].value("value", json())
                                                            : json();
   }
@@ -151,6 +165,19 @@ int Run(const Options& o) {
         .write(reinterpret_cast<const char*>(png->data()),
                static_cast<std::streamsize>(png->size()));
   }
+  if (!o.save_prefix.empty()) {  // what the save buttons give
+    const json g2o = devtools.Evaluate("window.anchormapViewer.g2o()");
+    const json png = devtools.Evaluate(kSavedPngExpression, /*await_promise=*/true);
+    const auto png_bytes = Base64Decode(png.is_string() ? png.get<std::string>() : "");
+    if (!g2o.is_string() || !png_bytes || png_bytes->empty()) {
+      std::cerr << "viewer-browser: the page's save functions gave nothing\n";
+      return 1;
+    }
+    std::ofstream(o.save_prefix + ".g2o") << g2o.get<std::string>();
+    std::ofstream(o.save_prefix + ".png", std::ios::binary)
+        .write(reinterpret_cast<const char*>(png_bytes->data()),
+               static_cast<std::streamsize>(png_bytes->size()));
+  }
   std::cout << "viewer-browser: page seq " << state["seq"] << ", map update " << state["map_update"]
             << ", " << state["trajectories"].size() << " trajectories, " << state["fulls"]
             << " full states and " << state["deltas"] << " deltas received\n";
@@ -171,6 +198,8 @@ int main(int argc, char** argv) {
   loader.Add("timeout_s", "timeout-s", &o.timeout_s, "give up after this long (s)");
   loader.Add("state_out", "state-out", &o.state_out, "write the page's state here", true);
   loader.Add("screenshot_out", "screenshot-out", &o.screenshot_out, "write a PNG screenshot here");
+  loader.Add("save_prefix", "save-prefix", &o.save_prefix,
+             "write what the page's save buttons give to PREFIX.png and PREFIX.g2o");
   const anchormap::ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   return anchormap::viewer::Run(o);

@@ -19,6 +19,7 @@
 
 #include "common/bus/lcm_log.h"
 #include "common/bus/map_codec.h"
+#include "common/io/graph_file.h"
 #include "common/util/options_loader.h"
 #include "tools/viewer/viewer_state.h"
 
@@ -33,6 +34,7 @@ struct Options {
   std::string state;
   std::string screenshot;
   std::string same_as;
+  std::string saved_prefix;
   bool print_last_update = false;
   int robots = 3;
   double min_color_fraction = 0.8;
@@ -159,6 +161,43 @@ int Run(const Options& o) {
         return Fail("the trajectory's colour is missing at its poses");
     }
   }
+  if (!o.saved_prefix.empty()) {
+    // "Save g2o": a vertex per keyframe (trajectories in the page's order) at the map's
+    // pose (rounded to 1 mm / 1e-4 rad by the viewer), an edge between consecutive
+    // keyframes and one per encounter link.
+    PoseGraph graph;
+    if (Status s = ReadPoseGraph(o.saved_prefix + ".g2o", &graph); !s.ok())
+      return Fail(s.message());
+    size_t vertex = 0, edges = 0;
+    for (const json& t : shown) {
+      const MergedTrajectory& m = *expected[t["key"].get<std::string>()];
+      for (const Pose2& p : m.poses) {
+        if (vertex >= graph.vertices.size()) return Fail("the saved g2o has too few vertices");
+        const Pose2& v = graph.vertices[vertex].pose;
+        if (graph.vertices[vertex].id != static_cast<int64_t>(vertex) ||
+            std::abs(v.x() - p.x()) > 6e-4 || std::abs(v.y() - p.y()) > 6e-4 ||
+            std::abs(std::remainder(v.theta() - p.theta(), 2 * M_PI)) > 1e-4) {
+          return Fail("saved vertex " + std::to_string(vertex) + " is not the map's pose");
+        }
+        ++vertex;
+      }
+      edges += m.poses.empty() ? 0 : m.poses.size() - 1;
+    }
+    edges += last->encounters.size();
+    std::printf("viewer-check: saved g2o: %zu vertices, %zu edges (the map: %zu keyframes, %zu)\n",
+                graph.vertices.size(), graph.edges.size(), vertex, edges);
+    if (graph.vertices.size() != vertex || graph.edges.size() != edges) {
+      return Fail("the saved g2o's vertex or edge count differs from the map's");
+    }
+    Image saved;
+    if (!ReadPng(o.saved_prefix + ".png", &saved)) return Fail("the saved PNG does not read");
+    const json& view = (*state)["view"];
+    std::printf("viewer-check: saved PNG: %d x %d (the canvas: %s x %s)\n", saved.width,
+                saved.height, view["width"].dump().c_str(), view["height"].dump().c_str());
+    if (saved.width != view["width"].get<int>() || saved.height != view["height"].get<int>()) {
+      return Fail("the saved PNG is not the canvas");
+    }
+  }
   std::cout << "viewer-check: PASS\n";
   return 0;
 }
@@ -176,6 +215,8 @@ int main(int argc, char** argv) {
              "only print the last merged map's update number");
   loader.Add("screenshot", "screenshot", &o.screenshot, "the page's screenshot (PNG)");
   loader.Add("same_as", "same-as", &o.same_as, "another page's state that must show the same");
+  loader.Add("saved_prefix", "saved", &o.saved_prefix,
+             "PREFIX.png / PREFIX.g2o from the page's save buttons, to check");
   loader.Add("robots", "robots", &o.robots, "trajectories the last map must have");
   loader.Add("min_color_fraction", "min-color-fraction", &o.min_color_fraction,
              "keyframe pixels that must show their trajectory's colour");

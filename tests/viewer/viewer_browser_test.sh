@@ -7,7 +7,8 @@
 # A first browser opens the page before the replay and follows it (deltas); when the
 # replay is over, it must hold the last merged map's three trajectories with their keyframe
 # counts. A second browser connecting late must show the same map, and its screenshot must
-# show each trajectory's colour at its keyframes (anchormap-test-viewer-check). The viewer
+# show each trajectory's colour at its keyframes (anchormap-test-viewer-check); its save
+# buttons' g2o must hold the map's keyframes and links, and its PNG be the canvas. The viewer
 # must exit 0 on SIGINT having refused nothing.
 # Exit 77 (ctest SKIP_RETURN_CODE) without network namespaces or without chromium.
 #
@@ -75,7 +76,7 @@ inside_namespace() {
     b2=$!
     "$BIN/anchormap-test-viewer-browser" --devtools-port 9302 --viewer-port $HTTP_PORT \
       --min-map-update "$last_update" --timeout-s 40 --state-out "$work/state2.json" \
-      --screenshot-out "$work/late.png" || status=1
+      --screenshot-out "$work/late.png" --save-prefix "$work/saved" || status=1
     kill -TERM "$b2" 2>/dev/null; wait "$b2" 2>/dev/null
   fi
   kill -TERM "$b1" 2>/dev/null; wait "$b1" 2>/dev/null
@@ -120,7 +121,8 @@ main() {
   "$BIN/anchormap-test-viewer-check" --map "$work/out.lcmlog" --state "$work/state1.json" --robots $ROBOTS ||
     { log "FAIL: the first browser"; exit 1; }
   "$BIN/anchormap-test-viewer-check" --map "$work/out.lcmlog" --state "$work/state2.json" --robots $ROBOTS \
-    --same-as "$work/state1.json" --screenshot "$work/late.png" || { log "FAIL: the late browser"; exit 1; }
+    --same-as "$work/state1.json" --screenshot "$work/late.png" --saved "$work/saved" ||
+    { log "FAIL: the late browser"; exit 1; }
   [ -n "${ANCHORMAP_VIEWER_SCREENSHOT:-}" ] && cp "$work/late.png" "$ANCHORMAP_VIEWER_SCREENSHOT"
   log "PASS"
 }

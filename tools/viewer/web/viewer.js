@@ -422,10 +422,12 @@
     return lines.join('\n') + '\n';
   }
   const stamp = () => 'anchormap-update-' + model.mapUpdate;
-  document.getElementById('save-png').onclick = () => {
+  function pngBlob() {
     draw();
-    canvas.toBlob((blob) => download(blob, stamp() + '.png'), 'image/png');
-  };
+    return new Promise((resolve) => canvas.toBlob(resolve, 'image/png'));
+  }
+  document.getElementById('save-png').onclick = () =>
+    pngBlob().then((blob) => download(blob, stamp() + '.png'));
   document.getElementById('save-g2o').onclick = () =>
     download(new Blob([g2oText()], { type: 'text/plain' }), stamp() + '.g2o');
   document.getElementById('fit').onclick = () => { view.follow = true; requestDraw(); };
@@ -483,7 +485,7 @@
     };
   }
 
-  window.anchormapViewer = { state: pageState, draw: draw, g2o: g2oText };
+  window.anchormapViewer = { state: pageState, draw: draw, g2o: g2oText, pngBlob: pngBlob };
   connect();
   requestDraw();
 })();
