@@ -66,21 +66,25 @@ measure() {
   ticks1=$(awk '{ print $14 + $15 }' /proc/$viewer/stat)
   "$BIN/anchormap-test-viewer-browser" --devtools-port 9311 --viewer-port $HTTP_PORT \
     --timeout-s 120 --state-out "$WORK/state1.json" --screenshot-out "$WORK/load.png"
+  local full_bytes
+  full_bytes=$(exec 3<>/dev/tcp/127.0.0.1/$HTTP_PORT; printf 'GET /state.json HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n' >&3;
+               cat <&3 | sed '1,/^\r$/d' | wc -c)
   kill -TERM $browser; wait $browser 2>/dev/null || true
   kill -INT $viewer; wait $viewer
   local final
   final=$(grep 'final:' "$WORK/viewer.log")
   local mb
   mb=$(sed -E 's/.*sent [0-9]+ messages ([0-9.]+) MB.*/\1/' <<<"$final")
-  local messages
+  local messages wire
   messages=$(sed -E 's/.*sent ([0-9]+) messages.*/\1/' <<<"$final")
+  wire=$(sed -E 's/.*\(([0-9.]+) MB on the wire\).*/\1/' <<<"$final")
   field() { grep -o "\"$1\": *[^,}]*" "$WORK/state1.json" | head -n 1 | sed 's/.*: *//'; }
   echo
   echo "viewer_load: $ROBOTS robots, ${DURATION_S} s, server outputs replayed at 1x in $(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.1f", b - a }') s"
   awk -v a="$t0" -v b="$t1" -v c0="$ticks0" -v c1="$ticks1" -v hz="$(getconf CLK_TCK)" \
     'BEGIN { printf "  viewer CPU            %.1f %% of one core (%.2f s CPU)\n", 100 * (c1 - c0) / hz / (b - a), (c1 - c0) / hz }'
-  awk -v a="$t0" -v b="$t1" -v mb="$mb" -v n="$messages" \
-    'BEGIN { printf "  WebSocket to 1 page   %.1f kB/s (%s MB in %s messages, incl. the first full state)\n", 1000 * mb / (b - a), mb, n }'
+  awk -v a="$t0" -v b="$t1" -v mb="$mb" -v n="$messages" -v wire="$wire" -v full="$full_bytes" \
+    'BEGIN { printf "  WebSocket to 1 page   %.1f kB/s on the wire (permessage-deflate; TCP bytes acked), %.1f kB/s of JSON (%s MB in %s messages, incl. the first full state); the final full state: %.2f MB of JSON\n", 1000 * wire / (b - a), 1000 * mb / (b - a), mb, n, full / 1e6 }'
   echo "  page frame time       last $(field last_frame_ms) ms with all drawn; mean $(field mean_frame_ms) ms, max $(field max_frame_ms) ms over $(field frames) frames"
   echo "  page holds            $(grep -c '"key"' "$WORK/state1.json") trajectories, $(field tiles) tiles, $(field encounters) encounters, map update $(field map_update)"
   echo "  viewer final          ${final#*final: }"

@@ -11,6 +11,7 @@
 // (counted). Each client's send queue is bounded: when a slow client's queue would pass
 // the limit, its queued deltas are dropped (counted) and it gets the full state again as
 // soon as its queue has drained, so its page stays correct and memory stays bounded.
+// Messages are compressed (permessage-deflate) for clients that offer it.
 
 #include <cstddef>
 #include <cstdint>
@@ -31,6 +32,9 @@ struct WebServerOptions {
   size_t max_incoming_message_bytes = 1024;         // from a page (a hello is ~20 bytes)
   size_t max_request_header_bytes = 8 * 1024;
   int max_clients = 64;  // WebSocket clients at once; more are refused (503)
+  // permessage-deflate when the browser offers it (all do): occupancy tiles and JSON
+  // numbers compress several times over, for a little CPU per client.
+  bool compress = true;
 };
 
 struct WebServerStats {
@@ -40,7 +44,8 @@ struct WebServerStats {
   int64_t http_requests = 0;
   int64_t http_refused = 0;      // 4xx / 5xx answers and unreadable requests
   int64_t messages_sent = 0;     // WebSocket messages written
-  int64_t bytes_sent = 0;        // WebSocket payload bytes written
+  int64_t bytes_sent = 0;        // WebSocket payload bytes written (before compression)
+  int64_t wire_bytes = 0;        // what the clients' TCP acknowledged (compressed, framed)
   int64_t frames_refused = 0;    // incoming messages that closed their connection
   int64_t messages_dropped = 0;  // deltas dropped for slow clients
   int64_t resyncs = 0;           // full states re-sent after drops

@@ -62,6 +62,14 @@ class ServerFixture {
   int port() const { return port_; }
   // The server counts a refused frame right after it has sent the close frame, which the
   // client may read first: wait (a bounded number of round trips) for the count.
+  // TCP acknowledges a little after a write completes: wait (bounded) for the count.
+  int64_t WireBytesAbove(int64_t floor) {
+    int64_t n = 0;
+    for (int i = 0; i < 1000 && (n = Stats().wire_bytes) <= floor; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return n;
+  }
   int64_t FramesRefused(int64_t expected) {
     int64_t n = 0;
     for (int i = 0; i < 1000 && (n = Stats().frames_refused) < expected; ++i) {
@@ -98,7 +106,12 @@ http::response<http::string_body> Request(int port, http::verb method, const std
 struct Client {
   net::io_context io;
   websocket::stream<tcp::socket> ws{io};
-  explicit Client(int port, const std::string& origin = "") {
+  explicit Client(int port, const std::string& origin = "", bool deflate = false) {
+    if (deflate) {
+      websocket::permessage_deflate option;
+      option.client_enable = true;
+      ws.set_option(option);
+    }
     net::connect(ws.next_layer(),
                  std::array<tcp::endpoint, 1>{tcp::endpoint(net::ip::make_address("127.0.0.1"),
                                                             static_cast<uint16_t>(port))});
@@ -164,6 +177,26 @@ TEST(WebServerTest, AClientGetsTheFullStateThenTheBroadcastsAndALateOneTheFullSt
   EXPECT_EQ(stats.messages_sent, 5);
   EXPECT_EQ(stats.bytes_sent, 6 + 7 + 6 + 7 + 7);
   EXPECT_EQ(stats.frames_refused, 0);
+}
+
+TEST(WebServerTest, MessagesAreCompressedForAClientThatOffersDeflate) {
+  ServerFixture server;
+  Client client(server.port(), "", /*deflate=*/true);
+  EXPECT_EQ(client.Read(), "full-1");
+  std::string tile;  // like a tile's base64 cells: long runs of one value
+  for (int i = 0; i < 200000; ++i) tile += (i % 997 < 900) ? 'A' : static_cast<char>('a' + i % 26);
+  server.Broadcast(tile);
+  EXPECT_EQ(client.Read(), tile);
+  EXPECT_EQ(server.Stats().bytes_sent, 6 + 200000);
+  const int64_t compressed = server.WireBytesAbove(6 + 200);  // the upgrade + the frames
+  EXPECT_GT(compressed, 6 + 200);
+  EXPECT_LT(compressed, 200000 / 4) << "not compressed";
+  Client plain(server.port());  // one that does not offer it gets plain frames
+  EXPECT_EQ(plain.Read(), "full-2");
+  server.Broadcast(tile);
+  EXPECT_EQ(plain.Read(), tile);
+  EXPECT_EQ(client.Read(), tile);
+  EXPECT_GT(server.WireBytesAbove(compressed + 200000), compressed + 200000);
 }
 
 TEST(WebServerTest, AnOversizeMessageClosesItsConnection) {
