@@ -6,6 +6,7 @@
 // an error, not a skip.
 
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <thread>
@@ -37,6 +38,7 @@ struct Options {
   std::string state_out;
   std::string screenshot_out;
   std::string save_prefix;
+  int draw_times = 0;
 };
 
 // What the page's "Save PNG" button downloads, as base64 (in chunks: a large spread
@@ -178,6 +180,26 @@ int Run(const Options& o) {
         .write(reinterpret_cast<const char*>(png_bytes->data()),
                static_cast<std::streamsize>(png_bytes->size()));
   }
+  if (o.draw_times > 0) {  // the page's frame time with everything drawn, N times
+    // One draw per animation frame, as the page draws (back-to-back draws in one task
+    // would also time the raster of the previous one).
+    const json times = devtools.Evaluate(
+        "new Promise((resolve) => { const t = []; const step = () => { "
+        "const s = performance.now(); window.anchormapViewer.draw(); "
+        "t.push(performance.now() - s); if (t.length < " +
+            std::to_string(o.draw_times) +
+            ") { requestAnimationFrame(step); } else { t.sort((a, b) => a - b); resolve(t); } }; "
+            "requestAnimationFrame(step); })",
+        /*await_promise=*/true);
+    if (times.is_array() && !times.empty()) {
+      std::printf(
+          "viewer-browser: draw() with everything, one per animation frame: median %.1f ms, min "
+          "%.1f, max %.1f over %zu "
+          "draws\n",
+          times[times.size() / 2].get<double>(), times.front().get<double>(),
+          times.back().get<double>(), times.size());
+    }
+  }
   std::cout << "viewer-browser: page seq " << state["seq"] << ", map update " << state["map_update"]
             << ", " << state["trajectories"].size() << " trajectories, " << state["fulls"]
             << " full states and " << state["deltas"] << " deltas received\n";
@@ -200,6 +222,8 @@ int main(int argc, char** argv) {
   loader.Add("screenshot_out", "screenshot-out", &o.screenshot_out, "write a PNG screenshot here");
   loader.Add("save_prefix", "save-prefix", &o.save_prefix,
              "write what the page's save buttons give to PREFIX.png and PREFIX.g2o");
+  loader.Add("draw_times", "draw-times", &o.draw_times,
+             "time the page's draw() this many times at the end (benchmark)");
   const anchormap::ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   return anchormap::viewer::Run(o);

@@ -65,7 +65,8 @@ measure() {
   t1=$(date +%s.%N)
   ticks1=$(awk '{ print $14 + $15 }' /proc/$viewer/stat)
   "$BIN/anchormap-test-viewer-browser" --devtools-port 9311 --viewer-port $HTTP_PORT \
-    --timeout-s 120 --state-out "$WORK/state1.json" --screenshot-out "$WORK/load.png"
+    --timeout-s 120 --state-out "$WORK/state1.json" --screenshot-out "$WORK/load.png" \
+    --draw-times 30 | tee "$WORK/browser1.txt"
   local full_bytes
   full_bytes=$(exec 3<>/dev/tcp/127.0.0.1/$HTTP_PORT; printf 'GET /state.json HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n' >&3;
                cat <&3 | sed '1,/^\r$/d' | wc -c)
@@ -85,7 +86,8 @@ measure() {
     'BEGIN { printf "  viewer CPU            %.1f %% of one core (%.2f s CPU)\n", 100 * (c1 - c0) / hz / (b - a), (c1 - c0) / hz }'
   awk -v a="$t0" -v b="$t1" -v mb="$mb" -v n="$messages" -v wire="$wire" -v full="$full_bytes" \
     'BEGIN { printf "  WebSocket to 1 page   %.1f kB/s on the wire (permessage-deflate; TCP bytes acked), %.1f kB/s of JSON (%s MB in %s messages, incl. the first full state); the final full state: %.2f MB of JSON\n", 1000 * wire / (b - a), 1000 * mb / (b - a), mb, n, full / 1e6 }'
-  echo "  page frame time       last $(field last_frame_ms) ms with all drawn; mean $(field mean_frame_ms) ms, max $(field max_frame_ms) ms over $(field frames) frames"
+  echo "  page frame time       $(sed -n 's/.*draw() with everything[^:]*: //p' "$WORK/browser1.txt") at the end, one per animation frame (performance.now() around draw())"
+  echo "                        during the replay: mean $(field mean_frame_ms) ms, max $(field max_frame_ms) ms over $(field frames) frames"
   echo "  page holds            $(grep -c '"key"' "$WORK/state1.json") trajectories, $(field tiles) tiles, $(field encounters) encounters, map update $(field map_update)"
   echo "  viewer final          ${final#*final: }"
   echo "  files in $WORK (load.png: the page at the end)"

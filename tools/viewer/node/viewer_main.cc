@@ -48,6 +48,8 @@ void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
   l->Add("http.max_clients", "max-clients", &o->web.max_clients, "browsers connected at once");
   l->Add("http.max_client_queue_mb", "max-client-queue-mb", max_queue_mb,
          "updates queued for one slow browser before they are dropped for a full resync (MB)");
+  l->Add("http.compress", "http-compress", &o->web.compress,
+         "compress WebSocket messages (permessage-deflate) for browsers that offer it");
   l->Add("push_period_ms", "push-period-ms", &o->push_period_ms,
          "changes go to the browsers at most this often (ms)");
   l->Add("max_tiles", "max-tiles", &o->max_tiles, "grid tiles held (more are refused)");
