@@ -118,6 +118,9 @@ main() {
   deltas=$(grep -o '"deltas": *[0-9]*' "$work/state1.json" | grep -o '[0-9]*$')
   log "first browser: $fulls full state(s), $deltas deltas"
   [ "$fulls" = 1 ] && [ "${deltas:-0}" -gt 10 ] || { log "FAIL: the first browser did not follow by deltas"; exit 1; }
+  # The late one got the full state once (the map was complete by then).
+  fulls=$(grep -o '"fulls": *[0-9]*' "$work/state2.json" | grep -o '[0-9]*$')
+  [ "$fulls" = 1 ] || { log "FAIL: the late browser got $fulls full states"; exit 1; }
   "$BIN/anchormap-test-viewer-check" --map "$work/out.lcmlog" --state "$work/state1.json" --robots $ROBOTS ||
     { log "FAIL: the first browser"; exit 1; }
   "$BIN/anchormap-test-viewer-check" --map "$work/out.lcmlog" --state "$work/state2.json" --robots $ROBOTS \
