@@ -5,7 +5,11 @@
 # run, renders the merged map and prints the figures.
 #
 #   scripts/demo.sh [--robots 3] [--seed 1] [--duration-s 180] [--speed 4] [--out out/demo]
-#                   [--skip-install] [--skip-build]
+#                   [--skip-install] [--skip-build] [--viewer] [--viewer-port 8088]
+#
+# --viewer: watch the map grow live in a browser at the printed address (anchormap-viewer
+# follows the run's log file, since the bus is inside the namespace); it keeps serving the
+# final map after the figures until Ctrl-C.
 #
 # Outputs in --out (relative to the repository root): sim.lcmlog (simulated raw data + ground truth), truth.png (the
 # simulated world and true paths), run.lcmlog (every ANCHORMAP_* message of the run:
@@ -17,7 +21,7 @@
 # LCM port (default: 7600 + PID % 300).
 set -euo pipefail
 
-usage() { sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'; }
 
 ROBOTS=3
 SEED=1
@@ -26,6 +30,8 @@ SPEED=4
 OUT=out/demo
 SKIP_INSTALL=0
 SKIP_BUILD=0
+VIEWER=0
+VIEWER_PORT=8088
 STAGE=main
 
 while [ $# -gt 0 ]; do
@@ -37,6 +43,8 @@ while [ $# -gt 0 ]; do
     --out) OUT=${2:?}; shift 2 ;;
     --skip-install) SKIP_INSTALL=1; shift ;;
     --skip-build) SKIP_BUILD=1; shift ;;
+    --viewer) VIEWER=1; shift ;;
+    --viewer-port) VIEWER_PORT=${2:?}; shift 2 ;;
     --replay-stage) STAGE=replay; shift ;;  # internal: runs inside the namespace
     -h|--help) usage; exit 0 ;;
     *) echo "demo: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
@@ -171,6 +179,7 @@ if [ "$SKIP_INSTALL" = 0 ]; then
 fi
 
 TARGETS=(anchormap-sim anchormap-render anchormap-agent anchormap-server anchormap-eval)
+[ "$VIEWER" = 1 ] && TARGETS+=(anchormap-viewer)
 if [ "$SKIP_BUILD" = 0 ]; then
   echo "== 2/5 build (Release, $(nproc) jobs)"
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > "$OUT/logs/cmake.log"
@@ -208,6 +217,13 @@ SIM_ENCOUNTERS=$(sed -n 's/.*encounters \([0-9]*\) between.*/\1/p' "$OUT/logs/si
 echo "== 4/5 replay through $ROBOTS agents and the server over LCM"
 T_REPLAY=$(now)
 rm -f "$OUT/run.lcmlog"
+VIEWER_PID=""
+if [ "$VIEWER" = 1 ] && have anchormap-viewer; then
+  "$BIN/anchormap-viewer" --follow-log "$OUT/run.lcmlog" --http-port "$VIEWER_PORT" \
+    --status-period-s 10 > "$OUT/logs/viewer.log" 2>&1 &
+  VIEWER_PID=$!
+  echo "   live map: open http://127.0.0.1:${VIEWER_PORT}/ in a browser"
+fi
 scripts/netns-run.sh "$SELF" --replay-stage --robots "$ROBOTS" --speed "$SPEED" --out "$OUT"
 T_REPLAYED=$(now)
 
@@ -254,5 +270,14 @@ if [ "$RENDER_OK" = 1 ]; then
   echo "   also         $OUT/anchors.png, $OUT/truth.png, $OUT/map.pgm (+ .yaml), $OUT/merged.g2o"
 else
   echo "   map PNG      not rendered (see $OUT/logs/)"
+fi
+if [ -n "$VIEWER_PID" ]; then
+  if kill -0 "$VIEWER_PID" 2>/dev/null; then
+    echo "   live map     http://127.0.0.1:${VIEWER_PORT}/ shows the final map; Ctrl-C stops the viewer"
+    trap 'kill -INT "$VIEWER_PID" 2>/dev/null || true' INT TERM
+    wait "$VIEWER_PID" || true
+  else
+    echo "   live map     the viewer stopped early: see $OUT/logs/viewer.log" >&2
+  fi
 fi
 [ "$RENDER_OK" = 1 ] && [ "$EVAL_OK" = 1 ]

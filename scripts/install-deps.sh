@@ -9,7 +9,9 @@ PACKAGES=(
   liblcm-dev liblcm-bin liblcm-java default-jdk-headless   # bus, lcm-gen, lcm-logplayer, lcm-spy jar
   libeigen3-dev                                             # dense 3x3 blocks and small solves
   libsuitesparse-dev                                        # COLAMD ordering, CHOLMOD factorisation
-  libboost-dev libboost-program-options-dev                 # Asio event loop, option parsing
+  libboost-dev libboost-program-options-dev                 # Asio event loop, option parsing; Beast (viewer)
+  nlohmann-json3-dev                                        # the viewer's JSON messages (Boost 1.74 has no Boost.JSON)
+  chromium                                                  # headless browser for the viewer's browser test
   libgtest-dev libgmock-dev libbenchmark-dev                # tests and micro-benchmarks
   libpng-dev zlib1g-dev                                     # PNG maps, gzip'd CARMEN logs
   libcairo2-dev fonts-dejavu-core                           # map and plot drawing (anchormap-render)

@@ -1,0 +1,50 @@
+#include "tools/viewer/node/viewer_node.h"
+
+#include <utility>
+
+#include "common/bus/map_codec.h"
+
+namespace anchormap::viewer {
+namespace {
+
+// A decoded value, or nullptr with the refusal counted.
+template <typename T>
+const T* Accept(const Result<T>& decoded, const std::string& channel, RejectCounter* rejections) {
+  if (decoded.ok()) return &*decoded;
+  rejections->Count(decoded.status(), channel);
+  return nullptr;
+}
+
+}  // namespace
+
+ViewerNode::ViewerNode(ViewerChannels channels, ViewerState* state)
+    : channels_(std::move(channels)), state_(state) {}
+
+bool ViewerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size,
+                           int64_t wall_utime) {
+  ++messages_;
+  if (channel == channels_.merged_map) {
+    const auto decoded = DecodeMergedMap(data, size);
+    const MergedMap* map = Accept(decoded, channel, &rejections_);
+    return map && state_->ApplyMergedMap(*map, wall_utime);
+  }
+  if (channel == channels_.grid_tiles) {
+    const auto decoded = DecodeGridTile(data, size);
+    const GridTile* tile = Accept(decoded, channel, &rejections_);
+    return tile && state_->ApplyGridTile(*tile, wall_utime);
+  }
+  if (channel == channels_.anchor_covariances) {
+    const auto decoded = DecodeAnchorCovariances(data, size);
+    const AnchorCovariances* anchors = Accept(decoded, channel, &rejections_);
+    return anchors && state_->ApplyAnchorCovariances(*anchors, wall_utime);
+  }
+  if (channel == channels_.status) {
+    const auto decoded = DecodeServerStatus(data, size);
+    const ServerStatus* status = Accept(decoded, channel, &rejections_);
+    return status && state_->ApplyStatus(*status, wall_utime);
+  }
+  --messages_;
+  return false;
+}
+
+}  // namespace anchormap::viewer

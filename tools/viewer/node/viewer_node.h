@@ -1,0 +1,39 @@
+#pragma once
+// The viewer's bridge from the bus to its state: decodes the server's outputs with the
+// codec (which validates them) and applies them to ViewerState; refusals are counted
+// like the daemons count them. The only part of the viewer that meets the codec.
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "common/bus/channels.h"
+#include "common/util/reject_counter.h"
+#include "tools/viewer/viewer_state.h"
+
+namespace anchormap::viewer {
+
+struct ViewerChannels {
+  std::string merged_map = channels::kMergedMap;
+  std::string grid_tiles = channels::kGridTiles;
+  std::string anchor_covariances = channels::kAnchorCovariances;
+  std::string status = channels::kServerStatus;
+};
+
+class ViewerNode {
+ public:
+  ViewerNode(ViewerChannels channels, ViewerState* state);
+  // Decodes and applies one message; false when refused (counted) or on another channel.
+  bool OnMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_utime);
+  const ViewerChannels& channels() const { return channels_; }
+  const RejectCounter& rejections() const { return rejections_; }
+  int64_t messages() const { return messages_; }
+
+ private:
+  ViewerChannels channels_;
+  ViewerState* state_;
+  RejectCounter rejections_;
+  int64_t messages_ = 0;
+};
+
+}  // namespace anchormap::viewer
