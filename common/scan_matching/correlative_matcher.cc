@@ -20,19 +20,6 @@ void Require(const Options& options) {
   }
 }
 
-std::optional<MatchResult> Search(const ScanReference& reference, const PointCloud& query,
-                                  const SearchWindow& window, const MatchOptions& options) {
-  if (reference.empty() || query.empty()) return std::nullopt;
-  const DiscretisedQuery discretised(query, window, reference.geometry());
-  LatticeSearchStats stats;
-  const std::optional<LatticePose> best =
-      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats);
-  if (!best) return std::nullopt;
-  MatchResult result = FinishMatch(reference, query, window, *best, options);
-  result.search = stats;
-  return result;
-}
-
 }  // namespace
 
 std::optional<std::string> MatchOptions::Validate() const {
@@ -74,6 +61,21 @@ double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2
     }
   }
   return static_cast<double>(near) / static_cast<double>(query.size());
+}
+
+std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
+                                                 const PointCloud& query,
+                                                 const SearchWindow& window,
+                                                 const MatchOptions& options) {
+  if (reference.empty() || query.empty()) return std::nullopt;
+  const DiscretisedQuery discretised(query, window, reference.geometry());
+  LatticeSearchStats stats;
+  const std::optional<LatticePose> best =
+      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats);
+  if (!best) return std::nullopt;
+  MatchResult result = FinishMatch(reference, query, window, *best, options);
+  result.search = stats;
+  return result;
 }
 
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
@@ -132,22 +134,7 @@ std::optional<MatchResult> MatchLocal(const ScanReference& reference, const Poin
       static_cast<int>(std::ceil(options.angular_window_rad / window.angle_step_rad));
   window.half_cells_x = static_cast<int>(std::ceil(options.linear_window_m / resolution));
   window.half_cells_y = window.half_cells_x;
-  return Search(reference, query, window, options.match);
-}
-
-std::optional<MatchResult> GlobalSearch(const ScanReference& reference, const PointCloud& query,
-                                        const GlobalSearchOptions& options) {
-  Require(options);
-  if (reference.empty()) return std::nullopt;
-  const GridGeometry& g = reference.geometry();
-  SearchWindow window;
-  const Eigen::Vector2d centre = g.origin + 0.5 * g.resolution * Eigen::Vector2d(g.width, g.height);
-  window.center = Pose2(centre.x(), centre.y(), 0.0);
-  window.angle_step_rad = AngleStepForRange(g.resolution, MaxPointRange(query));
-  window.half_angles = static_cast<int>(std::ceil(kPi / window.angle_step_rad));
-  window.half_cells_x = (g.width + 1) / 2;
-  window.half_cells_y = (g.height + 1) / 2;
-  return Search(reference, query, window, options.match);
+  return SearchWindowAndFinish(reference, query, window, options.match);
 }
 
 }  // namespace anchormap

@@ -1,15 +1,14 @@
 #pragma once
-// The correlative scan matcher (Olson, "Real-time correlative scan matching", ICRA 2009) and
-// the global search for an unknown relative pose (Hess et al., ICRA 2016), on one ScanReference:
+// The correlative scan matcher (Olson, "Real-time correlative scan matching", ICRA 2009) on one
+// ScanReference (the global search, global_search.h, shares all but the window):
 //   1. the query is scored on a lattice of poses (x, y, theta) by its mean likelihood, and the
 //      best lattice pose is found by branch and bound over the precomputed max-grids (coarse
 //      to fine, exact: the best lattice score);
 //   2. the pose is refined continuously (point-to-surface Gauss-Newton, pose_refinement.h);
 //   3. the covariance comes from the score distribution around it (score_covariance.h);
 //   4. the overlap is the fraction of query points within overlap_distance_m of the surface.
-// MatchLocal searches a window around a guess (odometry, a predicted loop closure);
-// GlobalSearch every heading and every position of the reference's grid (a first encounter).
-// Both return nullopt when no lattice pose scores above min_score. Deterministic.
+// MatchLocal searches a window around a guess (odometry, a predicted loop closure). It returns
+// nullopt when no lattice pose scores above min_score. Deterministic.
 
 #include <cstdint>
 #include <optional>
@@ -45,12 +44,6 @@ struct LocalMatchOptions {
   std::optional<std::string> Validate() const;
 };
 
-struct GlobalSearchOptions {
-  MatchOptions match{0.5, 0.03, 0.1, true};
-
-  std::optional<std::string> Validate() const { return match.Validate(); }
-};
-
 struct MatchResult {
   Pose2 pose;            // T_reference_query
   double score = 0.0;    // of the best lattice pose
@@ -65,10 +58,11 @@ struct MatchResult {
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,
                                       const Pose2& guess, const LocalMatchOptions& options);
 
-// Searches every heading and every translation that puts the query's origin inside the
-// reference's grid.
-std::optional<MatchResult> GlobalSearch(const ScanReference& reference, const PointCloud& query,
-                                        const GlobalSearchOptions& options);
+// Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part).
+std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
+                                                 const PointCloud& query,
+                                                 const SearchWindow& window,
+                                                 const MatchOptions& options);
 
 // Steps 2-4 for a lattice pose found by a search (exposed for tests and benchmarks).
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
