@@ -115,10 +115,10 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
     covariance.floor_sigma_theta_rad = window.angle_step_rad / std::sqrt(12.0);
   }
   // The query's noise through the score distribution, the reference's by propagation.
-  result.covariance = ScoreDistributionCovariance(reference.field(), query, result.pose,
-                                                  refined.hessian, covariance) +
-                      ReferenceNoiseCovariance(reference_noise, refined.hessian,
-                                               covariance.point_sigma_m, covariance);
+  const Eigen::Matrix3d hessian = DegeneracyFiltered(refined.hessian, query);
+  result.covariance =
+      ScoreDistributionCovariance(reference.field(), query, result.pose, hessian, covariance) +
+      ReferenceNoiseCovariance(reference_noise, hessian, covariance.point_sigma_m, covariance);
   result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
   return result;
 }

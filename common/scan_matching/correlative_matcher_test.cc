@@ -35,6 +35,14 @@ Pose2 NearbyFreePose(const SyntheticWorld& world, const Pose2& T_world_a, double
   }
 }
 
+// A local window (+-0.4 m) needs blocks of 8 cells at most: 4 max-grid levels, not the global
+// search's 7 (the same result, a cheaper reference).
+ScanReferenceOptions LocalReferenceOptions() {
+  ScanReferenceOptions options;
+  options.num_levels = 4;
+  return options;
+}
+
 struct Trial {
   Pose2 truth;  // T_a_b
   Pose2 guess;
@@ -77,7 +85,7 @@ TEST(CorrelativeMatcherTest, RecoversKnownTransformsOnSimulatedScans) {
     for (int i = 0; i < 20; ++i) {
       const SyntheticWorld world = RandomRoom(100 + i);
       const Trial trial = MakeTrial(world, laser, 0.3, 0.15, &rng);
-      const ScanReference reference({trial.reference}, ScanReferenceOptions{});
+      const ScanReference reference({trial.reference}, LocalReferenceOptions());
       const std::optional<MatchResult> match =
           MatchLocal(reference, trial.query, trial.guess, LocalMatchOptions{});
       ASSERT_TRUE(match.has_value()) << "trial " << i;
@@ -105,7 +113,7 @@ TEST(CorrelativeMatcherTest, RefinementBeatsTheLattice) {
   for (int i = 0; i < n; ++i) {
     const SyntheticWorld world = RandomRoom(200 + i);
     const Trial trial = MakeTrial(world, laser, 0.3, 0.15, &rng);
-    const ScanReference reference({trial.reference}, ScanReferenceOptions{});
+    const ScanReference reference({trial.reference}, LocalReferenceOptions());
     const auto match = MatchLocal(reference, trial.query, trial.guess, LocalMatchOptions{});
     ASSERT_TRUE(match.has_value());
     sum_refined += PoseError(trial.truth, match->pose).head<2>().norm();
@@ -114,6 +122,41 @@ TEST(CorrelativeMatcherTest, RefinementBeatsTheLattice) {
   std::printf("mean translation error: lattice %.4f m, refined %.4f m\n", sum_lattice / n,
               sum_refined / n);
   EXPECT_LT(sum_refined, 0.5 * sum_lattice);
+}
+
+TEST(CorrelativeMatcherTest, CovarianceShowsACorridorsBlindDirection) {
+  // A straight corridor 2 m wide, longer than the laser's 8 m reach: a shift along it is
+  // invisible. The covariance must say so (large along x, small across), and stay SPD.
+  SyntheticWorld corridor;
+  corridor.walls = {{{-60.0, 0.0}, {60.0, 0.0}}, {{-60.0, 2.0}, {60.0, 2.0}}};
+  corridor.min_corner = {-60.0, 0.0};
+  corridor.max_corner = {60.0, 2.0};
+  SyntheticLaser laser = MountedLaser(360, 2.0 * kPi, 0.01);
+  laser.max_range_m = 8.0;
+  std::mt19937_64 rng(14);
+  const Pose2 a(0.0, 0.9, 0.05);
+  const Pose2 b(0.25, 1.1, -0.03);
+  const PointCloud reference_points = ScanToPointCloud(SimulateScan(corridor, laser, a, &rng));
+  const PointCloud query = ScanToPointCloud(SimulateScan(corridor, laser, b, &rng));
+  const ScanReference reference({reference_points}, LocalReferenceOptions());
+  const auto match = MatchLocal(reference, query, Between(a, b), LocalMatchOptions{});
+  ASSERT_TRUE(match.has_value());
+  ASSERT_FALSE(CheckSymmetricPositiveDefinite(match->covariance).has_value());
+  // In a's frame the corridor runs along x rotated by -0.05 rad: look along that axis.
+  const Eigen::Vector2d along(std::cos(-0.05), std::sin(-0.05));
+  const Eigen::Vector2d across(-along.y(), along.x());
+  const Eigen::Matrix2d xy = match->covariance.topLeftCorner<2, 2>();
+  const double sd_along = std::sqrt(along.dot(xy * along));
+  const double sd_across = std::sqrt(across.dot(xy * across));
+  std::printf("corridor: sd along %.3f m, across %.4f m, heading %.3f deg\n", sd_along, sd_across,
+              std::sqrt(match->covariance(2, 2)) / kDeg);
+  EXPECT_GT(sd_along, 0.1);
+  EXPECT_LT(sd_across, 0.01);
+  EXPECT_GT(sd_along, 20.0 * sd_across);
+  // Across the corridor and in heading the match is still accurate.
+  const Eigen::Vector3d error = PoseError(Between(a, b), match->pose);
+  EXPECT_LT(std::abs(error.head<2>().dot(across)), 0.01);
+  EXPECT_LT(std::abs(error.z()), 0.5 * kDeg);
 }
 
 // Wilson-Hilferty: the p-quantile of chi-square with k degrees of freedom.
@@ -147,13 +190,14 @@ TEST(CorrelativeMatcherTest, CovarianceIsConsistent) {
   // 95 % probability (Bar-Shalom, Li and Kirubarajan, "Estimation with applications to
   // tracking and navigation", 5.4.2).
   //
-  // Measured: 3.81, i.e. the covariance is about 25 % too small in variance (12 % in standard
-  // deviation); median NEES 3.0 against chi2_3's 2.37, so the whole distribution is shifted,
-  // not a few outliers. With a noise-free reference the same matcher gives 2.6-2.9. What is not
+  // Measured: 4.04, i.e. the covariance is about 35 % too small in variance (16 % in standard
+  // deviation); the whole distribution is shifted (median NEES about 3.0 against chi2_3's
+  // 2.37), not a few outliers. With a noise-free reference the matcher gave 2.6-2.9. Not
   // modelled yet: each point's noise along the surface normal depends on its incidence angle
-  // (sigma cos(alpha)), the model uses one sigma for all points. Until that is modelled the
-  // upper bound below is the chi-square bound times 1.25 (stated, not hidden); the lower bound
-  // is the strict one (a covariance inflated to be safe fails it).
+  // (sigma cos(alpha)); the model uses one sigma for all points. Until that is modelled the
+  // upper bound below is the chi-square bound times 1.25 (stated, not hidden: 4.19, so a
+  // regression of a few percent fails); the lower bound is the strict one (a covariance
+  // inflated to be safe fails it).
   const double sigma = 0.02;
   const SyntheticLaser laser = MountedLaser(360, 2.0 * kPi, sigma);
   std::mt19937_64 rng(13);
@@ -163,7 +207,7 @@ TEST(CorrelativeMatcherTest, CovarianceIsConsistent) {
   for (int i = 0; i < n; ++i) {
     const SyntheticWorld world = RandomRoom(300 + i % 10);
     const Trial trial = MakeTrial(world, laser, 0.2, 0.1, &rng);
-    const ScanReference reference({trial.reference}, ScanReferenceOptions{});
+    const ScanReference reference({trial.reference}, LocalReferenceOptions());
     const auto match = MatchLocal(reference, trial.query, trial.guess, LocalMatchOptions{});
     ASSERT_TRUE(match.has_value());
     ASSERT_FALSE(CheckSymmetricPositiveDefinite(match->covariance).has_value());

@@ -6,6 +6,8 @@
 // The lattice search leaves an error of up to half a cell and half an angle step; this removes
 // it (figures in docs/ARCHITECTURE.md, "Scan matching").
 
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
@@ -41,5 +43,30 @@ RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query
 // interpolated vector count cutoff^2), and optionally the number of inliers.
 double TruncatedCost(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
                      double cutoff_m, int* inliers = nullptr);
+
+// The truncated cost around a match, for sampling its score distribution: a point uses its
+// residual from the field where it has one, else, if it was an inlier at `anchor`, its
+// residual to the surface it matched there (the line through it along the wall, or the lone
+// return), so that a point sliding past the end of the reference's view of a wall (the end of
+// the reference's range, not of the wall) does not count as a mismatch; other points cost
+// cutoff^2 wherever they land.
+class AnchoredCost {
+ public:
+  AnchoredCost(const ReferenceField& field, const PointCloud& query, const Pose2& anchor,
+               double cutoff_m);
+  double operator()(const Pose2& pose) const;
+
+ private:
+  struct Association {
+    bool inlier = false;
+    bool has_normal = false;
+    Eigen::Vector2d surface{0.0, 0.0};
+    Eigen::Vector2d normal{0.0, 0.0};
+  };
+  const ReferenceField& field_;
+  const PointCloud& query_;
+  double cutoff_sq_;
+  std::vector<Association> associations_;
+};
 
 }  // namespace anchormap

@@ -4,7 +4,14 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
+
 namespace anchormap {
+
+namespace {
+// A vertex's normal is fitted to itself and its joined neighbours up to this many beams away.
+constexpr size_t kNormalReach = 5;
+}  // namespace
 
 std::optional<std::string> ReferenceFieldOptions::Validate() const {
   if (!(resolution_m > 0.0) || !std::isfinite(resolution_m)) return "resolution_m must be > 0";
@@ -56,13 +63,36 @@ ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
   std::vector<float> best_sq(geometry_.num_cells(), max_sq);
   const double gap_sq = options.max_join_gap_m * options.max_join_gap_m;
   vertices_.reserve(num_points_);
+  normals_.reserve(num_points_);
+  std::vector<uint8_t> joined;
   for (const PointCloud& scan : scans) {
     const int first = static_cast<int>(vertices_.size());
     vertices_.insert(vertices_.end(), scan.begin(), scan.end());
+    joined.assign(scan.size(), 0);  // joined[i]: points i and i + 1 are one wall
+    for (size_t i = 0; i + 1 < scan.size(); ++i) {
+      joined[i] = (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq ? 1 : 0;
+    }
     for (size_t i = 0; i < scan.size(); ++i) {
-      const bool join = i + 1 < scan.size() && (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq;
       const int a = first + static_cast<int>(i);
-      AddPrimitive(a, join ? a + 1 : a, &best_sq);
+      AddPrimitive(a, joined[i] ? a + 1 : a, &best_sq);
+      // The vertex's normal from itself and its joined neighbours up to two steps away.
+      size_t lo = i;
+      size_t hi = i;
+      while (lo > 0 && i - lo < kNormalReach && joined[lo - 1]) --lo;
+      while (hi + 1 < scan.size() && hi - i < kNormalReach && joined[hi]) ++hi;
+      Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+      if (hi > lo) {
+        Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+        for (size_t k = lo; k <= hi; ++k) mean += scan[k];
+        mean /= static_cast<double>(hi - lo + 1);
+        Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+        for (size_t k = lo; k <= hi; ++k) {
+          scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
+        }
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+        normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
+      }
+      normals_.push_back(normal);
     }
   }
 }
@@ -108,6 +138,17 @@ bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
   if (primitive_a_[index] < 0) return false;
   *a = primitive_a_[index];
   *b = primitive_b_[index];
+  return true;
+}
+
+bool ReferenceField::PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const {
+  const Eigen::Vector2d& na = normals_[a];
+  const Eigen::Vector2d& nb = normals_[b];
+  Eigen::Vector2d sum = na + (na.dot(nb) < 0.0 ? -nb : nb);
+  if (na.isZero()) sum = nb;
+  const double norm = sum.norm();
+  if (norm < 1e-9) return false;
+  *n = sum / norm;
   return true;
 }
 

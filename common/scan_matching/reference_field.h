@@ -56,6 +56,13 @@ class ReferenceField {
   bool NearestPrimitive(int ix, int iy, int* a, int* b) const;
   // The reference's points (all scans, in order); primitives index them.
   const Eigen::Vector2d& vertex(int i) const { return vertices_[i]; }
+  // The surface normal at a primitive (unit, sign arbitrary): the mean of its vertices'
+  // normals, each the least-scatter direction of the vertex and its joined neighbours up to two
+  // beams away (a wall's direction smoothed over 4 beam spacings, not the noisy segment's own);
+  // false for a lone return.
+  bool PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const;
+  // A vertex's own normal (zero for a lone return).
+  const Eigen::Vector2d& vertex_normal(int i) const { return normals_[i]; }
 
  private:
   void AddPrimitive(int a, int b, std::vector<float>* best_sq);
@@ -68,6 +75,7 @@ class ReferenceField {
   std::vector<int32_t> primitive_a_;  // vertex indices of the nearest primitive
   std::vector<int32_t> primitive_b_;
   std::vector<Eigen::Vector2d> vertices_;
+  std::vector<Eigen::Vector2d> normals_;  // zero where a vertex has no joined neighbour
 };
 
 // Closest point to p on the segment [a, b] (a == b allowed).

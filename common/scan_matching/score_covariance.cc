@@ -14,6 +14,13 @@ namespace anchormap {
 
 namespace {
 
+// Directions with less than this fraction of the best-constrained direction's information are
+// treated as unconstrained (Zhang, Kaess and Singh, "On degeneracy of optimization-based state
+// estimation problems", ICRA 2016): in a corridor the along-wall "information" is the noise of
+// the fitted wall normals and the ends of the reference's range, not geometry (measured: 1/260
+// of the across-wall information in a 2 m corridor).
+constexpr double kDegenerateRatio = 0.02;
+
 Eigen::Matrix3d WindowPrior(const ScoreCovarianceOptions& options) {
   const double xy = 1.0 / (options.window_sigma_xy_m * options.window_sigma_xy_m);
   const double theta = 1.0 / (options.window_sigma_theta_rad * options.window_sigma_theta_rad);
@@ -22,19 +29,37 @@ Eigen::Matrix3d WindowPrior(const ScoreCovarianceOptions& options) {
 
 }  // namespace
 
+Eigen::Matrix3d DegeneracyFiltered(const Eigen::Matrix3d& hessian, const PointCloud& query) {
+  // Heading in metres at the query's RMS range, so that the three axes compare.
+  double sum_sq = 0.0;
+  for (const Eigen::Vector2d& p : query) sum_sq += p.squaredNorm();
+  const double rho =
+      query.empty() ? 1.0 : std::max(std::sqrt(sum_sq / static_cast<double>(query.size())), 0.1);
+  const Eigen::Vector3d scale(1.0, 1.0, 1.0 / rho);
+  const Eigen::Matrix3d scaled = scale.asDiagonal() * hessian * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scaled);
+  Eigen::Vector3d values = eigen.eigenvalues();
+  const double largest = values.maxCoeff();
+  for (int i = 0; i < 3; ++i) {
+    if (!(values(i) >= kDegenerateRatio * largest)) values(i) = 0.0;
+  }
+  const Eigen::Matrix3d filtered =
+      eigen.eigenvectors() * values.asDiagonal() * eigen.eigenvectors().transpose();
+  const Eigen::Vector3d unscale(1.0, 1.0, rho);
+  return unscale.asDiagonal() * filtered * unscale.asDiagonal();
+}
+
 Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const PointCloud& query,
                                             const Pose2& pose, const Eigen::Matrix3d& hessian,
                                             const ScoreCovarianceOptions& options) {
   const double var = options.point_sigma_m * options.point_sigma_m;
-  Eigen::Matrix3d information = hessian / var;
-  information.diagonal() +=
-      Eigen::Vector3d(1.0 / (options.window_sigma_xy_m * options.window_sigma_xy_m),
-                      1.0 / (options.window_sigma_xy_m * options.window_sigma_xy_m),
-                      1.0 / (options.window_sigma_theta_rad * options.window_sigma_theta_rad));
+  const Eigen::Matrix3d prior_information = WindowPrior(options);
+  const Eigen::Matrix3d information = hessian / var + prior_information;
   Eigen::Matrix3d laplace = information.inverse();
   laplace = 0.5 * (laplace + laplace.transpose());
   const Eigen::Matrix3d L = laplace.llt().matrixL();
 
+  const AnchoredCost anchored_cost(field, query, pose, options.cutoff_m);
   constexpr int kHalf = 3;
   std::vector<std::array<int, 3>> offsets;
   std::vector<double> log_weights;
@@ -45,7 +70,7 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
     for (int b = -kHalf; b <= kHalf; ++b) {
       for (int c = -kHalf; c <= kHalf; ++c) {
         const Eigen::Vector3d xi = centre + L * Eigen::Vector3d(a, b, c);
-        const double cost = TruncatedCost(field, query, Pose2::FromVector(xi), options.cutoff_m);
+        const double cost = anchored_cost(Pose2::FromVector(xi));
         // The window prior is part of the distribution as well.
         const double prior =
             0.5 * Eigen::Vector3d(a, b, c).dot(L.transpose() * (information - hessian / var) * L *
@@ -75,6 +100,15 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
   const Eigen::Vector3d values = eigen.eigenvalues().cwiseMax(0.0);
   covariance = eigen.eigenvectors() * values.asDiagonal() * eigen.eigenvectors().transpose();
+  // Directions the geometry does not constrain (zeroed by DegeneracyFiltered): the samples
+  // there follow the noise of the walls, not the pose, so they get the window's spread.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> hessian_eigen(hessian);
+  const double largest = hessian_eigen.eigenvalues().maxCoeff();
+  for (int i = 0; i < 3; ++i) {
+    if (hessian_eigen.eigenvalues()(i) > 1e-9 * largest) continue;
+    const Eigen::Vector3d u = hessian_eigen.eigenvectors().col(i);
+    covariance += u * u.transpose() / u.dot(prior_information * u);
+  }
   covariance.diagonal() +=
       Eigen::Vector3d(options.floor_sigma_xy_m * options.floor_sigma_xy_m,
                       options.floor_sigma_xy_m * options.floor_sigma_xy_m,
@@ -102,19 +136,22 @@ ReferenceNoiseTerms ComputeReferenceNoiseTerms(const ReferenceField& field, cons
     const Eigen::Vector2d ab = vb - va;
     double s = 0.0;
     Eigen::Vector2d n;
-    if (ia != ib && ab.squaredNorm() > 0.0) {
+    if (ia != ib && ab.squaredNorm() > 0.0)
       s = std::clamp((q - va).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-      n = Eigen::Vector2d(-ab.y(), ab.x()).normalized();
-    } else {
+    if (!field.PrimitiveNormal(ia, ib, &n)) {
       n = q - va;
       if (n.norm() < 1e-9) continue;
       n.normalize();
     }
     if ((va + s * ab - q).norm() > cutoff_m) continue;
     const Eigen::Vector3d a(n.x(), n.y(), n.x() * -rp.y() + n.y() * rp.x());
-    auto add = [&b](int vertex, const Eigen::Vector3d& value) {
-      auto [it, inserted] = b.emplace(vertex, value);
-      if (!inserted) it->second += value;
+    // A reference point's noise moves it along its own normal: its sign decides the sign of
+    // its effect on this residual.
+    auto add = [&b, &field, &n](int vertex, const Eigen::Vector3d& value) {
+      const Eigen::Vector3d signed_value =
+          field.vertex_normal(vertex).dot(n) < 0.0 ? Eigen::Vector3d(-value) : value;
+      auto [it, inserted] = b.emplace(vertex, signed_value);
+      if (!inserted) it->second += signed_value;
     };
     add(ia, (1.0 - s) * a);
     if (ib != ia) add(ib, s * a);
@@ -128,10 +165,20 @@ ReferenceNoiseTerms ComputeReferenceNoiseTerms(const ReferenceField& field, cons
 
 Eigen::Matrix3d ReferenceNoiseCovariance(const ReferenceNoiseTerms& terms,
                                          const Eigen::Matrix3d& hessian, double point_sigma_m,
-                                         const ScoreCovarianceOptions& options) {
-  const double var = point_sigma_m * point_sigma_m;
-  const Eigen::Matrix3d P = (hessian / var + WindowPrior(options)).inverse();
-  Eigen::Matrix3d covariance = P * terms.b_outer * P / var;
+                                         const ScoreCovarianceOptions& /*options*/) {
+  // The least-squares error from the reference's noise is H^+ (sum_v b_v b_v^T) H^+ sigma^2;
+  // the pseudo-inverse leaves degenerate directions (zeroed by DegeneracyFiltered) to the
+  // score distribution and its window prior.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(hessian);
+  const Eigen::Vector3d values = eigen.eigenvalues();
+  const double largest = values.maxCoeff();
+  Eigen::Vector3d inverse = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 3; ++i) {
+    if (values(i) > 1e-9 * largest && values(i) > 0.0) inverse(i) = 1.0 / values(i);
+  }
+  const Eigen::Matrix3d H_plus =
+      eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
+  Eigen::Matrix3d covariance = point_sigma_m * point_sigma_m * H_plus * terms.b_outer * H_plus;
   return 0.5 * (covariance + covariance.transpose());
 }
 

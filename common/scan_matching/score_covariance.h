@@ -29,6 +29,12 @@ struct ScoreCovarianceOptions {
   double floor_sigma_theta_rad = 0.0001;
 };
 
+// The Hessian with its degenerate directions set to zero (unconstrained: the window prior
+// bounds them): those with less than 2 % of the best direction's information, the heading
+// scaled by the query's RMS range (Zhang, Kaess and Singh, ICRA 2016). Pass the result to
+// both covariance functions below.
+Eigen::Matrix3d DegeneracyFiltered(const Eigen::Matrix3d& hessian, const PointCloud& query);
+
 // The covariance of T_reference_query around `pose` (a refined match); `hessian` is the
 // RefinementResult's.
 Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const PointCloud& query,
@@ -53,7 +59,8 @@ struct ReferenceNoiseTerms {
 ReferenceNoiseTerms ComputeReferenceNoiseTerms(const ReferenceField& field, const PointCloud& query,
                                                const Pose2& pose, double cutoff_m);
 
-// P B P / sigma^2 with P as above.
+// sigma^2 H^+ B H^+ (H the filtered Hessian, H^+ its pseudo-inverse: degenerate directions
+// get nothing here, the score distribution's window prior bounds them).
 Eigen::Matrix3d ReferenceNoiseCovariance(const ReferenceNoiseTerms& terms,
                                          const Eigen::Matrix3d& hessian, double point_sigma_m,
                                          const ScoreCovarianceOptions& options);
