@@ -34,17 +34,17 @@ std::vector<Pose2> WanderingPath(const SyntheticWorld& world, int steps, std::mt
 }
 
 TEST(LocalMapMatcherTest, RefinesDriftingOdometry) {
-  // Three rooms, 300 steps each (30 m of travel), odometry with 3 % scale error, 1 degree per
+  // Two rooms, 150 steps each (15 m of travel), odometry with 3 % scale error, 1 degree per
   // metre of heading bias and random noise. The refined trajectory's error against the truth
   // (end pose relative to the start) must be a small fraction of odometry's.
   SyntheticLaser laser;
   laser.beams = 181;
   laser.fov_rad = 3.14159265358979323846;
   laser.range_sigma_m = 0.01;
-  for (uint64_t seed = 0; seed < 3; ++seed) {
+  for (uint64_t seed = 0; seed < 2; ++seed) {
     std::mt19937_64 rng(700 + seed);
     const SyntheticWorld world = RandomRoom(700 + seed);
-    const std::vector<Pose2> truth = WanderingPath(world, 300, &rng);
+    const std::vector<Pose2> truth = WanderingPath(world, 150, &rng);
     std::normal_distribution<double> noise(0.0, 1.0);
     LocalMapMatcher matcher(LocalMapMatcherOptions{});
     Pose2 odometry = truth[0];
@@ -76,7 +76,7 @@ TEST(LocalMapMatcherTest, RefinesDriftingOdometry) {
         static_cast<long long>(stats.keyframes), static_cast<long long>(stats.resets));
     EXPECT_GT(worst_odometry, 0.5);
     EXPECT_LT(worst_refined, 0.15);
-    EXPECT_GE(stats.matched, 295);
+    EXPECT_GE(stats.matched, 146);
     EXPECT_LE(matcher.num_keyframes(), 10u);
   }
 }
