@@ -3,12 +3,14 @@
 // III.C: the weighted second moment of the likelihood over the search volume). The score is the
 // log-likelihood of the query under a Gaussian point-to-surface model with standard deviation
 // point_sigma_m, truncated at cutoff_m (outliers): log p(xi) = -cost(xi) / (2 sigma^2),
-// cost as TruncatedCost. Instead of the search lattice, whose cells (5 cm, 0.1-0.3 degree) are
-// coarser than a good match's uncertainty, the distribution is sampled on a 7 x 7 x 7 lattice
-// along the principal axes of the Gauss-Newton covariance (steps of one standard deviation, a
-// window prior bounding it): where the likelihood is Gaussian the moment reproduces it, where it
-// is not (a corridor, a truncation edge, a second nearby optimum) the moment follows the
-// samples. The result is symmetrised and a floor is added, so it is always SPD.
+// cost as AnchoredCost (pose_refinement.h). Instead of the search lattice, whose cells (5 cm,
+// 0.1-0.3 degree) are coarser than a good match's uncertainty, the distribution is sampled on a 7 x
+// 7 x 7 lattice along the principal axes of the Gauss-Newton covariance (steps of one standard
+// deviation, a window prior bounding it): where the likelihood is Gaussian the moment reproduces
+// it, where it is not (a corridor, a truncation edge, a second nearby optimum) the moment follows
+// the samples. Directions the geometry leaves unconstrained (DegeneracyFiltered) are not sampled
+// for their spread (the samples there follow the walls' noise): they get the window prior's
+// variance. The result is symmetrised and a floor is added, so it is always SPD.
 
 #include <Eigen/Core>
 
@@ -36,7 +38,7 @@ struct ScoreCovarianceOptions {
 Eigen::Matrix3d DegeneracyFiltered(const Eigen::Matrix3d& hessian, const PointCloud& query);
 
 // The covariance of T_reference_query around `pose` (a refined match); `hessian` is the
-// RefinementResult's.
+// RefinementResult's after DegeneracyFiltered.
 Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const PointCloud& query,
                                             const Pose2& pose, const Eigen::Matrix3d& hessian,
                                             const ScoreCovarianceOptions& options);
@@ -44,11 +46,11 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
 // The reference is a scan too, with its own noise: a reference point displaced by delta moves
 // the surface under every query point matched to its segments (weight 1 - t or t along the
 // segment), and so moves the estimate. With sigma the noise of one point along the surface
-// normal, the estimate's error from the reference is P (sum_v b_v b_v^T) P / sigma^2, where
-// b_v = sum_j w_jv a_j over the query points j matched near reference point v, a_j the
-// gradient of point j's normal residual, and P = (hessian / sigma^2 + window prior)^-1 the
-// Gauss-Newton covariance (error propagation through the normal equations). The residuals see
-// the reference's noise only partly (interpolated between two points: variance
+// normal, the estimate's error from the reference is sigma^2 H^+ (sum_v b_v b_v^T) H^+, where
+// b_v = sum_j w_jv a_j over the query points j matched near reference point v (signed by v's
+// own normal), a_j the gradient of point j's normal residual, and H^+ the pseudo-inverse of
+// the filtered Gauss-Newton Hessian (error propagation through the normal equations). The
+// residuals see the reference's noise only partly (interpolated between two points: variance
 // ((1 - t)^2 + t^2) sigma^2), which `interpolation_gain` reports for the variance estimate.
 struct ReferenceNoiseTerms {
   Eigen::Matrix3d b_outer = Eigen::Matrix3d::Zero();  // sum_v b_v b_v^T
