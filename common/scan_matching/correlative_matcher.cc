@@ -1,0 +1,140 @@
+#include "common/scan_matching/correlative_matcher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "common/scan_matching/pose_refinement.h"
+#include "common/scan_matching/score_covariance.h"
+
+namespace anchormap {
+
+namespace {
+
+constexpr int kMinInliersForVariance = 20;
+
+template <typename Options>
+void Require(const Options& options) {
+  if (const Status valid = options.Validate(); !valid.ok()) {
+    throw std::invalid_argument("scan matching: " + valid.message());
+  }
+}
+
+}  // namespace
+
+Status MatchOptions::Validate() const {
+  if (!(min_score >= 0.0 && min_score < 1.0)) return Status::Error("min_score must be in [0, 1)");
+  if (!(point_sigma_m > 0.0) || !std::isfinite(point_sigma_m)) {
+    return Status::Error("point_sigma_m must be > 0");
+  }
+  if (!(overlap_distance_m > 0.0) || !std::isfinite(overlap_distance_m)) {
+    return Status::Error("overlap_distance_m must be > 0");
+  }
+  return Status::Ok();
+}
+
+Status LocalMatchOptions::Validate() const {
+  if (!(linear_window_m >= 0.0 && linear_window_m <= 100.0)) {
+    return Status::Error("linear_window_m must be in [0, 100]");
+  }
+  if (!(angular_window_rad >= 0.0 && angular_window_rad <= kPi)) {
+    return Status::Error("angular_window_rad must be in [0, pi]");
+  }
+  return match.Validate();
+}
+
+double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+               double distance_m) {
+  if (query.empty()) return 0.0;
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  const GridGeometry& g = field.geometry();
+  int near = 0;
+  for (const Eigen::Vector2d& p : query) {
+    const Eigen::Vector2d q = R * p + t;
+    const Eigen::Vector2i c = g.CellOf(q);
+    Eigen::Vector2d v;
+    // The cell centre's vector, moved to the point: exact for the nearest surface point.
+    if (field.NearestVector(c.x(), c.y(), &v) &&
+        (g.CellCentre(c.x(), c.y()) + v - q).norm() <= distance_m) {
+      ++near;
+    }
+  }
+  return static_cast<double>(near) / static_cast<double>(query.size());
+}
+
+std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
+                                                 const PointCloud& query,
+                                                 const SearchWindow& window,
+                                                 const MatchOptions& options) {
+  if (reference.empty() || query.empty()) return std::nullopt;
+  const DiscretisedQuery discretised(query, window, reference.geometry());
+  LatticeSearchStats stats;
+  const std::optional<LatticePose> best =
+      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats);
+  if (!best) return std::nullopt;
+  MatchResult result = FinishMatch(reference, query, window, *best, options);
+  result.search = stats;
+  return result;
+}
+
+MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
+                        const SearchWindow& window, const LatticePose& lattice,
+                        const MatchOptions& options) {
+  MatchResult result;
+  result.score = lattice.score;
+  result.lattice_pose = LatticeToPose(window, reference.geometry().resolution, lattice);
+  result.pose = result.lattice_pose;
+  const double resolution = reference.geometry().resolution;
+  const double field_reach = reference.field().options().max_distance_m;
+  RefinementOptions refine;
+  refine.cutoff_m = std::min(std::max(3.0 * options.point_sigma_m, 2.0 * resolution), field_reach);
+  RefinementResult refined;
+  if (options.refine) {
+    refined = RefinePose(reference.field(), query, result.lattice_pose, refine);
+  } else {
+    refined = RefinePose(reference.field(), query, result.lattice_pose,
+                         RefinementOptions{refine.cutoff_m, 0, 0.0});
+  }
+  result.pose = refined.pose;
+  ScoreCovarianceOptions covariance;
+  // The noise of one point along the surface normal, estimated from the residuals (the
+  // a-posteriori variance factor of least squares), so that the covariance follows the sensor
+  // and the place, not a setting: a residual carries the query point's noise and the
+  // reference's, interpolated ((1 - t)^2 + t^2 of it). The option is the fallback for too few
+  // inliers and the refinement's cut-off scale.
+  const ReferenceNoiseTerms reference_noise =
+      ComputeReferenceNoiseTerms(reference.field(), query, result.pose, refine.cutoff_m);
+  covariance.point_sigma_m = refined.inliers >= kMinInliersForVariance
+                                 ? std::sqrt(std::max(refined.residual_variance, 1e-8) /
+                                             (1.0 + reference_noise.interpolation_gain))
+                                 : options.point_sigma_m;
+  if (!options.refine) {
+    // The lattice's own resolution bounds the estimate: a uniform error over one cell.
+    covariance.floor_sigma_xy_m = resolution / std::sqrt(12.0);
+    covariance.floor_sigma_theta_rad = window.angle_step_rad / std::sqrt(12.0);
+  }
+  // The query's noise through the score distribution, the reference's by propagation.
+  const Eigen::Matrix3d hessian = DegeneracyFiltered(refined.hessian, query);
+  result.covariance =
+      ScoreDistributionCovariance(reference.field(), query, result.pose, hessian, covariance) +
+      ReferenceNoiseCovariance(reference_noise, hessian, covariance.point_sigma_m, covariance);
+  result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
+  return result;
+}
+
+std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,
+                                      const Pose2& guess, const LocalMatchOptions& options) {
+  Require(options);
+  const double resolution = reference.geometry().resolution;
+  SearchWindow window;
+  window.center = guess;
+  window.angle_step_rad = AngleStepForRange(resolution, MaxPointRange(query));
+  window.half_angles =
+      static_cast<int>(std::ceil(options.angular_window_rad / window.angle_step_rad));
+  window.half_cells_x = static_cast<int>(std::ceil(options.linear_window_m / resolution));
+  window.half_cells_y = window.half_cells_x;
+  return SearchWindowAndFinish(reference, query, window, options.match);
+}
+
+}  // namespace anchormap

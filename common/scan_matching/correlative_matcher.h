@@ -1,0 +1,77 @@
+#pragma once
+// The correlative scan matcher (Olson, "Real-time correlative scan matching", ICRA 2009) on one
+// ScanReference (the global search, global_search.h, shares all but the window):
+//   1. the query is scored on a lattice of poses (x, y, theta) by its mean likelihood, and the
+//      best lattice pose is found by branch and bound over the precomputed max-grids (coarse
+//      to fine, exact: the best lattice score);
+//   2. the pose is refined continuously (point-to-surface Gauss-Newton, pose_refinement.h);
+//   3. the covariance comes from the score distribution around it (score_covariance.h);
+//   4. the overlap is the fraction of query points within overlap_distance_m of the surface.
+// MatchLocal searches a window around a guess (odometry, a predicted loop closure). It returns
+// nullopt when no lattice pose scores above min_score. Deterministic.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/scan_matching/lattice_search.h"
+#include "common/scan_matching/point_cloud.h"
+#include "common/scan_matching/scan_reference.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct MatchOptions {
+  // No match below this lattice score (mean likelihood of the query's points, in [0, 1]).
+  double min_score = 0.3;
+  // Standard deviation of one point's distance to the reference surface (range noise of both
+  // scans, surface roughness): the noise model of the refinement and of the covariance.
+  double point_sigma_m = 0.03;
+  // A query point "lands near" the reference when this close to its surface.
+  double overlap_distance_m = 0.1;
+  bool refine = true;
+
+  Status Validate() const;
+};
+
+struct LocalMatchOptions {
+  double linear_window_m = 0.4;     // +- on x and y around the guess
+  double angular_window_rad = 0.2;  // +- around the guess's heading
+  MatchOptions match;
+
+  Status Validate() const;
+};
+
+struct MatchResult {
+  Pose2 pose;            // T_reference_query
+  double score = 0.0;    // of the best lattice pose
+  double overlap = 0.0;  // at `pose`
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  Pose2 lattice_pose;  // before refinement
+  LatticeSearchStats search;
+};
+
+// Matches `query` (points in its body frame) around T_reference_query `guess`. Options must be
+// valid (exceptions are for bugs).
+std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,
+                                      const Pose2& guess, const LocalMatchOptions& options);
+
+// Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part).
+std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
+                                                 const PointCloud& query,
+                                                 const SearchWindow& window,
+                                                 const MatchOptions& options);
+
+// Steps 2-4 for a lattice pose found by a search (exposed for tests and benchmarks).
+MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
+                        const SearchWindow& window, const LatticePose& lattice,
+                        const MatchOptions& options);
+
+// The fraction of `query` at T_reference_query `pose` within `distance_m` of the surface.
+double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+               double distance_m);
+
+}  // namespace anchormap

@@ -1,0 +1,81 @@
+#pragma once
+// The search over a lattice of poses (x, y, theta): headings center.theta + k * angle_step,
+// translations center + (dx, dy) * resolution. Translations are whole cells, so a heading's
+// query points are put into cells once and every translation only shifts their indices; the
+// score of a lattice pose is the mean likelihood of the cells its points land in (Olson 2009).
+//
+// BranchAndBound finds the best lattice pose exactly (the same score as ExhaustiveSearch) by
+// scoring blocks of 2^h x 2^h translations on the max-grid of level h, an upper bound of every
+// translation in the block (Hess et al. 2016): blocks are visited best first, depth first, and
+// a block whose bound is not above the best leaf so far is skipped with all it contains.
+
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/scan_matching/max_grid_pyramid.h"
+#include "common/scan_matching/point_cloud.h"
+
+namespace anchormap {
+
+struct SearchWindow {
+  Pose2 center;  // the lattice pose (0, 0, 0)
+  double angle_step_rad = 0.01;
+  int half_angles = 0;   // |k| <= half_angles
+  int half_cells_x = 0;  // |dx| <= half_cells_x
+  int half_cells_y = 0;  // |dy| <= half_cells_y
+};
+
+struct LatticePose {
+  int k = 0;
+  int dx = 0;
+  int dy = 0;
+  double score = 0.0;
+};
+
+// The pose of a lattice point.
+Pose2 LatticeToPose(const SearchWindow& window, double resolution, const LatticePose& lattice);
+
+// The angle step that moves a point at `max_range_m` by at most one cell of `resolution_m`
+// (the chord of the arc), capped at 0.1 rad for short scans.
+double AngleStepForRange(double resolution_m, double max_range_m);
+
+// The query's points in cells, one list per heading of the window.
+class DiscretisedQuery {
+ public:
+  DiscretisedQuery(const PointCloud& query, const SearchWindow& window,
+                   const GridGeometry& geometry);
+  const std::vector<Eigen::Vector2i>& cells(int k) const { return cells_[k + half_angles_]; }
+  size_t num_points() const { return num_points_; }
+
+ private:
+  int half_angles_ = 0;
+  size_t num_points_ = 0;
+  std::vector<std::vector<Eigen::Vector2i>> cells_;
+};
+
+// Mean over the query's points of the level's value at their cells shifted by (dx, dy); 0 for
+// an empty query.
+double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
+                    int dx, int dy);
+
+struct LatticeSearchStats {
+  int64_t scored_nodes = 0;  // scores computed (any level)
+  int64_t leaves = 0;        // level-0 scores computed
+};
+
+// The best lattice pose with a score above min_score (the first in (k, dy, dx) order among
+// equals), or nullopt. Evaluates every lattice pose: the reference for tests.
+std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
+                                            const DiscretisedQuery& query,
+                                            const SearchWindow& window, double min_score,
+                                            LatticeSearchStats* stats = nullptr);
+
+// The same best score, by branch and bound over all the pyramid's levels.
+std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
+                                          const DiscretisedQuery& query, const SearchWindow& window,
+                                          double min_score, LatticeSearchStats* stats = nullptr);
+
+}  // namespace anchormap

@@ -1,0 +1,105 @@
+#include "common/scan_matching/lattice_search.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/angle.h"
+
+namespace anchormap {
+namespace {
+
+LikelihoodGrid RandomGrid(int width, int height, std::mt19937_64* rng) {
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  GridGeometry g;
+  g.resolution = 0.1;
+  g.width = width;
+  g.height = height;
+  std::vector<float> values(g.num_cells());
+  for (float& v : values) v = unit(*rng) < 0.2f ? unit(*rng) : 0.0f;
+  return LikelihoodGrid(g, values);
+}
+
+TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearch) {
+  // Random grids and random queries: the best score is the same (to the last bit, the scores
+  // are computed by the same function), and branch and bound scores fewer leaves.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> coord(0.0, 3.0);
+  int64_t leaves_bnb = 0;
+  int64_t leaves_all = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const LikelihoodGrid grid = RandomGrid(30, 25, &rng);
+    const int levels = 1 + trial % 5;
+    const MaxGridPyramid pyramid(grid, levels);
+    PointCloud query;
+    for (int i = 0; i < 15; ++i) query.push_back({coord(rng) - 1.5, coord(rng) - 1.5});
+    SearchWindow window;
+    window.center = Pose2(1.5, 1.2, 0.3 * trial);
+    window.angle_step_rad = 0.05;
+    window.half_angles = trial % 4;
+    window.half_cells_x = 3 + trial % 7;
+    window.half_cells_y = 2 + trial % 5;
+    const DiscretisedQuery discretised(query, window, grid.geometry());
+    LatticeSearchStats stats_all;
+    LatticeSearchStats stats_bnb;
+    const double min_score = trial % 3 == 0 ? 0.2 : 0.0;
+    const auto all = ExhaustiveSearch(pyramid, discretised, window, min_score, &stats_all);
+    const auto bnb = BranchAndBound(pyramid, discretised, window, min_score, &stats_bnb);
+    ASSERT_EQ(all.has_value(), bnb.has_value()) << "trial " << trial;
+    if (!all) continue;
+    EXPECT_EQ(all->score, bnb->score) << "trial " << trial;
+    EXPECT_EQ(ScoreOnLevel(pyramid, 0, discretised, bnb->k, bnb->dx, bnb->dy), bnb->score);
+    EXPECT_LE(std::abs(bnb->dx), window.half_cells_x);
+    EXPECT_LE(std::abs(bnb->dy), window.half_cells_y);
+    EXPECT_LE(std::abs(bnb->k), window.half_angles);
+    leaves_bnb += stats_bnb.leaves;
+    leaves_all += stats_all.leaves;
+  }
+  EXPECT_LT(leaves_bnb, leaves_all / 2);
+}
+
+TEST(LatticeSearchTest, FindsAPlantedPatternAndNothingAboveAnImpossibleScore) {
+  GridGeometry g;
+  g.resolution = 0.1;
+  g.width = 40;
+  g.height = 40;
+  std::vector<float> values(g.num_cells(), 0.0f);
+  // An L of cells at (10..24, 10) and (10, 10..21).
+  for (int i = 0; i < 15; ++i) values[g.Index(10 + i, 10)] = 1.0f;
+  for (int i = 0; i < 12; ++i) values[g.Index(10, 10 + i)] = 1.0f;
+  const LikelihoodGrid grid(g, values);
+  const MaxGridPyramid pyramid(grid, 4);
+  // The same L in the query's frame, seen from (1.05, 1.05) heading 90 degrees.
+  PointCloud query;
+  const Pose2 truth(1.05, 1.05, kPi / 2);
+  for (int i = 0; i < 15; ++i)
+    query.push_back(truth.Inverse().TransformPoint({1.05 + 0.1 * i, 1.05}));
+  for (int i = 1; i < 12; ++i)
+    query.push_back(truth.Inverse().TransformPoint({1.05, 1.05 + 0.1 * i}));
+  SearchWindow window;
+  window.center = Pose2(0.75, 1.25, kPi / 2 - 0.2);
+  window.angle_step_rad = 0.02;
+  window.half_angles = 20;
+  window.half_cells_x = 6;
+  window.half_cells_y = 6;
+  const DiscretisedQuery discretised(query, window, g);
+  const auto best = BranchAndBound(pyramid, discretised, window, 0.0);
+  ASSERT_TRUE(best.has_value());
+  EXPECT_DOUBLE_EQ(best->score, 1.0);
+  const Pose2 pose = LatticeToPose(window, g.resolution, *best);
+  EXPECT_NEAR(pose.x(), 1.05, 0.051);
+  EXPECT_NEAR(pose.y(), 1.05, 0.051);
+  // One step turns the far end of the L by 3 cm, less than a cell: +- 1 step is a tie.
+  EXPECT_NEAR(pose.theta(), kPi / 2, 0.021);
+  EXPECT_FALSE(BranchAndBound(pyramid, discretised, window, 1.0).has_value());
+}
+
+TEST(LatticeSearchTest, AngleStep) {
+  // A point at 10 m moves by one 5 cm cell.
+  const double step = AngleStepForRange(0.05, 10.0);
+  EXPECT_NEAR(2.0 * 10.0 * std::sin(step / 2.0), 0.05, 1e-12);
+  EXPECT_EQ(AngleStepForRange(0.05, 0.01), 0.1);
+}
+
+}  // namespace
+}  // namespace anchormap

@@ -1,0 +1,92 @@
+#include "common/scan_matching/local_map_matcher.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace anchormap {
+
+Status LocalMapMatcherOptions::Validate() const {
+  if (max_keyframes < 1 || max_keyframes > 1000)
+    return Status::Error("max_keyframes must be in [1, 1000]");
+  if (!(keyframe_distance_m >= 0.0) || !(keyframe_angle_rad >= 0.0)) {
+    return Status::Error("keyframe_distance_m and keyframe_angle_rad must be >= 0");
+  }
+  if (!(max_range_m > 0.0) || !std::isfinite(max_range_m))
+    return Status::Error("max_range_m must be > 0");
+  if (!(min_overlap >= 0.0 && min_overlap <= 1.0))
+    return Status::Error("min_overlap must be in [0, 1]");
+  if (!(min_score >= 0.0 && min_score <= 1.0)) return Status::Error("min_score must be in [0, 1]");
+  if (Status valid = reference.Validate(); !valid.ok()) return valid;
+  return match.Validate();
+}
+
+LocalMapMatcher::LocalMapMatcher(const LocalMapMatcherOptions& options) : options_(options) {
+  if (const Status valid = options.Validate(); !valid.ok()) {
+    throw std::invalid_argument("LocalMapMatcher: " + valid.message());
+  }
+}
+
+void LocalMapMatcher::AddKeyframe(const PointCloud& points, const Pose2& pose) {
+  keyframes_.push_back({pose, TransformPointCloud(points, pose)});
+  while (static_cast<int>(keyframes_.size()) > options_.max_keyframes) keyframes_.pop_front();
+  std::vector<PointCloud> scans;
+  scans.reserve(keyframes_.size());
+  for (const Keyframe& k : keyframes_) scans.push_back(k.points_local);
+  reference_ = std::make_unique<ScanReference>(scans, options_.reference);
+  ++stats_.keyframes;
+}
+
+LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T_odom_body) {
+  ++stats_.scans;
+  PointCloud near;
+  near.reserve(points.size());
+  const double max_sq = options_.max_range_m * options_.max_range_m;
+  for (const Eigen::Vector2d& p : points) {
+    if (p.squaredNorm() <= max_sq) near.push_back(p);
+  }
+  LocalMapUpdate update;
+  update.predicted =
+      last_odometry_ ? Compose(last_pose_, Between(*last_odometry_, T_odom_body)) : T_odom_body;
+  update.pose = update.predicted;
+  last_odometry_ = T_odom_body;
+  if (reference_ == nullptr) {
+    last_pose_ = update.pose;
+    if (!near.empty()) {
+      AddKeyframe(near, update.pose);
+      update.keyframe = true;
+    }
+    return update;
+  }
+  update.match = MatchLocal(*reference_, near, update.predicted, options_.match);
+  if (!update.match) {
+    ++stats_.no_match;
+  } else if (update.match->score >= options_.min_score &&
+             update.match->overlap >= options_.min_overlap) {
+    update.matched = true;
+    update.pose = update.match->pose;
+    ++stats_.matched;
+  } else {
+    ++stats_.rejected;
+  }
+  last_pose_ = update.pose;
+  const Pose2 since = Between(keyframes_.back().pose, update.pose);
+  const bool moved = since.translation().norm() >= options_.keyframe_distance_m ||
+                     std::abs(since.theta()) >= options_.keyframe_angle_rad;
+  const bool lost = since.translation().norm() >= 3.0 * options_.keyframe_distance_m ||
+                    std::abs(since.theta()) >= 3.0 * options_.keyframe_angle_rad;
+  if (update.matched && moved) {
+    AddKeyframe(near, update.pose);
+    update.keyframe = true;
+  } else if (!update.matched && lost && !near.empty()) {
+    // The map no longer matches where odometry took us: start a new one here rather than
+    // keep matching against a stale map or adding unverified poses to it.
+    keyframes_.clear();
+    AddKeyframe(near, update.pose);
+    update.keyframe = true;
+    ++stats_.resets;
+  }
+  return update;
+}
+
+}  // namespace anchormap

@@ -1,0 +1,85 @@
+#pragma once
+// Odometry refinement on the robot (issue 11, item 2), without a bus: each new scan is matched
+// against a local map of the last keyframes' points, around the pose odometry predicts; when
+// the match is good the scan's pose becomes the matched one, otherwise the prediction, and the
+// caller is told which. Poses are in the trajectory's local frame: the first scan's odometry
+// pose anchors it, and refined poses drift from odometry as corrections accumulate.
+//
+// Memory is bounded: at most max_keyframes scans' points (each cut at max_range_m) and one
+// ScanReference over them (the grid spans their extent, at most 2 (max_range_m + margin) per
+// side around the keyframes). The reference is rebuilt when a keyframe enters the map.
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/scan_matching/correlative_matcher.h"
+#include "common/scan_matching/point_cloud.h"
+#include "common/scan_matching/scan_reference.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct LocalMapMatcherOptions {
+  int max_keyframes = 10;            // scans in the local map
+  double keyframe_distance_m = 0.3;  // a scan enters the map this far from the last one
+  double keyframe_angle_rad = 0.26;  // or turned this much (15 degrees)
+  double max_range_m = 15.0;         // points farther from the robot are not used
+  double min_overlap = 0.6;          // a good match: overlap at least this ...
+  double min_score = 0.45;           // ... and a lattice score at least this
+  ScanReferenceOptions reference{0.05, 0.05, 0.5, 4};  // 4 levels: blocks of 8 cells
+  LocalMatchOptions match;                             // the window around the prediction
+
+  Status Validate() const;
+};
+
+struct LocalMapUpdate {
+  Pose2 pose;  // T_local_body of the scan: matched when `matched`, else predicted
+  Pose2 predicted;
+  bool matched = false;
+  bool keyframe = false;             // the scan entered the local map
+  std::optional<MatchResult> match;  // the match, also when rejected
+};
+
+struct LocalMapStats {
+  int64_t scans = 0;
+  int64_t matched = 0;
+  int64_t rejected = 0;  // a match was found but was not good (score or overlap)
+  int64_t no_match = 0;  // nothing above the matcher's min_score, or an empty scan
+  int64_t keyframes = 0;
+  int64_t resets = 0;  // unmatched scans far from the map restarted it
+};
+
+class LocalMapMatcher {
+ public:
+  // Options must be valid.
+  explicit LocalMapMatcher(const LocalMapMatcherOptions& options);
+
+  // A scan's points in its body frame (ScanToPointCloud) and the body's odometry pose at the
+  // scan's time. The prediction is the last scan's pose moved by the odometry since then.
+  LocalMapUpdate AddScan(const PointCloud& points, const Pose2& T_odom_body);
+
+  const LocalMapStats& stats() const { return stats_; }
+  size_t num_keyframes() const { return keyframes_.size(); }
+
+ private:
+  struct Keyframe {
+    Pose2 pose;  // T_local_body
+    PointCloud points_local;
+  };
+  void AddKeyframe(const PointCloud& points, const Pose2& pose);
+
+  LocalMapMatcherOptions options_;
+  std::deque<Keyframe> keyframes_;
+  std::unique_ptr<ScanReference> reference_;
+  std::optional<Pose2> last_odometry_;
+  Pose2 last_pose_;
+  LocalMapStats stats_;
+};
+
+}  // namespace anchormap

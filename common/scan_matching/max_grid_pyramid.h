@@ -1,0 +1,45 @@
+#pragma once
+// Precomputed max-grids for branch and bound (the idea of Hess, Kohler, Rapp and Andor, "Real-
+// time loop closure in 2D LIDAR SLAM", ICRA 2016): level h holds, for every cell (ix, iy), the
+// maximum of the likelihood grid over the 2^h x 2^h block of cells [ix, ix + 2^h) x
+// [iy, iy + 2^h) (cells outside the grid count 0). A query scored on level h at translation
+// offset (dx, dy) is then an upper bound of its score at every offset in
+// [dx, dx + 2^h) x [dy, dy + 2^h), which is what lets a search skip whole blocks.
+//
+// Level h is stored for ix in [-(2^h - 1), width) (blocks that reach into the grid from the
+// left or below) and built from level h - 1 by the max of four shifted values, O(1) per cell.
+
+#include <vector>
+
+#include "common/scan_matching/likelihood_grid.h"
+
+namespace anchormap {
+
+class MaxGridPyramid {
+ public:
+  // Precondition: num_levels >= 1. Level 0 is the grid itself.
+  MaxGridPyramid(const LikelihoodGrid& grid, int num_levels);
+
+  int num_levels() const { return static_cast<int>(levels_.size()); }
+  const GridGeometry& geometry() const { return geometry_; }
+  // Max over the block [ix, ix + 2^level) x [iy, iy + 2^level); 0 when it misses the grid.
+  float Value(int level, int ix, int iy) const {
+    const Level& l = levels_[level];
+    const int x = ix + l.offset;
+    const int y = iy + l.offset;
+    if (x < 0 || y < 0 || x >= l.width || y >= l.height) return 0.0f;
+    return l.values[static_cast<size_t>(y) * l.width + x];
+  }
+
+ private:
+  struct Level {
+    int offset = 0;  // 2^h - 1
+    int width = 0;
+    int height = 0;
+    std::vector<float> values;
+  };
+  GridGeometry geometry_;
+  std::vector<Level> levels_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,189 @@
+#include "common/scan_matching/pose_refinement.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace anchormap {
+
+namespace {
+
+// One query point's residual e at q and its derivative with respect to q: with a surface
+// normal n, the point-to-line distance e = -n.v (one row, the wall's direction left free);
+// without (a lone reference return), the point-to-point vector e = -v (two rows). False for an
+// outlier (no field there, or the surface farther than the cut-off).
+bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double cutoff_sq,
+                   int* rows, Eigen::Vector2d* e, Eigen::Matrix2d* de_dq) {
+  Eigen::Vector2d v;
+  Eigen::Matrix2d J;
+  if (!field.Interpolate(q, &v, &J) || v.squaredNorm() > cutoff_sq) return false;
+  const Eigen::Vector2i cell = field.geometry().CellOf(q);
+  int a = 0;
+  int b = 0;
+  Eigen::Vector2d n;
+  if (field.NearestPrimitive(cell.x(), cell.y(), &a, &b) && field.PrimitiveNormal(a, b, &n)) {
+    *rows = 1;
+    (*e)(0) = -n.dot(v);
+    de_dq->row(0) = n.transpose();
+    return true;
+  }
+  *rows = 2;
+  *e = -v;
+  *de_dq = -J;
+  return true;
+}
+
+// Accumulates the normal equations at `pose`; returns the truncated cost.
+double Linearise(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+                 double cutoff_m, Eigen::Matrix3d* H, Eigen::Vector3d* b, int* inliers) {
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  const double cutoff_sq = cutoff_m * cutoff_m;
+  H->setZero();
+  b->setZero();
+  *inliers = 0;
+  double cost = 0.0;
+  int rows = 0;
+  Eigen::Vector2d e;
+  Eigen::Matrix2d de_dq;
+  for (const Eigen::Vector2d& p : query) {
+    const Eigen::Vector2d rp = R * p;
+    if (!PointResidual(field, rp + t, cutoff_sq, &rows, &e, &de_dq)) {
+      cost += cutoff_sq;
+      continue;
+    }
+    ++*inliers;
+    // q = R p + t: dq/dxi = [I, (-rp.y, rp.x)].
+    Eigen::Matrix<double, 2, 3> dq;
+    dq << 1.0, 0.0, -rp.y(), 0.0, 1.0, rp.x();
+    const Eigen::Matrix<double, 2, 3> A = de_dq * dq;
+    for (int r = 0; r < rows; ++r) {
+      *H += A.row(r).transpose() * A.row(r);
+      *b -= A.row(r).transpose() * e(r);
+      cost += e(r) * e(r);
+    }
+  }
+  return cost;
+}
+
+}  // namespace
+
+double TruncatedCost(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+                     double cutoff_m, int* inliers) {
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  const double cutoff_sq = cutoff_m * cutoff_m;
+  double cost = 0.0;
+  int count = 0;
+  int rows = 0;
+  Eigen::Vector2d e;
+  Eigen::Matrix2d de_dq;
+  for (const Eigen::Vector2d& p : query) {
+    if (PointResidual(field, R * p + t, cutoff_sq, &rows, &e, &de_dq)) {
+      cost += (rows == 1 ? e(0) * e(0) : e.squaredNorm());
+      ++count;
+    } else {
+      cost += cutoff_sq;
+    }
+  }
+  if (inliers != nullptr) *inliers = count;
+  return cost;
+}
+
+AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
+                           const Pose2& anchor, double cutoff_m)
+    : field_(field), query_(query), cutoff_sq_(cutoff_m * cutoff_m) {
+  associations_.resize(query.size());
+  const Eigen::Matrix2d R = anchor.rotation();
+  const Eigen::Vector2d t = anchor.translation();
+  for (size_t j = 0; j < query.size(); ++j) {
+    const Eigen::Vector2d q = R * query[j] + t;
+    Eigen::Vector2d v;
+    if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq_) continue;
+    Association& a = associations_[j];
+    a.inlier = true;
+    a.surface = q + v;
+    const Eigen::Vector2i cell = field.geometry().CellOf(q);
+    int ia = 0;
+    int ib = 0;
+    a.has_normal = field.NearestPrimitive(cell.x(), cell.y(), &ia, &ib) &&
+                   field.PrimitiveNormal(ia, ib, &a.normal);
+  }
+}
+
+double AnchoredCost::operator()(const Pose2& pose) const {
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  double cost = 0.0;
+  int rows = 0;
+  Eigen::Vector2d e;
+  Eigen::Matrix2d de_dq;
+  for (size_t j = 0; j < query_.size(); ++j) {
+    const Eigen::Vector2d q = R * query_[j] + t;
+    if (PointResidual(field_, q, cutoff_sq_, &rows, &e, &de_dq)) {
+      cost += (rows == 1 ? e(0) * e(0) : e.squaredNorm());
+      continue;
+    }
+    const Association& a = associations_[j];
+    if (!a.inlier) {
+      cost += cutoff_sq_;
+      continue;
+    }
+    const double sq =
+        a.has_normal ? std::pow(a.normal.dot(q - a.surface), 2) : (q - a.surface).squaredNorm();
+    cost += std::min(sq, cutoff_sq_);
+  }
+  return cost;
+}
+
+RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query,
+                            const Pose2& initial, const RefinementOptions& options) {
+  RefinementResult result;
+  result.pose = initial;
+  Eigen::Matrix3d H;
+  Eigen::Vector3d b;
+  int inliers = 0;
+  double cost = Linearise(field, query, result.pose, options.cutoff_m, &H, &b, &inliers);
+  result.hessian = H;
+  result.inliers = inliers;
+  // Levenberg-Marquardt: a step that does not lower the cost is retried with more damping
+  // (a degenerate direction, a corridor, must not jump).
+  double lambda = 1e-4;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    if (inliers < 3) break;
+    Eigen::Matrix3d damped = H;
+    damped.diagonal() += lambda * (H.diagonal().array() + 1e-9).matrix();
+    const Eigen::Vector3d step = damped.ldlt().solve(b);
+    if (!step.allFinite()) break;
+    const Pose2 candidate = Pose2::FromVector(result.pose.vector() + step);
+    Eigen::Matrix3d H_new;
+    Eigen::Vector3d b_new;
+    int inliers_new = 0;
+    const double cost_new =
+        Linearise(field, query, candidate, options.cutoff_m, &H_new, &b_new, &inliers_new);
+    result.iterations = iteration + 1;
+    if (!(cost_new < cost)) {
+      lambda *= 10.0;
+      if (lambda > 1e6) break;
+      continue;
+    }
+    lambda = std::max(lambda * 0.1, 1e-9);
+    result.pose = candidate;
+    result.hessian = H_new;
+    result.inliers = inliers_new;
+    cost = cost_new;
+    H = H_new;
+    b = b_new;
+    inliers = inliers_new;
+    if (step.norm() < options.min_step) break;
+  }
+  if (result.inliers > 3) {
+    result.residual_variance = (cost - (static_cast<double>(query.size()) - result.inliers) *
+                                           options.cutoff_m * options.cutoff_m) /
+                               (result.inliers - 3);
+  }
+  return result;
+}
+
+}  // namespace anchormap

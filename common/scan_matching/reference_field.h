@@ -1,0 +1,86 @@
+#pragma once
+// The reference of a match (one keyframe's scan, or a local submap of several scans placed at
+// their poses) as a vector field on a grid: for each cell, the vector from the cell's centre to
+// the nearest point of the reference surface. The surface is each scan's returns in beam order,
+// consecutive returns closer than max_join_gap_m joined by a segment (a wall between two beams
+// is a wall, not two dots: a query point between two reference beams is then at distance ~0,
+// not half the beam spacing). Vectors are kept within max_distance_m of the surface only.
+//
+// Near a straight wall the vector field is linear in position, so bilinear interpolation of it
+// is exact there: Interpolate gives a point-to-line residual with its Jacobian at any point,
+// which the refinement and the covariance use; the likelihood grid uses the cell values.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/scan_matching/grid_geometry.h"
+#include "common/scan_matching/point_cloud.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct ReferenceFieldOptions {
+  double resolution_m = 0.05;
+  // Vectors are stored for cells whose centre is at most this far from the surface.
+  double max_distance_m = 0.15;
+  // Consecutive returns of one scan at most this far apart are joined by a wall segment.
+  double max_join_gap_m = 0.2;
+  // Extra cells around the reference's bounding box (a query slightly outside still scores).
+  double margin_m = 0.3;
+
+  Status Validate() const;
+};
+
+class ReferenceField {
+ public:
+  // `scans`: each scan's points in the reference frame, in beam order. An empty input gives an
+  // empty field (every lookup misses).
+  ReferenceField(const std::vector<PointCloud>& scans, const ReferenceFieldOptions& options);
+
+  const GridGeometry& geometry() const { return geometry_; }
+  const ReferenceFieldOptions& options() const { return options_; }
+  size_t num_points() const { return num_points_; }
+
+  // The vector from cell (ix, iy)'s centre to the nearest surface point; false when the cell
+  // is outside the grid or farther than max_distance_m from the surface.
+  bool NearestVector(int ix, int iy, Eigen::Vector2d* v) const;
+  // Bilinear interpolation of the four cell vectors around p, and optionally its derivative
+  // with respect to p; false when any of the four is missing.
+  bool Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
+                   Eigen::Matrix2d* dv_dp = nullptr) const;
+  // The surface primitive nearest to cell (ix, iy)'s centre: the segment from vertex a to
+  // vertex b (a == b for a lone point); false where NearestVector is false.
+  bool NearestPrimitive(int ix, int iy, int* a, int* b) const;
+  // The reference's points (all scans, in order); primitives index them.
+  const Eigen::Vector2d& vertex(int i) const { return vertices_[i]; }
+  // The surface normal at a primitive (unit, sign arbitrary): the mean of its vertices'
+  // normals, each the least-scatter direction of the vertex and its joined neighbours up to two
+  // beams away (a wall's direction smoothed over 4 beam spacings, not the noisy segment's own);
+  // false for a lone return.
+  bool PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const;
+  // A vertex's own normal (zero for a lone return).
+  const Eigen::Vector2d& vertex_normal(int i) const { return normals_[i]; }
+
+ private:
+  void AddPrimitive(int a, int b, std::vector<float>* best_sq);
+
+  ReferenceFieldOptions options_;
+  GridGeometry geometry_;
+  size_t num_points_ = 0;
+  std::vector<float> vx_;  // NaN where no vector is stored
+  std::vector<float> vy_;
+  std::vector<int32_t> primitive_a_;  // vertex indices of the nearest primitive
+  std::vector<int32_t> primitive_b_;
+  std::vector<Eigen::Vector2d> vertices_;
+  std::vector<Eigen::Vector2d> normals_;  // zero where a vertex has no joined neighbour
+};
+
+// Closest point to p on the segment [a, b] (a == b allowed).
+Eigen::Vector2d ClosestPointOnSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                                      const Eigen::Vector2d& b);
+
+}  // namespace anchormap

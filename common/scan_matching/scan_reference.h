@@ -1,0 +1,54 @@
+#pragma once
+// Everything a match needs from its reference, built once and shared by every query matched
+// against it: the reference field (vectors to the nearest surface, for refinement, covariance
+// and overlap), the likelihood grid (the score) and its max-grid pyramid (branch and bound).
+// Building costs O(reference points x (max distance / resolution)^2) plus O(levels x cells).
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/scan_matching/likelihood_grid.h"
+#include "common/scan_matching/max_grid_pyramid.h"
+#include "common/scan_matching/point_cloud.h"
+#include "common/scan_matching/reference_field.h"
+#include "common/util/status.h"
+
+namespace anchormap {
+
+struct ScanReferenceOptions {
+  double resolution_m = 0.05;
+  // Blur of the likelihood grid (one search cell plus sensor noise): a pose one cell off
+  // still scores exp(-1/2) per point on a wall, so the lattice search sees a smooth peak.
+  double likelihood_sigma_m = 0.05;
+  // Consecutive returns at most this far apart are one wall (ReferenceField).
+  double max_join_gap_m = 0.5;
+  // Max-grid levels: blocks of up to 2^(levels-1) cells. 7 levels = 3.2 m blocks at 5 cm.
+  int num_levels = 7;
+
+  Status Validate() const;
+};
+
+class ScanReference {
+ public:
+  // `scans`: each scan's points in the reference frame, in beam order (e.g.
+  // TransformPointCloud(ScanToPointCloud(scan), T_reference_body)). Options must be valid.
+  ScanReference(const std::vector<PointCloud>& scans, const ScanReferenceOptions& options);
+
+  const ScanReferenceOptions& options() const { return options_; }
+  const ReferenceField& field() const { return field_; }
+  const LikelihoodGrid& likelihood() const { return likelihood_; }
+  const MaxGridPyramid& pyramid() const { return pyramid_; }
+  const GridGeometry& geometry() const { return field_.geometry(); }
+  bool empty() const { return field_.num_points() == 0; }
+
+ private:
+  static ReferenceFieldOptions FieldOptions(const ScanReferenceOptions& options);
+
+  ScanReferenceOptions options_;
+  ReferenceField field_;
+  LikelihoodGrid likelihood_;
+  MaxGridPyramid pyramid_;
+};
+
+}  // namespace anchormap
