@@ -34,6 +34,14 @@ struct FactorRecord {
   bool active = true;  // false once removed (a gauge prior dropped at a merge)
 };
 
+// Where a factor's rows in R were linearised: J(x - theta) = J (at - theta) - e(at).
+// Rows added by Givens rotations are linearised at the estimate of their update, rows
+// of a batch step at the linearisation point.
+struct FactorLinearization {
+  std::array<Pose2, kMaxFactorKeys> at;
+  bool in_r = false;
+};
+
 struct TrajectoryInfo {
   int32_t max_index = 0;
   int num_poses = 0;
@@ -69,7 +77,11 @@ class Smoother::Impl {
     return it == trajectories_.end() ? 0 : it->second.num_poses;
   }
   const std::vector<TrajectoryId>& trajectory_order() const { return trajectory_order_; }
-  Pose2 Estimate(const Key& key) const { return EstimateOf(index_.at(key)); }
+  Pose2 Estimate(const Key& key) const { return EstimateOf(VarOf(key)); }
+  bool HasCovariance(const Key& key) const {
+    auto it = index_.find(key);
+    return it != index_.end() && vars_[it->second].position >= 0;
+  }
   bool IsAnchored(TrajectoryId t) const {
     auto it = trajectories_.find(t);
     return it != trajectories_.end() && it->second.anchored;
@@ -83,6 +95,22 @@ class Smoother::Impl {
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
   double Chi2() const;
   const SmootherStats& stats() const { return stats_; }
+  Smoother::LinearSystem LinearSystemForTesting() const {
+    Smoother::LinearSystem out;
+    for (int var : position_to_var_) {
+      out.keys.push_back(vars_[var].key);
+      out.linearization.push_back(vars_[var].linearization);
+    }
+    for (int p = 0; p < r_->size(); ++p) out.rows.push_back(r_->row(p));
+    out.delta = delta_;
+    for (size_t f = 0; f < factors_.size(); ++f) {
+      if (!factor_lin_[f].in_r) continue;
+      out.factors.push_back(factors_[f].factor);
+      out.linearized_at.emplace_back(factor_lin_[f].at.begin(),
+                                     factor_lin_[f].at.begin() + factors_[f].num_vars);
+    }
+    return out;
+  }
   std::vector<Factor> ActiveFactors() const {
     std::vector<Factor> out;
     for (const FactorRecord& f : factors_) {
@@ -96,8 +124,18 @@ class Smoother::Impl {
     const Variable& v = vars_[var];
     return v.position < 0 ? v.linearization : Retract(v.linearization, delta_[v.position]);
   }
+  // The variable of `key`; an unknown key is a caller's bug (HasVariable tells).
+  int VarOf(const Key& key) const {
+    auto it = index_.find(key);
+    if (it == index_.end()) throw std::invalid_argument("unknown variable " + key.ToString());
+    return it->second;
+  }
   int AddVariable(const Key& key, const Pose2& initial);
   int64_t AddFactor(Factor factor);
+  void MarkInR(int64_t id, const std::array<Pose2, kMaxFactorKeys>& at) {
+    factor_lin_[id].at = at;
+    factor_lin_[id].in_r = true;
+  }
   Eigen::Matrix3d GaugeSqrtInformation() const {
     return Eigen::Matrix3d::Identity() / options_.gauge_prior_sigma;
   }
@@ -110,8 +148,47 @@ class Smoother::Impl {
   void TakeOutOfPending(const std::vector<int64_t>& done);
   void IncrementalStep(UpdateResult* result);
   // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
-  // (or once unless `converge`); counts itself in stats_.
+  // (or once unless `converge`); counts itself in stats_. All or nothing: on failure
+  // (result->status) the smoother is as it was before the call.
   void BatchStep(bool converge, double tolerance, UpdateResult* result);
+  // What a batch step changes, for putting it back when the step fails. R is shared,
+  // not copied (MutableR copies on write while a snapshot holds it).
+  struct Snapshot {
+    std::vector<Variable> vars;
+    std::vector<FactorLinearization> factor_lin;
+    std::vector<int64_t> pending_factors;
+    std::vector<int> pending_vars;
+    std::vector<char> grounded;
+    std::vector<int> position_to_var;
+    std::vector<Eigen::Vector3d> delta;
+    std::shared_ptr<SparseR> r;
+    int updates_since_batch;
+    int64_t nonzeros_after_batch;
+  };
+  Snapshot Save() const {
+    return {vars_,
+            factor_lin_,
+            pending_factors_,
+            pending_vars_,
+            grounded_,
+            position_to_var_,
+            delta_,
+            r_,
+            updates_since_batch_,
+            nonzeros_after_batch_};
+  }
+  void Restore(Snapshot&& s) {
+    vars_ = std::move(s.vars);
+    factor_lin_ = std::move(s.factor_lin);
+    pending_factors_ = std::move(s.pending_factors);
+    pending_vars_ = std::move(s.pending_vars);
+    grounded_ = std::move(s.grounded);
+    position_to_var_ = std::move(s.position_to_var);
+    delta_ = std::move(s.delta);
+    r_ = std::move(s.r);
+    updates_since_batch_ = s.updates_since_batch;
+    nonzeros_after_batch_ = s.nonzeros_after_batch;
+  }
   void GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
                              UpdateResult* result);
   void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
@@ -128,11 +205,17 @@ class Smoother::Impl {
     if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
     return *r_;
   }
+  // For replacing R as a whole: no copy of the old one.
+  SparseR& FreshR() {
+    if (r_.use_count() > 1) r_ = std::make_shared<SparseR>();
+    return *r_;
+  }
 
   SmootherOptions options_;
   std::vector<Variable> vars_;
   std::unordered_map<Key, int, KeyHash> index_;
   std::vector<FactorRecord> factors_;
+  std::vector<FactorLinearization> factor_lin_;  // by factor id
   std::vector<int64_t> pending_factors_;
   std::vector<int> pending_vars_;
   std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
@@ -164,6 +247,7 @@ int64_t Smoother::Impl::AddFactor(Factor factor) {
   FactorRecord record{std::move(factor), {}, 0, true};
   for (const Key& key : FactorKeys(record.factor)) record.vars[record.num_vars++] = index_.at(key);
   factors_.push_back(std::move(record));
+  factor_lin_.emplace_back();
   pending_factors_.push_back(static_cast<int64_t>(factors_.size()) - 1);
   ++stats_.factors;
   return static_cast<int64_t>(factors_.size()) - 1;
@@ -394,6 +478,7 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
     // Linearised at the current estimate, expressed relative to the linearisation point
     // of R: J (x - theta) = -e(x_hat) + J delta.
     const LinearizedFactor lin = Linearize(f.factor, values.data());
+    MarkInR(id, values);
     NewRows rows;
     rows.rhs = -lin.whitened_error;
     for (int j = 0; j < f.num_vars; ++j) {
@@ -425,6 +510,7 @@ bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResul
     const FactorRecord& f = factors_[included[k]];
     for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
     linearized[k] = Linearize(f.factor, values.data());
+    MarkInR(included[k], values);
     positioned[k].num_keys = f.num_vars;
     for (int j = 0; j < f.num_vars; ++j) positioned[k].positions[j] = vars_[f.vars[j]].position;
     positioned[k].jacobians = linearized[k].jacobians.data();
@@ -436,7 +522,7 @@ bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResul
     result->status = Status::Error(error);
     return false;
   }
-  MutableR().Assign(std::move(rows));
+  FreshR().Assign(std::move(rows));
   r_->BackSubstitute(&delta_);
   return true;
 }
@@ -460,12 +546,21 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   const auto start = std::chrono::steady_clock::now();
   const int iterations_before = result->iterations;
   tolerance_ = tolerance;
+  Snapshot before = Save();
+  auto fail = [&](Status status) {
+    Restore(std::move(before));
+    result->status = std::move(status);
+    result->iterations = iterations_before;
+    stats_.batch_seconds += Seconds(start);
+    ++stats_.failed_batch_steps;
+  };
   result->batch_step = true;
   // Relinearise everything at the current estimate.
   for (Variable& v : vars_) {
     if (v.position >= 0) v.linearization = Retract(v.linearization, delta_[v.position]);
   }
   // Start from scratch: every active factor is pending, grounding starts at the priors.
+  for (FactorLinearization& lin : factor_lin_) lin.in_r = false;
   pending_factors_.clear();
   for (size_t f = 0; f < factors_.size(); ++f) {
     if (factors_[f].active) pending_factors_.push_back(static_cast<int64_t>(f));
@@ -498,8 +593,10 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
     if (!inserted && key.index > it->second.first) it->second = {key.index, static_cast<int>(d)};
   }
   for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
-  const std::vector<int> order =
+  Result<std::vector<int>> ordering =
       ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
+  if (!ordering.ok()) return fail(ordering.status());
+  const std::vector<int>& order = *ordering;
   for (Variable& v : vars_) v.position = -1;
   grounded_.clear();
   position_to_var_.clear();
@@ -516,6 +613,7 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   } else {
     GaussNewtonIterations(included, max_iterations, result);
   }
+  if (!result->status.ok()) return fail(result->status);
   nonzeros_after_batch_ = r_->NonZeros();
   updates_since_batch_ = 0;
   stats_.batch_seconds += Seconds(start);
@@ -654,9 +752,9 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
       ++stats_.batch_steps_on_fill;
     }
     const bool converge = force_batch || merge_pending_ || options_.converge_periodic_batches;
-    merge_pending_ = false;
     BatchStep(converge, convergence_step > 0 ? convergence_step : options_.convergence_step,
               &result);
+    if (result.status.ok()) merge_pending_ = false;  // else the next update tries again
     result.factors_added = static_cast<int>(stats_.factors);
   } else {
     IncrementalStep(&result);
@@ -702,7 +800,7 @@ Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
     auto it = index_.find(key);
     if (it == index_.end() || vars_[it->second].position < 0) {
       throw std::invalid_argument("no covariance for " + key.ToString() +
-                                  ": not a solved variable");
+                                  ": not a solved variable (see HasCovariance)");
     }
     positions.push_back(vars_[it->second].position);
   }
@@ -759,7 +857,11 @@ Eigen::MatrixXd Smoother::JointCovariance(const std::vector<Key>& keys) {
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
+bool Smoother::HasCovariance(const Key& key) const { return impl_->HasCovariance(key); }
 std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactors(); }
+Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
+  return impl_->LinearSystemForTesting();
+}
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   std::vector<Pose2> poses;

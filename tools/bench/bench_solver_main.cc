@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --fill-factor F             batch when nnz(R) grows by F since the last one (default 4, 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
                               protocol for iterations_to_1e-4) instead of relinearising once
+  --break-chain ID            drop the odometry edge (ID-1, ID): pose ID starts a new
+                              trajectory in its own frame (repeatable)
   --no-reference              skip the reference batch optimum (its chi2 and the difference)
   --json                      print one JSON object instead of text
   --help                      this text
@@ -43,6 +46,7 @@ struct Flags {
   bool incremental = true;
   int robots = 1;
   SmootherOptions smoother;
+  std::vector<int64_t> break_chain;  // poses whose odometry edge is dropped
   bool reference = true;
   bool json = false;
 };
@@ -98,6 +102,12 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
     } else if (arg == "--converge-batches") {
       flags.smoother.converge_periodic_batches = true;
+    } else if (arg == "--break-chain") {
+      const double id = ParseNumber(arg, value());
+      if (!(id >= 1) || id != static_cast<double>(static_cast<int64_t>(id))) {
+        Fail("--break-chain expects a pose id >= 1");
+      }
+      flags.break_chain.push_back(static_cast<int64_t>(id));
     } else if (arg == "--no-reference") {
       flags.reference = false;
     } else if (arg == "--json") {
@@ -123,12 +133,27 @@ double Percentile(std::vector<double> values, double q) {
 }
 
 int Run(const Flags& flags) {
-  PoseGraph graph;
+  PoseGraph graph;  // edited by --break-chain
   if (Status s = ReadPoseGraph(flags.graph, &graph); !s.ok()) {
     std::fprintf(stderr, "anchormap-bench-solver: %s\n", s.message().c_str());
     return 1;
   }
+  if (!flags.break_chain.empty()) {
+    std::vector<GraphEdge> kept;
+    for (const GraphEdge& e : graph.edges) {
+      const bool dropped = e.to == e.from + 1 &&
+                           std::find(flags.break_chain.begin(), flags.break_chain.end(), e.to) !=
+                               flags.break_chain.end();
+      if (!dropped) kept.push_back(e);
+    }
+    graph.edges.swap(kept);
+  }
   const GraphReplay replay(graph, flags.robots);
+  if (!replay.status().ok()) {
+    std::fprintf(stderr, "anchormap-bench-solver: %s: %s\n", flags.graph.c_str(),
+                 replay.status().message().c_str());
+    return 1;
+  }
   Smoother smoother(flags.smoother);
   std::vector<double> step_ms;
   const auto start = std::chrono::steady_clock::now();
@@ -181,6 +206,7 @@ int Run(const Flags& flags) {
     std::printf(
         "{\"graph\": \"%s\", \"mode\": \"%s\", \"formulation\": \"%s\", \"method\": \"%s\", "
         "\"poses\": %d, \"factors\": %lld, \"edges\": %d, \"encounters\": %d, \"robots\": %d, "
+        "\"trajectories\": %d, \"chain_breaks\": %d, "
         "\"batch_every\": %d, \"threshold\": %g, \"total_s\": %.4f, \"step_median_ms\": %.4f, "
         "\"step_p99_ms\": %.4f, \"step_max_ms\": %.4f, \"batch_s\": %.4f, "
         "\"incremental_s\": %.4f, \"batch_steps\": %lld, "
@@ -194,10 +220,10 @@ int Run(const Flags& flags) {
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
         static_cast<long long>(stats.factors), replay.num_edges(), replay.num_encounters(),
-        replay.robots(), flags.smoother.batch_every_updates,
-        flags.smoother.backsubstitution_threshold, total_s, Percentile(step_ms, 0.5),
-        Percentile(step_ms, 0.99), Percentile(step_ms, 1.0), stats.batch_seconds,
-        stats.incremental_seconds, static_cast<long long>(stats.batch_steps),
+        replay.robots(), replay.num_trajectories(), replay.num_chain_breaks(),
+        flags.smoother.batch_every_updates, flags.smoother.backsubstitution_threshold, total_s,
+        Percentile(step_ms, 0.5), Percentile(step_ms, 0.99), Percentile(step_ms, 1.0),
+        stats.batch_seconds, stats.incremental_seconds, static_cast<long long>(stats.batch_steps),
         static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
@@ -209,9 +235,12 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.givens_block_rows),
         static_cast<long long>(stats.givens_block_columns), failures, first_failure.c_str());
   } else {
-    std::printf("graph %s: %d poses, %d edges (%d encounters), %d robot(s), %s formulation\n",
-                flags.graph.c_str(), replay.num_poses(), replay.num_edges(),
-                replay.num_encounters(), replay.robots(), ToString(flags.smoother.formulation));
+    std::printf(
+        "graph %s: %d poses, %d edges (%d encounters), %d robot(s), %d trajectories (%d broken "
+        "odometry chain(s)), %s formulation\n",
+        flags.graph.c_str(), replay.num_poses(), replay.num_edges(), replay.num_encounters(),
+        replay.robots(), replay.num_trajectories(), replay.num_chain_breaks(),
+        ToString(flags.smoother.formulation));
     std::printf("%s (%s, batch every %d, threshold %g): total %.3f s", mode, method,
                 flags.smoother.batch_every_updates, flags.smoother.backsubstitution_threshold,
                 total_s);
@@ -245,5 +274,10 @@ int Run(const Flags& flags) {
 
 int main(int argc, char** argv) {
   anchormap::RetainFreedMemory();
-  return anchormap::Run(anchormap::ParseFlags(argc, argv));
+  try {
+    return anchormap::Run(anchormap::ParseFlags(argc, argv));
+  } catch (const std::exception& e) {  // a bug: say what it was, exit non-zero
+    std::fprintf(stderr, "anchormap-bench-solver: internal error: %s\n", e.what());
+    return 3;
+  }
 }
