@@ -147,6 +147,11 @@ class Smoother::Impl {
   std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
   void TakeOutOfPending(const std::vector<int64_t>& done);
   void IncrementalStep(UpdateResult* result);
+  // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold and
+  // re-eliminates only the block rows that depend on them (them, the variables they share
+  // factors with, and their ancestors in the elimination tree), locally reordered. All or
+  // nothing: false (result->status) leaves the smoother as it was.
+  bool PartialRelinearization(UpdateResult* result);
   // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
   // (or once unless `converge`); counts itself in stats_. All or nothing: on failure
   // (result->status) the smoother is as it was before the call.
@@ -201,6 +206,13 @@ class Smoother::Impl {
                 const std::vector<Eigen::Vector3d>& step) const;
   int CountAnchors() const;
   static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
+  // How far a variable is from its linearisation point, for relinearize_threshold.
+  static double Drift(const Eigen::Vector3d& d) { return d.cwiseAbs().maxCoeff(); }
+  double MaxDrift() const {
+    double m = 0.0;
+    for (const auto& d : delta_) m = std::max(m, Drift(d));
+    return m;
+  }
   SparseR& MutableR() {
     if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
     return *r_;
@@ -215,7 +227,10 @@ class Smoother::Impl {
   std::vector<Variable> vars_;
   std::unordered_map<Key, int, KeyHash> index_;
   std::vector<FactorRecord> factors_;
-  std::vector<FactorLinearization> factor_lin_;  // by factor id
+  std::vector<FactorLinearization> factor_lin_;    // by factor id
+  std::vector<std::vector<int64_t>> var_factors_;  // by variable: ids of its factors
+  std::vector<int64_t> factor_stamp_;              // PartialRelinearization's work space
+  int64_t stamp_ = 0;
   std::vector<int64_t> pending_factors_;
   std::vector<int> pending_vars_;
   std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
@@ -230,6 +245,7 @@ class Smoother::Impl {
   bool merge_pending_ = false;
   double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
+  int updates_since_drift_check_ = 0;
   int64_t nonzeros_after_batch_ = 0;
   SmootherStats stats_;
 };
@@ -237,6 +253,7 @@ class Smoother::Impl {
 int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
   const int var = static_cast<int>(vars_.size());
   vars_.push_back({key, initial, -1});
+  var_factors_.emplace_back();
   index_.emplace(key, var);
   pending_vars_.push_back(var);
   ++stats_.variables;
@@ -246,6 +263,11 @@ int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
 int64_t Smoother::Impl::AddFactor(Factor factor) {
   FactorRecord record{std::move(factor), {}, 0, true};
   for (const Key& key : FactorKeys(record.factor)) record.vars[record.num_vars++] = index_.at(key);
+  const int64_t id = static_cast<int64_t>(factors_.size());
+  for (int j = 0; j < record.num_vars; ++j) {
+    std::vector<int64_t>& list = var_factors_[record.vars[j]];
+    if (list.empty() || list.back() != id) list.push_back(id);
+  }
   factors_.push_back(std::move(record));
   factor_lin_.emplace_back();
   pending_factors_.push_back(static_cast<int64_t>(factors_.size()) - 1);
@@ -500,6 +522,246 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
     result->rows_backsubstituted =
         R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
   }
+}
+
+bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = r_->size();
+  const double threshold = options_.relinearize_threshold;
+  // 1. The drifted variables S (by position) and their new linearisation points.
+  std::vector<char> drifted(n, 0), in_b(n, 0);
+  std::vector<int> drifted_positions;
+  for (int p = 0; p < n; ++p) {
+    if (Drift(delta_[p]) > threshold) {
+      drifted[p] = 1;
+      drifted_positions.push_back(p);
+    }
+  }
+  if (drifted_positions.empty()) return true;
+  auto theta = [&](int var) {  // the new linearisation point
+    const Variable& v = vars_[var];
+    return drifted[v.position] ? Retract(v.linearization, delta_[v.position]) : v.linearization;
+  };
+  auto usable = [&](int64_t f) { return factors_[f].active && factor_lin_[f].in_r; };
+  // 2. Affected: S, every variable that shares a factor with S (those factors are
+  // relinearised), each trajectory's latest pose and the anchors (kept at the end for
+  // the next Givens updates), then every ancestor in the elimination tree, so that no
+  // row of B references a row outside it.
+  for (int p : drifted_positions) {
+    in_b[p] = 1;
+    for (int64_t f : var_factors_[position_to_var_[p]]) {
+      if (!usable(f)) continue;
+      for (int j = 0; j < factors_[f].num_vars; ++j) in_b[vars_[factors_[f].vars[j]].position] = 1;
+    }
+  }
+  auto is_keep_last = [&](int var) {
+    const Key& key = vars_[var].key;
+    if (key.is_anchor()) return true;
+    auto it = trajectories_.find(key.trajectory);
+    return it != trajectories_.end() && it->second.max_index == key.index;
+  };
+  for (const auto& [t, info] : trajectories_) {
+    for (const Key& key : {Key(PoseKey{t, info.max_index}), Key(AnchorKey{t})}) {
+      auto it = index_.find(key);
+      if (it != index_.end() && vars_[it->second].position >= 0) {
+        in_b[vars_[it->second].position] = 1;
+      }
+    }
+  }
+  // (Every block of row p is an ancestor of p; marking them all, not only the parent,
+  // keeps B closed even where an exact zero dropped a fill-in block.)
+  int p0 = n;
+  for (int p = 0; p < n; ++p) {
+    if (!in_b[p]) continue;
+    p0 = std::min(p0, p);
+    for (const auto& entry : r_->row(p).right) in_b[entry.first] = 1;
+  }
+  std::vector<int> b_positions, kept;  // B ascending; the tail's other rows
+  std::vector<int> local(n - p0, -1);  // old position -> index in B
+  for (int p = p0; p < n; ++p) {
+    if (in_b[p]) {
+      local[p - p0] = static_cast<int>(b_positions.size());
+      b_positions.push_back(p);
+    } else {
+      kept.push_back(p);
+    }
+  }
+  const int nb = static_cast<int>(b_positions.size());
+
+  // 3. Factors with a variable in B (relinearised if they touch S), and the rows outside
+  // B that reference B (their part in B is subtracted: R_BB^T R_BB = H_BB - R_FB^T R_FB).
+  if (factor_stamp_.size() < factors_.size()) factor_stamp_.resize(factors_.size(), 0);
+  ++stamp_;
+  struct LocalFactor {
+    int64_t id;
+    bool relinearize;
+  };
+  std::vector<LocalFactor> local_factors;
+  for (int p : b_positions) {
+    for (int64_t f : var_factors_[position_to_var_[p]]) {
+      if (!usable(f) || factor_stamp_[f] == stamp_) continue;
+      factor_stamp_[f] = stamp_;
+      bool touches_s = false;
+      for (int j = 0; j < factors_[f].num_vars; ++j) {
+        touches_s = touches_s || drifted[vars_[factors_[f].vars[j]].position];
+      }
+      local_factors.push_back({f, touches_s});
+    }
+  }
+  std::vector<int> boundary;  // rows outside B with a block in B
+  {
+    std::vector<char> seen(n, 0);
+    for (int p : b_positions) {
+      for (int r : r_->RowsReferencing(p)) {
+        if (!in_b[r] && !seen[r]) {
+          seen[r] = 1;
+          boundary.push_back(r);
+        }
+      }
+    }
+  }
+  // Their right-hand sides in the new coordinates: d_r - sum over S of R_rq (theta'_q - theta_q).
+  std::vector<std::pair<int, Eigen::Vector3d>> boundary_rhs;
+  boundary_rhs.reserve(boundary.size());
+  for (int r : boundary) {
+    Eigen::Vector3d d = r_->row(r).rhs;
+    for (const auto& [q, block] : r_->row(r).right) {
+      if (drifted[q]) d.noalias() -= block * delta_[q];
+    }
+    boundary_rhs.emplace_back(r, d);
+  }
+
+  // 4. Local ordering of B (CCOLAMD, the same constraints as a batch step).
+  std::vector<std::vector<int>> structure;
+  structure.reserve(local_factors.size() + boundary.size());
+  for (const LocalFactor& lf : local_factors) {
+    std::vector<int> vars;
+    for (int j = 0; j < factors_[lf.id].num_vars; ++j) {
+      const int p = vars_[factors_[lf.id].vars[j]].position;
+      if (in_b[p]) vars.push_back(local[p - p0]);
+    }
+    structure.push_back(std::move(vars));
+  }
+  for (int r : boundary) {
+    std::vector<int> vars;
+    for (const auto& [q, block] : r_->row(r).right) {
+      if (q >= p0 && in_b[q]) vars.push_back(local[q - p0]);
+    }
+    structure.push_back(std::move(vars));
+  }
+  std::vector<bool> keep_last(nb);
+  for (int k = 0; k < nb; ++k) keep_last[k] = is_keep_last(position_to_var_[b_positions[k]]);
+  Result<std::vector<int>> ordering = ComputeOrdering(nb, structure, keep_last);
+  if (!ordering.ok()) {
+    result->status = ordering.status();
+    return false;
+  }
+  std::vector<int> order_of(nb);  // B index -> new local position
+  for (int k = 0; k < nb; ++k) order_of[(*ordering)[k]] = k;
+
+  // 5. Normal equations of B in the new order, minus the boundary rows' part; factor.
+  std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns(nb);
+  std::vector<Eigen::Vector3d> gradient(nb, Eigen::Vector3d::Zero());
+  auto add_row_block = [&](int a, int b, const Eigen::Matrix3d& block) {  // H_ab, a <= b
+    columns[b].emplace_back(a, block);
+  };
+  std::vector<std::array<Pose2, kMaxFactorKeys>> relinearized_at;
+  std::array<Pose2, kMaxFactorKeys> at;
+  std::array<int, kMaxFactorKeys> slot;
+  for (const LocalFactor& lf : local_factors) {
+    const FactorRecord& f = factors_[lf.id];
+    if (lf.relinearize) {
+      for (int j = 0; j < f.num_vars; ++j) at[j] = theta(f.vars[j]);
+      relinearized_at.push_back(at);
+    } else {
+      at = factor_lin_[lf.id].at;
+    }
+    const LinearizedFactor lin = Linearize(f.factor, at.data());
+    Eigen::Vector3d rhs = -lin.whitened_error;
+    for (int j = 0; j < f.num_vars; ++j) {
+      const Pose2 point = theta(f.vars[j]);
+      const Eigen::Vector3d offset(at[j].x() - point.x(), at[j].y() - point.y(),
+                                   std::remainder(at[j].theta() - point.theta(), 2.0 * M_PI));
+      rhs.noalias() += lin.jacobians[j] * offset;
+      const int p = vars_[f.vars[j]].position;
+      slot[j] = in_b[p] ? order_of[local[p - p0]] : -1;
+    }
+    for (int a = 0; a < f.num_vars; ++a) {
+      if (slot[a] < 0) continue;
+      gradient[slot[a]].noalias() += lin.jacobians[a].transpose() * rhs;
+      for (int b = 0; b < f.num_vars; ++b) {
+        if (slot[b] < 0 || slot[a] > slot[b] || (slot[a] == slot[b] && a > b)) continue;
+        Eigen::Matrix3d block = lin.jacobians[a].transpose() * lin.jacobians[b];
+        if (slot[a] == slot[b] && a != b) block += block.transpose().eval();
+        add_row_block(slot[a], slot[b], block);
+      }
+    }
+  }
+  std::vector<std::pair<int, const Eigen::Matrix3d*>> part;
+  for (size_t k = 0; k < boundary.size(); ++k) {
+    const RBlockRow& row = r_->row(boundary[k]);
+    part.clear();
+    for (const auto& [q, block] : row.right) {
+      if (q >= p0 && in_b[q]) part.emplace_back(order_of[local[q - p0]], &block);
+    }
+    for (const auto& [a, block_a] : part) {
+      gradient[a].noalias() -= block_a->transpose() * boundary_rhs[k].second;
+      for (const auto& [b, block_b] : part) {
+        if (a > b) continue;
+        add_row_block(a, b, -(block_a->transpose() * *block_b));
+      }
+    }
+  }
+  std::vector<RBlockRow> rows;
+  std::string error;
+  if (!batch_.FactorNormalEquations(std::move(columns), std::move(gradient), &rows, &error)) {
+    result->status = Status::Error(ErrorCode::kNumericalFailure, error);
+    return false;
+  }
+
+  // 6. Commit (nothing fails from here): linearisation points, factor records, R, positions.
+  const int first_b = p0 + static_cast<int>(kept.size());
+  std::vector<int> new_position(n - p0);
+  for (size_t k = 0; k < kept.size(); ++k) new_position[kept[k] - p0] = p0 + static_cast<int>(k);
+  for (int k = 0; k < nb; ++k) new_position[b_positions[k] - p0] = first_b + order_of[k];
+  for (RBlockRow& row : rows) {
+    for (auto& entry : row.right) entry.first += first_b;
+  }
+  size_t next_relinearized = 0;
+  for (const LocalFactor& lf : local_factors) {
+    if (lf.relinearize) MarkInR(lf.id, relinearized_at[next_relinearized++]);
+  }
+  std::vector<Eigen::Vector3d> old_delta(delta_.begin() + p0, delta_.end());
+  for (int p : drifted_positions) {
+    Variable& v = vars_[position_to_var_[p]];
+    v.linearization = Retract(v.linearization, delta_[p]);
+    old_delta[p - p0] = Eigen::Vector3d::Zero();
+    delta_[p].setZero();
+  }
+  MutableR().ReplaceTail(p0, new_position, kept, std::move(rows), boundary_rhs);
+  std::vector<int> old_vars(position_to_var_.begin() + p0, position_to_var_.end());
+  for (int k = 0; k < n - p0; ++k) {
+    const int p = new_position[k];
+    position_to_var_[p] = old_vars[k];
+    vars_[old_vars[k]].position = p;
+    delta_[p] = old_delta[k];
+  }
+  if (options_.backsubstitution_threshold == 0.0) {
+    r_->BackSubstitute(&delta_);
+    result->rows_backsubstituted += r_->size();
+  } else {
+    std::vector<int> dirty;
+    for (int p = p0; p < n; ++p) dirty.push_back(p);
+    for (int r : boundary) dirty.push_back(r < p0 ? r : new_position[r - p0]);
+    result->rows_backsubstituted +=
+        MutableR().BackSubstitutePartial(dirty, options_.backsubstitution_threshold, &delta_);
+  }
+  ++stats_.partial_relinearizations;
+  stats_.relinearized_variables += static_cast<int64_t>(drifted_positions.size());
+  stats_.rows_reeliminated += nb;
+  stats_.partial_seconds += Seconds(start);
+  result->relinearized = static_cast<int>(drifted_positions.size());
+  return true;
 }
 
 bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
@@ -760,9 +1022,15 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
     IncrementalStep(&result);
     stats_.incremental_seconds += Seconds(start);
     if (options_.relinearize_threshold > 0 && result.status.ok() &&
-        MaxAbs(delta_) > options_.relinearize_threshold) {
-      ++stats_.batch_steps_on_drift;
-      BatchStep(options_.converge_periodic_batches, options_.convergence_step, &result);
+        ++updates_since_drift_check_ >= options_.relinearize_skip &&
+        MaxDrift() > options_.relinearize_threshold) {
+      updates_since_drift_check_ = 0;
+      if (options_.partial_relinearization) {
+        PartialRelinearization(&result);
+      } else {
+        ++stats_.batch_steps_on_drift;
+        BatchStep(options_.converge_periodic_batches, options_.convergence_step, &result);
+      }
     }
   }
   if (!pending_vars_.empty() && result.status.ok()) {

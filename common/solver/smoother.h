@@ -33,6 +33,7 @@ struct UpdateResult {
   int anchors_created = 0;
   int groups_merged = 0;         // encounters that joined two anchored groups
   int rows_backsubstituted = 0;  // block rows recomputed by back-substitution
+  int relinearized = 0;          // variables relinearised by a partial step (0 if none)
   double seconds = 0.0;
 };
 
@@ -45,7 +46,13 @@ struct SmootherStats {
   int64_t batch_steps_on_merge = 0;
   int64_t batch_steps_on_drift = 0;  // relinearize_threshold exceeded
   int64_t failed_batch_steps = 0;    // undone (ordering or factorisation failed)
-  int64_t batch_iterations = 0;      // summed over batch steps
+  // Partial relinearisations (relinearize_threshold with partial_relinearization): the
+  // drifted variables relinearised and only the rows of R depending on them re-eliminated.
+  int64_t partial_relinearizations = 0;
+  int64_t relinearized_variables = 0;  // summed over partial steps
+  int64_t rows_reeliminated = 0;       // block rows of R re-eliminated, summed
+  double partial_seconds = 0.0;        // time spent in partial steps
+  int64_t batch_iterations = 0;        // summed over batch steps
   int64_t iterations_to_convergence =
       0;                             // batch iterations until the step fell below convergence_step
   int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations

@@ -51,6 +51,13 @@ struct SmootherOptions {
   // relinearises on the same kind of threshold. 0 disables (pure iSAM).
   double relinearize_threshold = 0.0;
 
+  // How drift is handled: true relinearises only the drifted variables and re-eliminates
+  // the part of R that depends on them (iSAM2's partial relinearisation on R, counted in
+  // stats().partial_relinearizations); false runs a full batch step (batch_steps_on_drift).
+  bool partial_relinearization = true;
+  // Drift is looked at every this many updates (iSAM2's relinearizeSkip); 1 = every update.
+  int relinearize_skip = 1;
+
   // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
   // this set they iterate to convergence like merge steps and BatchOptimize() (the
   // thesis' protocol for counting iterations).
@@ -75,6 +82,7 @@ struct SmootherOptions {
       return "batch_when_fill_grows must be 0 (off) or > 1";
     }
     if (!(relinearize_threshold >= 0)) return "relinearize_threshold must be >= 0";
+    if (relinearize_skip < 1) return "relinearize_skip must be >= 1";
     if (backsubstitution_threshold < 0) return "backsubstitution_threshold must be >= 0";
     if (!(convergence_step > 0)) return "convergence_step must be > 0";
     if (max_batch_iterations < 1) return "max_batch_iterations must be >= 1";

@@ -78,14 +78,17 @@ PoseKey GraphReplay::KeyOf(int64_t id) const {
   return PoseKey{t, static_cast<int32_t>(id - starts_[t])};
 }
 
-Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertices) const {
+Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertices,
+                            const Smoother* initial_from) const {
   if (!status_.ok()) return status_;
   const Step& step = steps_[k];
   for (size_t n = 0; n < step.new_poses.size(); ++n) {
     const PoseKey key = KeyOf(step.new_poses[n]);
     const GraphEdge* odometry = key.index > 0 ? step.odometry[n] : nullptr;
     Pose2 initial;
-    if (initial_from_vertices) {
+    if (initial_from && initial_from->HasPose(key)) {
+      initial = initial_from->LocalPose(key);
+    } else if (initial_from_vertices) {
       initial = Between(vertices_[starts_[key.trajectory]], vertices_[step.new_poses[n]]);
     } else if (odometry) {
       if (!smoother->HasPose(KeyOf(odometry->from))) {

@@ -42,7 +42,10 @@ class GraphReplay {
   // Adds step `k` to `smoother`: new poses, initialised by composing their odometry
   // measurement onto the smoother's current estimate of the previous pose (the origin
   // for a trajectory's first pose), then the step's edges.
-  Status AddStep(int k, Smoother* smoother, bool initial_from_vertices = false) const;
+  // With `initial_from` (which must hold the step's poses), its estimates are the
+  // initial guesses (for a batch solve that should end at the optimum nearest to them).
+  Status AddStep(int k, Smoother* smoother, bool initial_from_vertices = false,
+                 const Smoother* initial_from = nullptr) const;
   // Adds every step without updating (for a batch solve). With `initial_from_vertices`
   // the initial guess is the file's VERTEX values (expressed in each trajectory's first
   // pose) instead of composed odometry; needs a vertex for every pose.
