@@ -140,17 +140,24 @@ void RunPerUpdateOracle(const SmootherOptions& options, double chi2_tolerance) {
     Smoother smoother(options);
     double worst = 0.0;
     int batch_steps = 0;
+    int64_t factors_added = 0;
     for (int k = 0; k < replay.num_steps(); ++k) {
       ASSERT_TRUE(replay.AddStep(k, &smoother).ok());
       const UpdateResult result = smoother.Update();
       ASSERT_TRUE(result.status.ok()) << "step " << k << ": " << result.status.message();
       batch_steps += result.batch_step ? 1 : 0;
+      factors_added += result.factors_added;
       ExpectSystemMatchesFactors(smoother, "step " + std::to_string(k));
       const double excess = Chi2Excess(smoother);
       worst = std::max(worst, excess);
       EXPECT_LE(excess, chi2_tolerance) << "step " << k;
     }
     EXPECT_GT(replay.num_encounters(), 0);
+    // factors_added counts each measurement once, when it first enters R (batch steps
+    // included): every active factor, and at most every factor ever added (a gauge prior
+    // dropped at a merge before it entered R never does).
+    EXPECT_GE(factors_added, static_cast<int64_t>(smoother.ActiveFactors().size()));
+    EXPECT_LE(factors_added, smoother.stats().factors);
     if (options.relinearize_threshold > 0) {
       // The partial steps are what this checks: they must have run.
       EXPECT_GT(smoother.stats().partial_relinearizations, 0);

@@ -205,6 +205,11 @@ class Smoother::Impl {
   double Chi2Of(const std::vector<int64_t>& included,
                 const std::vector<Eigen::Vector3d>& step) const;
   int CountAnchors() const;
+  int ActivePending() const {
+    int n = 0;
+    for (int64_t f : pending_factors_) n += factors_[f].active ? 1 : 0;
+    return n;
+  }
   static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
   // How far a variable is from its linearisation point, for relinearize_threshold.
   static double Drift(const Eigen::Vector3d& d) { return d.cwiseAbs().maxCoeff(); }
@@ -512,7 +517,6 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
   }
   // All at once: their paths up R share the rows near the root.
   R.Eliminate(std::move(new_rows), &touched);
-  result->factors_added = static_cast<int>(ready.size());
   TakeOutOfPending(ready);
 
   if (options_.backsubstitution_threshold == 0.0) {
@@ -998,6 +1002,7 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   result.update = ++stats_.updates;
   covariances_.reset();
   const int anchors_before = CountAnchors();
+  const int waiting_before = ActivePending();
 
   ++updates_since_batch_;
   const bool on_clock =
@@ -1017,7 +1022,6 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
     BatchStep(converge, convergence_step > 0 ? convergence_step : options_.convergence_step,
               &result);
     if (result.status.ok()) merge_pending_ = false;  // else the next update tries again
-    result.factors_added = static_cast<int>(stats_.factors);
   } else {
     IncrementalStep(&result);
     stats_.incremental_seconds += Seconds(start);
@@ -1038,6 +1042,8 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
                                   " variable(s) wait for measurements that determine them, e.g. " +
                                   vars_[pending_vars_.front()].key.ToString());
   }
+  // Factors that waited and are in R now (a batch step refactors the others too).
+  result.factors_added = waiting_before - ActivePending();
   result.anchors_created = CountAnchors() - anchors_before;
   stats_.rows_backsubstituted += result.rows_backsubstituted;
   stats_.nnz_r = r_->NonZeros();
@@ -1108,7 +1114,7 @@ UpdateResult Smoother::BatchOptimize(double convergence_step) {
 bool Smoother::HasPose(PoseKey key) const { return impl_->Has(key); }
 int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t); }
 std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }
-Pose2 Smoother::LocalPose(PoseKey key) const { return impl_->Estimate(key); }
+Pose2 Smoother::FramePose(PoseKey key) const { return impl_->Estimate(key); }
 Pose2 Smoother::GlobalPose(PoseKey key) const { return impl_->GlobalPose(key); }
 bool Smoother::IsAnchored(TrajectoryId t) const { return impl_->IsAnchored(t); }
 std::optional<Pose2> Smoother::Anchor(TrajectoryId t) const {

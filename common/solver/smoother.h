@@ -29,7 +29,7 @@ struct UpdateResult {
   int64_t update = 0;            // update number, 1, 2, ...
   bool batch_step = false;       // true when this update relinearised and reordered
   int iterations = 0;            // nonlinear iterations of the batch step (0 if incremental)
-  int factors_added = 0;
+  int factors_added = 0;         // measurements folded into R for the first time
   int anchors_created = 0;
   int groups_merged = 0;         // encounters that joined two anchored groups
   int rows_backsubstituted = 0;  // block rows recomputed by back-substitution
@@ -101,15 +101,18 @@ class Smoother {
 
   // --- Estimates (valid after Update()) ---
   // Preconditions, checked (std::invalid_argument, a caller's bug): the pose/variable/
-  // trajectory passed to LocalPose, GlobalPose and Value exists (HasPose, HasVariable),
+  // trajectory passed to FramePose, GlobalPose and Value exists (HasPose, HasVariable),
   // and a covariance is asked only of variables that are solved (HasCovariance).
   bool HasPose(PoseKey key) const;
   int NumPoses(TrajectoryId trajectory) const;
   std::vector<TrajectoryId> Trajectories() const;  // in order of creation
-  // The pose in its trajectory's local frame (relative formulation) or in the shared
-  // frame of its group (global formulations).
-  Pose2 LocalPose(PoseKey key) const;
-  // The pose in the global frame: Anchor (+) LocalPose once anchored; LocalPose before.
+  // The pose in the frame the smoother keeps it in: its trajectory's local frame in the
+  // relative formulation, the shared frame of its group in the global formulations.
+  Pose2 FramePose(PoseKey key) const;
+  // The old name of FramePose (it is a local-frame pose only in the relative formulation);
+  // kept until server/ moves to FramePose.
+  Pose2 LocalPose(PoseKey key) const { return FramePose(key); }
+  // The pose in the global frame: Anchor (+) FramePose once anchored; FramePose before.
   Pose2 GlobalPose(PoseKey key) const;
   bool IsAnchored(TrajectoryId trajectory) const;
   // T_global_local of an anchored trajectory (relative formulation); nullopt otherwise.

@@ -27,7 +27,7 @@ PoseGraph AddRandomTrajectory(Smoother* smoother, TrajectoryId t, int poses, uin
   for (int i = 0; i < poses; ++i) {
     Pose2 initial;
     if (i > 0)
-      initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+      initial = Compose(smoother->FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
     EXPECT_TRUE(smoother->AddPose({t, i}, initial).ok());
     if (i > 0) {
       EXPECT_TRUE(smoother
@@ -89,13 +89,13 @@ TEST(SmootherTest, UnconstrainedPoseWaitsInsteadOfBreakingTheSolution) {
   const UpdateResult result = smoother.Update();
   EXPECT_FALSE(result.status.ok());  // poses 1 and 2 are not tied to pose 0 yet
   EXPECT_NE(result.status.message().find("wait for measurements"), std::string::npos);
-  EXPECT_TRUE(smoother.LocalPose({0, 0}).IsFinite());
+  EXPECT_TRUE(smoother.FramePose({0, 0}).IsFinite());
   ASSERT_TRUE(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, 0, 0.1), kCovariance).ok());
   EXPECT_TRUE(smoother.Update().status.ok());
   // One linear step from the initial guess, then the nonlinear optimum.
-  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), 0.1, 1e-9);
+  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), 0.1, 1e-9);
   EXPECT_TRUE(smoother.BatchOptimize().status.ok());
-  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), std::sin(0.1), 1e-9);
+  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), std::sin(0.1), 1e-9);
 }
 
 TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
@@ -198,7 +198,7 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
     for (int i = 0; i < kPoses; ++i) {
       for (int r = 0; r < kRobots; ++r) {
         const Pose2 initial = i == 0 ? Pose2()
-                                     : Compose(smoother.LocalPose({r, i - 1}),
+                                     : Compose(smoother.FramePose({r, i - 1}),
                                                graphs[r].edges[i - 1].measured_T_from_to);
         ASSERT_TRUE(smoother.AddPose({r, i}, initial).ok());
         if (i > 0) {

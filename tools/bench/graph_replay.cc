@@ -87,14 +87,14 @@ Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertice
     const GraphEdge* odometry = key.index > 0 ? step.odometry[n] : nullptr;
     Pose2 initial;
     if (initial_from && initial_from->HasPose(key)) {
-      initial = initial_from->LocalPose(key);
+      initial = initial_from->FramePose(key);
     } else if (initial_from_vertices) {
       initial = Between(vertices_[starts_[key.trajectory]], vertices_[step.new_poses[n]]);
     } else if (odometry) {
       if (!smoother->HasPose(KeyOf(odometry->from))) {
         return Status::Error("pose " + std::to_string(odometry->from) + " was not added");
       }
-      initial = Compose(smoother->LocalPose(KeyOf(odometry->from)), odometry->measured_T_from_to);
+      initial = Compose(smoother->FramePose(KeyOf(odometry->from)), odometry->measured_T_from_to);
     }
     if (Status s = smoother->AddPose(key, initial); !s.ok()) return s;
     if (odometry) {
