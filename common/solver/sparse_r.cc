@@ -241,8 +241,9 @@ void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
   auto renumber = [&](RBlockRow* row) {
     // Entries before p0 keep their (sorted) place; the tail's are renumbered and sorted.
-    auto first = std::lower_bound(row->right.begin(), row->right.end(),
-                                  std::make_pair(p0, Eigen::Matrix3d()), by_column);
+    auto first =
+        std::lower_bound(row->right.begin(), row->right.end(), p0,
+                         [](const auto& entry, int column) { return entry.first < column; });
     for (auto it = first; it != row->right.end(); ++it) it->first = new_position[it->first - p0];
     std::sort(first, row->right.end(), by_column);
   };
