@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/solver/ordering.h"
 #include "tests/testing/dense_oracle.h"
 #include "tests/testing/random_graph.h"
 
@@ -243,6 +244,37 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
   EXPECT_LT(worst_error[1], 0.02);
   EXPECT_LT(worst_covariance[1], 0.02);
   EXPECT_GT(worst_error[0], worst_error[1]);
+}
+
+// Two trajectories (one encounter joins them) with relinearisation at 0.01: partial steps
+// run, a forced ordering failure in the middle changes nothing, and the end is the dense
+// optimum. (The per-update checks of R are tests/per_update_oracle_test.cc; this one is
+// here so that the sanitizer build of the solver's own tests runs the partial steps.)
+TEST(SmootherTest, PartialRelinearisationAndAFailedBatchStepEndAtTheOptimum) {
+  SmootherOptions options;
+  options.relinearize_threshold = 0.01;
+  options.batch_every_updates = 10;
+  Smoother smoother(options);
+  AddRandomTrajectory(&smoother, 0, 60, 41, true);
+  AddRandomTrajectory(&smoother, 1, 60, 42, true);
+  ASSERT_TRUE(smoother.AddEncounter({0, 59}, {1, 59}, Pose2(0.5, 0.0, 0.1), kCovariance).ok());
+  ASSERT_TRUE(smoother.AddEncounter({0, 30}, {1, 20}, Pose2(0.2, 0.1, 0.0), kCovariance).ok());
+  const Values before = CurrentValues(smoother);
+  FailNextOrderingsForTesting(1);
+  const UpdateResult failed = smoother.BatchOptimize();
+  EXPECT_EQ(failed.status.code(), ErrorCode::kNumericalFailure);
+  const Values after = CurrentValues(smoother);
+  for (const auto& [key, value] : before) {
+    EXPECT_EQ(value.x(), after.at(key).x());
+    EXPECT_EQ(value.theta(), after.at(key).theta());
+  }
+  ASSERT_TRUE(smoother.Update().status.ok());
+  EXPECT_GT(smoother.stats().partial_relinearizations, 0);
+  EXPECT_EQ(smoother.stats().failed_batch_steps, 1);
+  ASSERT_TRUE(smoother.BatchOptimize(1e-10).status.ok());
+  const testing::DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-12);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-9 * oracle.Chi2(optimum));
 }
 
 }  // namespace
