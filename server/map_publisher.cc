@@ -34,7 +34,7 @@ AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
   out.update = update;
   for (const TrajectoryRecord& record : table.records()) {
     const auto anchor = smoother->Anchor(record.solver_id);
-    if (!anchor) continue;
+    if (!anchor || !smoother->HasCovariance(Key(AnchorKey{record.solver_id}))) continue;
     AnchorCovariance a;
     a.robot = record.robot;
     a.trajectory_id = record.agent_trajectory_id;

@@ -104,7 +104,7 @@ std::vector<Pose2> BuildTwoTrajectories(Smoother* smoother, int poses) {
       const int32_t i = k;
       Pose2 initial;
       if (i > 0) {
-        initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+        initial = Compose(smoother->FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
       }
       EXPECT_TRUE(smoother->AddPose({t, i}, initial).ok());
       for (const GraphEdge& e : graph.edges) {
@@ -121,7 +121,7 @@ std::vector<Pose2> BuildTwoTrajectories(Smoother* smoother, int poses) {
   }
   EXPECT_TRUE(smoother->BatchOptimize().status.ok());
   for (TrajectoryId t : {0, 1}) {
-    for (int i = 0; i < poses; ++i) locals.push_back(smoother->LocalPose({t, i}));
+    for (int i = 0; i < poses; ++i) locals.push_back(smoother->FramePose({t, i}));
   }
   return locals;
 }
@@ -149,7 +149,7 @@ TEST(FormulationsTest, AtAFirstEncounterOnlyTheAnchorsMove) {
     for (int i = 0; i < poses; ++i) {
       worst = std::max(
           worst,
-          PoseError(smoother.LocalPose({t, i}), before[t * poses + i]).cwiseAbs().maxCoeff());
+          PoseError(smoother.FramePose({t, i}), before[t * poses + i]).cwiseAbs().maxCoeff());
     }
   }
   EXPECT_LE(worst, 1e-9);
@@ -161,7 +161,7 @@ TEST(FormulationsTest, AtAFirstEncounterOnlyTheAnchorsMove) {
   // A second encounter now propagates information into both graphs, like a loop closure.
   ASSERT_TRUE(smoother.AddEncounter({0, 45}, {1, 40}, Pose2(0.3, 0.1, -0.2), kCovariance).ok());
   ASSERT_TRUE(smoother.Update().status.ok());
-  EXPECT_GT(PoseError(smoother.LocalPose({1, 40}), before[poses + 40]).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_GT(PoseError(smoother.FramePose({1, 40}), before[poses + 40]).cwiseAbs().maxCoeff(), 1e-6);
 }
 
 // Five robots A..E (0..4), each a short straight line.

@@ -121,7 +121,7 @@ TEST(IncrementalVsBatchTest, Mit) {
   ASSERT_TRUE(from_odometry.BatchOptimize(kTightConvergence).status.ok());
   for (int64_t id = 0; id < replay.num_poses(); ++id) {
     ASSERT_TRUE(
-        from_solution.AddPose(replay.KeyOf(id), incremental.LocalPose(replay.KeyOf(id))).ok());
+        from_solution.AddPose(replay.KeyOf(id), incremental.FramePose(replay.KeyOf(id))).ok());
   }
   for (const GraphEdge& e : graph.edges) {
     ASSERT_TRUE(from_solution
@@ -135,7 +135,7 @@ TEST(IncrementalVsBatchTest, Mit) {
     const PoseKey key = replay.KeyOf(id);
     worst = std::max(
         worst,
-        PoseError(incremental.LocalPose(key), from_solution.LocalPose(key)).cwiseAbs().maxCoeff());
+        PoseError(incremental.FramePose(key), from_solution.FramePose(key)).cwiseAbs().maxCoeff());
   }
   EXPECT_LE(worst, 1e-6);
   EXPECT_NEAR(incremental.Chi2(), from_solution.Chi2(), 1e-6 * from_solution.Chi2());

@@ -28,8 +28,6 @@ BatchFactorization::~BatchFactorization() = default;
 
 bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& factors,
                                 std::vector<RBlockRow>* rows, std::string* error) {
-  cholmod_common* c = &cholmod_->common;
-
   // Normal equations by 3x3 blocks: upper triangle of A^T A by block column (flat arrays:
   // one counting pass, one filling pass, then sort and merge each column), and A^T b.
   std::vector<int> start(n + 1, 0);
@@ -61,6 +59,28 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
       });
     }
   }
+  return FactorAssembled(n, start, std::move(blocks), std::move(gradient), rows, error);
+}
+
+bool BatchFactorization::FactorNormalEquations(
+    std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns,
+    std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows, std::string* error) {
+  const int n = static_cast<int>(columns.size());
+  std::vector<int> start(n + 1, 0);
+  for (int q = 0; q < n; ++q) start[q + 1] = start[q] + static_cast<int>(columns[q].size());
+  std::vector<std::pair<int, Eigen::Matrix3d>> blocks;
+  blocks.reserve(start[n]);
+  for (auto& column : columns) {
+    for (auto& entry : column) blocks.push_back(std::move(entry));
+  }
+  return FactorAssembled(n, start, std::move(blocks), std::move(gradient), rows, error);
+}
+
+bool BatchFactorization::FactorAssembled(int n, const std::vector<int>& start,
+                                         std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
+                                         std::vector<Eigen::Vector3d> gradient,
+                                         std::vector<RBlockRow>* rows, std::string* error) {
+  cholmod_common* c = &cholmod_->common;
   // Per column: sort by row and sum duplicates in place; `length[p]` blocks remain.
   std::vector<int> length(n);
   size_t nnz = 0;
@@ -81,6 +101,12 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
 
   const size_t dim = 3 * static_cast<size_t>(n);
   cholmod_sparse* A = cholmod_allocate_sparse(dim, dim, nnz, 1, 1, 1, CHOLMOD_REAL, c);
+  if (A == nullptr) {
+    if (error)
+      *error = "CHOLMOD could not allocate the normal equations (status " +
+               std::to_string(c->status) + ")";
+    return false;
+  }
   auto* Ap = static_cast<int*>(A->p);
   auto* Ai = static_cast<int*>(A->i);
   auto* Ax = static_cast<double*>(A->x);

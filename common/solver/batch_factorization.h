@@ -33,7 +33,19 @@ class BatchFactorization {
   bool Factor(int num_positions, const std::vector<PositionedFactor>& factors,
               std::vector<RBlockRow>* rows, std::string* error);
 
+  // The same from normal equations given directly: `columns[q]` lists blocks (p, H_pq)
+  // with p <= q (the diagonal block in full; duplicates are summed), `gradient` is A^T b.
+  bool FactorNormalEquations(std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns,
+                             std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
+                             std::string* error);
+
  private:
+  // Core of both: `blocks[start[q] .. start[q+1])` are column q's (row, block) entries.
+  bool FactorAssembled(int n, const std::vector<int>& start,
+                       std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
+                       std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
+                       std::string* error);
+
   struct Cholmod;
   std::unique_ptr<Cholmod> cholmod_;
 };

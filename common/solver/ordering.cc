@@ -2,15 +2,26 @@
 
 #include <algorithm>
 #include <numeric>
-#include <stdexcept>
+#include <string>
 
 #include <ccolamd.h>
 
 namespace anchormap {
+namespace {
 
-std::vector<int> ComputeOrdering(int num_variables,
-                                 const std::vector<std::vector<int>>& factor_variables,
-                                 const std::vector<bool>& keep_last) {
+int orderings_to_fail = 0;  // FailNextOrderingsForTesting
+
+}  // namespace
+
+void FailNextOrderingsForTesting(int count) { orderings_to_fail = count; }
+
+Result<std::vector<int>> ComputeOrdering(int num_variables,
+                                         const std::vector<std::vector<int>>& factor_variables,
+                                         const std::vector<bool>& keep_last) {
+  if (orderings_to_fail > 0) {
+    --orderings_to_fail;
+    return Status::Error(ErrorCode::kNumericalFailure, "ccolamd failed (injected by a test)");
+  }
   std::vector<int> order(num_variables);
   std::iota(order.begin(), order.end(), 0);
   if (num_variables <= 1) return order;
@@ -43,7 +54,8 @@ std::vector<int> ComputeOrdering(int num_variables,
   ccolamd_set_defaults(knobs);
   if (!ccolamd(num_rows, num_variables, static_cast<int>(alen), A.data(), p.data(), knobs, stats,
                constraint.data())) {
-    throw std::runtime_error("ccolamd failed with status " + std::to_string(stats[CCOLAMD_STATUS]));
+    return Status::Error(ErrorCode::kNumericalFailure,
+                         "ccolamd failed with status " + std::to_string(stats[CCOLAMD_STATUS]));
   }
   std::copy(p.begin(), p.begin() + num_variables, order.begin());
   return order;

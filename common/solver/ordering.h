@@ -7,12 +7,19 @@
 
 #include <vector>
 
+#include "common/util/status.h"
+
 namespace anchormap {
 
-// factor_variables[f] lists the variables (0..num_variables-1) factor f touches.
-// Returns order[k] = the variable placed at elimination position k.
-std::vector<int> ComputeOrdering(int num_variables,
-                                 const std::vector<std::vector<int>>& factor_variables,
-                                 const std::vector<bool>& keep_last);
+// factor_variables[f] lists the variables (0..num_variables-1) factor f touches; all
+// three vectors must agree in size (a bug otherwise). Returns order[k] = the variable
+// placed at elimination position k, or kNumericalFailure when CCOLAMD fails.
+Result<std::vector<int>> ComputeOrdering(int num_variables,
+                                         const std::vector<std::vector<int>>& factor_variables,
+                                         const std::vector<bool>& keep_last);
+
+// Test seam: the next `count` calls of ComputeOrdering fail as if CCOLAMD had, so that
+// tests can check what a failed batch step leaves behind. Not for production code.
+void FailNextOrderingsForTesting(int count);
 
 }  // namespace anchormap

@@ -4,156 +4,20 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
-#include <unordered_map>
+#include <string>
 
 #include <Eigen/Dense>
 
+#include "common/solver/smoother_impl.h"
+
 #include "common/geometry/covariance.h"
-#include "common/solver/anchor_groups.h"
-#include "common/solver/batch_factorization.h"
-#include "common/solver/covariances.h"
-#include "common/solver/factor.h"
-#include "common/solver/ordering.h"
-#include "common/solver/sparse_r.h"
 
 namespace anchormap {
-namespace {
-
-// The system is linearised at `linearization` (theta); R delta = d gives the current
-// solution delta relative to it (additive in x, y, theta, as iSAM's Pose2d).
-struct Variable {
-  Key key;
-  Pose2 linearization;
-  int position = -1;  // elimination position; -1 while pending (not yet in R)
-};
-
-struct FactorRecord {
-  Factor factor;
-  std::array<int, kMaxFactorKeys> vars{};
-  int num_vars = 0;
-  bool active = true;  // false once removed (a gauge prior dropped at a merge)
-};
-
-struct TrajectoryInfo {
-  int32_t max_index = 0;
-  int num_poses = 0;
-  int64_t origin_prior = -1;  // factor id of the prior on the first pose
-  bool anchored = false;      // relative formulation: has an anchor variable
-};
-
-Pose2 Retract(const Pose2& theta, const Eigen::Vector3d& delta) {
-  return Pose2(theta.x() + delta.x(), theta.y() + delta.y(), theta.theta() + delta.z());
-}
-
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-}  // namespace
-
-class Smoother::Impl {
- public:
-  explicit Impl(const SmootherOptions& options)
-      : options_(options), r_(std::make_shared<SparseR>()) {}
-
-  const SmootherOptions& options() const { return options_; }
-
-  Status AddPose(PoseKey key, const Pose2& initial);
-  Status AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov);
-  Status AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov);
-  UpdateResult Update(bool force_batch, double convergence_step);
-
-  bool Has(const Key& key) const { return index_.count(key) > 0; }
-  int NumPoses(TrajectoryId t) const {
-    auto it = trajectories_.find(t);
-    return it == trajectories_.end() ? 0 : it->second.num_poses;
-  }
-  const std::vector<TrajectoryId>& trajectory_order() const { return trajectory_order_; }
-  Pose2 Estimate(const Key& key) const { return EstimateOf(index_.at(key)); }
-  bool IsAnchored(TrajectoryId t) const {
-    auto it = trajectories_.find(t);
-    return it != trajectories_.end() && it->second.anchored;
-  }
-  Pose2 GlobalPose(PoseKey key) const {
-    const Pose2 local = Estimate(key);
-    if (options_.formulation != Formulation::kRelative || !IsAnchored(key.trajectory)) return local;
-    return Compose(Estimate(AnchorKey{key.trajectory}), local);
-  }
-  TrajectoryId GroupRoot(TrajectoryId t) const { return groups_.Contains(t) ? groups_.Root(t) : t; }
-  Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
-  double Chi2() const;
-  const SmootherStats& stats() const { return stats_; }
-  std::vector<Factor> ActiveFactors() const {
-    std::vector<Factor> out;
-    for (const FactorRecord& f : factors_) {
-      if (f.active) out.push_back(f.factor);
-    }
-    return out;
-  }
-
- private:
-  Pose2 EstimateOf(int var) const {
-    const Variable& v = vars_[var];
-    return v.position < 0 ? v.linearization : Retract(v.linearization, delta_[v.position]);
-  }
-  int AddVariable(const Key& key, const Pose2& initial);
-  int64_t AddFactor(Factor factor);
-  Eigen::Matrix3d GaugeSqrtInformation() const {
-    return Eigen::Matrix3d::Identity() / options_.gauge_prior_sigma;
-  }
-  Status CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const;
-  std::vector<TrajectoryId> GroupMembers(TrajectoryId root) const;
-  void MoveTrajectories(const std::vector<TrajectoryId>& trajectories, const Pose2& T_new_old);
-  void SetValue(int var, const Pose2& value);
-
-  std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
-  void TakeOutOfPending(const std::vector<int64_t>& done);
-  void IncrementalStep(UpdateResult* result);
-  // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
-  // (or once unless `converge`); counts itself in stats_.
-  void BatchStep(bool converge, double tolerance, UpdateResult* result);
-  void GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
-                             UpdateResult* result);
-  void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
-                        UpdateResult* result);
-  // Linearises `included` at the linearisation point, factors them in the current order
-  // and solves for delta; false (with result->status) on failure.
-  bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result);
-  // chi2 at linearisation point + step (step empty: at the linearisation point).
-  double Chi2Of(const std::vector<int64_t>& included,
-                const std::vector<Eigen::Vector3d>& step) const;
-  int CountAnchors() const;
-  static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
-  SparseR& MutableR() {
-    if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
-    return *r_;
-  }
-
-  SmootherOptions options_;
-  std::vector<Variable> vars_;
-  std::unordered_map<Key, int, KeyHash> index_;
-  std::vector<FactorRecord> factors_;
-  std::vector<int64_t> pending_factors_;
-  std::vector<int> pending_vars_;
-  std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
-  std::vector<int> position_to_var_;
-  std::vector<Eigen::Vector3d> delta_;  // by position
-  std::shared_ptr<SparseR> r_;
-  std::unique_ptr<CovarianceRecovery> covariances_;
-  BatchFactorization batch_;
-  AnchorGroups groups_;
-  std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
-  std::vector<TrajectoryId> trajectory_order_;
-  bool merge_pending_ = false;
-  double tolerance_ = 0.0;  // convergence step of the running batch step
-  int updates_since_batch_ = 0;
-  int64_t nonzeros_after_batch_ = 0;
-  SmootherStats stats_;
-};
 
 int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
   const int var = static_cast<int>(vars_.size());
   vars_.push_back({key, initial, -1});
+  var_factors_.emplace_back();
   index_.emplace(key, var);
   pending_vars_.push_back(var);
   ++stats_.variables;
@@ -163,7 +27,13 @@ int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
 int64_t Smoother::Impl::AddFactor(Factor factor) {
   FactorRecord record{std::move(factor), {}, 0, true};
   for (const Key& key : FactorKeys(record.factor)) record.vars[record.num_vars++] = index_.at(key);
+  const int64_t id = static_cast<int64_t>(factors_.size());
+  for (int j = 0; j < record.num_vars; ++j) {
+    std::vector<int64_t>& list = var_factors_[record.vars[j]];
+    if (list.empty() || list.back() != id) list.push_back(id);
+  }
   factors_.push_back(std::move(record));
+  factor_lin_.emplace_back();
   pending_factors_.push_back(static_cast<int64_t>(factors_.size()) - 1);
   ++stats_.factors;
   return static_cast<int64_t>(factors_.size()) - 1;
@@ -311,376 +181,6 @@ Status Smoother::Impl::AddEncounter(PoseKey a, PoseKey b, const Pose2& z,
   return Status::Ok();
 }
 
-// --- Updates ---------------------------------------------------------------------------
-
-std::vector<int64_t> Smoother::Impl::GroundPendingFactors(std::vector<char>* grounded) const {
-  // A measurement enters R only when all but at most one of its variables are already
-  // determined; it then determines the last one (every factor's Jacobian block is
-  // invertible). Anything else waits, so R never gets a singular diagonal block.
-  std::vector<int64_t> ready;
-  std::vector<char> used(pending_factors_.size(), 0);
-  bool progress = true;
-  while (progress) {
-    progress = false;
-    for (size_t k = 0; k < pending_factors_.size(); ++k) {
-      if (used[k]) continue;
-      const FactorRecord& f = factors_[pending_factors_[k]];
-      if (!f.active) {
-        used[k] = 1;
-        continue;
-      }
-      int unknown = -1, unknowns = 0;
-      for (int j = 0; j < f.num_vars; ++j) {
-        if (!(*grounded)[f.vars[j]]) {
-          unknown = f.vars[j];
-          ++unknowns;
-        }
-      }
-      if (unknowns > 1) continue;
-      if (unknown >= 0) (*grounded)[unknown] = 1;
-      used[k] = 1;
-      ready.push_back(pending_factors_[k]);
-      progress = true;
-    }
-  }
-  return ready;
-}
-
-void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
-  // O(pending + done log done), not O(all factors): this runs after every update.
-  std::vector<int64_t> sorted_done = done;
-  std::sort(sorted_done.begin(), sorted_done.end());
-  std::vector<int64_t> still;
-  for (int64_t f : pending_factors_) {
-    if (!std::binary_search(sorted_done.begin(), sorted_done.end(), f) && factors_[f].active) {
-      still.push_back(f);
-    }
-  }
-  pending_factors_.swap(still);
-  std::vector<int> vars;
-  for (int v : pending_vars_) {
-    if (vars_[v].position < 0) vars.push_back(v);
-  }
-  pending_vars_.swap(vars);
-}
-
-void Smoother::Impl::IncrementalStep(UpdateResult* result) {
-  // grounded[v] == (v is in R), kept between updates so that an update costs what it
-  // touches: only new and pending variables need a fresh look (a batch step clears it).
-  std::vector<char>& grounded = grounded_;
-  const size_t known = grounded.size();
-  grounded.resize(vars_.size());
-  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
-  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
-  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
-
-  SparseR& R = MutableR();
-  int appended = 0;
-  for (int v : pending_vars_) {
-    if (!grounded[v]) continue;
-    vars_[v].position = R.size() + appended++;
-    position_to_var_.push_back(v);
-  }
-  R.Append(appended);
-  delta_.resize(R.size(), Eigen::Vector3d::Zero());
-
-  std::vector<int> touched;
-  std::array<Pose2, kMaxFactorKeys> values;
-  std::vector<NewRows> new_rows;
-  new_rows.reserve(ready.size());
-  for (int64_t id : ready) {
-    const FactorRecord& f = factors_[id];
-    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
-    // Linearised at the current estimate, expressed relative to the linearisation point
-    // of R: J (x - theta) = -e(x_hat) + J delta.
-    const LinearizedFactor lin = Linearize(f.factor, values.data());
-    NewRows rows;
-    rows.rhs = -lin.whitened_error;
-    for (int j = 0; j < f.num_vars; ++j) {
-      const int position = vars_[f.vars[j]].position;
-      rows.blocks.emplace_back(position, lin.jacobians[j]);
-      rows.rhs += lin.jacobians[j] * delta_[position];
-    }
-    new_rows.push_back(std::move(rows));
-  }
-  // All at once: their paths up R share the rows near the root.
-  R.Eliminate(std::move(new_rows), &touched);
-  result->factors_added = static_cast<int>(ready.size());
-  TakeOutOfPending(ready);
-
-  if (options_.backsubstitution_threshold == 0.0) {
-    R.BackSubstitute(&delta_);
-    result->rows_backsubstituted = R.size();
-  } else {
-    result->rows_backsubstituted =
-        R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
-  }
-}
-
-bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
-  std::vector<LinearizedFactor> linearized(included.size());
-  std::vector<PositionedFactor> positioned(included.size());
-  std::array<Pose2, kMaxFactorKeys> values;
-  for (size_t k = 0; k < included.size(); ++k) {
-    const FactorRecord& f = factors_[included[k]];
-    for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
-    linearized[k] = Linearize(f.factor, values.data());
-    positioned[k].num_keys = f.num_vars;
-    for (int j = 0; j < f.num_vars; ++j) positioned[k].positions[j] = vars_[f.vars[j]].position;
-    positioned[k].jacobians = linearized[k].jacobians.data();
-    positioned[k].rhs = -linearized[k].whitened_error;
-  }
-  std::vector<RBlockRow> rows;
-  std::string error;
-  if (!batch_.Factor(static_cast<int>(position_to_var_.size()), positioned, &rows, &error)) {
-    result->status = Status::Error(error);
-    return false;
-  }
-  MutableR().Assign(std::move(rows));
-  r_->BackSubstitute(&delta_);
-  return true;
-}
-
-double Smoother::Impl::Chi2Of(const std::vector<int64_t>& included,
-                              const std::vector<Eigen::Vector3d>& step) const {
-  double chi2 = 0.0;
-  std::array<Pose2, kMaxFactorKeys> values;
-  for (int64_t id : included) {
-    const FactorRecord& f = factors_[id];
-    for (int j = 0; j < f.num_vars; ++j) {
-      const Variable& v = vars_[f.vars[j]];
-      values[j] = step.empty() ? v.linearization : Retract(v.linearization, step[v.position]);
-    }
-    chi2 += FactorChi2(f.factor, values.data());
-  }
-  return chi2;
-}
-
-void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* result) {
-  const auto start = std::chrono::steady_clock::now();
-  const int iterations_before = result->iterations;
-  tolerance_ = tolerance;
-  result->batch_step = true;
-  // Relinearise everything at the current estimate.
-  for (Variable& v : vars_) {
-    if (v.position >= 0) v.linearization = Retract(v.linearization, delta_[v.position]);
-  }
-  // Start from scratch: every active factor is pending, grounding starts at the priors.
-  pending_factors_.clear();
-  for (size_t f = 0; f < factors_.size(); ++f) {
-    if (factors_[f].active) pending_factors_.push_back(static_cast<int64_t>(f));
-  }
-  std::vector<char> grounded(vars_.size(), 0);
-  const std::vector<int64_t> included = GroundPendingFactors(&grounded);
-
-  // Ordering over the grounded variables; anchors and each trajectory's latest pose last.
-  std::vector<int> dense(vars_.size(), -1), dense_to_var;
-  for (size_t v = 0; v < vars_.size(); ++v) {
-    if (grounded[v]) {
-      dense[v] = static_cast<int>(dense_to_var.size());
-      dense_to_var.push_back(static_cast<int>(v));
-    }
-  }
-  std::vector<std::vector<int>> factor_vars(included.size());
-  for (size_t k = 0; k < included.size(); ++k) {
-    const FactorRecord& f = factors_[included[k]];
-    for (int j = 0; j < f.num_vars; ++j) factor_vars[k].push_back(dense[f.vars[j]]);
-  }
-  std::unordered_map<TrajectoryId, std::pair<int32_t, int>> latest;  // trajectory -> (index, dense)
-  std::vector<bool> keep_last(dense_to_var.size(), false);
-  for (size_t d = 0; d < dense_to_var.size(); ++d) {
-    const Key& key = vars_[dense_to_var[d]].key;
-    if (key.is_anchor()) {
-      keep_last[d] = true;
-      continue;
-    }
-    auto [it, inserted] = latest.try_emplace(key.trajectory, key.index, static_cast<int>(d));
-    if (!inserted && key.index > it->second.first) it->second = {key.index, static_cast<int>(d)};
-  }
-  for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
-  const std::vector<int> order =
-      ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
-  for (Variable& v : vars_) v.position = -1;
-  grounded_.clear();
-  position_to_var_.clear();
-  for (int d : order) {
-    vars_[dense_to_var[d]].position = static_cast<int>(position_to_var_.size());
-    position_to_var_.push_back(dense_to_var[d]);
-  }
-  delta_.assign(position_to_var_.size(), Eigen::Vector3d::Zero());
-  TakeOutOfPending(included);
-
-  const int max_iterations = converge ? options_.max_batch_iterations : 1;
-  if (options_.method == NonlinearMethod::kDogLeg) {
-    DogLegIterations(included, max_iterations, result);
-  } else {
-    GaussNewtonIterations(included, max_iterations, result);
-  }
-  nonzeros_after_batch_ = r_->NonZeros();
-  updates_since_batch_ = 0;
-  stats_.batch_seconds += Seconds(start);
-  ++stats_.batch_steps;
-  stats_.batch_iterations += result->iterations - iterations_before;
-}
-
-void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
-                                           UpdateResult* result) {
-  // R stays linearised at the last point; the final delta is kept (not folded into the
-  // linearisation point) so that incremental updates continue consistently from R.
-  for (int it = 0; it < max_iterations; ++it) {
-    if (it > 0) {
-      for (int var : position_to_var_) {
-        Variable& v = vars_[var];
-        v.linearization = Retract(v.linearization, delta_[v.position]);
-      }
-    }
-    if (!FactorAll(included, result)) return;
-    ++result->iterations;
-    if (MaxAbs(delta_) < tolerance_) break;
-  }
-  stats_.iterations_to_convergence += result->iterations;
-}
-
-void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
-                                      UpdateResult* result) {
-  // Powell's dog-leg: blend the Gauss-Newton step with steepest descent inside a trust
-  // region, accept a step only if chi2 decreases.
-  double radius = options_.dogleg_initial_radius;
-  double chi2 = Chi2Of(included, {});
-  const int n = static_cast<int>(position_to_var_.size());
-  for (int it = 0; it < max_iterations; ++it) {
-    if (!FactorAll(included, result)) return;
-    ++result->iterations;
-    const std::vector<Eigen::Vector3d> gauss_newton = delta_;
-    // Gradient direction g = J^T b (b = -whitened error) and |J g|^2.
-    std::vector<Eigen::Vector3d> g(n, Eigen::Vector3d::Zero());
-    std::vector<LinearizedFactor> lin(included.size());
-    std::array<Pose2, kMaxFactorKeys> values;
-    for (size_t k = 0; k < included.size(); ++k) {
-      const FactorRecord& f = factors_[included[k]];
-      for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
-      lin[k] = Linearize(f.factor, values.data());
-      for (int j = 0; j < f.num_vars; ++j) {
-        g[vars_[f.vars[j]].position] -= lin[k].jacobians[j].transpose() * lin[k].whitened_error;
-      }
-    }
-    auto apply_J = [&](const std::vector<Eigen::Vector3d>& h) {
-      double norm2 = 0.0;
-      for (size_t k = 0; k < included.size(); ++k) {
-        const FactorRecord& f = factors_[included[k]];
-        Eigen::Vector3d r = Eigen::Vector3d::Zero();
-        for (int j = 0; j < f.num_vars; ++j)
-          r += lin[k].jacobians[j] * h[vars_[f.vars[j]].position];
-        norm2 += r.squaredNorm();
-      }
-      return norm2;
-    };
-    auto norm = [](const std::vector<Eigen::Vector3d>& v) {
-      double s = 0.0;
-      for (const auto& x : v) s += x.squaredNorm();
-      return std::sqrt(s);
-    };
-    auto dot = [](const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
-      double s = 0.0;
-      for (size_t i = 0; i < a.size(); ++i) s += a[i].dot(b[i]);
-      return s;
-    };
-    const double g_norm = norm(g);
-    const double Jg2 = apply_J(g);
-    const double alpha = Jg2 > 0 ? g_norm * g_norm / Jg2 : 0.0;
-    const double gn_norm = norm(gauss_newton);
-
-    bool accepted = false;
-    std::vector<Eigen::Vector3d> h(n);
-    while (!accepted && radius > 1e-12) {
-      if (gn_norm <= radius) {
-        h = gauss_newton;
-      } else if (alpha * g_norm >= radius) {
-        for (int p = 0; p < n; ++p) h[p] = (radius / g_norm) * g[p];
-      } else {
-        // h = a + beta (b - a) with |h| = radius, a = alpha g, b = Gauss-Newton.
-        std::vector<Eigen::Vector3d> a(n), ba(n);
-        for (int p = 0; p < n; ++p) {
-          a[p] = alpha * g[p];
-          ba[p] = gauss_newton[p] - a[p];
-        }
-        const double aa = dot(a, a), ab = dot(a, ba), bb = dot(ba, ba);
-        const double beta = (-ab + std::sqrt(ab * ab + bb * (radius * radius - aa))) / bb;
-        for (int p = 0; p < n; ++p) h[p] = a[p] + beta * ba[p];
-      }
-      const double predicted = 2.0 * dot(g, h) - apply_J(h);
-      const double new_chi2 = Chi2Of(included, h);
-      const double rho = predicted > 0 ? (chi2 - new_chi2) / predicted : -1.0;
-      if (rho > 0.75) {
-        radius = std::max(radius, 3.0 * norm(h));
-      } else if (rho < 0.25) {
-        radius *= 0.5;
-      }
-      if (rho > 0 || (chi2 - new_chi2) >= 0.0) {
-        accepted = true;
-        for (int var : position_to_var_) {
-          Variable& v = vars_[var];
-          v.linearization = Retract(v.linearization, h[v.position]);
-        }
-        chi2 = new_chi2;
-      }
-    }
-    if (!accepted || MaxAbs(h) < tolerance_) break;
-  }
-  stats_.iterations_to_convergence += result->iterations;
-  // Leave R linearised at the final point, with its Gauss-Newton solution as delta.
-  FactorAll(included, result);
-}
-
-UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
-  const auto start = std::chrono::steady_clock::now();
-  UpdateResult result;
-  result.update = ++stats_.updates;
-  covariances_.reset();
-  const int anchors_before = CountAnchors();
-
-  ++updates_since_batch_;
-  const bool on_clock =
-      options_.batch_every_updates > 0 && updates_since_batch_ >= options_.batch_every_updates;
-  const bool on_fill = options_.batch_when_fill_grows > 0 && nonzeros_after_batch_ > 0 &&
-                       r_->NonZeros() > options_.batch_when_fill_grows * nonzeros_after_batch_;
-  if (force_batch || merge_pending_ || on_clock || on_fill) {
-    if (merge_pending_) {
-      ++stats_.batch_steps_on_merge;
-      result.groups_merged = 1;
-    } else if (on_clock) {
-      ++stats_.batch_steps_on_clock;
-    } else if (on_fill) {
-      ++stats_.batch_steps_on_fill;
-    }
-    const bool converge = force_batch || merge_pending_ || options_.converge_periodic_batches;
-    merge_pending_ = false;
-    BatchStep(converge, convergence_step > 0 ? convergence_step : options_.convergence_step,
-              &result);
-    result.factors_added = static_cast<int>(stats_.factors);
-  } else {
-    IncrementalStep(&result);
-    stats_.incremental_seconds += Seconds(start);
-    if (options_.relinearize_threshold > 0 && result.status.ok() &&
-        MaxAbs(delta_) > options_.relinearize_threshold) {
-      ++stats_.batch_steps_on_drift;
-      BatchStep(options_.converge_periodic_batches, options_.convergence_step, &result);
-    }
-  }
-  if (!pending_vars_.empty() && result.status.ok()) {
-    result.status = Status::Error(std::to_string(pending_vars_.size()) +
-                                  " variable(s) wait for measurements that determine them, e.g. " +
-                                  vars_[pending_vars_.front()].key.ToString());
-  }
-  result.anchors_created = CountAnchors() - anchors_before;
-  stats_.rows_backsubstituted += result.rows_backsubstituted;
-  stats_.nnz_r = r_->NonZeros();
-  stats_.givens_block_rows = r_->eliminated_block_rows();
-  stats_.givens_block_columns = r_->eliminated_block_columns();
-  result.seconds = Seconds(start);
-  return result;
-}
-
 int Smoother::Impl::CountAnchors() const {
   int anchors = 0;
   for (int var : position_to_var_) anchors += vars_[var].key.is_anchor() ? 1 : 0;
@@ -702,7 +202,7 @@ Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
     auto it = index_.find(key);
     if (it == index_.end() || vars_[it->second].position < 0) {
       throw std::invalid_argument("no covariance for " + key.ToString() +
-                                  ": not a solved variable");
+                                  ": not a solved variable (see HasCovariance)");
     }
     positions.push_back(vars_[it->second].position);
   }
@@ -742,7 +242,7 @@ UpdateResult Smoother::BatchOptimize(double convergence_step) {
 bool Smoother::HasPose(PoseKey key) const { return impl_->Has(key); }
 int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t); }
 std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }
-Pose2 Smoother::LocalPose(PoseKey key) const { return impl_->Estimate(key); }
+Pose2 Smoother::FramePose(PoseKey key) const { return impl_->Estimate(key); }
 Pose2 Smoother::GlobalPose(PoseKey key) const { return impl_->GlobalPose(key); }
 bool Smoother::IsAnchored(TrajectoryId t) const { return impl_->IsAnchored(t); }
 std::optional<Pose2> Smoother::Anchor(TrajectoryId t) const {
@@ -759,7 +259,11 @@ Eigen::MatrixXd Smoother::JointCovariance(const std::vector<Key>& keys) {
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
+bool Smoother::HasCovariance(const Key& key) const { return impl_->HasCovariance(key); }
 std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactors(); }
+Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
+  return impl_->LinearSystemForTesting();
+}
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   std::vector<Pose2> poses;

@@ -18,6 +18,7 @@
 #include "common/solver/factor.h"
 #include "common/solver/keys.h"
 #include "common/solver/smoother_options.h"
+#include "common/solver/sparse_r.h"
 #include "common/util/status.h"
 
 namespace anchormap {
@@ -28,10 +29,11 @@ struct UpdateResult {
   int64_t update = 0;            // update number, 1, 2, ...
   bool batch_step = false;       // true when this update relinearised and reordered
   int iterations = 0;            // nonlinear iterations of the batch step (0 if incremental)
-  int factors_added = 0;
+  int factors_added = 0;         // measurements folded into R for the first time
   int anchors_created = 0;
   int groups_merged = 0;         // encounters that joined two anchored groups
   int rows_backsubstituted = 0;  // block rows recomputed by back-substitution
+  int relinearized = 0;          // variables relinearised by a partial step (0 if none)
   double seconds = 0.0;
 };
 
@@ -43,7 +45,14 @@ struct SmootherStats {
   int64_t batch_steps_on_fill = 0;
   int64_t batch_steps_on_merge = 0;
   int64_t batch_steps_on_drift = 0;  // relinearize_threshold exceeded
-  int64_t batch_iterations = 0;      // summed over batch steps
+  int64_t failed_batch_steps = 0;    // undone (ordering or factorisation failed)
+  // Partial relinearisations (relinearize_threshold with partial_relinearization): the
+  // drifted variables relinearised and only the rows of R depending on them re-eliminated.
+  int64_t partial_relinearizations = 0;
+  int64_t relinearized_variables = 0;  // summed over partial steps
+  int64_t rows_reeliminated = 0;       // block rows of R re-eliminated, summed
+  double partial_seconds = 0.0;        // time spent in partial steps
+  int64_t batch_iterations = 0;        // summed over batch steps
   int64_t iterations_to_convergence =
       0;                             // batch iterations until the step fell below convergence_step
   int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations
@@ -82,20 +91,28 @@ class Smoother {
   Status AddEncounter(PoseKey a, PoseKey b, const Pose2& measured_T_a_b,
                       const Eigen::Matrix3d& covariance);
 
-  // Folds everything added since the last call into the solution.
+  // Folds everything added since the last call into the solution. All or nothing: when a
+  // batch step fails (result.status), the estimate and the pending measurements are as
+  // they were before the call, and the next Update() tries again.
   UpdateResult Update();
   // Forces a batch step now (relinearise, reorder, refactor, iterate until the largest step
   // component is below `convergence_step`; <= 0 means options().convergence_step).
   UpdateResult BatchOptimize(double convergence_step = 0.0);
 
   // --- Estimates (valid after Update()) ---
+  // Preconditions, checked (std::invalid_argument, a caller's bug): the pose/variable/
+  // trajectory passed to FramePose, GlobalPose and Value exists (HasPose, HasVariable),
+  // and a covariance is asked only of variables that are solved (HasCovariance).
   bool HasPose(PoseKey key) const;
   int NumPoses(TrajectoryId trajectory) const;
   std::vector<TrajectoryId> Trajectories() const;  // in order of creation
-  // The pose in its trajectory's local frame (relative formulation) or in the shared
-  // frame of its group (global formulations).
-  Pose2 LocalPose(PoseKey key) const;
-  // The pose in the global frame: Anchor (+) LocalPose once anchored; LocalPose before.
+  // The pose in the frame the smoother keeps it in: its trajectory's local frame in the
+  // relative formulation, the shared frame of its group in the global formulations.
+  Pose2 FramePose(PoseKey key) const;
+  // The old name of FramePose (it is a local-frame pose only in the relative formulation);
+  // kept until server/ moves to FramePose.
+  Pose2 LocalPose(PoseKey key) const { return FramePose(key); }
+  // The pose in the global frame: Anchor (+) FramePose once anchored; FramePose before.
   Pose2 GlobalPose(PoseKey key) const;
   bool IsAnchored(TrajectoryId trajectory) const;
   // T_global_local of an anchored trajectory (relative formulation); nullopt otherwise.
@@ -104,6 +121,9 @@ class Smoother {
   TrajectoryId GroupRoot(TrajectoryId trajectory) const;
 
   // --- Covariances (docs/METHOD.md section 6; from R, never a dense inverse) ---
+  // True when `key` is a variable already solved for (in R): a variable whose measurements
+  // do not determine it yet has no covariance.
+  bool HasCovariance(const Key& key) const;
   // Marginal 3x3 covariance of one variable, (x, y, theta) of the variable's own
   // coordinates. Memoised until the next Update().
   Eigen::Matrix3d MarginalCovariance(const Key& key);
@@ -121,6 +141,19 @@ class Smoother {
   const SmootherStats& stats() const;
   // Each trajectory's poses in the global frame, in index order (convenience for outputs).
   std::vector<Pose2> GlobalTrajectory(TrajectoryId trajectory) const;
+
+  // For tests (the per-update oracle): the linear system R delta = d held now.
+  struct LinearSystem {
+    std::vector<Key> keys;               // by elimination position
+    std::vector<Pose2> linearization;    // theta, by position
+    std::vector<RBlockRow> rows;         // R and d, by position
+    std::vector<Eigen::Vector3d> delta;  // by position; the estimate is theta + delta
+    std::vector<Factor> factors;         // the factors whose rows are in R
+    // For each of them, the values (in FactorKeys order) its rows were linearised at:
+    // J(x - theta) = J (at - theta) - e(at).
+    std::vector<std::vector<Pose2>> linearized_at;
+  };
+  LinearSystem LinearSystemForTesting() const;
 
  private:
   class Impl;

@@ -52,6 +52,13 @@ struct SmootherOptions {
   // relinearises on the same kind of threshold. 0 disables (pure iSAM).
   double relinearize_threshold = 0.0;
 
+  // How drift is handled: true relinearises only the drifted variables and re-eliminates
+  // the part of R that depends on them (iSAM2's partial relinearisation on R, counted in
+  // stats().partial_relinearizations); false runs a full batch step (batch_steps_on_drift).
+  bool partial_relinearization = true;
+  // Drift is looked at every this many updates (iSAM2's relinearizeSkip); 1 = every update.
+  int relinearize_skip = 1;
+
   // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
   // this set they iterate to convergence like merge steps and BatchOptimize() (the
   // thesis' protocol for counting iterations).
@@ -76,6 +83,7 @@ struct SmootherOptions {
       return Status::Error("batch_when_fill_grows must be 0 (off) or > 1");
     }
     if (!(relinearize_threshold >= 0)) return Status::Error("relinearize_threshold must be >= 0");
+    if (relinearize_skip < 1) return Status::Error("relinearize_skip must be >= 1");
     if (backsubstitution_threshold < 0)
       return Status::Error("backsubstitution_threshold must be >= 0");
     if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/solver/ordering.h"
 #include "tests/testing/dense_oracle.h"
 #include "tests/testing/random_graph.h"
 
@@ -27,7 +28,7 @@ PoseGraph AddRandomTrajectory(Smoother* smoother, TrajectoryId t, int poses, uin
   for (int i = 0; i < poses; ++i) {
     Pose2 initial;
     if (i > 0)
-      initial = Compose(smoother->LocalPose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+      initial = Compose(smoother->FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
     EXPECT_TRUE(smoother->AddPose({t, i}, initial).ok());
     if (i > 0) {
       EXPECT_TRUE(smoother
@@ -89,13 +90,13 @@ TEST(SmootherTest, UnconstrainedPoseWaitsInsteadOfBreakingTheSolution) {
   const UpdateResult result = smoother.Update();
   EXPECT_FALSE(result.status.ok());  // poses 1 and 2 are not tied to pose 0 yet
   EXPECT_NE(result.status.message().find("wait for measurements"), std::string::npos);
-  EXPECT_TRUE(smoother.LocalPose({0, 0}).IsFinite());
+  EXPECT_TRUE(smoother.FramePose({0, 0}).IsFinite());
   ASSERT_TRUE(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, 0, 0.1), kCovariance).ok());
   EXPECT_TRUE(smoother.Update().status.ok());
   // One linear step from the initial guess, then the nonlinear optimum.
-  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), 0.1, 1e-9);
+  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), 0.1, 1e-9);
   EXPECT_TRUE(smoother.BatchOptimize().status.ok());
-  EXPECT_NEAR(smoother.LocalPose({0, 2}).y(), std::sin(0.1), 1e-9);
+  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), std::sin(0.1), 1e-9);
 }
 
 TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
@@ -198,7 +199,7 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
     for (int i = 0; i < kPoses; ++i) {
       for (int r = 0; r < kRobots; ++r) {
         const Pose2 initial = i == 0 ? Pose2()
-                                     : Compose(smoother.LocalPose({r, i - 1}),
+                                     : Compose(smoother.FramePose({r, i - 1}),
                                                graphs[r].edges[i - 1].measured_T_from_to);
         ASSERT_TRUE(smoother.AddPose({r, i}, initial).ok());
         if (i > 0) {
@@ -243,6 +244,37 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
   EXPECT_LT(worst_error[1], 0.02);
   EXPECT_LT(worst_covariance[1], 0.02);
   EXPECT_GT(worst_error[0], worst_error[1]);
+}
+
+// Two trajectories (one encounter joins them) with relinearisation at 0.01: partial steps
+// run, a forced ordering failure in the middle changes nothing, and the end is the dense
+// optimum. (The per-update checks of R are tests/per_update_oracle_test.cc; this one is
+// here so that the sanitizer build of the solver's own tests runs the partial steps.)
+TEST(SmootherTest, PartialRelinearisationAndAFailedBatchStepEndAtTheOptimum) {
+  SmootherOptions options;
+  options.relinearize_threshold = 0.01;
+  options.batch_every_updates = 10;
+  Smoother smoother(options);
+  AddRandomTrajectory(&smoother, 0, 60, 41, true);
+  AddRandomTrajectory(&smoother, 1, 60, 42, true);
+  ASSERT_TRUE(smoother.AddEncounter({0, 59}, {1, 59}, Pose2(0.5, 0.0, 0.1), kCovariance).ok());
+  ASSERT_TRUE(smoother.AddEncounter({0, 30}, {1, 20}, Pose2(0.2, 0.1, 0.0), kCovariance).ok());
+  const Values before = CurrentValues(smoother);
+  FailNextOrderingsForTesting(1);
+  const UpdateResult failed = smoother.BatchOptimize();
+  EXPECT_EQ(failed.status.code(), ErrorCode::kNumericalFailure);
+  const Values after = CurrentValues(smoother);
+  for (const auto& [key, value] : before) {
+    EXPECT_EQ(value.x(), after.at(key).x());
+    EXPECT_EQ(value.theta(), after.at(key).theta());
+  }
+  ASSERT_TRUE(smoother.Update().status.ok());
+  EXPECT_GT(smoother.stats().partial_relinearizations, 0);
+  EXPECT_EQ(smoother.stats().failed_batch_steps, 1);
+  ASSERT_TRUE(smoother.BatchOptimize(1e-10).status.ok());
+  const testing::DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-12);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-9 * oracle.Chi2(optimum));
 }
 
 }  // namespace

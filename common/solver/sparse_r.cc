@@ -233,6 +233,61 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
   return leftover;
 }
 
+void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
+                          const std::vector<int>& kept, std::vector<RBlockRow> rows,
+                          const std::vector<std::pair<int, Eigen::Vector3d>>& rhs) {
+  const int n = size();
+  for (const auto& [p, value] : rhs) rows_[p].rhs = value;
+  auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
+  auto renumber = [&](RBlockRow* row) {
+    // Entries before p0 keep their (sorted) place; the tail's are renumbered and sorted.
+    auto first =
+        std::lower_bound(row->right.begin(), row->right.end(), p0,
+                         [](const auto& entry, int column) { return entry.first < column; });
+    for (auto it = first; it != row->right.end(); ++it) it->first = new_position[it->first - p0];
+    std::sort(first, row->right.end(), by_column);
+  };
+  // Rows before p0 that reference the tail.
+  std::vector<char>& mark = scratch_dirty_;
+  mark.assign(p0, 0);
+  std::vector<int> head_rows;
+  for (int q = p0; q < n; ++q) {
+    for (int r : column_rows_[q]) {
+      if (r < p0 && !mark[r]) {
+        mark[r] = 1;
+        head_rows.push_back(r);
+      }
+    }
+  }
+  std::sort(head_rows.begin(), head_rows.end());
+  for (int r : head_rows) renumber(&rows_[r]);
+
+  std::vector<RBlockRow> tail;
+  tail.reserve(n - p0);
+  for (int p = p0; p < n; ++p) {
+    nonzeros_ -= kDiagonalNonZeros + kBlockNonZeros * static_cast<int64_t>(rows_[p].right.size());
+  }
+  for (int p : kept) {
+    tail.push_back(std::move(rows_[p]));
+    renumber(&tail.back());
+  }
+  for (RBlockRow& row : rows) tail.push_back(std::move(row));
+  rows_.resize(p0);
+  for (RBlockRow& row : tail) {
+    nonzeros_ += kDiagonalNonZeros + kBlockNonZeros * static_cast<int64_t>(row.right.size());
+    rows_.push_back(std::move(row));
+  }
+  for (int q = p0; q < n; ++q) column_rows_[q].clear();
+  for (int r : head_rows) {
+    for (const auto& [q, block] : rows_[r].right) {
+      if (q >= p0) column_rows_[q].push_back(r);
+    }
+  }
+  for (int p = p0; p < n; ++p) {
+    for (const auto& [q, block] : rows_[p].right) column_rows_[q].push_back(p);
+  }
+}
+
 Eigen::Vector3d SparseR::SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const {
   const RBlockRow& row = rows_[p];
   Eigen::Vector3d v = row.rhs;

@@ -47,6 +47,16 @@ class SparseR {
   // per measurement. Returns the summed leftover.
   double Eliminate(std::vector<NewRows> rows, std::vector<int>* touched);
 
+  // Partial re-elimination: replaces the block rows from `p0` on. `new_position[q - p0]`
+  // is the new position of old position q >= p0. The old rows `kept` (ascending) stay
+  // valid and move to positions p0, p0 + 1, ... with their columns renumbered; `rows`
+  // (columns already final) follow them, so kept.size() + rows.size() == size() - p0.
+  // Rows before p0 keep their place and get their columns renumbered. `rhs` first sets
+  // the right-hand side of the listed rows (by old position).
+  void ReplaceTail(int p0, const std::vector<int>& new_position, const std::vector<int>& kept,
+                   std::vector<RBlockRow> rows,
+                   const std::vector<std::pair<int, Eigen::Vector3d>>& rhs);
+
   // delta = R^-1 d by full back-substitution.
   void BackSubstitute(std::vector<Eigen::Vector3d>* delta) const;
   // Recomputes only block rows in `dirty` and, transitively, rows whose inputs changed by

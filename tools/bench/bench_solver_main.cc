@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -30,9 +31,17 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --threshold X               back-substitution threshold (default 0 = exact)
   --relinearize X             batch step when an estimate moved X from its linearisation
                               point (default 0 = off, pure iSAM)
+ --relinearize-skip K        look at drift every K updates (default 1)
+  --full-relinearization      on drift, run a full batch step (the old way) instead of the
+                              partial relinearisation
+  --check-every K             untimed: every K steps, the batch optimum of the edges so far
+                              (started from the current estimate); prints the worst relative
+                              chi2 excess of the step's estimate over it (0 = off)
   --fill-factor F             batch when nnz(R) grows by F since the last one (default 4, 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
                               protocol for iterations_to_1e-4) instead of relinearising once
+  --break-chain ID            drop the odometry edge (ID-1, ID): pose ID starts a new
+                              trajectory in its own frame (repeatable)
   --no-reference              skip the reference batch optimum (its chi2 and the difference)
   --json                      print one JSON object instead of text
   --help                      this text
@@ -43,6 +52,8 @@ struct Flags {
   bool incremental = true;
   int robots = 1;
   SmootherOptions smoother;
+  std::vector<int64_t> break_chain;  // poses whose odometry edge is dropped
+  int check_every = 0;
   bool reference = true;
   bool json = false;
 };
@@ -96,8 +107,21 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.relinearize_threshold = ParseNumber(arg, value());
     } else if (arg == "--fill-factor") {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
+    } else if (arg == "--relinearize-skip") {
+      flags.smoother.relinearize_skip = static_cast<int>(ParseNumber(arg, value()));
+    } else if (arg == "--full-relinearization") {
+      flags.smoother.partial_relinearization = false;
+    } else if (arg == "--check-every") {
+      flags.check_every = static_cast<int>(ParseNumber(arg, value()));
+      if (flags.check_every < 0) Fail("--check-every must be >= 0");
     } else if (arg == "--converge-batches") {
       flags.smoother.converge_periodic_batches = true;
+    } else if (arg == "--break-chain") {
+      const double id = ParseNumber(arg, value());
+      if (!(id >= 1) || id != static_cast<double>(static_cast<int64_t>(id))) {
+        Fail("--break-chain expects a pose id >= 1");
+      }
+      flags.break_chain.push_back(static_cast<int64_t>(id));
     } else if (arg == "--no-reference") {
       flags.reference = false;
     } else if (arg == "--json") {
@@ -123,12 +147,27 @@ double Percentile(std::vector<double> values, double q) {
 }
 
 int Run(const Flags& flags) {
-  PoseGraph graph;
+  PoseGraph graph;  // edited by --break-chain
   if (Status s = ReadPoseGraph(flags.graph, &graph); !s.ok()) {
     std::fprintf(stderr, "anchormap-bench-solver: %s\n", s.message().c_str());
     return 1;
   }
+  if (!flags.break_chain.empty()) {
+    std::vector<GraphEdge> kept;
+    for (const GraphEdge& e : graph.edges) {
+      const bool dropped = e.to == e.from + 1 &&
+                           std::find(flags.break_chain.begin(), flags.break_chain.end(), e.to) !=
+                               flags.break_chain.end();
+      if (!dropped) kept.push_back(e);
+    }
+    graph.edges.swap(kept);
+  }
   const GraphReplay replay(graph, flags.robots);
+  if (!replay.status().ok()) {
+    std::fprintf(stderr, "anchormap-bench-solver: %s: %s\n", flags.graph.c_str(),
+                 replay.status().message().c_str());
+    return 1;
+  }
   Smoother smoother(flags.smoother);
   std::vector<double> step_ms;
   const auto start = std::chrono::steady_clock::now();
@@ -136,6 +175,28 @@ int Run(const Flags& flags) {
   std::string first_failure;
   auto check = [&](const Status& s) {
     if (!s.ok() && failures++ == 0) first_failure = s.message();
+  };
+  // --check-every: the batch optimum of steps 0..k, from the current estimate; untimed.
+  double worst_excess = 0.0, excess_sum = 0.0;
+  int checks = 0, worst_step = -1;
+  double checking_s = 0.0;
+  auto check_step = [&](int k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    SmootherOptions options = flags.smoother;
+    options.batch_every_updates = 0;
+    Smoother optimum(options);
+    // Started from this run's estimate: the optimum nearest to it, not another minimum.
+    for (int j = 0; j <= k; ++j) check(replay.AddStep(j, &optimum, false, &smoother));
+    check(optimum.BatchOptimize(1e-6).status);
+    const double reference = optimum.Chi2();
+    const double excess = (smoother.Chi2() - reference) / std::max(reference, 1e-12);
+    if (excess > worst_excess) {
+      worst_excess = excess;
+      worst_step = k;
+    }
+    excess_sum += excess;
+    ++checks;
+    checking_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   if (flags.incremental) {
     step_ms.reserve(replay.num_steps());
@@ -145,13 +206,17 @@ int Run(const Flags& flags) {
       check(smoother.Update().status);
       step_ms.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      if (flags.check_every > 0 &&
+          ((k + 1) % flags.check_every == 0 || k + 1 == replay.num_steps())) {
+        check_step(k);
+      }
     }
   } else {
     check(replay.AddAll(&smoother));
     check(smoother.BatchOptimize().status);
   }
   const double total_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() - checking_s;
   const double chi2 = smoother.Chi2();
   const SmootherStats stats = smoother.stats();  // before the (untimed) final batch step
   const double nnz_per_column =
@@ -181,6 +246,7 @@ int Run(const Flags& flags) {
     std::printf(
         "{\"graph\": \"%s\", \"mode\": \"%s\", \"formulation\": \"%s\", \"method\": \"%s\", "
         "\"poses\": %d, \"factors\": %lld, \"edges\": %d, \"encounters\": %d, \"robots\": %d, "
+        "\"trajectories\": %d, \"chain_breaks\": %d, "
         "\"batch_every\": %d, \"threshold\": %g, \"total_s\": %.4f, \"step_median_ms\": %.4f, "
         "\"step_p99_ms\": %.4f, \"step_max_ms\": %.4f, \"batch_s\": %.4f, "
         "\"incremental_s\": %.4f, \"batch_steps\": %lld, "
@@ -191,13 +257,16 @@ int Run(const Flags& flags) {
         "\"chi2_relative_difference\": %.3e, \"nnz_per_column\": %.3f, "
         "\"iterations_to_1e-4\": %lld, \"rows_backsubstituted_per_step\": %.1f, "
         "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
+        "\"partial_relinearizations\": %lld, \"partial_s\": %.4f, "
+        "\"relinearized_variables\": %lld, \"rows_reeliminated\": %lld, "
+        "\"checked_steps\": %d, \"worst_step_chi2_excess\": %.3e, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
         static_cast<long long>(stats.factors), replay.num_edges(), replay.num_encounters(),
-        replay.robots(), flags.smoother.batch_every_updates,
-        flags.smoother.backsubstitution_threshold, total_s, Percentile(step_ms, 0.5),
-        Percentile(step_ms, 0.99), Percentile(step_ms, 1.0), stats.batch_seconds,
-        stats.incremental_seconds, static_cast<long long>(stats.batch_steps),
+        replay.robots(), replay.num_trajectories(), replay.num_chain_breaks(),
+        flags.smoother.batch_every_updates, flags.smoother.backsubstitution_threshold, total_s,
+        Percentile(step_ms, 0.5), Percentile(step_ms, 0.99), Percentile(step_ms, 1.0),
+        stats.batch_seconds, stats.incremental_seconds, static_cast<long long>(stats.batch_steps),
         static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
@@ -207,11 +276,18 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.iterations_to_convergence),
         static_cast<double>(stats.rows_backsubstituted) / std::max<size_t>(1, step_ms.size()),
         static_cast<long long>(stats.givens_block_rows),
-        static_cast<long long>(stats.givens_block_columns), failures, first_failure.c_str());
+        static_cast<long long>(stats.givens_block_columns),
+        static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
+        static_cast<long long>(stats.relinearized_variables),
+        static_cast<long long>(stats.rows_reeliminated), checks, worst_excess, failures,
+        first_failure.c_str());
   } else {
-    std::printf("graph %s: %d poses, %d edges (%d encounters), %d robot(s), %s formulation\n",
-                flags.graph.c_str(), replay.num_poses(), replay.num_edges(),
-                replay.num_encounters(), replay.robots(), ToString(flags.smoother.formulation));
+    std::printf(
+        "graph %s: %d poses, %d edges (%d encounters), %d robot(s), %d trajectories (%d broken "
+        "odometry chain(s)), %s formulation\n",
+        flags.graph.c_str(), replay.num_poses(), replay.num_edges(), replay.num_encounters(),
+        replay.robots(), replay.num_trajectories(), replay.num_chain_breaks(),
+        ToString(flags.smoother.formulation));
     std::printf("%s (%s, batch every %d, threshold %g): total %.3f s", mode, method,
                 flags.smoother.batch_every_updates, flags.smoother.backsubstitution_threshold,
                 total_s);
@@ -235,6 +311,20 @@ int Run(const Flags& flags) {
         "chi2 %.4f, after a final batch step %.4f, batch optimum %.4f (relative "
         "difference %.2e); nnz/column of R %.2f\n",
         chi2, chi2_final_batch, chi2_reference, relative_difference, nnz_per_column);
+    if (stats.partial_relinearizations > 0) {
+      std::printf(
+          "partial relinearisations %lld (%.3f s): %.1f variables relinearised and %.1f block "
+          "rows re-eliminated per step\n",
+          static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
+          static_cast<double>(stats.relinearized_variables) / stats.partial_relinearizations,
+          static_cast<double>(stats.rows_reeliminated) / stats.partial_relinearizations);
+    }
+    if (checks > 0) {
+      std::printf(
+          "checked %d steps against their batch optimum: relative chi2 excess worst %.2e (step "
+          "%d), mean %.2e\n",
+          checks, worst_excess, worst_step, excess_sum / checks);
+    }
     if (failures) std::printf("%d failure(s), first: %s\n", failures, first_failure.c_str());
   }
   return failures == 0 ? 0 : 1;
@@ -245,5 +335,10 @@ int Run(const Flags& flags) {
 
 int main(int argc, char** argv) {
   anchormap::RetainFreedMemory();
-  return anchormap::Run(anchormap::ParseFlags(argc, argv));
+  try {
+    return anchormap::Run(anchormap::ParseFlags(argc, argv));
+  } catch (const std::exception& e) {  // a bug: say what it was, exit non-zero
+    std::fprintf(stderr, "anchormap-bench-solver: internal error: %s\n", e.what());
+    return 3;
+  }
 }

@@ -8,6 +8,9 @@
 #
 #   tools/bench/solver_figures.sh [DATA_DIR]     (default ../shared/data or $ANCHORMAP_DATA_DIR)
 #
+# Further tables: broken odometry chains (--break-chain) and the server configuration
+# (--relinearize 0.01, partial vs --full-relinearization, --check-every 37).
+#
 # "total s" in the first table is the median of REPEAT runs (default 3; this machine kind
 # is noisy); the step times come from the last run, and the other columns are the same
 # in every run.
@@ -54,3 +57,39 @@ for graph in M3500 intel; do
     done
   done
 done
+
+echo
+echo "Broken odometry chains (M3500 with odometry edges dropped; each break starts a trajectory in its own frame):"
+echo
+echo "| graph | dropped odometry into | mode | trajectories | encounters | chi2 after a final batch step | batch optimum | rel. diff |"
+echo "|---|---|---|---|---|---|---|---|"
+if [ -f "$DATA/M3500.g2o" ]; then
+  for breaks in "1000" "1000 2500"; do
+    args=()
+    for b in $breaks; do args+=(--break-chain "$b"); done
+    for mode in incremental batch; do
+      j=$("$BENCH" "$DATA/M3500.g2o" --mode "$mode" "${args[@]}" --json)
+      echo "| M3500 | ${breaks// /, } | $mode | $(field "$j" trajectories) | $(field "$j" encounters) |" \
+        "$(field "$j" chi2_after_final_batch) | $(field "$j" chi2_batch_optimum) | $(field "$j" chi2_relative_difference) |"
+    done
+  done
+fi
+
+echo
+echo "Server configuration (relinearise at 0.01): partial relinearisation vs a full batch step on drift;"
+echo "every 37th step checked against the batch optimum of the edges so far (untimed):"
+echo
+echo "| graph | on drift | total s | partial steps | batch steps | rows re-eliminated per partial step | worst checked step chi2 excess | chi2 at the end |"
+echo "|---|---|---|---|---|---|---|---|"
+if [ -f "$DATA/M3500.g2o" ]; then
+  for how in partial full; do
+    extra=()
+    [ "$how" = full ] && extra=(--full-relinearization)
+    j=$("$BENCH" "$DATA/M3500.g2o" --relinearize 0.01 "${extra[@]}" --check-every 37 --no-reference --json)
+    partial=$(field "$j" partial_relinearizations)
+    rows=$(field "$j" rows_reeliminated)
+    per=$([ "$partial" -gt 0 ] && echo $((rows / partial)) || echo -)
+    echo "| M3500 | $how | $(field "$j" total_s) | $partial | $(field "$j" batch_steps) | $per |" \
+      "$(field "$j" worst_step_chi2_excess) | $(field "$j" chi2) |"
+  done
+fi

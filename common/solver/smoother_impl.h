@@ -1,0 +1,276 @@
+#pragma once
+// Internal to common/solver: the smoother's state (Smoother::Impl), shared by its parts:
+//   smoother.cc            graph bookkeeping, anchors and merges, queries, the public API
+//   smoother_update.cc     Update() and its steps: incremental (Givens), partial
+//                          relinearisation, batch; the policy is batch_policy.h
+//   smoother_nonlinear.cc  the iterations of a batch step: Gauss-Newton, dog-leg
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/solver/anchor_groups.h"
+#include "common/solver/batch_factorization.h"
+#include "common/solver/batch_policy.h"
+#include "common/solver/covariances.h"
+#include "common/solver/factor.h"
+#include "common/solver/smoother.h"
+#include "common/solver/sparse_r.h"
+
+namespace anchormap {
+namespace smoother_internal {
+
+// The system is linearised at `linearization` (theta); R delta = d gives the current
+// solution delta relative to it (additive in x, y, theta, as iSAM's Pose2d).
+struct Variable {
+  Key key;
+  Pose2 linearization;
+  int position = -1;  // elimination position; -1 while pending (not yet in R)
+};
+
+struct FactorRecord {
+  Factor factor;
+  std::array<int, kMaxFactorKeys> vars{};
+  int num_vars = 0;
+  bool active = true;  // false once removed (a gauge prior dropped at a merge)
+};
+
+// Where a factor's rows in R were linearised: J(x - theta) = J (at - theta) - e(at).
+// Rows added by Givens rotations are linearised at the estimate of their update, rows
+// of a batch step at the linearisation point.
+struct FactorLinearization {
+  std::array<Pose2, kMaxFactorKeys> at;
+  bool in_r = false;
+};
+
+struct TrajectoryInfo {
+  int32_t max_index = 0;
+  int num_poses = 0;
+  int64_t origin_prior = -1;  // factor id of the prior on the first pose
+  bool anchored = false;      // relative formulation: has an anchor variable
+};
+
+inline Pose2 Retract(const Pose2& theta, const Eigen::Vector3d& delta) {
+  return Pose2(theta.x() + delta.x(), theta.y() + delta.y(), theta.theta() + delta.z());
+}
+
+inline double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+}  // namespace smoother_internal
+
+using smoother_internal::Retract;
+using smoother_internal::Seconds;
+
+class Smoother::Impl {
+  using Variable = smoother_internal::Variable;
+  using FactorRecord = smoother_internal::FactorRecord;
+  using FactorLinearization = smoother_internal::FactorLinearization;
+  using TrajectoryInfo = smoother_internal::TrajectoryInfo;
+
+ public:
+  explicit Impl(const SmootherOptions& options)
+      : options_(options), r_(std::make_shared<SparseR>()) {}
+
+  const SmootherOptions& options() const { return options_; }
+
+  Status AddPose(PoseKey key, const Pose2& initial);
+  Status AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eigen::Matrix3d& cov);
+  Status AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov);
+  UpdateResult Update(bool force_batch, double convergence_step);
+
+  bool Has(const Key& key) const { return index_.count(key) > 0; }
+  int NumPoses(TrajectoryId t) const {
+    auto it = trajectories_.find(t);
+    return it == trajectories_.end() ? 0 : it->second.num_poses;
+  }
+  const std::vector<TrajectoryId>& trajectory_order() const { return trajectory_order_; }
+  Pose2 Estimate(const Key& key) const { return EstimateOf(VarOf(key)); }
+  bool HasCovariance(const Key& key) const {
+    auto it = index_.find(key);
+    return it != index_.end() && vars_[it->second].position >= 0;
+  }
+  bool IsAnchored(TrajectoryId t) const {
+    auto it = trajectories_.find(t);
+    return it != trajectories_.end() && it->second.anchored;
+  }
+  Pose2 GlobalPose(PoseKey key) const {
+    const Pose2 local = Estimate(key);
+    if (options_.formulation != Formulation::kRelative || !IsAnchored(key.trajectory)) return local;
+    return Compose(Estimate(AnchorKey{key.trajectory}), local);
+  }
+  TrajectoryId GroupRoot(TrajectoryId t) const { return groups_.Contains(t) ? groups_.Root(t) : t; }
+  Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+  double Chi2() const;
+  const SmootherStats& stats() const { return stats_; }
+  Smoother::LinearSystem LinearSystemForTesting() const {
+    Smoother::LinearSystem out;
+    for (int var : position_to_var_) {
+      out.keys.push_back(vars_[var].key);
+      out.linearization.push_back(vars_[var].linearization);
+    }
+    for (int p = 0; p < r_->size(); ++p) out.rows.push_back(r_->row(p));
+    out.delta = delta_;
+    for (size_t f = 0; f < factors_.size(); ++f) {
+      if (!factor_lin_[f].in_r) continue;
+      out.factors.push_back(factors_[f].factor);
+      out.linearized_at.emplace_back(factor_lin_[f].at.begin(),
+                                     factor_lin_[f].at.begin() + factors_[f].num_vars);
+    }
+    return out;
+  }
+  std::vector<Factor> ActiveFactors() const {
+    std::vector<Factor> out;
+    for (const FactorRecord& f : factors_) {
+      if (f.active) out.push_back(f.factor);
+    }
+    return out;
+  }
+
+ private:
+  Pose2 EstimateOf(int var) const {
+    const Variable& v = vars_[var];
+    return v.position < 0 ? v.linearization : Retract(v.linearization, delta_[v.position]);
+  }
+  // The variable of `key`; an unknown key is a caller's bug (HasVariable tells).
+  int VarOf(const Key& key) const {
+    auto it = index_.find(key);
+    if (it == index_.end()) throw std::invalid_argument("unknown variable " + key.ToString());
+    return it->second;
+  }
+  int AddVariable(const Key& key, const Pose2& initial);
+  int64_t AddFactor(Factor factor);
+  void MarkInR(int64_t id, const std::array<Pose2, kMaxFactorKeys>& at) {
+    factor_lin_[id].at = at;
+    factor_lin_[id].in_r = true;
+  }
+  Eigen::Matrix3d GaugeSqrtInformation() const {
+    return Eigen::Matrix3d::Identity() / options_.gauge_prior_sigma;
+  }
+  Status CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const;
+  std::vector<TrajectoryId> GroupMembers(TrajectoryId root) const;
+  void MoveTrajectories(const std::vector<TrajectoryId>& trajectories, const Pose2& T_new_old);
+  void SetValue(int var, const Pose2& value);
+
+  std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
+  void TakeOutOfPending(const std::vector<int64_t>& done);
+  void IncrementalStep(UpdateResult* result);
+  // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold and
+  // re-eliminates only the block rows that depend on them (them, the variables they share
+  // factors with, and their ancestors in the elimination tree), locally reordered. All or
+  // nothing: false (result->status) leaves the smoother as it was.
+  bool PartialRelinearization(UpdateResult* result);
+  // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
+  // (or once unless `converge`); counts itself in stats_. All or nothing: on failure
+  // (result->status) the smoother is as it was before the call.
+  void BatchStep(bool converge, double tolerance, UpdateResult* result);
+  // What a batch step changes, for putting it back when the step fails. R is shared,
+  // not copied (MutableR copies on write while a snapshot holds it).
+  struct Snapshot {
+    std::vector<Variable> vars;
+    std::vector<FactorLinearization> factor_lin;
+    std::vector<int64_t> pending_factors;
+    std::vector<int> pending_vars;
+    std::vector<char> grounded;
+    std::vector<int> position_to_var;
+    std::vector<Eigen::Vector3d> delta;
+    std::shared_ptr<SparseR> r;
+    int updates_since_batch;
+    int64_t nonzeros_after_batch;
+  };
+  Snapshot Save() const {
+    return {vars_,
+            factor_lin_,
+            pending_factors_,
+            pending_vars_,
+            grounded_,
+            position_to_var_,
+            delta_,
+            r_,
+            updates_since_batch_,
+            nonzeros_after_batch_};
+  }
+  void Restore(Snapshot&& s) {
+    vars_ = std::move(s.vars);
+    factor_lin_ = std::move(s.factor_lin);
+    pending_factors_ = std::move(s.pending_factors);
+    pending_vars_ = std::move(s.pending_vars);
+    grounded_ = std::move(s.grounded);
+    position_to_var_ = std::move(s.position_to_var);
+    delta_ = std::move(s.delta);
+    r_ = std::move(s.r);
+    updates_since_batch_ = s.updates_since_batch;
+    nonzeros_after_batch_ = s.nonzeros_after_batch;
+  }
+  void GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
+                             UpdateResult* result);
+  void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
+                        UpdateResult* result);
+  // Linearises `included` at the linearisation point, factors them in the current order
+  // and solves for delta; false (with result->status) on failure.
+  bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result);
+  // chi2 at linearisation point + step (step empty: at the linearisation point).
+  double Chi2Of(const std::vector<int64_t>& included,
+                const std::vector<Eigen::Vector3d>& step) const;
+  int CountAnchors() const;
+  void CountBatchStep(StepKind kind, UpdateResult* result);
+  int ActivePending() const {
+    int n = 0;
+    for (int64_t f : pending_factors_) n += factors_[f].active ? 1 : 0;
+    return n;
+  }
+  static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
+  // How far a variable is from its linearisation point, for relinearize_threshold.
+  static double Drift(const Eigen::Vector3d& d) { return d.cwiseAbs().maxCoeff(); }
+  double MaxDrift() const {
+    double m = 0.0;
+    for (const auto& d : delta_) m = std::max(m, Drift(d));
+    return m;
+  }
+  SparseR& MutableR() {
+    if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
+    return *r_;
+  }
+  // For replacing R as a whole: no copy of the old one.
+  SparseR& FreshR() {
+    if (r_.use_count() > 1) r_ = std::make_shared<SparseR>();
+    return *r_;
+  }
+
+  SmootherOptions options_;
+  std::vector<Variable> vars_;
+  std::unordered_map<Key, int, KeyHash> index_;
+  std::vector<FactorRecord> factors_;
+  std::vector<FactorLinearization> factor_lin_;    // by factor id
+  std::vector<std::vector<int64_t>> var_factors_;  // by variable: ids of its factors
+  std::vector<int64_t> factor_stamp_;              // PartialRelinearization's work space
+  int64_t stamp_ = 0;
+  std::vector<int64_t> pending_factors_;
+  std::vector<int> pending_vars_;
+  std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
+  std::vector<int> position_to_var_;
+  std::vector<Eigen::Vector3d> delta_;  // by position
+  std::shared_ptr<SparseR> r_;
+  std::unique_ptr<CovarianceRecovery> covariances_;
+  BatchFactorization batch_;
+  AnchorGroups groups_;
+  std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
+  std::vector<TrajectoryId> trajectory_order_;
+  bool merge_pending_ = false;
+  double tolerance_ = 0.0;  // convergence step of the running batch step
+  int updates_since_batch_ = 0;
+  int updates_since_drift_check_ = 0;
+  int64_t nonzeros_after_batch_ = 0;
+  SmootherStats stats_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,139 @@
+// The iterations of a batch step: Gauss-Newton and Powell's dog-leg (smoother_impl.h).
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Dense>
+
+#include "common/solver/smoother_impl.h"
+
+namespace anchormap {
+
+double Smoother::Impl::Chi2Of(const std::vector<int64_t>& included,
+                              const std::vector<Eigen::Vector3d>& step) const {
+  double chi2 = 0.0;
+  std::array<Pose2, kMaxFactorKeys> values;
+  for (int64_t id : included) {
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const Variable& v = vars_[f.vars[j]];
+      values[j] = step.empty() ? v.linearization : Retract(v.linearization, step[v.position]);
+    }
+    chi2 += FactorChi2(f.factor, values.data());
+  }
+  return chi2;
+}
+
+void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included, int max_iterations,
+                                           UpdateResult* result) {
+  // R stays linearised at the last point; the final delta is kept (not folded into the
+  // linearisation point) so that incremental updates continue consistently from R.
+  for (int it = 0; it < max_iterations; ++it) {
+    if (it > 0) {
+      for (int var : position_to_var_) {
+        Variable& v = vars_[var];
+        v.linearization = Retract(v.linearization, delta_[v.position]);
+      }
+    }
+    if (!FactorAll(included, result)) return;
+    ++result->iterations;
+    if (MaxAbs(delta_) < tolerance_) break;
+  }
+  stats_.iterations_to_convergence += result->iterations;
+}
+
+void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
+                                      UpdateResult* result) {
+  // Powell's dog-leg: blend the Gauss-Newton step with steepest descent inside a trust
+  // region, accept a step only if chi2 decreases.
+  double radius = options_.dogleg_initial_radius;
+  double chi2 = Chi2Of(included, {});
+  const int n = static_cast<int>(position_to_var_.size());
+  for (int it = 0; it < max_iterations; ++it) {
+    if (!FactorAll(included, result)) return;
+    ++result->iterations;
+    const std::vector<Eigen::Vector3d> gauss_newton = delta_;
+    // Gradient direction g = J^T b (b = -whitened error) and |J g|^2.
+    std::vector<Eigen::Vector3d> g(n, Eigen::Vector3d::Zero());
+    std::vector<LinearizedFactor> lin(included.size());
+    std::array<Pose2, kMaxFactorKeys> values;
+    for (size_t k = 0; k < included.size(); ++k) {
+      const FactorRecord& f = factors_[included[k]];
+      for (int j = 0; j < f.num_vars; ++j) values[j] = vars_[f.vars[j]].linearization;
+      lin[k] = Linearize(f.factor, values.data());
+      for (int j = 0; j < f.num_vars; ++j) {
+        g[vars_[f.vars[j]].position] -= lin[k].jacobians[j].transpose() * lin[k].whitened_error;
+      }
+    }
+    auto apply_J = [&](const std::vector<Eigen::Vector3d>& h) {
+      double norm2 = 0.0;
+      for (size_t k = 0; k < included.size(); ++k) {
+        const FactorRecord& f = factors_[included[k]];
+        Eigen::Vector3d r = Eigen::Vector3d::Zero();
+        for (int j = 0; j < f.num_vars; ++j)
+          r += lin[k].jacobians[j] * h[vars_[f.vars[j]].position];
+        norm2 += r.squaredNorm();
+      }
+      return norm2;
+    };
+    auto norm = [](const std::vector<Eigen::Vector3d>& v) {
+      double s = 0.0;
+      for (const auto& x : v) s += x.squaredNorm();
+      return std::sqrt(s);
+    };
+    auto dot = [](const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+      double s = 0.0;
+      for (size_t i = 0; i < a.size(); ++i) s += a[i].dot(b[i]);
+      return s;
+    };
+    const double g_norm = norm(g);
+    const double Jg2 = apply_J(g);
+    const double alpha = Jg2 > 0 ? g_norm * g_norm / Jg2 : 0.0;
+    const double gn_norm = norm(gauss_newton);
+
+    bool accepted = false;
+    std::vector<Eigen::Vector3d> h(n);
+    while (!accepted && radius > 1e-12) {
+      if (gn_norm <= radius) {
+        h = gauss_newton;
+      } else if (alpha * g_norm >= radius) {
+        for (int p = 0; p < n; ++p) h[p] = (radius / g_norm) * g[p];
+      } else {
+        // h = a + beta (b - a) with |h| = radius, a = alpha g, b = Gauss-Newton.
+        std::vector<Eigen::Vector3d> a(n), ba(n);
+        for (int p = 0; p < n; ++p) {
+          a[p] = alpha * g[p];
+          ba[p] = gauss_newton[p] - a[p];
+        }
+        const double aa = dot(a, a), ab = dot(a, ba), bb = dot(ba, ba);
+        const double beta = (-ab + std::sqrt(ab * ab + bb * (radius * radius - aa))) / bb;
+        for (int p = 0; p < n; ++p) h[p] = a[p] + beta * ba[p];
+      }
+      const double predicted = 2.0 * dot(g, h) - apply_J(h);
+      const double new_chi2 = Chi2Of(included, h);
+      const double rho = predicted > 0 ? (chi2 - new_chi2) / predicted : -1.0;
+      if (rho > 0.75) {
+        radius = std::max(radius, 3.0 * norm(h));
+      } else if (rho < 0.25) {
+        radius *= 0.5;
+      }
+      if (rho > 0 || (chi2 - new_chi2) >= 0.0) {
+        accepted = true;
+        for (int var : position_to_var_) {
+          Variable& v = vars_[var];
+          v.linearization = Retract(v.linearization, h[v.position]);
+        }
+        chi2 = new_chi2;
+      }
+    }
+    if (!accepted || MaxAbs(h) < tolerance_) break;
+  }
+  stats_.iterations_to_convergence += result->iterations;
+  // Leave R linearised at the final point, with its Gauss-Newton solution as delta.
+  FactorAll(included, result);
+}
+
+}  // namespace anchormap
