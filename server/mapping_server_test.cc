@@ -322,3 +322,179 @@ TEST_F(MappingServerTest, GridCoversTheLargestGroupAndTilesAreRateLimited) {
 
 }  // namespace
 }  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// Reliable delivery (issue 13): the inputs of a 3-robot run lost (30 %), duplicated and
+// reordered on their way, the server asking for what it misses and the "agents" resending
+// what is not acknowledged: the final map equals the in-order run's.
+TEST_F(MappingServerTest, LossyDeliveryWithResendsGivesTheInOrderMap) {
+  Scenario scenario(30.0, {{5.0, 0, 1}, {10.0, 2, 1}, {15.0, 0, 1}, {20.0, 1, 2}, {25.0, 2, 0}});
+  std::map<std::string, int32_t> encounter_seq;
+  for (auto& input : scenario.inputs) {
+    if (input.encounter) input.encounter->seq = encounter_seq[input.encounter->observer]++;
+  }
+  MappingServerOptions options = ExactTieOptions();
+  options.smoother.convergence_step = 1e-12;
+  MappingServer reference(options);
+  for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&reference, input));
+  reference.Flush();
+
+  MappingServer server(options);
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  int64_t clock = 0, sent = 0, dropped = 0, duplicated = 0, resent = 0;
+  std::vector<const Scenario::Input*> delayed;  // reordered: delivered a few steps later
+  auto transmit = [&](const Scenario::Input& input) {
+    ++sent;
+    const double u = uniform(rng);
+    if (u < 0.3) {
+      ++dropped;
+      return;
+    }
+    if (u < 0.4) {
+      delayed.push_back(&input);
+      return;
+    }
+    (void)Feed(&server, input);
+    if (u < 0.45) {
+      ++duplicated;
+      (void)Feed(&server, input);
+    }
+  };
+  auto matches = [](const Scenario::Input& input, const std::string& robot, int64_t trajectory,
+                    const SeqRange& range) {
+    if (input.keyframe) {
+      return range.kind == StreamKind::kKeyframes && input.keyframe->robot == robot &&
+             input.keyframe->trajectory_id == trajectory && input.keyframe->seq >= range.first &&
+             input.keyframe->seq <= range.last;
+    }
+    return range.kind == StreamKind::kEncounters && input.encounter->observer == robot &&
+           input.encounter->observer_trajectory_id == trajectory &&
+           input.encounter->seq >= range.first && input.encounter->seq <= range.last;
+  };
+  auto serve_requests = [&] {
+    server.Tick(clock);
+    for (const ResendRequest& request : server.BuildResendRequests()) {
+      for (const SeqRange& range : request.ranges) {
+        for (const auto& input : scenario.inputs) {
+          if (matches(input, request.robot, request.trajectory_id, range)) {
+            ++resent;
+            transmit(input);
+          }
+        }
+      }
+    }
+  };
+  for (size_t i = 0; i < scenario.inputs.size(); ++i) {
+    clock += 20'000;  // 20 ms of wall time per input
+    if (delayed.size() > 2 || (!delayed.empty() && uniform(rng) < 0.3)) {
+      (void)Feed(&server, *delayed.front());
+      delayed.erase(delayed.begin());
+    }
+    transmit(scenario.inputs[i]);
+    if (i % 10 == 0) serve_requests();
+  }
+  // The end of the run: the agents resend what is not acknowledged (their timeout), the
+  // server asks for the gaps, until everything is acknowledged.
+  for (int round = 0; round < 200; ++round) {
+    clock += 500'000;
+    for (const Scenario::Input* input : delayed) (void)Feed(&server, *input);
+    delayed.clear();
+    serve_requests();
+    bool all_acknowledged = true;
+    const std::vector<DeliveryAck> acks = server.BuildAcks();
+    for (const auto& input : scenario.inputs) {
+      const std::string& robot = input.keyframe ? input.keyframe->robot : input.encounter->observer;
+      const int64_t trajectory =
+          input.keyframe ? input.keyframe->trajectory_id : input.encounter->observer_trajectory_id;
+      const DeliveryAck* ack = nullptr;
+      for (const DeliveryAck& a : acks) {
+        if (a.robot == robot && a.trajectory_id == trajectory) ack = &a;
+      }
+      const bool acknowledged =
+          ack && (input.keyframe ? input.keyframe->seq < ack->keyframes_next
+                                 : input.encounter->seq < ack->encounters_next);
+      if (!acknowledged) {
+        all_acknowledged = false;
+        ++resent;
+        transmit(input);
+      }
+    }
+    if (all_acknowledged) break;
+  }
+  server.Flush();
+  std::printf("inputs %zu: sent %lld, dropped %lld, duplicated %lld, resent %lld\n",
+              scenario.inputs.size(), static_cast<long long>(sent), static_cast<long long>(dropped),
+              static_cast<long long>(duplicated), static_cast<long long>(resent));
+  EXPECT_GT(dropped, 0);
+  EXPECT_GT(duplicated, 0);
+  EXPECT_EQ(server.table().num_bridged_gaps(), 0);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kLateSequence), 0);
+  EXPECT_GT(server.rejects().count(ErrorCode::kDuplicateSequence), 0);
+  EXPECT_EQ(server.table().num_keyframes(), reference.table().num_keyframes());
+  EXPECT_EQ(server.stats().encounters_added, 5);
+
+  // The global frame is the first anchored group's, which depends on the arrival order:
+  // compare every pose in the frame of R1's first keyframe.
+  const MergedMap expected = reference.BuildMergedMap();
+  const MergedMap got = server.BuildMergedMap();
+  ASSERT_EQ(got.trajectories.size(), expected.trajectories.size());
+  auto find = [](const MergedMap& map, const std::string& robot) -> const MergedTrajectory* {
+    for (const MergedTrajectory& t : map.trajectories) {
+      if (t.robot == robot) return &t;
+    }
+    return nullptr;
+  };
+  const Pose2 expected_origin = find(expected, "R1")->poses.front();
+  const Pose2 got_origin = find(got, "R1")->poses.front();
+  for (const MergedTrajectory& e : expected.trajectories) {
+    const MergedTrajectory* g = find(got, e.robot);
+    ASSERT_NE(g, nullptr) << e.robot;
+    EXPECT_EQ(g->trajectory_id, e.trajectory_id);
+    ASSERT_EQ(g->poses.size(), e.poses.size()) << e.robot;
+    for (size_t i = 0; i < e.poses.size(); ++i) {
+      EXPECT_EQ(g->pose_utimes[i], e.pose_utimes[i]);
+      const Pose2 want = Between(expected_origin, e.poses[i]);
+      const Pose2 have = Between(got_origin, g->poses[i]);
+      EXPECT_NEAR(have.x(), want.x(), 1e-9) << e.robot << " " << i;
+      EXPECT_NEAR(have.y(), want.y(), 1e-9) << e.robot << " " << i;
+      EXPECT_NEAR(AngleDifference(have.theta(), want.theta()), 0.0, 1e-9) << e.robot << " " << i;
+    }
+  }
+  std::set<std::tuple<int64_t, int32_t, int64_t, int32_t>> expected_links, got_links;
+  for (const EncounterLink& l : expected.encounters) {
+    expected_links.insert({l.trajectory_a, l.index_a, l.trajectory_b, l.index_b});
+  }
+  for (const EncounterLink& l : got.encounters) {
+    got_links.insert({l.trajectory_a, l.index_a, l.trajectory_b, l.index_b});
+  }
+  EXPECT_EQ(got_links, expected_links);
+  EXPECT_EQ(got.encounters.size(), expected.encounters.size());
+}
+
+TEST_F(MappingServerTest, DuplicateRelayedEncounterIsRefusedAndAddsNothing) {
+  Scenario scenario(10.0, {{5.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  for (auto& input : scenario.inputs) {
+    if (input.encounter) {
+      input.encounter->seq = 0;
+      ASSERT_TRUE(server.OnEncounter(*input.encounter).ok());
+      EXPECT_EQ(server.OnEncounter(*input.encounter).code(), ErrorCode::kDuplicateSequence);
+    } else {
+      ASSERT_TRUE(server.OnKeyframe(*input.keyframe).ok());
+    }
+  }
+  EXPECT_EQ(server.stats().encounters_added, 1);
+  EXPECT_EQ(server.encounter_links().size(), 1u);
+  const std::vector<DeliveryAck> acks = server.BuildAcks();
+  ASSERT_EQ(acks.size(), 3u);
+  EXPECT_EQ(acks[0].robot, "R1");
+  EXPECT_EQ(acks[0].encounters_next, 1);
+  EXPECT_EQ(acks[0].keyframes_next, 21);
+  EXPECT_EQ(acks[1].encounters_next, 0);
+}
+
+}  // namespace
+}  // namespace anchormap

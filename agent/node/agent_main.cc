@@ -14,6 +14,12 @@
 namespace anchormap {
 namespace {
 
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 void Register(OptionsLoader* l, AgentNodeOptions* node) {
   AgentOptions* o = &node->agent;
   l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
@@ -60,6 +66,15 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("channels.keyframes", "keyframes-channel", &node->channels.keyframes, "keyframe_t output");
   l->Add("channels.encounters", "encounters-channel", &node->channels.encounters,
          "encounter_t output (relays; also read, to see this robot being observed)");
+  l->Add("channels.acks", "acks-channel", &node->channels.acks,
+         "delivery_ack_t input (the server's acknowledgements)");
+  l->Add("channels.resend_requests", "resend-requests-channel", &node->channels.resend_requests,
+         "resend_request_t input (the server asks for missing keyframes / encounters)");
+  l->Add("outbox.max_bytes", "outbox-max-bytes", &node->outbox.max_bytes,
+         "bytes of unacknowledged keyframes / encounters kept for resending; past it the "
+         "oldest are dropped and counted (queue_full)");
+  l->Add("outbox.resend_timeout_s", "resend-timeout-s", &node->outbox.resend_timeout_s,
+         "resend an unacknowledged message after this long (s; doubling, up to 16x)");
 }
 
 int Main(int argc, char** argv) {
@@ -106,6 +121,7 @@ int Main(int argc, char** argv) {
     const Status status = loop->Subscribe(
         channel,
         [&node](const std::string& c, const uint8_t* data, size_t size) {
+          node.SetClock(WallUtime());
           node.OnMessage(c, data, size);
         },
         1000);
@@ -114,6 +130,8 @@ int Main(int argc, char** argv) {
       return 1;
     }
   }
+  // Unacknowledged keyframes and encounters go out again after the resend timeout.
+  loop->Every(std::chrono::milliseconds(100), [&node] { node.Poll(WallUtime()); });
   if (options.status_period_s > 0) {
     loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
                 [&node] { LogInfo(node.StatusLine()); });

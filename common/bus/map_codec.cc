@@ -147,6 +147,8 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   m.keyframes = s.keyframes;
   m.encounters = s.encounters;
   m.last_update_ms = s.last_update_ms;
+  m.bridged_gaps = s.bridged_gaps;
+  m.resend_requests = s.resend_requests;
   m.num_reasons = static_cast<int32_t>(s.rejections.size());
   for (const auto& [reason, count] : s.rejections) {
     m.rejection_reasons.push_back(reason);
@@ -167,6 +169,8 @@ Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   s.keyframes = m.keyframes;
   s.encounters = m.encounters;
   s.last_update_ms = m.last_update_ms;
+  s.bridged_gaps = m.bridged_gaps;
+  s.resend_requests = m.resend_requests;
   for (size_t i = 0; i < m.rejection_reasons.size(); ++i) {
     s.rejections.emplace_back(m.rejection_reasons[i], m.rejection_counts[i]);
   }

@@ -128,6 +128,7 @@ Status CheckEncounterWire(const void* data, size_t size) {
   WIRE_SKIP(c, 8, "observer_trajectory_id");
   WIRE_TRY(c.SkipString("observed", CodecLimits::kMaxNameLength));
   WIRE_SKIP(c, 8 * (3 + 9), "relative_pose/covariance");
+  WIRE_SKIP(c, 4, "seq");
   return Status::Ok();
 }
 
@@ -179,7 +180,7 @@ Status CheckGridTileWire(const void* data, size_t size) {
 Status CheckServerStatusWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::server_status_t>(&c));
-  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8, "status fields");
+  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8 + 8 + 8, "status fields");
   int32_t reasons = 0;
   WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));
   for (int32_t r = 0; r < reasons; ++r) WIRE_TRY(c.SkipString("reason", 256));

@@ -77,6 +77,8 @@ struct ServerStatus {
   int64_t keyframes = 0;
   int64_t encounters = 0;  // encounters added to the graph
   double last_update_ms = 0.0;
+  int64_t bridged_gaps = 0;     // keyframe gaps bridged after waiting (lost keyframes)
+  int64_t resend_requests = 0;  // resend requests published
   std::vector<std::pair<std::string, int64_t>> rejections;  // reason -> count (non-zero)
 };
 
