@@ -498,3 +498,56 @@ TEST_F(MappingServerTest, DuplicateRelayedEncounterIsRefusedAndAddsNothing) {
 
 }  // namespace
 }  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// Issue 13: an agent restart is a new trajectory (a new id, seq from 0); it is anchored at
+// its next encounter, and nothing of the old one is lost.
+TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncounter) {
+  const Scenario scenario(20.0, {{5.0, 0, 1}, {15.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  const int64_t restarted_id = 0x5eed'1234'5678;
+  int32_t first_new_seq = -1;
+  int old_keyframes = 0;
+  for (const auto& input : scenario.inputs) {
+    if (input.keyframe) {
+      Keyframe k = *input.keyframe;
+      if (k.robot == "R1" && k.utime > 11'000'000) {  // R1's agent restarted at 10 s
+        if (first_new_seq < 0) first_new_seq = k.seq;
+        k.trajectory_id = restarted_id;
+        k.seq -= first_new_seq;
+        if (k.seq == 0) {
+          k.T_previous_this = Pose2();
+          k.T_previous_this_covariance.setIdentity();
+        }
+      } else if (k.robot == "R1") {
+        ++old_keyframes;
+      }
+      ASSERT_TRUE(server.OnKeyframe(k).ok());
+    } else {
+      Encounter e = *input.encounter;
+      if (e.utime > 11'000'000) e.observer_trajectory_id = restarted_id;
+      ASSERT_TRUE(server.OnEncounter(e).ok());
+    }
+    const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+    if (restarted) {
+      EXPECT_EQ(server.smoother().IsAnchored(restarted->solver_id),
+                server.stats().encounters_added == 2);
+    }
+  }
+  server.Flush();
+  EXPECT_EQ(server.stats().encounters_added, 2);
+  EXPECT_EQ(server.rejects().total(), 0);
+  const TrajectoryRecord* old = server.table().Find("R1", 1000);
+  const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+  ASSERT_NE(old, nullptr);
+  ASSERT_NE(restarted, nullptr);
+  EXPECT_EQ(old->num_keyframes(), old_keyframes);
+  EXPECT_TRUE(server.smoother().IsAnchored(old->solver_id));
+  EXPECT_TRUE(server.smoother().IsAnchored(restarted->solver_id));
+  EXPECT_EQ(server.table().num_bridged_gaps(), 0);
+}
+
+}  // namespace
+}  // namespace anchormap

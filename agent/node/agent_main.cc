@@ -7,6 +7,7 @@
 
 #include "agent/node/agent_node.h"
 #include "agent/node/agent_node_options.h"
+#include "agent/trajectory_id.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
@@ -24,7 +25,8 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   AgentOptions* o = &node->agent;
   l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
   l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
-         "this session's trajectory id (0: wall-clock microseconds at start, a new one per run)");
+         "this session's trajectory id (0: 63 random bits from the OS, a new one per run; a "
+         "reused id is refused by the server as duplicates)");
   l->Add("lcm_url", "lcm-url", &node->lcm_url,
          "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
   l->Add("max_range_m", "max-range-m", &o->max_range_m,
@@ -93,11 +95,7 @@ int Main(int argc, char** argv) {
     std::cerr << "anchormap-agent: " << problem.message() << "\n(see anchormap-agent --help)\n";
     return 2;
   }
-  if (options.agent.trajectory_id == 0) {
-    options.agent.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
-                                      std::chrono::system_clock::now().time_since_epoch())
-                                      .count();
-  }
+  if (options.agent.trajectory_id == 0) options.agent.trajectory_id = DrawTrajectoryId();
   options = WithDefaultChannels(options);
   SetMinLogLevel(level);
   SetLogComponent("anchormap-agent " + options.agent.robot);
