@@ -30,9 +30,16 @@ Status MappingServer::OnKeyframe(const Keyframe& keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
+  const int64_t reused_before = table_.num_reused_ids();
   if (Status offered = table_.Offer(keyframe, clock_utime(), &admitted); !offered.ok()) {
     rejects_.Count(offered, "keyframe");
     return offered;
+  }
+  if (table_.num_reused_ids() != reused_before) {
+    LogWarning(keyframe.robot + " restarted with the trajectory id " +
+               std::to_string(keyframe.trajectory_id) +
+               " of an earlier session: a new trajectory under the same name");
+    encounter_seqs_.erase({keyframe.robot, keyframe.trajectory_id});
   }
   table_.Poll(clock_utime(), &admitted);
   EncounterSourceOutput found;
@@ -199,7 +206,8 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
     ++stats_.encounters_added;
     const TrajectoryRecord* a = table_.FindBySolverId(c.a.trajectory);
     const TrajectoryRecord* b = table_.FindBySolverId(c.b.trajectory);
-    links_.push_back({a->agent_trajectory_id, c.a.index, b->agent_trajectory_id, c.b.index});
+    links_.push_back(
+        {a->robot, a->agent_trajectory_id, c.a.index, b->robot, b->agent_trajectory_id, c.b.index});
     LogInfo("encounter " + a->robot + "[" + std::to_string(c.a.index) + "] -> " + b->robot + "[" +
             std::to_string(c.b.index) + "] (" + c.source + ")" +
             (first ? ", anchors created" : ""));

@@ -33,16 +33,17 @@ Pose2 TrajectoryRecord::OdometryPoseAt(int64_t utime) const {
   return Interpolate(odometry_poses[i - 1], odometry_poses[i], fraction);
 }
 
-TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* created) {
+TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool force_new,
+                                             bool* created) {
   const auto key = std::make_pair(keyframe.robot, keyframe.trajectory_id);
   const auto it = index_.find(key);
-  *created = it == index_.end();
+  *created = force_new || it == index_.end();
   if (!*created) return records_[it->second];
   TrajectoryRecord record;
   record.robot = keyframe.robot;
   record.agent_trajectory_id = keyframe.trajectory_id;
   record.solver_id = static_cast<TrajectoryId>(records_.size());
-  index_.emplace(key, records_.size());
+  index_[key] = records_.size();
   records_.push_back(std::move(record));
   pending_.emplace_back();
   return records_.back();
@@ -51,15 +52,25 @@ TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* cre
 Status TrajectoryTable::Offer(const Keyframe& keyframe, int64_t now_utime,
                               std::vector<AdmittedKeyframe>* out) {
   bool created = false;
-  TrajectoryRecord& record = RecordFor(keyframe, &created);
-  const size_t record_index = static_cast<size_t>(record.solver_id);
-  Pending& pending = pending_[record_index];
+  TrajectoryRecord* record = &RecordFor(keyframe, /*force_new=*/false, &created);
   const auto name = [&] {
     return keyframe.robot + " trajectory " + std::to_string(keyframe.trajectory_id) + " seq " +
            std::to_string(keyframe.seq);
   };
-  if (pending.held.count(keyframe.seq) ||
-      std::binary_search(record.seqs.begin(), record.seqs.end(), keyframe.seq)) {
+  const auto admitted = std::lower_bound(record->seqs.begin(), record->seqs.end(), keyframe.seq);
+  if (admitted != record->seqs.end() && *admitted == keyframe.seq) {
+    const size_t i = static_cast<size_t>(admitted - record->seqs.begin());
+    // A first keyframe unlike the one admitted: an agent restarted with a reused id. It
+    // is a new trajectory (the old one keeps what it has), not a stream of duplicates.
+    if (keyframe.seq != 0 || record->utimes[i] == keyframe.utime) {
+      return Status::Error(ErrorCode::kDuplicateSequence, name());
+    }
+    ++num_reused_ids_;
+    record = &RecordFor(keyframe, /*force_new=*/true, &created);
+  }
+  const size_t record_index = static_cast<size_t>(record->solver_id);
+  Pending& pending = pending_[record_index];
+  if (pending.held.count(keyframe.seq)) {
     return Status::Error(ErrorCode::kDuplicateSequence, name());
   }
   if (pending.started && keyframe.seq < pending.next_seq) {

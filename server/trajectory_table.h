@@ -4,6 +4,9 @@
 // solver-index order, and the sequence-number checks that decide when a keyframe may
 // enter the graph.
 //
+// A seq 0 keyframe unlike the admitted seq 0 (another time) comes from an agent restarted
+// with a reused trajectory id: it starts a new record (a new solver trajectory) and
+// (robot, id) names that one from then on; the old record keeps its keyframes.
 // Sequence rules: seq must be new for its trajectory (a seq admitted before is refused as
 // kDuplicateSequence; one whose gap was bridged before it came as kLateSequence). The next
 // expected seq enters at once; a later one waits (the bus may reorder or lose one; the
@@ -111,6 +114,9 @@ class TrajectoryTable {
   int num_robots() const;
   int64_t num_keyframes() const { return num_keyframes_; }
   int64_t num_bridged_gaps() const { return num_bridged_gaps_; }
+  // Trajectory ids reused by a restarted agent (a seq 0 unlike the admitted one): each
+  // started a new record, to which (robot, id) refers from then on.
+  int64_t num_reused_ids() const { return num_reused_ids_; }
   size_t num_held() const;
 
  private:
@@ -120,7 +126,8 @@ class TrajectoryTable {
     std::map<int32_t, Keyframe> held;
     int64_t gap_since = -1;  // clock when the current gap opened; -1: no gap
   };
-  TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool* created);
+  // The keyframe's record; a new one when none exists or `force_new` (a reused id).
+  TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool force_new, bool* created);
   // Moves waiting keyframes into the graph while possible (or forced).
   void Drain(size_t record_index, Pending* pending, bool force, int64_t now_utime,
              std::vector<AdmittedKeyframe>* out);
@@ -133,6 +140,7 @@ class TrajectoryTable {
   std::map<std::pair<std::string, int64_t>, size_t> index_;
   int64_t num_keyframes_ = 0;
   int64_t num_bridged_gaps_ = 0;
+  int64_t num_reused_ids_ = 0;
 };
 
 }  // namespace anchormap

@@ -179,3 +179,31 @@ TEST(TrajectoryTableTest, FindsTheSessionOfARobotAtATimeAndInterpolates) {
 
 }  // namespace
 }  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+TEST(TrajectoryTableTest, AReusedIdAfterARestartStartsANewTrajectory) {
+  // Issue 13: a restarted agent given its old --trajectory-id had every keyframe refused
+  // as a duplicate. Its seq 0 (another time) starts a new trajectory instead.
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  for (int s = 0; s < 4; ++s) ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 7, s), &out).ok());
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 7, 0), &out).code(), ErrorCode::kDuplicateSequence);
+  for (int s = 0; s < 3; ++s) {
+    ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 7, s, 60'000'000), &out).ok()) << s;
+  }
+  EXPECT_EQ(table.num_reused_ids(), 1);
+  ASSERT_EQ(table.records().size(), 2u);
+  EXPECT_EQ(table.records()[0].num_keyframes(), 4);  // the old session keeps its keyframes
+  EXPECT_EQ(table.records()[1].num_keyframes(), 3);
+  EXPECT_EQ(table.Find("R1", 7), &table.records()[1]);
+  EXPECT_TRUE(out[4].new_trajectory);
+  EXPECT_EQ(out[4].key, (PoseKey{1, 0}));
+  // Its duplicates are recognised as such.
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 7, 2, 60'000'000), &out).code(),
+            ErrorCode::kDuplicateSequence);
+}
+
+}  // namespace
+}  // namespace anchormap

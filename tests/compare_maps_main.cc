@@ -1,8 +1,9 @@
 // anchormap-test-compare-maps: compares the last merged map of one server output log with
 // another's (used by tests/loss_test.sh: the lossy online run against the lossless
 // reference). Keyframes are matched by (robot, trajectory id, time), encounters by the
-// keyframes they join; poses are compared in the frame of the first robot's first keyframe
-// (the global frame is the first anchored group's, which depends on arrival order).
+// keyframes they join (each named by robot, trajectory id and index); poses are compared in the
+// frame of the first robot's first keyframe (the global frame is the first anchored group's, which
+// depends on arrival order).
 //   --map OUT.lcmlog --reference REF.lcmlog [--tolerance 1e-9]
 // Also prints the last server_status_t of --map (bridged gaps, resend requests, refusals)
 // and fails when it counts bridged gaps. Exit 0 equal, 1 different, 2 usage.
@@ -58,23 +59,25 @@ struct Index {
 
 Index Build(const MergedMap& map) {
   Index index;
-  std::map<int64_t, const MergedTrajectory*> by_id;
+  std::map<TrajectoryKey, const MergedTrajectory*> by_id;
   for (const MergedTrajectory& t : map.trajectories) {
-    by_id[t.trajectory_id] = &t;
+    by_id[{t.robot, t.trajectory_id}] = &t;
     auto& poses = index.poses[{t.robot, t.trajectory_id}];
     for (size_t i = 0; i < t.poses.size(); ++i) {
       ++index.keyframes;
       if (!poses.emplace(t.pose_utimes[i], t.poses[i]).second) ++index.doubled;
     }
   }
-  auto keyframe = [&](int64_t trajectory, int32_t i) -> std::pair<std::string, int64_t> {
-    const MergedTrajectory* t = by_id.count(trajectory) ? by_id[trajectory] : nullptr;
+  auto keyframe = [&](const std::string& robot, int64_t trajectory,
+                      int32_t i) -> std::pair<std::string, int64_t> {
+    const TrajectoryKey key{robot, trajectory};
+    const MergedTrajectory* t = by_id.count(key) ? by_id[key] : nullptr;
     if (!t || i < 0 || static_cast<size_t>(i) >= t->pose_utimes.size()) return {"?", -1};
     return {t->robot, t->pose_utimes[static_cast<size_t>(i)]};
   };
   for (const EncounterLink& l : map.encounters) {
-    const auto a = keyframe(l.trajectory_a, l.index_a);
-    const auto b = keyframe(l.trajectory_b, l.index_b);
+    const auto a = keyframe(l.robot_a, l.trajectory_a, l.index_a);
+    const auto b = keyframe(l.robot_b, l.trajectory_b, l.index_b);
     ++index.link_count;
     index.links.insert({a.first, a.second, b.first, b.second});
   }

@@ -26,7 +26,7 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
   l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
          "this session's trajectory id (0: 63 random bits from the OS, a new one per run; a "
-         "reused id is refused by the server as duplicates)");
+         "reused id after a restart still gives a new trajectory on the server)");
   l->Add("lcm_url", "lcm-url", &node->lcm_url,
          "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
   l->Add("max_range_m", "max-range-m", &o->max_range_m,

@@ -39,6 +39,8 @@ std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
   m.num_encounters = static_cast<int32_t>(map.encounters.size());
   for (const EncounterLink& link : map.encounters) {
     anchormap::encounter_link_t out;
+    out.robot_a = link.robot_a;
+    out.robot_b = link.robot_b;
     out.trajectory_a = link.trajectory_a;
     out.index_a = link.index_a;
     out.trajectory_b = link.trajectory_b;
@@ -65,7 +67,8 @@ Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
     map.trajectories.push_back(std::move(out));
   }
   for (const anchormap::encounter_link_t& link : m.encounters) {
-    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+    map.encounters.push_back({link.robot_a, link.trajectory_a, link.index_a, link.robot_b,
+                              link.trajectory_b, link.index_b});
   }
   return Success(std::move(map));
 }

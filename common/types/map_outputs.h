@@ -25,11 +25,13 @@ struct MergedTrajectory {
   std::vector<Pose2> poses;
 };
 
-// An encounter in the map: the two keyframes it joins (agent trajectory ids, keyframe
-// indices in pose order of the merged map).
+// An encounter in the map: the two keyframes it joins (robot + agent trajectory id, which
+// is unique per robot only; keyframe indices in pose order of the merged map).
 struct EncounterLink {
+  std::string robot_a;
   int64_t trajectory_a = 0;
   int32_t index_a = 0;
+  std::string robot_b;
   int64_t trajectory_b = 0;
   int32_t index_b = 0;
 };
