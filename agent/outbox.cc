@@ -71,7 +71,7 @@ std::vector<const Outbox::Entry*> Outbox::TimedOut(int64_t now_utime) {
   std::vector<Entry*> due;
   for (auto* stream : {&keyframes_, &encounters_}) {
     for (auto& [seq, entry] : *stream) {
-      const double wait_s = options_.resend_timeout_s * (1 << std::min(entry.sends - 1, 4));
+      const double wait_s = options_.resend_timeout_s * (1 << std::min(entry.sends - 1, 2));
       if (1e-6 * static_cast<double>(now_utime - entry.last_sent_utime) >= wait_s) {
         due.push_back(&entry);
       }

@@ -25,7 +25,7 @@ struct OutboxOptions {
   // hours of a typical robot's keyframes while the server is unreachable).
   int64_t max_bytes = int64_t{64} << 20;
   // An unacknowledged entry is sent again after this long without an acknowledgement or
-  // a request, then after 2, 4, 8, 16 times this (at most 16 times).
+  // a request, then after 2 and 4 times this (and 4 times this from then on).
   double resend_timeout_s = 2.0;
   // At most this many timed-out entries are resent per Poll (the server asks for the rest).
   int max_resend_per_poll = 16;

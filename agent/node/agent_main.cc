@@ -76,7 +76,7 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
          "bytes of unacknowledged keyframes / encounters kept for resending; past it the "
          "oldest are dropped and counted (queue_full)");
   l->Add("outbox.resend_timeout_s", "resend-timeout-s", &node->outbox.resend_timeout_s,
-         "resend an unacknowledged message after this long (s; doubling, up to 16x)");
+         "resend an unacknowledged message after this long (s; then 2x, then 4x)");
 }
 
 int Main(int argc, char** argv) {
