@@ -68,6 +68,7 @@ void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
   publish_(
       kind == StreamKind::kKeyframes ? options_.channels.keyframes : options_.channels.encounters,
       bytes);
+  if (!options_.reliable) return;
   if (Status kept = outbox_.Add(kind, seq, std::move(bytes), now_utime_); !kept.ok()) {
     rejects_.Count(kept, context);
   }

@@ -27,6 +27,9 @@ struct AgentNodeOptions {
   AgentOptions agent;
   AgentChannels channels;
   OutboxOptions outbox;
+  // Keep what is published for resending until acknowledged (off where the bus loses
+  // nothing and no server acknowledges: anchormap-replay over memq://).
+  bool reliable = true;
   std::string lcm_url;           // empty: LCM's default ($LCM_DEFAULT_URL or udpm default)
   double status_period_s = 5.0;  // status line period (0 = off)
   std::string log_level = "info";
