@@ -26,6 +26,15 @@ std::vector<std::pair<int32_t, int32_t>> SeqWindow::Missing() const {
   return ranges;
 }
 
+int32_t SeqWindow::GiveUpMissing() {
+  if (above_.empty()) return 0;
+  const int32_t highest = *above_.rbegin();
+  const int32_t given_up = highest + 1 - next_ - static_cast<int32_t>(above_.size());
+  next_ = highest + 1;
+  above_.clear();
+  return given_up;
+}
+
 bool ResendTracker::Due(const std::string& robot, int64_t trajectory_id, int64_t now_utime) {
   const auto key = std::make_pair(robot, trajectory_id);
   const auto it = last_request_utime_.find(key);

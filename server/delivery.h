@@ -37,6 +37,9 @@ class SeqWindow {
   int32_t next() const { return next_; }
   // The missing numbers below the highest arrived one, as inclusive ranges.
   std::vector<std::pair<int32_t, int32_t>> Missing() const;
+  // Gives the missing numbers up (they will never come: e.g. acknowledged by a server
+  // that was restarted); returns how many. Later arrivals of them are duplicates.
+  int32_t GiveUpMissing();
 
  private:
   int32_t next_ = 0;

@@ -26,6 +26,13 @@ TEST(SeqWindowTest, RecognisesDuplicatesAndNamesTheGaps) {
   EXPECT_EQ(window.next(), 8);
   EXPECT_TRUE(window.Missing().empty());
   EXPECT_FALSE(window.Insert(6));
+  // Numbers that will never come (a restarted server misses the early ones) are given up.
+  EXPECT_TRUE(window.Insert(11));
+  EXPECT_TRUE(window.Insert(13));
+  EXPECT_EQ(window.GiveUpMissing(), 4);  // 8, 9, 10, 12
+  EXPECT_EQ(window.next(), 14);
+  EXPECT_TRUE(window.Missing().empty());
+  EXPECT_FALSE(window.Insert(9));
 }
 
 TEST(ResendTrackerTest, AsksATrajectoryAtMostOncePerPeriod) {

@@ -127,8 +127,22 @@ std::vector<ResendRequest> MappingServer::BuildResendRequests() {
     add(record.robot, record.agent_trajectory_id, StreamKind::kKeyframes,
         table_.MissingRanges(record.solver_id));
   }
-  for (const auto& [key, window] : encounter_seqs_) {
-    add(key.first, key.second, StreamKind::kEncounters, window.Missing());
+  for (auto& [key, window] : encounter_seqs_) {
+    const auto missing = window.Missing();
+    if (missing.empty()) {
+      encounter_gap_since_.erase(key);
+      continue;
+    }
+    const int64_t since = encounter_gap_since_.emplace(key, clock_utime()).first->second;
+    if (1e-6 * static_cast<double>(clock_utime() - since) > options_.table.max_hold_s) {
+      const int32_t given_up = window.GiveUpMissing();
+      encounters_given_up_ += given_up;
+      encounter_gap_since_.erase(key);
+      LogWarning("gave up " + std::to_string(given_up) + " missing encounters of " + key.first +
+                 " trajectory " + std::to_string(key.second) + " (not resent in time)");
+      continue;
+    }
+    add(key.first, key.second, StreamKind::kEncounters, missing);
   }
   std::vector<ResendRequest> out;
   for (auto& [key, request] : requests) {
@@ -266,12 +280,13 @@ std::string MappingServer::StatusLine() const {
   std::snprintf(text, sizeof(text),
                 "robots %d trajectories %zu anchored %d keyframes %lld encounters %lld "
                 "updates %lld last update %.2f ms waiting keyframes %zu encounters %zu "
-                "bridged gaps %lld resend requests %lld",
+                "bridged gaps %lld encounters given up %lld resend requests %lld",
                 table_.num_robots(), table_.records().size(), num_anchored(),
                 static_cast<long long>(table_.num_keyframes()),
                 static_cast<long long>(stats_.encounters_added),
                 static_cast<long long>(stats_.updates), stats_.last_update_ms, table_.num_held(),
                 waiting_encounters, static_cast<long long>(table_.num_bridged_gaps()),
+                static_cast<long long>(encounters_given_up_),
                 static_cast<long long>(resend_requests_));
   return std::string(text) + " rejected: " + rejects_.Summary();
 }

@@ -494,6 +494,24 @@ TEST_F(MappingServerTest, DuplicateRelayedEncounterIsRefusedAndAddsNothing) {
   EXPECT_EQ(acks[0].encounters_next, 1);
   EXPECT_EQ(acks[0].keyframes_next, 21);
   EXPECT_EQ(acks[1].encounters_next, 0);
+
+  // A relayed encounter stream first seen at seq 3 (a server restarted after the agent's
+  // seq 0..2 were acknowledged) is asked for 0..2, then gives them up after the hold time.
+  Encounter later =
+      scenario.inputs.back().encounter ? *scenario.inputs.back().encounter : Encounter{};
+  later.utime = 9'000'000;
+  later.observer = "R2";
+  later.observer_trajectory_id = 1001;
+  later.observed = "R3";
+  later.seq = 3;
+  ASSERT_TRUE(server.OnEncounter(later).ok());
+  server.SetClock(100'000'000);
+  std::vector<ResendRequest> requests = server.BuildResendRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  EXPECT_EQ(requests[0].ranges, (std::vector<SeqRange>{{StreamKind::kEncounters, 0, 2}}));
+  server.SetClock(100'000'000 + 1'000'000 + static_cast<int64_t>(1e6 * 10.0));
+  EXPECT_TRUE(server.BuildResendRequests().empty());
+  EXPECT_EQ(server.BuildAcks()[1].encounters_next, 4);
 }
 
 }  // namespace
