@@ -101,6 +101,7 @@ Status Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {
   }
   Encounter relayed = encounter;
   relayed.observer_trajectory_id = options_.trajectory_id;
+  relayed.seq = next_encounter_seq_++;
   // Keyframe at the first scan at or after the encounter (or the next scan if the
   // encounter arrives late), so the server finds one close in time.
   keyframer_.ForceAtOrAfter(std::max(encounter.utime, last_scan_utime_ + 1));

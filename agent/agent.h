@@ -4,9 +4,9 @@
 // pose at its own time; the Keyframer picks the scans that become keyframes; each keyframe
 // carries its pose in the trajectory's local (odometry) frame and the odometry delta from
 // the previous keyframe with a covariance from the noise model. Direct encounters the robot
-// observed are relayed with its trajectory id, and a keyframe is forced at the next scan so
-// the server finds one near the encounter's time.
-// Memory is bounded: the odometry history, a few scans waiting for odometry, one pose.
+// observed are relayed with its trajectory id and a sequence number of their own, and a keyframe is
+// forced at the next scan so the server finds one near the encounter's time. Memory is bounded: the
+// odometry history, a few scans waiting for odometry, one pose.
 
 #include <cstdint>
 #include <deque>
@@ -76,6 +76,7 @@ class Agent {
   std::deque<LaserScan> pending_scans_;
   int64_t last_scan_utime_ = -1;
   int32_t next_seq_ = 0;
+  int32_t next_encounter_seq_ = 0;  // relayed encounters' own sequence
   std::optional<Pose2> last_keyframe_pose_;
   AgentStats stats_;
 };

@@ -27,7 +27,7 @@ inline MotionNoise DefaultOdometryNoise() {
 
 struct AgentOptions {
   std::string robot;          // required: upper-case name, e.g. R1
-  int64_t trajectory_id = 0;  // 0: wall-clock microseconds at start (a fresh session)
+  int64_t trajectory_id = 0;  // 0: drawn at start (DrawTrajectoryId, a fresh session)
   // planar_lidar_t carries no max range: ranges at or beyond this are "no return".
   double max_range_m = 30.0;
   // The laser's mounting pose on the robot body.

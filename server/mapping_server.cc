@@ -11,7 +11,8 @@ MappingServer::MappingServer(const MappingServerOptions& options)
     : options_(options),
       smoother_(options.smoother),
       table_(options.table),
-      publisher_(options.publish) {
+      publisher_(options.publish),
+      resend_(options.delivery) {
   sources_.push_back(std::make_unique<DirectEncounters>(options.direct));
 }
 
@@ -29,10 +30,19 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
-  if (Status offered = table_.Offer(std::move(keyframe), &admitted); !offered.ok()) {
+  const int64_t reused_before = table_.num_reused_ids();
+  const std::string robot = keyframe.robot;  // the keyframe (and its scan) moves into the table
+  const int64_t trajectory_id = keyframe.trajectory_id;
+  if (Status offered = table_.Offer(std::move(keyframe), clock_utime(), &admitted); !offered.ok()) {
     rejects_.Count(offered, "keyframe");
     return offered;
   }
+  if (table_.num_reused_ids() != reused_before) {
+    LogWarning(robot + " restarted with the trajectory id " + std::to_string(trajectory_id) +
+               " of an earlier session: a new trajectory under the same name");
+    encounter_seqs_.erase({robot, trajectory_id});
+  }
+  table_.Poll(clock_utime(), &admitted);
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
   const GraphView graph{table_, smoother_};
@@ -50,6 +60,16 @@ Status MappingServer::OnEncounter(const Encounter& encounter) {
     rejects_.Count(refused, "encounter");
     return refused;
   }
+  if (encounter.seq >= 0 &&
+      !encounter_seqs_[{encounter.observer, encounter.observer_trajectory_id}].Insert(
+          encounter.seq)) {
+    const Status refused = Status::Error(ErrorCode::kDuplicateSequence,
+                                         "encounter " + encounter.observer + " trajectory " +
+                                             std::to_string(encounter.observer_trajectory_id) +
+                                             " seq " + std::to_string(encounter.seq));
+    rejects_.Count(refused, "encounter");
+    return refused;
+  }
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_};
   for (auto& source : sources_) {
@@ -58,6 +78,82 @@ Status MappingServer::OnEncounter(const Encounter& encounter) {
   }
   Commit(found, false, "encounter");
   return Status::Ok();
+}
+
+void MappingServer::Tick(int64_t now_utime) {
+  SetClock(now_utime);
+  std::vector<AdmittedKeyframe> admitted;
+  table_.Poll(clock_utime(), &admitted);
+  if (admitted.empty()) return;
+  EncounterSourceOutput found;
+  AddKeyframes(admitted, &found);
+  const GraphView graph{table_, smoother_};
+  for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
+  Commit(found, true, "tick");
+}
+
+std::vector<DeliveryAck> MappingServer::BuildAcks() const {
+  std::map<std::pair<std::string, int64_t>, DeliveryAck> acks;
+  auto ack_for = [&](const std::string& robot, int64_t trajectory_id) -> DeliveryAck& {
+    DeliveryAck& ack = acks[{robot, trajectory_id}];
+    ack.utime = clock_utime();
+    ack.robot = robot;
+    ack.trajectory_id = trajectory_id;
+    return ack;
+  };
+  for (const TrajectoryRecord& record : table_.records()) {
+    ack_for(record.robot, record.agent_trajectory_id).keyframes_next =
+        table_.NextSeq(record.solver_id);
+  }
+  for (const auto& [key, window] : encounter_seqs_) {
+    ack_for(key.first, key.second).encounters_next = window.next();
+  }
+  std::vector<DeliveryAck> out;
+  for (auto& [key, ack] : acks) out.push_back(std::move(ack));
+  return out;
+}
+
+std::vector<ResendRequest> MappingServer::BuildResendRequests() {
+  std::map<std::pair<std::string, int64_t>, ResendRequest> requests;
+  auto add = [&](const std::string& robot, int64_t trajectory_id, StreamKind kind,
+                 const std::vector<std::pair<int32_t, int32_t>>& ranges) {
+    if (ranges.empty()) return;
+    ResendRequest& request = requests[{robot, trajectory_id}];
+    request.utime = clock_utime();
+    request.robot = robot;
+    request.trajectory_id = trajectory_id;
+    for (const auto& [first, last] : ranges) request.ranges.push_back({kind, first, last});
+  };
+  for (const TrajectoryRecord& record : table_.records()) {
+    add(record.robot, record.agent_trajectory_id, StreamKind::kKeyframes,
+        table_.MissingRanges(record.solver_id));
+  }
+  for (auto& [key, window] : encounter_seqs_) {
+    const auto missing = window.Missing();
+    if (missing.empty()) {
+      encounter_gap_since_.erase(key);
+      continue;
+    }
+    const int64_t since = encounter_gap_since_.emplace(key, clock_utime()).first->second;
+    if (1e-6 * static_cast<double>(clock_utime() - since) > options_.table.max_hold_s) {
+      const int32_t given_up = window.GiveUpMissing();
+      encounters_given_up_ += given_up;
+      encounter_gap_since_.erase(key);
+      LogWarning("gave up " + std::to_string(given_up) + " missing encounters of " + key.first +
+                 " trajectory " + std::to_string(key.second) + " (not resent in time)");
+      continue;
+    }
+    add(key.first, key.second, StreamKind::kEncounters, missing);
+  }
+  std::vector<ResendRequest> out;
+  for (auto& [key, request] : requests) {
+    if (!resend_.Due(key.first, key.second, clock_utime())) continue;
+    LogDebug("asking " + key.first + " trajectory " + std::to_string(key.second) + " for " +
+             std::to_string(request.ranges.size()) + " missing ranges");
+    ++resend_requests_;
+    out.push_back(std::move(request));
+  }
+  return out;
 }
 
 void MappingServer::Flush() {
@@ -81,6 +177,13 @@ void MappingServer::Flush() {
 void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
                                  EncounterSourceOutput* found) {
   for (const AdmittedKeyframe& a : admitted) {
+    if (a.bridged_gap) {
+      const TrajectoryRecord* record = table_.FindBySolverId(a.key.trajectory);
+      LogWarning("bridged a gap of " + std::to_string(a.missing_steps) + " keyframes in " +
+                 record->robot + " trajectory " + std::to_string(record->agent_trajectory_id) +
+                 " before index " + std::to_string(a.key.index) +
+                 " (not resent in time: the map lacks them)");
+    }
     // Initial guess: the current estimate of the previous pose composed with the odometry
     // delta, not the agent's raw odometry pose. Once encounters have corrected the local
     // trajectory the raw pose is off by that correction, and iSAM would linearise the new
@@ -118,7 +221,8 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
     ++stats_.encounters_added;
     const TrajectoryRecord* a = table_.FindBySolverId(c.a.trajectory);
     const TrajectoryRecord* b = table_.FindBySolverId(c.b.trajectory);
-    links_.push_back({a->agent_trajectory_id, c.a.index, b->agent_trajectory_id, c.b.index});
+    links_.push_back(
+        {a->robot, a->agent_trajectory_id, c.a.index, b->robot, b->agent_trajectory_id, c.b.index});
     LogInfo("encounter " + a->robot + "[" + std::to_string(c.a.index) + "] -> " + b->robot + "[" +
             std::to_string(c.b.index) + "] (" + c.source + ")" +
             (first ? ", anchors created" : ""));
@@ -164,6 +268,8 @@ ServerStatus MappingServer::BuildStatus() const {
   status.keyframes = table_.num_keyframes();
   status.encounters = stats_.encounters_added;
   status.last_update_ms = stats_.last_update_ms;
+  status.bridged_gaps = table_.num_bridged_gaps();
+  status.resend_requests = resend_requests_;
   status.rejections = rejects_.NonZero();
   return status;
 }
@@ -171,15 +277,18 @@ ServerStatus MappingServer::BuildStatus() const {
 std::string MappingServer::StatusLine() const {
   size_t waiting_encounters = 0;
   for (const auto& source : sources_) waiting_encounters += source->pending();
-  char text[256];
+  char text[384];
   std::snprintf(text, sizeof(text),
                 "robots %d trajectories %zu anchored %d keyframes %lld encounters %lld "
-                "updates %lld last update %.2f ms waiting keyframes %zu encounters %zu",
+                "updates %lld last update %.2f ms waiting keyframes %zu encounters %zu "
+                "bridged gaps %lld encounters given up %lld resend requests %lld",
                 table_.num_robots(), table_.records().size(), num_anchored(),
                 static_cast<long long>(table_.num_keyframes()),
                 static_cast<long long>(stats_.encounters_added),
                 static_cast<long long>(stats_.updates), stats_.last_update_ms, table_.num_held(),
-                waiting_encounters);
+                waiting_encounters, static_cast<long long>(table_.num_bridged_gaps()),
+                static_cast<long long>(encounters_given_up_),
+                static_cast<long long>(resend_requests_));
   return std::string(text) + " rejected: " + rejects_.Summary();
 }
 

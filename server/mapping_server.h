@@ -8,17 +8,20 @@
 // directly; ServerNode connects it to bytes and server_main.cc to LCM.
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "common/solver/smoother.h"
+#include "common/types/delivery.h"
 #include "common/types/encounter.h"
 #include "common/types/keyframe.h"
 #include "common/types/map_outputs.h"
 #include "common/util/reject_counter.h"
 #include "common/util/status.h"
+#include "server/delivery.h"
 #include "server/direct_encounters.h"
 #include "server/encounter_source.h"
 #include "server/map_publisher.h"
@@ -48,8 +51,10 @@ struct MappingServerOptions {
   TrajectoryTableOptions table;
   DirectEncounterOptions direct;
   MapPublisherOptions publish;
+  DeliveryOptions delivery;
 
   Status Validate() const {
+    if (Status e = delivery.Validate(); !e.ok()) return e;
     if (Status e = smoother.Validate(); !e.ok()) return Status::Error("smoother: " + e.message());
     if (Status e = table.Validate(); !e.ok()) return e;
     if (Status e = direct.Validate(); !e.ok()) return e;
@@ -76,9 +81,24 @@ class MappingServer {
   void AddEncounterSource(std::unique_ptr<EncounterSource> source);
 
   // Each returns why the input is refused, if it is (already counted). Accepted inputs
-  // update the smoother before returning. Cost: one incremental update.
+  // update the smoother before returning. Cost: one incremental update. A duplicate
+  // (keyframe seq, or relayed encounter seq, seen before) is refused as
+  // kDuplicateSequence and changes nothing.
   Status OnKeyframe(Keyframe keyframe);
   Status OnEncounter(const Encounter& encounter);
+
+  // Reliable delivery. The clock of the gap-hold rule and of resend requests: wall time
+  // online (SetClock before each input, Tick on a timer); unset, the data time (offline,
+  // deterministic).
+  void SetClock(int64_t now_utime) { clock_utime_ = now_utime; }
+  int64_t clock_utime() const { return clock_utime_ >= 0 ? clock_utime_ : data_utime_; }
+  // Sets the clock and bridges the keyframe gaps that have waited too long (last resort).
+  void Tick(int64_t now_utime);
+  // One cumulative acknowledgement per known trajectory.
+  std::vector<DeliveryAck> BuildAcks() const;
+  // Requests for the missing keyframes and relayed encounters of every trajectory that is
+  // due again (DeliveryOptions::resend_period_s); counted as published.
+  std::vector<ResendRequest> BuildResendRequests();
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).
   void Flush();
@@ -122,6 +142,15 @@ class MappingServer {
   OncePerKindLog solver_log_;
   MappingServerStats stats_;
   int64_t data_utime_ = 0;
+  int64_t clock_utime_ = -1;
+  ResendTracker resend_;
+  int64_t resend_requests_ = 0;
+  // Relayed encounters' sequence numbers per (observer, observer trajectory id).
+  std::map<std::pair<std::string, int64_t>, SeqWindow> encounter_seqs_;
+  // When each encounter stream's current gap was first seen (clock); after
+  // table.max_hold_s the missing encounters are given up (counted, logged).
+  std::map<std::pair<std::string, int64_t>, int64_t> encounter_gap_since_;
+  int64_t encounters_given_up_ = 0;
 };
 
 }  // namespace anchormap

@@ -333,3 +333,250 @@ TEST_F(MappingServerTest, GridCoversTheLargestGroupAndTilesAreRateLimited) {
 
 }  // namespace
 }  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// Reliable delivery (issue 13): the inputs of a 3-robot run lost (30 %), duplicated and
+// reordered on their way, the server asking for what it misses and the "agents" resending
+// what is not acknowledged: the final map equals the in-order run's.
+TEST_F(MappingServerTest, LossyDeliveryWithResendsGivesTheInOrderMap) {
+  Scenario scenario(30.0, {{5.0, 0, 1}, {10.0, 2, 1}, {15.0, 0, 1}, {20.0, 1, 2}, {25.0, 2, 0}});
+  std::map<std::string, int32_t> encounter_seq;
+  for (auto& input : scenario.inputs) {
+    if (input.encounter) input.encounter->seq = encounter_seq[input.encounter->observer]++;
+  }
+  MappingServerOptions options = ExactTieOptions();
+  options.smoother.convergence_step = 1e-12;
+  MappingServer reference(options);
+  for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&reference, input));
+  reference.Flush();
+
+  MappingServer server(options);
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  int64_t clock = 0, sent = 0, dropped = 0, duplicated = 0, resent = 0;
+  std::vector<const Scenario::Input*> delayed;  // reordered: delivered a few steps later
+  auto transmit = [&](const Scenario::Input& input) {
+    ++sent;
+    const double u = uniform(rng);
+    if (u < 0.3) {
+      ++dropped;
+      return;
+    }
+    if (u < 0.4) {
+      delayed.push_back(&input);
+      return;
+    }
+    (void)Feed(&server, input);
+    if (u < 0.45) {
+      ++duplicated;
+      (void)Feed(&server, input);
+    }
+  };
+  auto matches = [](const Scenario::Input& input, const std::string& robot, int64_t trajectory,
+                    const SeqRange& range) {
+    if (input.keyframe) {
+      return range.kind == StreamKind::kKeyframes && input.keyframe->robot == robot &&
+             input.keyframe->trajectory_id == trajectory && input.keyframe->seq >= range.first &&
+             input.keyframe->seq <= range.last;
+    }
+    return range.kind == StreamKind::kEncounters && input.encounter->observer == robot &&
+           input.encounter->observer_trajectory_id == trajectory &&
+           input.encounter->seq >= range.first && input.encounter->seq <= range.last;
+  };
+  auto serve_requests = [&] {
+    server.Tick(clock);
+    for (const ResendRequest& request : server.BuildResendRequests()) {
+      for (const SeqRange& range : request.ranges) {
+        for (const auto& input : scenario.inputs) {
+          if (matches(input, request.robot, request.trajectory_id, range)) {
+            ++resent;
+            transmit(input);
+          }
+        }
+      }
+    }
+  };
+  for (size_t i = 0; i < scenario.inputs.size(); ++i) {
+    clock += 20'000;  // 20 ms of wall time per input
+    if (delayed.size() > 2 || (!delayed.empty() && uniform(rng) < 0.3)) {
+      (void)Feed(&server, *delayed.front());
+      delayed.erase(delayed.begin());
+    }
+    transmit(scenario.inputs[i]);
+    if (i % 10 == 0) serve_requests();
+  }
+  // The end of the run: the agents resend what is not acknowledged (their timeout), the
+  // server asks for the gaps, until everything is acknowledged.
+  for (int round = 0; round < 200; ++round) {
+    clock += 500'000;
+    for (const Scenario::Input* input : delayed) (void)Feed(&server, *input);
+    delayed.clear();
+    serve_requests();
+    bool all_acknowledged = true;
+    const std::vector<DeliveryAck> acks = server.BuildAcks();
+    for (const auto& input : scenario.inputs) {
+      const std::string& robot = input.keyframe ? input.keyframe->robot : input.encounter->observer;
+      const int64_t trajectory =
+          input.keyframe ? input.keyframe->trajectory_id : input.encounter->observer_trajectory_id;
+      const DeliveryAck* ack = nullptr;
+      for (const DeliveryAck& a : acks) {
+        if (a.robot == robot && a.trajectory_id == trajectory) ack = &a;
+      }
+      const bool acknowledged =
+          ack && (input.keyframe ? input.keyframe->seq < ack->keyframes_next
+                                 : input.encounter->seq < ack->encounters_next);
+      if (!acknowledged) {
+        all_acknowledged = false;
+        ++resent;
+        transmit(input);
+      }
+    }
+    if (all_acknowledged) break;
+  }
+  server.Flush();
+  std::printf("inputs %zu: sent %lld, dropped %lld, duplicated %lld, resent %lld\n",
+              scenario.inputs.size(), static_cast<long long>(sent), static_cast<long long>(dropped),
+              static_cast<long long>(duplicated), static_cast<long long>(resent));
+  EXPECT_GT(dropped, 0);
+  EXPECT_GT(duplicated, 0);
+  EXPECT_EQ(server.table().num_bridged_gaps(), 0);
+  EXPECT_EQ(server.rejects().count(ErrorCode::kLateSequence), 0);
+  EXPECT_GT(server.rejects().count(ErrorCode::kDuplicateSequence), 0);
+  EXPECT_EQ(server.table().num_keyframes(), reference.table().num_keyframes());
+  EXPECT_EQ(server.stats().encounters_added, 5);
+
+  // The global frame is the first anchored group's, which depends on the arrival order:
+  // compare every pose in the frame of R1's first keyframe.
+  const MergedMap expected = reference.BuildMergedMap();
+  const MergedMap got = server.BuildMergedMap();
+  ASSERT_EQ(got.trajectories.size(), expected.trajectories.size());
+  auto find = [](const MergedMap& map, const std::string& robot) -> const MergedTrajectory* {
+    for (const MergedTrajectory& t : map.trajectories) {
+      if (t.robot == robot) return &t;
+    }
+    return nullptr;
+  };
+  const Pose2 expected_origin = find(expected, "R1")->poses.front();
+  const Pose2 got_origin = find(got, "R1")->poses.front();
+  for (const MergedTrajectory& e : expected.trajectories) {
+    const MergedTrajectory* g = find(got, e.robot);
+    ASSERT_NE(g, nullptr) << e.robot;
+    EXPECT_EQ(g->trajectory_id, e.trajectory_id);
+    ASSERT_EQ(g->poses.size(), e.poses.size()) << e.robot;
+    for (size_t i = 0; i < e.poses.size(); ++i) {
+      EXPECT_EQ(g->pose_utimes[i], e.pose_utimes[i]);
+      const Pose2 want = Between(expected_origin, e.poses[i]);
+      const Pose2 have = Between(got_origin, g->poses[i]);
+      EXPECT_NEAR(have.x(), want.x(), 1e-9) << e.robot << " " << i;
+      EXPECT_NEAR(have.y(), want.y(), 1e-9) << e.robot << " " << i;
+      EXPECT_NEAR(AngleDifference(have.theta(), want.theta()), 0.0, 1e-9) << e.robot << " " << i;
+    }
+  }
+  std::set<std::tuple<int64_t, int32_t, int64_t, int32_t>> expected_links, got_links;
+  for (const EncounterLink& l : expected.encounters) {
+    expected_links.insert({l.trajectory_a, l.index_a, l.trajectory_b, l.index_b});
+  }
+  for (const EncounterLink& l : got.encounters) {
+    got_links.insert({l.trajectory_a, l.index_a, l.trajectory_b, l.index_b});
+  }
+  EXPECT_EQ(got_links, expected_links);
+  EXPECT_EQ(got.encounters.size(), expected.encounters.size());
+}
+
+TEST_F(MappingServerTest, DuplicateRelayedEncounterIsRefusedAndAddsNothing) {
+  Scenario scenario(10.0, {{5.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  for (auto& input : scenario.inputs) {
+    if (input.encounter) {
+      input.encounter->seq = 0;
+      ASSERT_TRUE(server.OnEncounter(*input.encounter).ok());
+      EXPECT_EQ(server.OnEncounter(*input.encounter).code(), ErrorCode::kDuplicateSequence);
+    } else {
+      ASSERT_TRUE(server.OnKeyframe(*input.keyframe).ok());
+    }
+  }
+  EXPECT_EQ(server.stats().encounters_added, 1);
+  EXPECT_EQ(server.encounter_links().size(), 1u);
+  const std::vector<DeliveryAck> acks = server.BuildAcks();
+  ASSERT_EQ(acks.size(), 3u);
+  EXPECT_EQ(acks[0].robot, "R1");
+  EXPECT_EQ(acks[0].encounters_next, 1);
+  EXPECT_EQ(acks[0].keyframes_next, 21);
+  EXPECT_EQ(acks[1].encounters_next, 0);
+
+  // A relayed encounter stream first seen at seq 3 (a server restarted after the agent's
+  // seq 0..2 were acknowledged) is asked for 0..2, then gives them up after the hold time.
+  Encounter later =
+      scenario.inputs.back().encounter ? *scenario.inputs.back().encounter : Encounter{};
+  later.utime = 9'000'000;
+  later.observer = "R2";
+  later.observer_trajectory_id = 1001;
+  later.observed = "R3";
+  later.seq = 3;
+  ASSERT_TRUE(server.OnEncounter(later).ok());
+  server.SetClock(100'000'000);
+  std::vector<ResendRequest> requests = server.BuildResendRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  EXPECT_EQ(requests[0].ranges, (std::vector<SeqRange>{{StreamKind::kEncounters, 0, 2}}));
+  server.SetClock(100'000'000 + 1'000'000 + static_cast<int64_t>(1e6 * 10.0));
+  EXPECT_TRUE(server.BuildResendRequests().empty());
+  EXPECT_EQ(server.BuildAcks()[1].encounters_next, 4);
+}
+
+}  // namespace
+}  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// Issue 13: an agent restart is a new trajectory (a new id, seq from 0); it is anchored at
+// its next encounter, and nothing of the old one is lost.
+TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncounter) {
+  const Scenario scenario(20.0, {{5.0, 0, 1}, {15.0, 0, 1}});
+  MappingServer server(ExactTieOptions());
+  const int64_t restarted_id = 0x5eed'1234'5678;
+  int32_t first_new_seq = -1;
+  int old_keyframes = 0;
+  for (const auto& input : scenario.inputs) {
+    if (input.keyframe) {
+      Keyframe k = *input.keyframe;
+      if (k.robot == "R1" && k.utime > 11'000'000) {  // R1's agent restarted at 10 s
+        if (first_new_seq < 0) first_new_seq = k.seq;
+        k.trajectory_id = restarted_id;
+        k.seq -= first_new_seq;
+        if (k.seq == 0) {
+          k.T_previous_this = Pose2();
+          k.T_previous_this_covariance.setIdentity();
+        }
+      } else if (k.robot == "R1") {
+        ++old_keyframes;
+      }
+      ASSERT_TRUE(server.OnKeyframe(k).ok());
+    } else {
+      Encounter e = *input.encounter;
+      if (e.utime > 11'000'000) e.observer_trajectory_id = restarted_id;
+      ASSERT_TRUE(server.OnEncounter(e).ok());
+    }
+    const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+    if (restarted) {
+      EXPECT_EQ(server.smoother().IsAnchored(restarted->solver_id),
+                server.stats().encounters_added == 2);
+    }
+  }
+  server.Flush();
+  EXPECT_EQ(server.stats().encounters_added, 2);
+  EXPECT_EQ(server.rejects().total(), 0);
+  const TrajectoryRecord* old = server.table().Find("R1", 1000);
+  const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+  ASSERT_NE(old, nullptr);
+  ASSERT_NE(restarted, nullptr);
+  EXPECT_EQ(old->num_keyframes(), old_keyframes);
+  EXPECT_TRUE(server.smoother().IsAnchored(old->solver_id));
+  EXPECT_TRUE(server.smoother().IsAnchored(restarted->solver_id));
+  EXPECT_EQ(server.table().num_bridged_gaps(), 0);
+}
+
+}  // namespace
+}  // namespace anchormap

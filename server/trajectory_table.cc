@@ -25,57 +25,107 @@ Pose2 TrajectoryRecord::OdometryPoseAt(int64_t utime) const {
   return Interpolate(odometry_poses[i - 1], odometry_poses[i], fraction);
 }
 
-TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool* created) {
+TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool force_new,
+                                             bool* created) {
   const auto key = std::make_pair(keyframe.robot, keyframe.trajectory_id);
   const auto it = index_.find(key);
-  *created = it == index_.end();
+  *created = force_new || it == index_.end();
   if (!*created) return records_[it->second];
   TrajectoryRecord record;
   record.robot = keyframe.robot;
   record.agent_trajectory_id = keyframe.trajectory_id;
   record.solver_id = static_cast<TrajectoryId>(records_.size());
-  index_.emplace(key, records_.size());
+  index_[key] = records_.size();
   records_.push_back(std::move(record));
   pending_.emplace_back();
   return records_.back();
 }
 
-Status TrajectoryTable::Offer(Keyframe keyframe, std::vector<AdmittedKeyframe>* out) {
+Status TrajectoryTable::Offer(Keyframe keyframe, int64_t now_utime,
+                              std::vector<AdmittedKeyframe>* out) {
   bool created = false;
-  TrajectoryRecord& record = RecordFor(keyframe, &created);
-  const size_t record_index = static_cast<size_t>(record.solver_id);
+  TrajectoryRecord* record = &RecordFor(keyframe, /*force_new=*/false, &created);
+  const auto name = [&] {
+    return keyframe.robot + " trajectory " + std::to_string(keyframe.trajectory_id) + " seq " +
+           std::to_string(keyframe.seq);
+  };
+  const auto admitted = std::lower_bound(record->seqs.begin(), record->seqs.end(), keyframe.seq);
+  if (admitted != record->seqs.end() && *admitted == keyframe.seq) {
+    const size_t i = static_cast<size_t>(admitted - record->seqs.begin());
+    // A first keyframe unlike the one admitted: an agent restarted with a reused id. It
+    // is a new trajectory (the old one keeps what it has), not a stream of duplicates.
+    if (keyframe.seq != 0 || record->utimes[i] == keyframe.utime) {
+      return Status::Error(ErrorCode::kDuplicateSequence, name());
+    }
+    ++num_reused_ids_;
+    record = &RecordFor(keyframe, /*force_new=*/true, &created);
+  }
+  const size_t record_index = static_cast<size_t>(record->solver_id);
   Pending& pending = pending_[record_index];
-  if ((pending.started && keyframe.seq < pending.next_seq) || pending.held.count(keyframe.seq)) {
-    return Status::Error(ErrorCode::kDuplicateSequence, keyframe.robot + " trajectory " +
-                                                            std::to_string(keyframe.trajectory_id) +
-                                                            " seq " + std::to_string(keyframe.seq));
+  if (pending.held.count(keyframe.seq)) {
+    return Status::Error(ErrorCode::kDuplicateSequence, name());
+  }
+  if (pending.started && keyframe.seq < pending.next_seq) {
+    return Status::Error(ErrorCode::kLateSequence, name() + " came after its gap was bridged");
   }
   const int32_t seq = keyframe.seq;
   pending.held.emplace(seq, std::move(keyframe));
-  Drain(record_index, &pending, /*force=*/false, out);
+  Drain(record_index, &pending, /*force=*/false, now_utime, out);
   return Status::Ok();
 }
 
-void TrajectoryTable::FlushHeld(std::vector<AdmittedKeyframe>* out) {
-  for (size_t i = 0; i < records_.size(); ++i) Drain(i, &pending_[i], /*force=*/true, out);
+void TrajectoryTable::Poll(int64_t now_utime, std::vector<AdmittedKeyframe>* out) {
+  for (size_t i = 0; i < records_.size(); ++i) {
+    if (!pending_[i].held.empty()) Drain(i, &pending_[i], /*force=*/false, now_utime, out);
+  }
 }
 
-void TrajectoryTable::Drain(size_t record_index, Pending* pending, bool force,
+void TrajectoryTable::FlushHeld(std::vector<AdmittedKeyframe>* out) {
+  for (size_t i = 0; i < records_.size(); ++i) {
+    Drain(i, &pending_[i], /*force=*/true, /*now_utime=*/0, out);
+  }
+}
+
+std::vector<std::pair<int32_t, int32_t>> TrajectoryTable::MissingRanges(
+    TrajectoryId solver_id) const {
+  std::vector<std::pair<int32_t, int32_t>> ranges;
+  if (solver_id < 0 || static_cast<size_t>(solver_id) >= pending_.size()) return ranges;
+  const Pending& pending = pending_[static_cast<size_t>(solver_id)];
+  int32_t expected = pending.started ? pending.next_seq : 0;
+  for (const auto& [seq, keyframe] : pending.held) {
+    if (seq > expected) ranges.emplace_back(expected, seq - 1);
+    expected = seq + 1;
+  }
+  return ranges;
+}
+
+int32_t TrajectoryTable::NextSeq(TrajectoryId solver_id) const {
+  if (solver_id < 0 || static_cast<size_t>(solver_id) >= pending_.size()) return 0;
+  const Pending& pending = pending_[static_cast<size_t>(solver_id)];
+  return pending.started ? pending.next_seq : 0;
+}
+
+void TrajectoryTable::Drain(size_t record_index, Pending* pending, bool force, int64_t now_utime,
                             std::vector<AdmittedKeyframe>* out) {
   TrajectoryRecord& record = records_[record_index];
   while (!pending->held.empty()) {
     const Keyframe& first = pending->held.begin()->second;
     const bool in_order = pending->started ? first.seq == pending->next_seq : first.seq == 0;
-    bool over_limits = static_cast<int>(pending->held.size()) > options_.max_held;
-    if (!over_limits) {
-      const int64_t newest = pending->held.rbegin()->second.utime;
-      const int64_t since = pending->started ? record.utimes.back() : first.utime;
-      over_limits = 1e-6 * static_cast<double>(newest - since) > options_.max_hold_s;
+    if (in_order) {
+      pending->gap_since = -1;
+    } else if (pending->gap_since < 0) {
+      pending->gap_since = now_utime;
     }
+    const bool over_limits =
+        static_cast<int>(pending->held.size()) > options_.max_held ||
+        (!in_order &&
+         1e-6 * static_cast<double>(now_utime - pending->gap_since) > options_.max_hold_s);
     if (!in_order && !force && !over_limits) break;
     Keyframe keyframe = std::move(pending->held.extract(pending->held.begin()).mapped());
+    pending->gap_since = -1;  // a later gap opens now (in the next turn)
     Admit(&record, pending, std::move(keyframe), out);
   }
+  if (pending->held.empty()) pending->gap_since = -1;
 }
 
 void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, Keyframe keyframe,

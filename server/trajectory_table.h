@@ -4,13 +4,19 @@
 // solver-index order, and the sequence-number checks that decide when a keyframe may
 // enter the graph.
 //
-// Sequence rules: seq must be new for its trajectory (a seen seq is refused as
-// kDuplicateSequence). The next expected seq enters at once; a later one waits (the bus
-// may reorder or lose one) until the gap fills, or until the waiting list spans more than
-// max_hold_s of keyframe time or holds max_held keyframes: then the gap is bridged, the
-// odometry poses of the two keyframes around it giving the measurement and the waiting
-// keyframe's delta covariance scaled by the number of missing steps giving its noise. A
-// trajectory first seen at seq > 0 (a server started late) starts at its lowest seq.
+// A seq 0 keyframe unlike the admitted seq 0 (another time) comes from an agent restarted
+// with a reused trajectory id: it starts a new record (a new solver trajectory) and
+// (robot, id) names that one from then on; the old record keeps its keyframes.
+// Sequence rules: seq must be new for its trajectory (a seq admitted before is refused as
+// kDuplicateSequence; one whose gap was bridged before it came as kLateSequence). The next
+// expected seq enters at once; a later one waits (the bus may reorder or lose one; the
+// server asks the agent to resend what is missing, MissingRanges()) until the gap fills,
+// or until the gap has stayed open max_hold_s on the caller's clock (wall time online, data
+// time offline) or the waiting list holds more than max_held keyframes: then, as a last
+// resort, the gap is bridged, the odometry poses of the two keyframes around it giving the
+// measurement and the waiting keyframe's delta covariance scaled by the number of missing
+// steps giving its noise. A trajectory first seen at seq > 0 (a server started late)
+// starts at its lowest seq when the same limits run out.
 
 #include <cstdint>
 #include <deque>
@@ -29,9 +35,10 @@
 namespace anchormap {
 
 struct TrajectoryTableOptions {
-  // Bounds on keyframes waiting for a missing sequence number (per trajectory).
-  int max_held = 100;
-  double max_hold_s = 2.0;
+  // Bounds on keyframes waiting for a missing sequence number (per trajectory): at most
+  // max_held keyframes, for at most max_hold_s on the caller's clock since the gap opened.
+  int max_held = 1000;
+  double max_hold_s = 10.0;
   // A bridged gap's covariance: the delta covariance times (missing steps + 1) times this.
   double gap_covariance_scale = 2.0;
 
@@ -79,11 +86,24 @@ class TrajectoryTable {
  public:
   explicit TrajectoryTable(const TrajectoryTableOptions& options = {}) : options_(options) {}
 
-  // Offers a keyframe; returns the keyframes (this one and/or waiting ones) that may now
-  // enter the graph, in order, already recorded here; or why it is refused.
-  Status Offer(Keyframe keyframe, std::vector<AdmittedKeyframe>* out);
+  // Offers a keyframe at `now_utime` (the clock of the hold rule); returns the keyframes
+  // (this one and/or waiting ones) that may now enter the graph, in order, already
+  // recorded here; or why it is refused. Without `now_utime`, the keyframe's own time.
+  Status Offer(Keyframe keyframe, int64_t now_utime, std::vector<AdmittedKeyframe>* out);
+  Status Offer(Keyframe keyframe, std::vector<AdmittedKeyframe>* out) {
+    const int64_t now_utime = keyframe.utime;
+    return Offer(std::move(keyframe), now_utime, out);
+  }
+  // Bridges the gaps that have stayed open longer than max_hold_s at `now_utime`.
+  void Poll(int64_t now_utime, std::vector<AdmittedKeyframe>* out);
   // Admits every waiting keyframe, bridging gaps (end of input).
   void FlushHeld(std::vector<AdmittedKeyframe>* out);
+
+  // The missing sequence numbers below the highest waiting one of trajectory `solver_id`
+  // (empty when nothing waits), as inclusive ranges.
+  std::vector<std::pair<int32_t, int32_t>> MissingRanges(TrajectoryId solver_id) const;
+  // Every seq below this is admitted or given up (bridged) in trajectory `solver_id`.
+  int32_t NextSeq(TrajectoryId solver_id) const;
 
   const TrajectoryRecord* Find(const std::string& robot, int64_t agent_trajectory_id) const;
   const TrajectoryRecord* FindBySolverId(TrajectoryId solver_id) const;
@@ -95,6 +115,9 @@ class TrajectoryTable {
   int num_robots() const;
   int64_t num_keyframes() const { return num_keyframes_; }
   int64_t num_bridged_gaps() const { return num_bridged_gaps_; }
+  // Trajectory ids reused by a restarted agent (a seq 0 unlike the admitted one): each
+  // started a new record, to which (robot, id) refers from then on.
+  int64_t num_reused_ids() const { return num_reused_ids_; }
   size_t num_held() const;
 
  private:
@@ -102,10 +125,13 @@ class TrajectoryTable {
     int32_t next_seq = 0;
     bool started = false;  // at least one keyframe admitted
     std::map<int32_t, Keyframe> held;
+    int64_t gap_since = -1;  // clock when the current gap opened; -1: no gap
   };
-  TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool* created);
+  // The keyframe's record; a new one when none exists or `force_new` (a reused id).
+  TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool force_new, bool* created);
   // Moves waiting keyframes into the graph while possible (or forced).
-  void Drain(size_t record_index, Pending* pending, bool force, std::vector<AdmittedKeyframe>* out);
+  void Drain(size_t record_index, Pending* pending, bool force, int64_t now_utime,
+             std::vector<AdmittedKeyframe>* out);
   void Admit(TrajectoryRecord* record, Pending* pending, Keyframe keyframe,
              std::vector<AdmittedKeyframe>* out);
 
@@ -115,6 +141,7 @@ class TrajectoryTable {
   std::map<std::pair<std::string, int64_t>, size_t> index_;
   int64_t num_keyframes_ = 0;
   int64_t num_bridged_gaps_ = 0;
+  int64_t num_reused_ids_ = 0;
 };
 
 }  // namespace anchormap

@@ -81,9 +81,13 @@ TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
   options.gap_covariance_scale = 2.0;
   TrajectoryTable table(options);
   std::vector<AdmittedKeyframe> out;
-  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 0), &out).ok());
-  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 2), &out).ok());  // seq 1 is lost
-  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 3), &out).ok());  // 1.5 s after seq 0
+  // The hold is measured on the caller's clock from the moment the gap opened.
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 0), 0, &out).ok());
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 2), 1'000'000, &out).ok());  // seq 1 is lost
+  EXPECT_EQ(table.MissingRanges(0), (std::vector<std::pair<int32_t, int32_t>>{{1, 1}}));
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 3), 2'000'000, &out).ok());  // 1.0 s open
+  EXPECT_EQ(out.size(), 1u);
+  table.Poll(2'200'001, &out);  // 1.2 s open: bridged
   ASSERT_EQ(out.size(), 3u);
   const AdmittedKeyframe& bridged = out[1];
   EXPECT_TRUE(bridged.bridged_gap);
@@ -93,6 +97,49 @@ TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
   EXPECT_DOUBLE_EQ(bridged.T_previous_this_covariance(0, 0), 1e-3 * 2 * 2.0);
   EXPECT_FALSE(out[2].bridged_gap);
   EXPECT_EQ(table.num_bridged_gaps(), 1);
+  EXPECT_TRUE(table.MissingRanges(0).empty());
+  EXPECT_EQ(table.NextSeq(0), 4);
+  // The lost keyframe arriving now is late, not a duplicate.
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 1), 2'300'000, &out).code(),
+            ErrorCode::kLateSequence);
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 2), 2'300'000, &out).code(),
+            ErrorCode::kDuplicateSequence);
+}
+
+TEST(TrajectoryTableTest, AKeyframeLateAfterALongPauseIsNotRefused) {
+  // Issue 13: a keyframe 300 ms late after a 3 s pause of the robot was refused as a
+  // duplicate, because the hold rule measured data time. On the server's clock it waits.
+  TrajectoryTableOptions options;
+  options.max_hold_s = 1.0;
+  TrajectoryTable table(options);
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 0), 0, &out).ok());
+  Keyframe after_pause = MakeKeyframe("R1", 1, 2);
+  after_pause.utime = 4'000'000;
+  Keyframe late = MakeKeyframe("R1", 1, 1);
+  late.utime = 3'700'000;
+  ASSERT_TRUE(table.Offer(after_pause, 10'000'000, &out).ok());
+  ASSERT_TRUE(table.Offer(late, 10'300'000, &out).ok());
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_FALSE(out[1].bridged_gap);
+  EXPECT_FALSE(out[2].bridged_gap);
+  EXPECT_EQ(table.num_bridged_gaps(), 0);
+}
+
+TEST(TrajectoryTableTest, MissingRangesNameEveryGapBelowTheHighestWaitingSeq) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 0), &out).ok());
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 1), &out).ok());
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 4), &out).ok());
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 5), &out).ok());
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 8), &out).ok());
+  EXPECT_EQ(table.MissingRanges(0), (std::vector<std::pair<int32_t, int32_t>>{{2, 3}, {6, 7}}));
+  EXPECT_EQ(table.NextSeq(0), 2);
+  // A trajectory first seen at seq 3 misses 0..2.
+  ASSERT_TRUE(table.Offer(MakeKeyframe("R2", 2, 3), &out).ok());
+  EXPECT_EQ(table.MissingRanges(1), (std::vector<std::pair<int32_t, int32_t>>{{0, 2}}));
+  EXPECT_EQ(table.NextSeq(1), 0);
 }
 
 TEST(TrajectoryTableTest, LateStartBeginsAtTheLowestSeqAndFlushAdmitsTheRest) {
@@ -128,6 +175,34 @@ TEST(TrajectoryTableTest, FindsTheSessionOfARobotAtATimeAndInterpolates) {
   EXPECT_EQ(r.NearestIndex(9'000'000), 3);
   EXPECT_DOUBLE_EQ(r.OdometryPoseAt(600'000).x(), 0.6);
   EXPECT_DOUBLE_EQ(r.OdometryPoseAt(9'000'000).x(), 1.5);
+}
+
+}  // namespace
+}  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+TEST(TrajectoryTableTest, AReusedIdAfterARestartStartsANewTrajectory) {
+  // Issue 13: a restarted agent given its old --trajectory-id had every keyframe refused
+  // as a duplicate. Its seq 0 (another time) starts a new trajectory instead.
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  for (int s = 0; s < 4; ++s) ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 7, s), &out).ok());
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 7, 0), &out).code(), ErrorCode::kDuplicateSequence);
+  for (int s = 0; s < 3; ++s) {
+    ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 7, s, 60'000'000), &out).ok()) << s;
+  }
+  EXPECT_EQ(table.num_reused_ids(), 1);
+  ASSERT_EQ(table.records().size(), 2u);
+  EXPECT_EQ(table.records()[0].num_keyframes(), 4);  // the old session keeps its keyframes
+  EXPECT_EQ(table.records()[1].num_keyframes(), 3);
+  EXPECT_EQ(table.Find("R1", 7), &table.records()[1]);
+  EXPECT_TRUE(out[4].new_trajectory);
+  EXPECT_EQ(out[4].key, (PoseKey{1, 0}));
+  // Its duplicates are recognised as such.
+  EXPECT_EQ(table.Offer(MakeKeyframe("R1", 7, 2, 60'000'000), &out).code(),
+            ErrorCode::kDuplicateSequence);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 
 #include "agent/node/agent_node.h"
 #include "common/bus/codec.h"
+#include "common/bus/delivery_codec.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/bus/map_codec.h"
@@ -387,6 +388,76 @@ TEST_F(AgentServerTest, OfflineServerOnARecordedLogIsDeterministicAndAgrees) {
     }
   }
   std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// The agent's bus side of delivery: what it publishes stays in its outbox, a resend
+// request for its trajectory publishes the same bytes again (another trajectory's does
+// nothing), an acknowledgement frees them, and the timeout resends what is not.
+TEST(AgentNodeDeliveryTest, ResendsOnRequestFreesOnAckAndResendsOnTimeout) {
+  SetMinLogLevel(LogLevel::kWarning);
+  const MiniSim sim(10.0, {{5.0, 0, 1}});
+  AgentNodeOptions options;
+  options.agent.robot = "R1";
+  options.agent.trajectory_id = 42;
+  options.outbox.resend_timeout_s = 1.0;
+  std::vector<std::pair<std::string, std::vector<uint8_t>>> published;
+  AgentNode node(options, [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    published.emplace_back(channel, bytes);
+  });
+  node.SetClock(1'000'000);
+  for (const auto& m : sim.messages()) node.OnMessage(m.channel, m.bytes.data(), m.bytes.size());
+  const size_t sent = published.size();
+  ASSERT_GT(sent, 5u);
+  EXPECT_EQ(node.outbox().size(), sent);
+  std::map<int32_t, std::vector<uint8_t>> keyframes;
+  int encounters = 0;
+  for (const auto& [channel, bytes] : published) {
+    if (channel == "ANCHORMAP_KEYFRAMES") {
+      keyframes[DecodeKeyframe(bytes.data(), bytes.size())->seq] = bytes;
+    } else {
+      ASSERT_EQ(channel, "ANCHORMAP_ENCOUNTERS");
+      EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size())->seq, encounters++);
+    }
+  }
+  EXPECT_EQ(encounters, 1);
+
+  ResendRequest request;
+  request.robot = "R1";
+  request.trajectory_id = 43;  // not this session
+  request.ranges = {{StreamKind::kKeyframes, 1, 2}, {StreamKind::kEncounters, 0, 0}};
+  auto bytes = EncodeResendRequest(request);
+  node.OnMessage("ANCHORMAP_RESEND_REQUESTS", bytes.data(), bytes.size());
+  EXPECT_EQ(published.size(), sent);
+  request.trajectory_id = 42;
+  bytes = EncodeResendRequest(request);
+  node.OnMessage("ANCHORMAP_RESEND_REQUESTS", bytes.data(), bytes.size());
+  ASSERT_EQ(published.size(), sent + 3);
+  EXPECT_EQ(published[sent].second, keyframes[1]);
+  EXPECT_EQ(published[sent + 1].second, keyframes[2]);
+  EXPECT_EQ(published[sent + 2].first, "ANCHORMAP_ENCOUNTERS");
+
+  DeliveryAck ack;
+  ack.robot = "R1";
+  ack.trajectory_id = 42;
+  ack.keyframes_next = static_cast<int32_t>(keyframes.size()) - 1;  // all but the last
+  ack.encounters_next = 1;
+  bytes = EncodeDeliveryAck(ack);
+  node.OnMessage("ANCHORMAP_ACKS", bytes.data(), bytes.size());
+  EXPECT_EQ(node.outbox().size(), 1u);
+  // The last keyframe was never acknowledged: after the timeout it goes out again.
+  node.Poll(1'500'000);
+  EXPECT_EQ(published.size(), sent + 3);
+  node.Poll(2'000'001);
+  ASSERT_EQ(published.size(), sent + 4);
+  EXPECT_EQ(published.back().second, keyframes.rbegin()->second);
+  EXPECT_EQ(node.rejects().total(), 0);
+  SetMinLogLevel(LogLevel::kInfo);
 }
 
 }  // namespace

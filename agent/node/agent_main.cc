@@ -7,6 +7,7 @@
 
 #include "agent/node/agent_node.h"
 #include "agent/node/agent_node_options.h"
+#include "agent/trajectory_id.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
@@ -14,11 +15,18 @@
 namespace anchormap {
 namespace {
 
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 void Register(OptionsLoader* l, AgentNodeOptions* node) {
   AgentOptions* o = &node->agent;
   l->Add("robot", "robot", &o->robot, "robot name, upper case (e.g. R1)", /*required=*/true);
   l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
-         "this session's trajectory id (0: wall-clock microseconds at start, a new one per run)");
+         "this session's trajectory id (0: 63 random bits from the OS, a new one per run; a "
+         "reused id after a restart still gives a new trajectory on the server)");
   l->Add("lcm_url", "lcm-url", &node->lcm_url,
          "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
   l->Add("max_range_m", "max-range-m", &o->max_range_m,
@@ -60,6 +68,15 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("channels.keyframes", "keyframes-channel", &node->channels.keyframes, "keyframe_t output");
   l->Add("channels.encounters", "encounters-channel", &node->channels.encounters,
          "encounter_t output (relays; also read, to see this robot being observed)");
+  l->Add("channels.acks", "acks-channel", &node->channels.acks,
+         "delivery_ack_t input (the server's acknowledgements)");
+  l->Add("channels.resend_requests", "resend-requests-channel", &node->channels.resend_requests,
+         "resend_request_t input (the server asks for missing keyframes / encounters)");
+  l->Add("outbox.max_bytes", "outbox-max-bytes", &node->outbox.max_bytes,
+         "bytes of unacknowledged keyframes / encounters kept for resending; past it the "
+         "oldest are dropped and counted (queue_full)");
+  l->Add("outbox.resend_timeout_s", "resend-timeout-s", &node->outbox.resend_timeout_s,
+         "resend an unacknowledged message after this long (s; then 2x, then 4x)");
 }
 
 int Main(int argc, char** argv) {
@@ -71,11 +88,7 @@ int Main(int argc, char** argv) {
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   if (Status valid = options.Validate(); !valid.ok()) return loader.UsageError(valid);
-  if (options.agent.trajectory_id == 0) {
-    options.agent.trajectory_id = std::chrono::duration_cast<std::chrono::microseconds>(
-                                      std::chrono::system_clock::now().time_since_epoch())
-                                      .count();
-  }
+  if (options.agent.trajectory_id == 0) options.agent.trajectory_id = DrawTrajectoryId();
   options = WithDefaultChannels(options);
   if (Status logging =
           loader.StartLogging(options.log_level, "anchormap-agent " + options.agent.robot,
@@ -100,6 +113,7 @@ int Main(int argc, char** argv) {
     const Status status = loop->Subscribe(
         channel,
         [&node](const std::string& c, const uint8_t* data, size_t size) {
+          node.SetClock(WallUtime());
           node.OnMessage(c, data, size);
         },
         1000);
@@ -108,6 +122,8 @@ int Main(int argc, char** argv) {
       return 1;
     }
   }
+  // Unacknowledged keyframes and encounters go out again after the resend timeout.
+  loop->Every(std::chrono::milliseconds(100), [&node] { node.Poll(WallUtime()); });
   if (options.status_period_s > 0) {
     loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
                 [&node] { LogInfo(node.StatusLine()); });

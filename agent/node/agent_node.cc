@@ -2,6 +2,7 @@
 
 #include "common/bus/channels.h"
 #include "common/bus/codec.h"
+#include "common/bus/delivery_codec.h"
 
 namespace anchormap {
 
@@ -16,11 +17,12 @@ AgentNodeOptions WithDefaultChannels(AgentNodeOptions options) {
 AgentNode::AgentNode(const AgentNodeOptions& options, Publish publish)
     : options_(WithDefaultChannels(options)),
       publish_(std::move(publish)),
-      agent_(options_.agent) {}
+      agent_(options_.agent),
+      outbox_(options_.outbox) {}
 
 std::vector<std::string> AgentNode::InputChannels() const {
-  return {options_.channels.odometry, options_.channels.laser, options_.channels.encounter,
-          options_.channels.encounters};
+  return {options_.channels.odometry,   options_.channels.laser, options_.channels.encounter,
+          options_.channels.encounters, options_.channels.acks,  options_.channels.resend_requests};
 }
 
 bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
@@ -40,6 +42,9 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
       return true;
     }
     refused = encounter.ok() ? agent_.OnEncounter(*encounter, &out) : encounter.status();
+  } else if (channel == options_.channels.acks || channel == options_.channels.resend_requests) {
+    OnDelivery(channel, data, size);
+    return true;
   } else {
     return false;
   }
@@ -51,11 +56,54 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
 void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
   for (const Status& refused : out.late_rejections) rejects_.Count(refused, context);
   for (const Keyframe& keyframe : out.keyframes) {
-    publish_(options_.channels.keyframes, EncodeKeyframe(keyframe));
+    Send(StreamKind::kKeyframes, keyframe.seq, EncodeKeyframe(keyframe), context);
   }
   for (const Encounter& encounter : out.encounters) {
-    publish_(options_.channels.encounters, EncodeEncounter(encounter));
+    Send(StreamKind::kEncounters, encounter.seq, EncodeEncounter(encounter), context);
   }
+}
+
+void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
+                     const std::string& context) {
+  publish_(
+      kind == StreamKind::kKeyframes ? options_.channels.keyframes : options_.channels.encounters,
+      bytes);
+  if (!options_.reliable) return;
+  if (Status kept = outbox_.Add(kind, seq, std::move(bytes), now_utime_); !kept.ok()) {
+    rejects_.Count(kept, context);
+  }
+}
+
+void AgentNode::Resend(const std::vector<const Outbox::Entry*>& entries) {
+  for (const Outbox::Entry* entry : entries) {
+    publish_(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
+                                                   : options_.channels.encounters,
+             entry->bytes);
+  }
+}
+
+void AgentNode::OnDelivery(const std::string& channel, const uint8_t* data, size_t size) {
+  // Malformed or foreign acknowledgements are not this agent's to count: the trajectory
+  // id and robot name select this session's.
+  const auto mine = [this](const std::string& robot, int64_t trajectory_id) {
+    return robot == options_.agent.robot && trajectory_id == options_.agent.trajectory_id;
+  };
+  if (channel == options_.channels.acks) {
+    const Result<DeliveryAck> ack = DecodeDeliveryAck(data, size);
+    if (ack.ok() && mine(ack->robot, ack->trajectory_id)) {
+      outbox_.Acknowledge(ack->keyframes_next, ack->encounters_next);
+    }
+    return;
+  }
+  const Result<ResendRequest> request = DecodeResendRequest(data, size);
+  if (request.ok() && mine(request->robot, request->trajectory_id)) {
+    Resend(outbox_.Requested(request->ranges, now_utime_));
+  }
+}
+
+void AgentNode::Poll(int64_t now_utime) {
+  now_utime_ = now_utime;
+  Resend(outbox_.TimedOut(now_utime));
 }
 
 std::string AgentNode::StatusLine() const {
@@ -65,7 +113,12 @@ std::string AgentNode::StatusLine() const {
          " keyframes " + std::to_string(s.keyframes) + " (forced " +
          std::to_string(s.forced_keyframes) + ") encounters relayed " +
          std::to_string(s.encounters_relayed) + " waiting scans " +
-         std::to_string(agent_.pending_scans()) + " rejected: " + rejects_.Summary();
+         std::to_string(agent_.pending_scans()) + " outbox " + std::to_string(outbox_.size()) +
+         " (" + std::to_string(outbox_.bytes()) + " bytes) acknowledged " +
+         std::to_string(outbox_.stats().acknowledged) + " resent " +
+         std::to_string(outbox_.stats().resent_on_request) + "+" +
+         std::to_string(outbox_.stats().resent_on_timeout) + " dropped " +
+         std::to_string(outbox_.stats().dropped) + " rejected: " + rejects_.Summary();
 }
 
 }  // namespace anchormap

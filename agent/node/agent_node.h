@@ -12,6 +12,7 @@
 
 #include "agent/agent.h"
 #include "agent/node/agent_node_options.h"
+#include "agent/outbox.h"
 #include "common/util/reject_counter.h"
 
 namespace anchormap {
@@ -25,25 +26,39 @@ class AgentNode {
   // derived from the robot name.
   AgentNode(const AgentNodeOptions& options, Publish publish);
 
-  // The channels to subscribe to: odometry, laser, the robot's encounter channel, and
-  // the server's encounter channel (to force a keyframe when this robot is observed).
+  // The channels to subscribe to: odometry, laser, the robot's encounter channel, the
+  // server's encounter channel (to force a keyframe when this robot is observed), and the
+  // server's acknowledgements and resend requests.
   std::vector<std::string> InputChannels() const;
-  // One message; returns false for a channel that is not an input.
+  // One message; returns false for a channel that is not an input. Every keyframe and
+  // relayed encounter published is kept in the outbox until acknowledged; a resend
+  // request for this trajectory publishes the kept ones again.
   bool OnMessage(const std::string& channel, const uint8_t* data, size_t size);
+  // The clock of the outbox (wall time online; tests and anchormap-replay leave it at 0).
+  void SetClock(int64_t now_utime) { now_utime_ = now_utime; }
+  // Resends what has waited too long for an acknowledgement (call on a timer).
+  void Poll(int64_t now_utime);
   // "R1 trajectory 17...: odometry 5000 scans 1000 keyframes 120 relayed 3 rejected: none"
   std::string StatusLine() const;
 
   const Agent& agent() const { return agent_; }
   const RejectCounter& rejects() const { return rejects_; }
+  const Outbox& outbox() const { return outbox_; }
   const AgentNodeOptions& options() const { return options_; }
 
  private:
   void Emit(const AgentOutput& out, const std::string& context);
+  void Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes, const std::string& context);
+  void Resend(const std::vector<const Outbox::Entry*>& entries);
+  // Acknowledgements and resend requests (for this trajectory only).
+  void OnDelivery(const std::string& channel, const uint8_t* data, size_t size);
 
   AgentNodeOptions options_;
   Publish publish_;
   Agent agent_;
+  Outbox outbox_;
   RejectCounter rejects_;
+  int64_t now_utime_ = 0;
 };
 
 }  // namespace anchormap

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "agent/agent_options.h"
+#include "agent/outbox.h"
 #include "common/bus/channels.h"
 #include "common/util/status.h"
 
@@ -18,17 +19,24 @@ struct AgentChannels {
   std::string encounter;
   std::string keyframes = channels::kKeyframes;
   std::string encounters = channels::kEncounters;
+  std::string acks = channels::kAcks;                       // delivery_ack_t input
+  std::string resend_requests = channels::kResendRequests;  // resend_request_t input
 };
 
 struct AgentNodeOptions {
   AgentOptions agent;
   AgentChannels channels;
+  OutboxOptions outbox;
+  // Keep what is published for resending until acknowledged (off where the bus loses
+  // nothing and no server acknowledges: anchormap-replay over memq://).
+  bool reliable = true;
   std::string lcm_url;           // empty: LCM's default ($LCM_DEFAULT_URL or udpm default)
   double status_period_s = 5.0;  // status line period (0 = off)
   std::string log_level = "info";
 
   Status Validate() const {
     if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
+    if (Status e = outbox.Validate(); !e.ok()) return e;
     return agent.Validate();
   }
 };

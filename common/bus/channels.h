@@ -21,6 +21,9 @@ inline std::string Reference(const std::string& robot) { return robot + kReferen
 // Agents -> server.
 inline constexpr char kKeyframes[] = "ANCHORMAP_KEYFRAMES";    // keyframe_t
 inline constexpr char kEncounters[] = "ANCHORMAP_ENCOUNTERS";  // encounter_t (trajectory filled)
+// Server -> agents: delivery of keyframes and relayed encounters.
+inline constexpr char kAcks[] = "ANCHORMAP_ACKS";                       // delivery_ack_t
+inline constexpr char kResendRequests[] = "ANCHORMAP_RESEND_REQUESTS";  // resend_request_t
 // Server -> users.
 inline constexpr char kMergedMap[] = "ANCHORMAP_MERGED_MAP";  // merged_map_t
 inline constexpr char kAnchorCovariances[] =

@@ -155,6 +155,7 @@ Result<Encounter> DecodeEncounter(const void* data, size_t size) {
     return Status::Error(ErrorCode::kSelfEncounter, m.observer + " observed itself");
   }
   if (m.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (m.seq < -1) return Status::Error(ErrorCode::kBadSequence, "encounter seq < -1");
   if (!AllFinite(m.relative_pose, 3) || !AllFinite(m.covariance, 9)) {
     return Status::Error(ErrorCode::kNotFinite, "relative pose or covariance");
   }
@@ -169,6 +170,7 @@ Result<Encounter> DecodeEncounter(const void* data, size_t size) {
   e.observed = m.observed;
   e.T_observer_observed = PoseFromArray(m.relative_pose);
   e.covariance = covariance;
+  e.seq = m.seq;
   return Success(std::move(e));
 }
 
@@ -180,6 +182,7 @@ std::vector<uint8_t> EncodeEncounter(const Encounter& e) {
   m.observed = e.observed;
   PoseToArray(e.T_observer_observed, m.relative_pose);
   MatrixToRowMajor(e.covariance, m.covariance);
+  m.seq = e.seq;
   return Encode(m);
 }
 

@@ -194,14 +194,21 @@ TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
   e.observed = "R3";
   e.T_observer_observed = Pose2(2.0, 0.5, -0.4);
   e.covariance = Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal();
+  e.seq = 17;
   auto bytes = EncodeEncounter(e);
   auto decoded = DecodeEncounter(bytes.data(), bytes.size());
   ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  EXPECT_EQ(decoded->seq, 17);
   EXPECT_EQ(decoded->observer, "R1");
   EXPECT_EQ(decoded->observed, "R3");
   EXPECT_EQ(decoded->observer_trajectory_id, 99);
   EXPECT_DOUBLE_EQ(decoded->T_observer_observed.theta(), -0.4);
   EXPECT_DOUBLE_EQ(decoded->covariance(2, 2), 0.01);
+
+  Encounter unsequenced = e;
+  unsequenced.seq = -2;
+  bytes = EncodeEncounter(unsequenced);
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).status().code(), ErrorCode::kBadSequence);
 
   Encounter self = e;
   self.observed = "R1";

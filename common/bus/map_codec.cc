@@ -39,6 +39,8 @@ std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
   m.num_encounters = static_cast<int32_t>(map.encounters.size());
   for (const EncounterLink& link : map.encounters) {
     anchormap::encounter_link_t out;
+    out.robot_a = link.robot_a;
+    out.robot_b = link.robot_b;
     out.trajectory_a = link.trajectory_a;
     out.index_a = link.index_a;
     out.trajectory_b = link.trajectory_b;
@@ -65,7 +67,8 @@ Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
     map.trajectories.push_back(std::move(out));
   }
   for (const anchormap::encounter_link_t& link : m.encounters) {
-    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+    map.encounters.push_back({link.robot_a, link.trajectory_a, link.index_a, link.robot_b,
+                              link.trajectory_b, link.index_b});
   }
   return Success(std::move(map));
 }
@@ -147,6 +150,8 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   m.keyframes = s.keyframes;
   m.encounters = s.encounters;
   m.last_update_ms = s.last_update_ms;
+  m.bridged_gaps = s.bridged_gaps;
+  m.resend_requests = s.resend_requests;
   m.num_reasons = static_cast<int32_t>(s.rejections.size());
   for (const auto& [reason, count] : s.rejections) {
     m.rejection_reasons.push_back(reason);
@@ -167,6 +172,8 @@ Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   s.keyframes = m.keyframes;
   s.encounters = m.encounters;
   s.last_update_ms = m.last_update_ms;
+  s.bridged_gaps = m.bridged_gaps;
+  s.resend_requests = m.resend_requests;
   for (size_t i = 0; i < m.rejection_reasons.size(); ++i) {
     s.rejections.emplace_back(m.rejection_reasons[i], m.rejection_counts[i]);
   }

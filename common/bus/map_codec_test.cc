@@ -18,7 +18,7 @@ TEST(MapCodecTest, MergedMapRoundTrips) {
   t.poses = {Pose2(1, 2, 0.5), Pose2(1.5, 2.1, 0.6)};
   map.trajectories.push_back(t);
   map.trajectories.push_back(MergedTrajectory{"R2", 78, false, Pose2(), {}, {}});
-  map.encounters.push_back({77, 1, 78, 0});
+  map.encounters.push_back({"R1", 77, 1, "R2", 78, 0});
   const auto bytes = EncodeMergedMap(map);
   const auto decoded = DecodeMergedMap(bytes.data(), bytes.size());
   ASSERT_TRUE(decoded.ok()) << decoded.status().message();
@@ -32,6 +32,8 @@ TEST(MapCodecTest, MergedMapRoundTrips) {
   EXPECT_DOUBLE_EQ(d.trajectories[0].T_global_local.theta(), 0.5);
   ASSERT_EQ(d.encounters.size(), 1u);
   EXPECT_EQ(d.encounters[0].trajectory_b, 78);
+  EXPECT_EQ(d.encounters[0].robot_a, "R1");
+  EXPECT_EQ(d.encounters[0].robot_b, "R2");
   EXPECT_EQ(d.encounters[0].index_a, 1);
 }
 

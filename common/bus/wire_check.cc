@@ -128,6 +128,7 @@ Status CheckEncounterWire(const void* data, size_t size) {
   WIRE_SKIP(c, 8, "observer_trajectory_id");
   WIRE_TRY(c.SkipString("observed", CodecLimits::kMaxNameLength));
   WIRE_SKIP(c, 8 * (3 + 9), "relative_pose/covariance");
+  WIRE_SKIP(c, 4, "seq");
   return Status::Ok();
 }
 
@@ -146,8 +147,14 @@ Status CheckMergedMapWire(const void* data, size_t size) {
     WIRE_SKIP(c, 32 * static_cast<size_t>(poses), "poses");
   }
   int32_t encounters = 0;
-  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 24, &encounters));
-  WIRE_SKIP(c, 24 * static_cast<size_t>(encounters), "encounters");
+  // A link takes at least 2 * (4 + 1 + 8 + 4) bytes.
+  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 34, &encounters));
+  for (int32_t e = 0; e < encounters; ++e) {
+    WIRE_TRY(c.SkipString("robot_a", CodecLimits::kMaxNameLength));
+    WIRE_SKIP(c, 12, "trajectory_a/index_a");
+    WIRE_TRY(c.SkipString("robot_b", CodecLimits::kMaxNameLength));
+    WIRE_SKIP(c, 12, "trajectory_b/index_b");
+  }
   return Status::Ok();
 }
 
@@ -179,7 +186,7 @@ Status CheckGridTileWire(const void* data, size_t size) {
 Status CheckServerStatusWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckHash<anchormap::server_status_t>(&c));
-  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8, "status fields");
+  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8 + 8 + 8, "status fields");
   int32_t reasons = 0;
   WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));
   for (int32_t r = 0; r < reasons; ++r) WIRE_TRY(c.SkipString("reason", 256));

@@ -21,6 +21,10 @@ struct Encounter {
   // The observed robot's body pose in the observer's body frame, at `utime`.
   Pose2 T_observer_observed;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // (x, y, theta)
+  // Relay sequence number within the observer trajectory (0, 1, 2, ..., apart from the
+  // keyframes' seq), set by the observer's agent; -1 = none (a sensor's message). The
+  // server recognises duplicates and asks for missing ones by it.
+  int32_t seq = -1;
 };
 
 }  // namespace anchormap

@@ -25,11 +25,13 @@ struct MergedTrajectory {
   std::vector<Pose2> poses;
 };
 
-// An encounter in the map: the two keyframes it joins (agent trajectory ids, keyframe
-// indices in pose order of the merged map).
+// An encounter in the map: the two keyframes it joins (robot + agent trajectory id, which
+// is unique per robot only; keyframe indices in pose order of the merged map).
 struct EncounterLink {
+  std::string robot_a;
   int64_t trajectory_a = 0;
   int32_t index_a = 0;
+  std::string robot_b;
   int64_t trajectory_b = 0;
   int32_t index_b = 0;
 };
@@ -77,6 +79,8 @@ struct ServerStatus {
   int64_t keyframes = 0;
   int64_t encounters = 0;  // encounters added to the graph
   double last_update_ms = 0.0;
+  int64_t bridged_gaps = 0;     // keyframe gaps bridged after waiting (lost keyframes)
+  int64_t resend_requests = 0;  // resend requests published
   std::vector<std::pair<std::string, int64_t>> rejections;  // reason -> count (non-zero)
 };
 

@@ -24,6 +24,7 @@ enum class ErrorCode {
   kNoKeyframeNearTime,  // an encounter too far in time from any keyframe
   kQueueFull,           // a bounded buffer overflowed, the oldest entry was dropped
   kSolverRejected,      // the smoother refused a measurement
+  kLateSequence,        // a sequence number arriving after its gap was bridged (not a duplicate)
   // Failures of a call or an environment.
   kInvalidArgument,   // a bad option, flag or call argument
   kIoError,           // a file that cannot be opened, read or written

@@ -40,6 +40,8 @@ const char* ToString(ErrorCode code) {
       return "queue_full";
     case ErrorCode::kSolverRejected:
       return "solver_rejected";
+    case ErrorCode::kLateSequence:
+      return "late_sequence";
     case ErrorCode::kInvalidArgument:
       return "invalid_argument";
     case ErrorCode::kIoError:

@@ -53,6 +53,15 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("channels.grid_tiles", "grid-tiles-channel", &o->channels.grid_tiles,
          "grid_tile_t output");
   l->Add("channels.status", "status-channel", &o->channels.status, "server_status_t output");
+  l->Add("channels.acks", "acks-channel", &o->channels.acks, "delivery_ack_t output (online)");
+  l->Add("channels.resend_requests", "resend-requests-channel", &o->channels.resend_requests,
+         "resend_request_t output (online)");
+  l->Add("ack_period_s", "ack-period-s", &o->ack_period_s,
+         "online: acknowledge every trajectory's keyframes / encounters this often (s)");
+  l->Add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
+         "ask a trajectory for missing keyframes / encounters at most this often (s)");
+  l->Add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
+         "batch steps iterate until the largest step component is below this");
   l->Add("smoother.formulation", "formulation", formulation,
          "relative (anchors), global or global-moved (baselines)");
   l->Add("smoother.batch_every_updates", "batch-every-updates", &s.smoother.batch_every_updates,
@@ -69,7 +78,8 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("table.max_held", "max-held-keyframes", &s.table.max_held,
          "keyframes held per trajectory waiting for a missing sequence number");
   l->Add("table.max_hold_s", "max-hold-s", &s.table.max_hold_s,
-         "keyframe time a gap may stay open before it is bridged (s)");
+         "a keyframe gap stays open this long (wall time online, data time offline) waiting for "
+         "the resend before it is bridged, the last resort (s)");
   l->Add("table.gap_covariance_scale", "gap-covariance-scale", &s.table.gap_covariance_scale,
          "bridged gap covariance = delta covariance x (missing + 1) x this");
   l->Add("direct.max_wait_s", "encounter-max-wait-s", &s.direct.max_wait_s,
@@ -104,6 +114,7 @@ int RunOnline(const ServerOptions& options) {
     if (!status.ok()) LogWarning(status.message());
   });
   auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
+    node.server().SetClock(WallUtime());
     node.OnMessage(channel, data, size);
     node.PublishDue(WallUtime());
   };
@@ -114,8 +125,15 @@ int RunOnline(const ServerOptions& options) {
       return 1;
     }
   }
-  // Updates that arrived within a map period of the last publication go out from here.
-  loop->Every(std::chrono::milliseconds(100), [&node] { node.PublishDue(WallUtime()); });
+  // Updates that arrived within a map period of the last publication go out from here;
+  // gaps that waited too long are bridged; missing keyframes / encounters are asked for.
+  loop->Every(std::chrono::milliseconds(100), [&node] {
+    node.server().Tick(WallUtime());
+    node.PublishResendRequests();
+    node.PublishDue(WallUtime());
+  });
+  loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.ack_period_s)),
+              [&node] { node.PublishAcks(); });
   auto status_line = [&node, bus] {
     const LcmLoopStats& s = bus->stats();
     return node.server().StatusLine() + " | lcm messages " + std::to_string(s.messages_handled) +
@@ -134,7 +152,10 @@ int RunOnline(const ServerOptions& options) {
           " (" + (options.lcm_url.empty() ? std::string("default LCM URL") : options.lcm_url) +
           ")");
   loop->Run();
-  node.PublishDue(WallUtime());
+  // End of the session: what still waits is admitted (gaps bridged), then one batch step,
+  // and the converged map goes out.
+  node.server().Flush();
+  node.PublishAll();
   LogInfo("final: " + status_line());
   return 0;
 }

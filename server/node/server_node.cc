@@ -1,6 +1,7 @@
 #include "server/node/server_node.h"
 
 #include "common/bus/codec.h"
+#include "common/bus/delivery_codec.h"
 #include "common/bus/map_codec.h"
 
 namespace anchormap {
@@ -54,6 +55,18 @@ void ServerNode::PublishDue(int64_t now_utime) {
 
 void ServerNode::PublishStatus() {
   publish_(options_.channels.status, EncodeServerStatus(server_.BuildStatus()));
+}
+
+void ServerNode::PublishAcks() {
+  for (const DeliveryAck& ack : server_.BuildAcks()) {
+    publish_(options_.channels.acks, EncodeDeliveryAck(ack));
+  }
+}
+
+void ServerNode::PublishResendRequests() {
+  for (const ResendRequest& request : server_.BuildResendRequests()) {
+    publish_(options_.channels.resend_requests, EncodeResendRequest(request));
+  }
 }
 
 void ServerNode::PublishAll() {

@@ -33,6 +33,9 @@ class ServerNode {
   void PublishStatus();
   // Publishes map, covariances, grid tiles and status now (end of an offline run).
   void PublishAll();
+  // Online delivery: acknowledgements of every trajectory; resend requests that are due.
+  void PublishAcks();
+  void PublishResendRequests();
 
   MappingServer& server() { return server_; }
   int64_t published_maps() const { return published_maps_; }

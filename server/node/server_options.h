@@ -18,6 +18,8 @@ struct ServerChannels {
   std::string anchor_covariances = channels::kAnchorCovariances;
   std::string grid_tiles = channels::kGridTiles;
   std::string status = channels::kServerStatus;
+  std::string acks = channels::kAcks;
+  std::string resend_requests = channels::kResendRequests;
 };
 
 struct ServerOptions {
@@ -30,6 +32,8 @@ struct ServerOptions {
   double status_period_s = 5.0;
   // Receive queue per subscription (LCM's default of 30 drops bursts silently).
   int queue_capacity = 10000;
+  // Online: cumulative acknowledgements of every trajectory this often (s).
+  double ack_period_s = 0.5;
   std::string log_level = "info";
   MappingServerOptions server;
   ServerChannels channels;
@@ -40,6 +44,7 @@ struct ServerOptions {
     if (!log_input.empty() && log_input == log_output)
       return Status::Error("--output must differ from --log");
     if (!(status_period_s >= 0)) return Status::Error("status_period_s must be >= 0");
+    if (!(ack_period_s > 0)) return Status::Error("ack_period_s must be > 0");
     if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
     return server.Validate();
   }

@@ -29,9 +29,10 @@ void AssignGroups(const merged_map_t& map, MapEstimate* estimate) {
   const int n = static_cast<int>(trajectories.size());
   std::vector<int> parent(n);
   std::iota(parent.begin(), parent.end(), 0);
-  const auto index_of = [&](int64_t id) {
+  // Trajectory ids are unique per robot only: a link names both.
+  const auto index_of = [&](const std::string& robot, int64_t id) {
     for (int i = 0; i < n; ++i) {
-      if (trajectories[i].trajectory_id == id) return i;
+      if (trajectories[i].robot == robot && trajectories[i].trajectory_id == id) return i;
     }
     return -1;
   };
@@ -44,7 +45,8 @@ void AssignGroups(const merged_map_t& map, MapEstimate* estimate) {
     }
   }
   for (const encounter_link_t& link : map.encounters) {
-    const int a = index_of(link.trajectory_a), b = index_of(link.trajectory_b);
+    const int a = index_of(link.robot_a, link.trajectory_a);
+    const int b = index_of(link.robot_b, link.trajectory_b);
     if (a < 0 || b < 0 || !trajectories[a].anchored || !trajectories[b].anchored) continue;
     parent[FindRoot(&parent, a)] = FindRoot(&parent, b);
   }

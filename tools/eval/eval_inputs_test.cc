@@ -42,7 +42,15 @@ merged_map_t MakeMap(int64_t update, std::vector<trajectory_t> trajectories,
   map.update = update;
   map.trajectories = std::move(trajectories);
   map.num_trajectories = static_cast<int32_t>(map.trajectories.size());
-  for (const auto& [a, b] : links) map.encounters.push_back({a, 0, b, 0});
+  const auto robot_of = [&map](int64_t id) {
+    for (const trajectory_t& t : map.trajectories) {
+      if (t.trajectory_id == id) return t.robot;
+    }
+    return std::string("?");
+  };
+  for (const auto& [a, b] : links) {
+    map.encounters.push_back({robot_of(a), a, 0, robot_of(b), b, 0});
+  }
   map.num_encounters = static_cast<int32_t>(map.encounters.size());
   return map;
 }

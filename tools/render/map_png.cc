@@ -117,8 +117,8 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
     }
     if (options.draw_encounters) {
       for (const EncounterLink& link : map->encounters) {
-        const Pose2* a = map->FindPose(link.trajectory_a, link.index_a);
-        const Pose2* b = map->FindPose(link.trajectory_b, link.index_b);
+        const Pose2* a = map->FindPose(link.a, link.index_a);
+        const Pose2* b = map->FindPose(link.b, link.index_b);
         if (!a || !b) continue;
         canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()), kDark, 1.5,
                     0.8);

@@ -6,10 +6,10 @@ namespace anchormap::render {
 
 PoseGraph BuildMergedGraph(const MergedMap& map, int* skipped_links) {
   PoseGraph graph;
-  std::map<int64_t, int64_t> first_id;  // trajectory id -> vertex id of its keyframe 0
+  std::map<TrajectoryKey, int64_t> first_id;  // trajectory -> vertex id of its keyframe 0
   int64_t next_id = 0;
   for (const TrajectoryView& t : map.trajectories) {
-    first_id[t.key.trajectory_id] = next_id;
+    first_id[t.key] = next_id;
     for (size_t i = 0; i < t.poses.size(); ++i) {
       graph.vertices.push_back({next_id + static_cast<int64_t>(i), t.poses[i]});
       if (i > 0) {
@@ -22,15 +22,14 @@ PoseGraph BuildMergedGraph(const MergedMap& map, int* skipped_links) {
   }
   int skipped = 0;
   for (const EncounterLink& link : map.encounters) {
-    const Pose2* a = map.FindPose(link.trajectory_a, link.index_a);
-    const Pose2* b = map.FindPose(link.trajectory_b, link.index_b);
+    const Pose2* a = map.FindPose(link.a, link.index_a);
+    const Pose2* b = map.FindPose(link.b, link.index_b);
     if (!a || !b) {
       ++skipped;
       continue;
     }
-    graph.edges.push_back({first_id[link.trajectory_a] + link.index_a,
-                           first_id[link.trajectory_b] + link.index_b, Between(*a, *b),
-                           Eigen::Matrix3d::Identity()});
+    graph.edges.push_back({first_id[link.a] + link.index_a, first_id[link.b] + link.index_b,
+                           Between(*a, *b), Eigen::Matrix3d::Identity()});
   }
   if (skipped_links) *skipped_links = skipped;
   return graph;

@@ -53,10 +53,11 @@ TEST(MergedGraphTest, UnknownLinksAreSkipped) {
   trajectory.utimes = {1, 2};
   trajectory.poses = {Pose2(), Pose2(1, 0, 0)};
   map.trajectories.push_back(trajectory);
-  map.encounters.push_back({1, 0, 7, 0});
+  map.encounters.push_back({{"R1", 1}, 0, {"R1", 7}, 0});
+  map.encounters.push_back({{"R1", 1}, 0, {"R2", 1}, 0});  // R2's id 1 is another trajectory
   int skipped = 0;
   const PoseGraph graph = BuildMergedGraph(map, &skipped);
-  EXPECT_EQ(skipped, 1);
+  EXPECT_EQ(skipped, 2);
   EXPECT_EQ(graph.edges.size(), 1u);
 }
 

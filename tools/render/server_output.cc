@@ -48,7 +48,10 @@ std::optional<MergedMap> FromMessage(const anchormap::merged_map_t& message) {
     map.trajectories.push_back(std::move(view));
   }
   for (const anchormap::encounter_link_t& link : message.encounters) {
-    map.encounters.push_back({link.trajectory_a, link.index_a, link.trajectory_b, link.index_b});
+    map.encounters.push_back({{link.robot_a, link.trajectory_a},
+                              link.index_a,
+                              {link.robot_b, link.trajectory_b},
+                              link.index_b});
   }
   return map;
 }
@@ -90,9 +93,9 @@ std::optional<T> SafeDecode(const LogEvent& event) {
 
 }  // namespace
 
-const Pose2* MergedMap::FindPose(int64_t trajectory_id, int index) const {
+const Pose2* MergedMap::FindPose(const TrajectoryKey& trajectory, int index) const {
   for (const TrajectoryView& t : trajectories) {
-    if (t.key.trajectory_id != trajectory_id) continue;
+    if (!(t.key == trajectory)) continue;
     if (index < 0 || index >= static_cast<int>(t.poses.size())) return nullptr;
     return &t.poses[index];
   }
@@ -191,8 +194,8 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
   }
   if (result.map) {
     for (const EncounterLink& link : result.map->encounters) {
-      if (!result.map->FindPose(link.trajectory_a, link.index_a) ||
-          !result.map->FindPose(link.trajectory_b, link.index_b)) {
+      if (!result.map->FindPose(link.a, link.index_a) ||
+          !result.map->FindPose(link.b, link.index_b)) {
         ++result.dangling_links;
       }
     }

@@ -24,9 +24,9 @@ struct TrajectoryView {
 };
 
 struct EncounterLink {
-  int64_t trajectory_a = 0;
-  int index_a = 0;  // keyframe index within trajectory_a's poses
-  int64_t trajectory_b = 0;
+  TrajectoryKey a;  // robot + trajectory id (ids are unique per robot only)
+  int index_a = 0;  // keyframe index within a's poses
+  TrajectoryKey b;
   int index_b = 0;
 };
 
@@ -37,7 +37,7 @@ struct MergedMap {
   std::vector<EncounterLink> encounters;
 
   // The pose a link end refers to, or nullptr when the trajectory or index is unknown.
-  const Pose2* FindPose(int64_t trajectory_id, int index) const;
+  const Pose2* FindPose(const TrajectoryKey& trajectory, int index) const;
   size_t NumPoses() const;
 };
 

@@ -27,11 +27,12 @@ TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
   EXPECT_EQ(output.map->trajectories[0].key.trajectory_id, 11);
   EXPECT_FALSE(output.map->trajectories[2].anchored);
   EXPECT_EQ(output.map->NumPoses(), 8u);
-  const Pose2* end = output.map->FindPose(11, 2);
+  const Pose2* end = output.map->FindPose({"R1", 11}, 2);
   ASSERT_NE(end, nullptr);
   EXPECT_EQ(end->x(), 8.0);
-  EXPECT_EQ(output.map->FindPose(11, 3), nullptr);
-  EXPECT_EQ(output.map->FindPose(99, 0), nullptr);
+  EXPECT_EQ(output.map->FindPose({"R1", 11}, 3), nullptr);
+  EXPECT_EQ(output.map->FindPose({"R1", 99}, 0), nullptr);
+  EXPECT_EQ(output.map->FindPose({"R2", 11}, 0), nullptr);  // the id is R1's, not R2's
   EXPECT_EQ(output.dangling_links, 0);
   // The grid: the four tiles of update 9, not the single tile of update 4.
   ASSERT_EQ(output.grid.size(), 4u);

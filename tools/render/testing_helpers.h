@@ -71,8 +71,10 @@ inline anchormap::merged_map_t TestMergedMap(int64_t update) {
   map.trajectories.push_back(MakeTrajectory("R3", 13, false, {{1, 6, 0}, {3, 6, 0}}));
   map.num_trajectories = 3;
   anchormap::encounter_link_t link;
+  link.robot_a = "R1";
   link.trajectory_a = 11;
   link.index_a = 2;
+  link.robot_b = "R2";
   link.trajectory_b = 12;
   link.index_b = 1;
   map.encounters.push_back(link);

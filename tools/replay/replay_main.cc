@@ -80,6 +80,7 @@ int Run(const ReplayOptions& options) {
     AgentNodeOptions agent_options;
     agent_options.agent.robot = robot;
     agent_options.agent.trajectory_id = trajectory_id++;  // deterministic ids
+    agent_options.reliable = false;  // memq:// loses nothing; no acknowledgements here
     agent_options.agent.max_range_m = options.max_range_m;
     agent_options.agent.keyframer.max_distance_m = options.keyframe_distance_m;
     agent_options.agent.keyframer.max_angle_rad = options.keyframe_angle_rad;

@@ -1,0 +1,49 @@
+#include "server/delivery.h"
+
+namespace anchormap {
+
+bool SeqWindow::Insert(int32_t seq) {
+  if (Contains(seq)) return false;
+  if (seq == next_) {
+    ++next_;
+    while (!above_.empty() && *above_.begin() == next_) {
+      above_.erase(above_.begin());
+      ++next_;
+    }
+  } else {
+    above_.insert(seq);
+  }
+  return true;
+}
+
+std::vector<std::pair<int32_t, int32_t>> SeqWindow::Missing() const {
+  std::vector<std::pair<int32_t, int32_t>> ranges;
+  int32_t expected = next_;
+  for (int32_t seq : above_) {
+    if (seq > expected) ranges.emplace_back(expected, seq - 1);
+    expected = seq + 1;
+  }
+  return ranges;
+}
+
+int32_t SeqWindow::GiveUpMissing() {
+  if (above_.empty()) return 0;
+  const int32_t highest = *above_.rbegin();
+  const int32_t given_up = highest + 1 - next_ - static_cast<int32_t>(above_.size());
+  next_ = highest + 1;
+  above_.clear();
+  return given_up;
+}
+
+bool ResendTracker::Due(const std::string& robot, int64_t trajectory_id, int64_t now_utime) {
+  const auto key = std::make_pair(robot, trajectory_id);
+  const auto it = last_request_utime_.find(key);
+  if (it != last_request_utime_.end() &&
+      1e-6 * static_cast<double>(now_utime - it->second) < options_.resend_period_s) {
+    return false;
+  }
+  last_request_utime_[key] = now_utime;
+  return true;
+}
+
+}  // namespace anchormap
