@@ -58,7 +58,7 @@ class MapPublisherTest : public ::testing::Test {
         smoother_.AddEncounter({0, 2}, {1, 1}, seen, Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal())
             .ok());
     ASSERT_TRUE(smoother_.Update().status.ok());
-    links_.push_back({7, 2, 8, 1});
+    links_.push_back({"A", 7, 2, "B", 8, 1});
   }
 
   TrajectoryTable table_;
