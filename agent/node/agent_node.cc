@@ -33,6 +33,17 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
     Result<LaserScan> scan = DecodeLaser(data, size);
     refused = scan.ok() ? agent_.OnScan(std::move(*scan), &out) : scan.status();
   } else if (channel == options_.channels.encounter || channel == options_.channels.encounters) {
+    std::vector<uint8_t> opened;
+    if (channel == options_.channels.encounters && authenticator_) {
+      Result<std::vector<uint8_t>> payload = authenticator_->Open(channel, data, size);
+      if (!payload.ok()) {
+        rejects_.Count(payload.status(), channel);  // forged relays are ours to count
+        return true;
+      }
+      opened = std::move(*payload);
+      data = opened.data();
+      size = opened.size();
+    }
     const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (channel == options_.channels.encounters) {
       // Others' bad relays on the shared channel are the server's to count.
@@ -51,10 +62,22 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
 void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
   for (const Status& refused : out.late_rejections) rejects_.Count(refused, context);
   for (const Keyframe& keyframe : out.keyframes) {
-    publish_(options_.channels.keyframes, EncodeKeyframe(keyframe));
+    Send(options_.channels.keyframes, EncodeKeyframe(keyframe));
   }
   for (const Encounter& encounter : out.encounters) {
-    publish_(options_.channels.encounters, EncodeEncounter(encounter));
+    Send(options_.channels.encounters, EncodeEncounter(encounter));
+  }
+}
+
+void AgentNode::EnableAuthentication(Authenticator authenticator) {
+  authenticator_.emplace(std::move(authenticator));
+}
+
+void AgentNode::Send(const std::string& channel, const std::vector<uint8_t>& bytes) {
+  if (authenticator_) {
+    publish_(channel, authenticator_->Seal(channel, bytes.data(), bytes.size()));
+  } else {
+    publish_(channel, bytes);
   }
 }
 

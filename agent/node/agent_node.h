@@ -7,11 +7,13 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "agent/agent.h"
 #include "agent/node/agent_node_options.h"
+#include "common/bus/authenticator.h"
 #include "common/util/reject_counter.h"
 
 namespace anchormap {
@@ -28,6 +30,10 @@ class AgentNode {
   // The channels to subscribe to: odometry, laser, the robot's encounter channel, and
   // the server's encounter channel (to force a keyframe when this robot is observed).
   std::vector<std::string> InputChannels() const;
+  // From now on keyframes and relays go out sealed under `authenticator`'s signing key, and
+  // relays read back from the shared encounter channel must be sealed under one of its
+  // keys (the robot's own sensor channels are local and stay unsigned).
+  void EnableAuthentication(Authenticator authenticator);
   // One message; returns false for a channel that is not an input.
   bool OnMessage(const std::string& channel, const uint8_t* data, size_t size);
   // "R1 trajectory 17...: odometry 5000 scans 1000 keyframes 120 relayed 3 rejected: none"
@@ -42,8 +48,11 @@ class AgentNode {
 
   AgentNodeOptions options_;
   Publish publish_;
+  void Send(const std::string& channel, const std::vector<uint8_t>& bytes);
+
   Agent agent_;
   RejectCounter rejects_;
+  std::optional<Authenticator> authenticator_;
 };
 
 }  // namespace anchormap

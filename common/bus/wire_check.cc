@@ -73,6 +73,10 @@ Status WireCursor::SkipString(const char* field, size_t max_length) {
                              " bytes long (limit " + std::to_string(max_length) + ")");
   }
   if (!Skip(static_cast<size_t>(length_with_nul))) return Truncated(field);
+  // lcm-gen's decode drops the last byte without looking: it must be the terminator.
+  if (bytes_[position_ - 1] != 0) {
+    return Status::Error(ErrorCode::kDecodeFailed, std::string(field) + " is not NUL-terminated");
+  }
   return Status::Ok();
 }
 
