@@ -61,8 +61,10 @@ fuzz_pass() {
     target=$(basename "$dir")
     mkdir -p "build-fuzz/corpus/$target"
     echo "-- fuzz-$target"
+    mkdir -p build-fuzz/artifacts
     if ! build-fuzz/fuzz/fuzz-"$target" -max_total_time="$seconds" -timeout=20 \
-        -rss_limit_mb=2048 -print_final_stats=1 "build-fuzz/corpus/$target" "$dir" \
+        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$target-" \
+        "build-fuzz/corpus/$target" "$dir" \
         >"build-fuzz/fuzz-$target.log" 2>&1; then
       tail -n 60 "build-fuzz/fuzz-$target.log" >&2
       echo "test.sh: fuzz-$target found a bug (log: build-fuzz/fuzz-$target.log)" >&2
