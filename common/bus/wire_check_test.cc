@@ -148,6 +148,9 @@ TEST(WireCheckTest, RefusesBadStringLengthsAndMissingTerminators) {
   b = good;
   b[22] = '!';  // the terminator itself
   EXPECT_NE(CheckKeyframeWire(b.data(), b.size()).message().find("NUL"), std::string::npos);
+  b = good;
+  b[20] = 0;  // "\01": a NUL inside
+  EXPECT_NE(CheckKeyframeWire(b.data(), b.size()).message().find("NUL inside"), std::string::npos);
   WireCursor cursor(good.data(), 17);  // a length field cut in the middle
   ASSERT_TRUE(cursor.Skip(16));
   EXPECT_FALSE(cursor.SkipString("robot", 64).ok());
