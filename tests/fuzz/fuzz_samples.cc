@@ -41,13 +41,13 @@ std::vector<uint8_t> WithChannel(uint8_t channel, const std::vector<uint8_t>& me
 
 }  // namespace
 
-const std::vector<std::string>& ServerChannels() {
+const std::vector<std::string>& ServerNodeChannels() {
   static const std::vector<std::string> channels = {"ANCHORMAP_KEYFRAMES", "ANCHORMAP_ENCOUNTERS",
                                                     "ANCHORMAP_MERGED_MAP"};
   return channels;
 }
 
-const std::vector<std::string>& AgentChannels() {
+const std::vector<std::string>& AgentNodeChannels() {
   static const std::vector<std::string> channels = {"R1_ODOMETRY", "R1_LASER", "R1_ENCOUNTER",
                                                     "ANCHORMAP_ENCOUNTERS", "R2_LASER"};
   return channels;

@@ -15,8 +15,8 @@ namespace anchormap::fuzz {
 std::map<std::string, std::vector<std::vector<uint8_t>>> SeedInputs();
 
 // The channels of the node targets, indexed by the input's first byte (modulo the size).
-const std::vector<std::string>& ServerChannels();
-const std::vector<std::string>& AgentChannels();
+const std::vector<std::string>& ServerNodeChannels();
+const std::vector<std::string>& AgentNodeChannels();
 
 // The fixed fleet key of the envelope target.
 Authenticator FuzzAuthenticator(const std::string& sender);

@@ -21,7 +21,7 @@
 namespace anchormap::fuzz {
 namespace {
 
-[[noreturn]] void Fail(const char* what) {
+[[noreturn, maybe_unused]] void Fail(const char* what) {
   std::fprintf(stderr, "fuzz property violated: %s\n", what);
   std::abort();
 }
@@ -107,7 +107,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         [] { return int64_t{1'700'000'100'000'000}; });
   }();
   static int64_t calls = 0;
-  const std::vector<std::string>& channels = ServerChannels();
+  const std::vector<std::string>& channels = ServerNodeChannels();
   node->OnMessage(channels[data[0] % channels.size()], data + 1, size - 1);
   if (++calls % 64 == 0) node->PublishAll();  // the outputs of whatever was accepted
 #elif defined(ANCHORMAP_FUZZ_agent_node)
@@ -118,7 +118,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     options.agent.trajectory_id = 11;
     return new AgentNode(options, [](const std::string&, const std::vector<uint8_t>&) {});
   }();
-  const std::vector<std::string>& channels = AgentChannels();
+  const std::vector<std::string>& channels = AgentNodeChannels();
   node->OnMessage(channels[data[0] % channels.size()], data + 1, size - 1);
 #else
 #error "define one ANCHORMAP_FUZZ_<target>"
