@@ -14,6 +14,7 @@ PACKAGES=(
   chromium                                                  # headless browser for the viewer's browser test
   libgtest-dev libgmock-dev libbenchmark-dev                # tests and micro-benchmarks
   libpng-dev zlib1g-dev                                     # PNG maps, gzip'd CARMEN logs
+  libssl-dev                                                # HMAC-SHA-256 of the auth layer (--key-file)
   libcairo2-dev fonts-dejavu-core                           # map and plot drawing (anchormap-render)
   iproute2 util-linux                                       # ip / unshare for the network-namespace tests
 )

@@ -3,7 +3,12 @@
 #   0. Every C++ file is clang-formatted.
 #   1. Release build with warnings as errors, then ctest.
 #   2. ASan + UBSan build of the same tests, then ctest.
-# Set ANCHORMAP_SKIP_SANITIZE=1 to run only the first pass while iterating locally.
+#   3. Fuzz pass: clang build with -fsanitize=fuzzer,address,undefined (build-fuzz/), each
+#      libFuzzer target of tests/fuzz run once for ANCHORMAP_FUZZ_SECONDS (default 20) from
+#      its seed corpus in tests/fuzz/corpus/ (new inputs go to build-fuzz/corpus/, not the
+#      repository); skipped with a message when clang++ or libFuzzer is missing.
+# Set ANCHORMAP_SKIP_SANITIZE=1 to run only the first pass while iterating locally, and
+# ANCHORMAP_SKIP_FUZZ=1 to leave out the fuzz pass.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
@@ -31,5 +36,46 @@ if [ "${ANCHORMAP_SKIP_SANITIZE:-0}" != "1" ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   run_pass build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
+fi
+fuzz_pass() {
+  local seconds=${ANCHORMAP_FUZZ_SECONDS:-20}
+  if ! command -v clang++ >/dev/null || ! command -v clang >/dev/null; then
+    echo "== Fuzz pass SKIPPED: clang/clang++ not found (Debian: apt-get install clang)"
+    return 0
+  fi
+  local probe
+  probe=$(mktemp -d)
+  if ! echo 'extern "C" int LLVMFuzzerTestOneInput(const unsigned char*, unsigned long) { return 0; }' |
+      clang++ -x c++ -fsanitize=fuzzer - -o "$probe/probe" 2>/dev/null; then
+    rm -rf "$probe"
+    echo "== Fuzz pass SKIPPED: clang++ cannot link -fsanitize=fuzzer (libclang_rt.fuzzer missing)"
+    return 0
+  fi
+  rm -rf "$probe"
+  echo "== Fuzz pass: clang, -fsanitize=fuzzer,address,undefined, ${seconds} s per target"
+  CC=clang CXX=clang++ cmake -S . -B build-fuzz -DANCHORMAP_WERROR=ON -DANCHORMAP_FUZZ=ON \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+  cmake --build build-fuzz -j "$jobs" --target anchormap_fuzz
+  local target
+  for dir in tests/fuzz/corpus/*/; do
+    target=$(basename "$dir")
+    mkdir -p "build-fuzz/corpus/$target"
+    echo "-- fuzz-$target"
+    mkdir -p build-fuzz/artifacts
+    if ! build-fuzz/fuzz/fuzz-"$target" -max_total_time="$seconds" -timeout=20 \
+        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$target-" \
+        "build-fuzz/corpus/$target" "$dir" \
+        >"build-fuzz/fuzz-$target.log" 2>&1; then
+      tail -n 60 "build-fuzz/fuzz-$target.log" >&2
+      echo "test.sh: fuzz-$target found a bug (log: build-fuzz/fuzz-$target.log)" >&2
+      exit 1
+    fi
+    grep -E '^stat::number_of_executed_units|^Done ' "build-fuzz/fuzz-$target.log" || true
+  done
+}
+
+if [ "${ANCHORMAP_SKIP_FUZZ:-0}" != "1" ]; then
+  unset ASAN_OPTIONS UBSAN_OPTIONS
+  fuzz_pass
 fi
 echo "== all tests passed"

@@ -8,6 +8,7 @@
 #include "agent/node/agent_node.h"
 #include "agent/node/agent_node_options.h"
 #include "agent/trajectory_id.h"
+#include "common/bus/authenticator.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
@@ -59,6 +60,10 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("status_period_s", "status-period-s", &node->status_period_s,
          "status line period (s; 0 = off)");
   l->Add("log_level", "log-level", &node->log_level, "debug, info, warning or error");
+  l->Add("key_file", "key-file", &node->key_file,
+         "sign keyframes and relays with a key of this file and check others' relays "
+         "(empty: no authentication, with a warning)");
+  l->Add("key_id", "key-id", &node->key_id, "the signing key's id (empty: the file's first)");
   l->Add("channels.odometry", "odometry-channel", &node->channels.odometry,
          "pose_t input (empty: <ROBOT>_ODOMETRY)");
   l->Add("channels.laser", "laser-channel", &node->channels.laser,
@@ -109,6 +114,29 @@ int Main(int argc, char** argv) {
     const Status status = bus->Publish(channel, bytes);
     if (!status.ok()) LogWarning(status.message());
   });
+  if (options.key_file.empty()) {
+    LogWarning("no --key-file: keyframes and encounters go out unauthenticated");
+  } else {
+    Result<KeyRing> keys = LoadKeyFile(options.key_file);
+    if (!keys.ok()) {
+      LogError(keys.status().message());
+      return 1;
+    }
+    AuthenticatorOptions auth;
+    auth.signing_key_id = options.key_id;
+    auth.sender = options.agent.robot;
+    auth.first_counter = std::chrono::duration_cast<std::chrono::microseconds>(
+                             std::chrono::system_clock::now().time_since_epoch())
+                             .count();
+    Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+    if (!authenticator.ok()) {
+      LogError(authenticator.status().message());
+      return 1;
+    }
+    LogInfo("authentication on: signing with '" + authenticator->signing_key_id() + "' from " +
+            options.key_file);
+    node.EnableAuthentication(std::move(*authenticator));
+  }
   for (const std::string& channel : node.InputChannels()) {
     const Status status = loop->Subscribe(
         channel,

@@ -26,6 +26,22 @@ std::vector<std::string> AgentNode::InputChannels() const {
 }
 
 bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
+  // What comes from the fleet's bus (relays, the server's acks and resend requests) is
+  // sealed when authentication is on; the robot's own sensor channels are local.
+  const bool from_fleet = channel == options_.channels.encounters ||
+                          channel == options_.channels.acks ||
+                          channel == options_.channels.resend_requests;
+  std::vector<uint8_t> opened;
+  if (from_fleet && authenticator_) {
+    Result<std::vector<uint8_t>> payload = authenticator_->Open(channel, data, size);
+    if (!payload.ok()) {
+      rejects_.Count(payload.status(), channel);  // forged fleet messages are ours to count
+      return true;
+    }
+    opened = std::move(*payload);
+    data = opened.data();
+    size = opened.size();
+  }
   AgentOutput out;
   Status refused;
   if (channel == options_.channels.odometry) {
@@ -63,9 +79,21 @@ void AgentNode::Emit(const AgentOutput& out, const std::string& context) {
   }
 }
 
+void AgentNode::EnableAuthentication(Authenticator authenticator) {
+  authenticator_.emplace(std::move(authenticator));
+}
+
+void AgentNode::Publish(const std::string& channel, const std::vector<uint8_t>& bytes) {
+  if (authenticator_) {
+    publish_(channel, authenticator_->Seal(channel, bytes.data(), bytes.size()));
+  } else {
+    publish_(channel, bytes);
+  }
+}
+
 void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
                      const std::string& context) {
-  publish_(
+  Publish(
       kind == StreamKind::kKeyframes ? options_.channels.keyframes : options_.channels.encounters,
       bytes);
   if (!options_.reliable) return;
@@ -75,10 +103,12 @@ void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
 }
 
 void AgentNode::Resend(const std::vector<const Outbox::Entry*>& entries) {
+  // Kept unsealed: each (re)send is sealed under a fresh counter, so a resend of a
+  // message the server never saw is not a replay.
   for (const Outbox::Entry* entry : entries) {
-    publish_(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
-                                                   : options_.channels.encounters,
-             entry->bytes);
+    Publish(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
+                                                  : options_.channels.encounters,
+            entry->bytes);
   }
 }
 

@@ -7,12 +7,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "agent/agent.h"
 #include "agent/node/agent_node_options.h"
 #include "agent/outbox.h"
+#include "common/bus/authenticator.h"
 #include "common/util/reject_counter.h"
 
 namespace anchormap {
@@ -30,6 +32,10 @@ class AgentNode {
   // server's encounter channel (to force a keyframe when this robot is observed), and the
   // server's acknowledgements and resend requests.
   std::vector<std::string> InputChannels() const;
+  // From now on keyframes and relays go out sealed under `authenticator`'s signing key, and
+  // what comes from the fleet's bus (relays, acknowledgements, resend requests) must be
+  // sealed under one of its keys (the robot's own sensor channels are local, unsigned).
+  void EnableAuthentication(Authenticator authenticator);
   // One message; returns false for a channel that is not an input. Every keyframe and
   // relayed encounter published is kept in the outbox until acknowledged; a resend
   // request for this trajectory publishes the kept ones again.
@@ -55,10 +61,14 @@ class AgentNode {
 
   AgentNodeOptions options_;
   Publish publish_;
+  // Publishes `bytes`, sealed when authentication is on.
+  void Publish(const std::string& channel, const std::vector<uint8_t>& bytes);
+
   Agent agent_;
   Outbox outbox_;
   RejectCounter rejects_;
   int64_t now_utime_ = 0;
+  std::optional<Authenticator> authenticator_;
 };
 
 }  // namespace anchormap

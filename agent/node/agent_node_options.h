@@ -33,10 +33,14 @@ struct AgentNodeOptions {
   std::string lcm_url;           // empty: LCM's default ($LCM_DEFAULT_URL or udpm default)
   double status_period_s = 5.0;  // status line period (0 = off)
   std::string log_level = "info";
+  // Authentication (common/bus/authenticator.h; empty: none, with a warning at start).
+  std::string key_file;
+  std::string key_id;  // the key that signs this agent's messages (empty: the file's first)
 
   Status Validate() const {
     if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
     if (Status e = outbox.Validate(); !e.ok()) return e;
+    if (!key_id.empty() && key_file.empty()) return Status::Error("--key-id needs --key-file");
     return agent.Validate();
   }
 };

@@ -21,6 +21,7 @@ using codec_internal::AllFinite;
 using codec_internal::CheckName;
 using codec_internal::CheckRanges;
 using codec_internal::CheckScanGeometry;
+using codec_internal::CheckUtime;
 using codec_internal::Encode;
 using codec_internal::MatrixFromRowMajor;
 using codec_internal::MatrixToRowMajor;
@@ -42,9 +43,7 @@ Result<OdometrySample> DecodeOdometry(const void* data, size_t size) {
   if (std::abs(norm - 1.0) > 0.1) {
     return Status::Error(ErrorCode::kInvalidValue, "orientation is not a unit quaternion");
   }
-  if (message.utime < 0) {
-    return Status::Error(ErrorCode::kInvalidValue, "negative utime");
-  }
+  if (Status p = CheckUtime(message.utime); !p.ok()) return p;
   OdometrySample sample;
   sample.utime = message.utime;
   sample.T_odom_body = Pose2(message.pos[0], message.pos[1],
@@ -67,7 +66,7 @@ Result<LaserScan> DecodeLaser(const void* data, size_t size) {
   bot_core::planar_lidar_t message;
   if (Status p = SafeDecode(data, size, CheckPlanarLidarWire, &message); !p.ok()) return p;
   if (message.nranges < 1) return Status::Error(ErrorCode::kInvalidValue, "no ranges");
-  if (message.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (Status p = CheckUtime(message.utime); !p.ok()) return p;
   if (Status p = CheckScanGeometry(message.rad0, message.radstep, message.ranges.size()); !p.ok()) {
     return p;
   }
@@ -96,7 +95,7 @@ Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   if (Status p = SafeDecode(data, size, CheckKeyframeWire, &m); !p.ok()) return p;
   if (Status p = CheckName(m.robot, "robot"); !p.ok()) return p;
   if (m.seq < 0) return Status::Error(ErrorCode::kBadSequence, "negative seq");
-  if (m.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (Status p = CheckUtime(m.utime); !p.ok()) return p;
   if (!AllFinite(m.pose, 3) || !AllFinite(m.T_previous_this, 3) ||
       !AllFinite(m.T_previous_this_covariance, 9) || !AllFinite(m.sensor_offset, 3) ||
       !std::isfinite(m.max_range)) {
@@ -154,7 +153,7 @@ Result<Encounter> DecodeEncounter(const void* data, size_t size) {
   if (m.observer == m.observed) {
     return Status::Error(ErrorCode::kSelfEncounter, m.observer + " observed itself");
   }
-  if (m.utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (Status p = CheckUtime(m.utime); !p.ok()) return p;
   if (m.seq < -1) return Status::Error(ErrorCode::kBadSequence, "encounter seq < -1");
   if (!AllFinite(m.relative_pose, 3) || !AllFinite(m.covariance, 9)) {
     return Status::Error(ErrorCode::kNotFinite, "relative pose or covariance");

@@ -28,6 +28,9 @@ struct CodecLimits {
   static constexpr int32_t kMaxTrajectories = 10000;
   static constexpr int32_t kMaxPosesPerTrajectory = 10000000;
   static constexpr int32_t kMaxTileCells = 4096 * 4096;
+  // Times beyond this (about year 5138) are refused: far from INT64_MAX, so that adding
+  // periods and windows to a data time never overflows.
+  static constexpr int64_t kMaxUtime = 100'000'000'000'000'000;
 };
 
 // bot_core.pose_t: position (x, y, -), orientation quaternion (w, x, y, z) of a yaw.

@@ -100,6 +100,19 @@ inline Status CheckRanges(const std::vector<float>& ranges) {
     if (!std::isfinite(ranges[i])) {
       return Status::Error(ErrorCode::kNotFinite, "range " + std::to_string(i) + " is not finite");
     }
+    if (ranges[i] < 0.0f) {
+      return Status::Error(ErrorCode::kInvalidValue, "range " + std::to_string(i) + " is negative");
+    }
+  }
+  return Status::Ok();
+}
+
+// A message time: 0 <= utime <= CodecLimits::kMaxUtime.
+inline Status CheckUtime(int64_t utime) {
+  if (utime < 0) return Status::Error(ErrorCode::kInvalidValue, "negative utime");
+  if (utime > CodecLimits::kMaxUtime) {
+    return Status::Error(ErrorCode::kInvalidValue,
+                         "utime " + std::to_string(utime) + " is beyond any plausible clock");
   }
   return Status::Ok();
 }

@@ -229,28 +229,83 @@ TEST(CodecTest, EncounterRoundTripsAndRejectsSelfAndBadCovariance) {
 }
 
 // Mutated and truncated messages of every input type: decoding must return (a value or a
-// reason), never crash or throw; ASan builds check the memory side.
+// reason), never crash or throw; ASan builds check the memory side. Each accepted message
+// is a fixed point after one re-encoding (decode(encode(v)) == v, compared as bytes), and
+// each refusal carries one of the input-refusal codes.
+template <typename T, typename Decode, typename Encode>
+bool CheckOne(const std::vector<uint8_t>& bytes, Decode decode, Encode encode) {
+  const Result<T> value = decode(bytes.data(), bytes.size());
+  if (!value.ok()) {
+    const int code = static_cast<int>(value.status().code());
+    EXPECT_GE(code, static_cast<int>(ErrorCode::kDecodeFailed));
+    EXPECT_LT(code, static_cast<int>(ErrorCode::kInvalidArgument)) << value.status().ToString();
+    EXPECT_FALSE(value.status().message().empty());
+    return false;
+  }
+  const std::vector<uint8_t> once = encode(*value);
+  const Result<T> again = decode(once.data(), once.size());
+  EXPECT_TRUE(again.ok()) << again.status().ToString();
+  if (again.ok()) {
+    EXPECT_EQ(encode(*again), once);
+  }
+  return true;
+}
+
 TEST(CodecTest, RandomCorruptionNeverCrashes) {
   std::mt19937 rng(7);
   const std::vector<std::vector<uint8_t>> originals = {
       EncodeKeyframe(MakeKeyframe()), EncodeLaser(MakeScan(90)),
       EncodeOdometry({5, Pose2(1, 2, 3)}),
       EncodeEncounter(Encounter{1, "A", 0, "B", Pose2(), Eigen::Matrix3d::Identity()})};
-  int rejected = 0;
+  int rejected = 0, accepted = 0;
   for (int trial = 0; trial < 4000; ++trial) {
     std::vector<uint8_t> bytes = originals[trial % originals.size()];
     std::uniform_int_distribution<size_t> position(0, bytes.size() - 1);
     const int flips = 1 + trial % 4;
     for (int f = 0; f < flips; ++f) bytes[position(rng)] = static_cast<uint8_t>(rng());
     if (trial % 5 == 0) bytes.resize(position(rng));
-    const bool ok = DecodeKeyframe(bytes.data(), bytes.size()).ok() |
-                    DecodeLaser(bytes.data(), bytes.size()).ok() |
-                    DecodeOdometry(bytes.data(), bytes.size()).ok() |
-                    DecodeEncounter(bytes.data(), bytes.size()).ok();
+    const bool ok = CheckOne<Keyframe>(bytes, DecodeKeyframe, EncodeKeyframe) |
+                    CheckOne<LaserScan>(bytes, DecodeLaser, EncodeLaser) |
+                    CheckOne<OdometrySample>(bytes, DecodeOdometry, EncodeOdometry) |
+                    CheckOne<Encounter>(bytes, DecodeEncounter, EncodeEncounter);
     if (!ok) ++rejected;
+    if (ok) ++accepted;
   }
   // Flipping bytes inside float payloads often leaves a valid message; most are refused.
   EXPECT_GT(rejected, 1000);
+  EXPECT_GT(accepted, 100);  // the round-trip property was exercised
+}
+
+TEST(CodecTest, RefusesNegativeRangesUnterminatedNamesAndAbsurdTimes) {
+  Keyframe k = MakeKeyframe();
+  k.scan.ranges[3] = -1.0f;
+  std::vector<uint8_t> bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
+  LaserScan scan = MakeScan(10);
+  scan.ranges[0] = -0.5f;
+  bytes = EncodeLaser(scan);
+  EXPECT_EQ(DecodeLaser(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
+
+  // robot "R2": fingerprint 8, utime 8, length 4 (= 3), 'R' '2' NUL at 20..22.
+  bytes = EncodeKeyframe(MakeKeyframe());
+  ASSERT_EQ(bytes[22], 0);
+  bytes[22] = 'X';
+  const Result<Keyframe> unterminated = DecodeKeyframe(bytes.data(), bytes.size());
+  EXPECT_EQ(unterminated.status().code(), ErrorCode::kDecodeFailed);
+  EXPECT_NE(unterminated.status().message().find("NUL"), std::string::npos);
+
+  k = MakeKeyframe();
+  k.utime = std::numeric_limits<int64_t>::max();
+  bytes = EncodeKeyframe(k);
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
+  bytes = EncodeOdometry({std::numeric_limits<int64_t>::max(), Pose2()});
+  EXPECT_EQ(DecodeOdometry(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
+  bytes = EncodeEncounter(Encounter{std::numeric_limits<int64_t>::max(), "A", 0, "B", Pose2(),
+                                    Eigen::Matrix3d::Identity()});
+  EXPECT_EQ(DecodeEncounter(bytes.data(), bytes.size()).status().code(), ErrorCode::kInvalidValue);
+  k.utime = CodecLimits::kMaxUtime;
+  bytes = EncodeKeyframe(k);
+  EXPECT_TRUE(DecodeKeyframe(bytes.data(), bytes.size()).ok());
 }
 
 }  // namespace

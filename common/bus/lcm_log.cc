@@ -2,13 +2,18 @@
 
 #include <lcm/eventlog.h>
 
+#include <algorithm>
+#include <fstream>
+
 namespace anchormap {
 
 struct LcmLogWriter::File {
   lcm_eventlog_t* log = nullptr;
 };
 struct LcmLogReader::File {
-  lcm_eventlog_t* log = nullptr;
+  std::ifstream stream;
+  uint64_t size = 0;
+  uint64_t position = 0;  // of the next event's header
 };
 
 LcmLogWriter::LcmLogWriter() : file_(std::make_unique<File>()) {}
@@ -44,27 +49,120 @@ void LcmLogWriter::Close() {
 }
 
 LcmLogReader::LcmLogReader() : file_(std::make_unique<File>()) {}
-LcmLogReader::~LcmLogReader() {
-  if (file_->log) lcm_eventlog_destroy(file_->log);
+LcmLogReader::~LcmLogReader() = default;
+
+namespace {
+
+constexpr uint32_t kSyncWord = 0xEDA1DA01;
+constexpr size_t kHeaderBytes = 4 + 8 + 8 + 4 + 4;
+constexpr int32_t kMaxChannelLength = 1024;
+
+uint64_t BigEndian(const uint8_t* bytes, int n) {
+  uint64_t value = 0;
+  for (int i = 0; i < n; ++i) value = (value << 8) | bytes[i];
+  return value;
 }
 
+}  // namespace
+
 Status LcmLogReader::Open(const std::string& path) {
-  if (file_->log) lcm_eventlog_destroy(file_->log);
-  file_->log = lcm_eventlog_create(path.c_str(), "r");
-  if (!file_->log) return Status::Error("cannot open LCM log '" + path + "' for reading");
+  file_->stream = std::ifstream(path, std::ios::binary);
+  problems_.clear();
+  file_->position = 0;
+  if (!file_->stream) {
+    file_->size = 0;
+    return Status::Error(ErrorCode::kIoError, "cannot open LCM log '" + path + "' for reading");
+  }
+  file_->stream.seekg(0, std::ios::end);
+  file_->size = static_cast<uint64_t>(file_->stream.tellg());
+  file_->stream.seekg(0);
   return Status::Ok();
 }
 
 std::optional<LogEvent> LcmLogReader::Next() {
-  if (!file_->log) return std::nullopt;
-  lcm_eventlog_event_t* event = lcm_eventlog_read_next_event(file_->log);
-  if (!event) return std::nullopt;
+  File& f = *file_;
+  if (!f.stream.is_open()) return std::nullopt;
+  // Why the header at `offset` is not plausible, or "" when it is.
+  auto check = [&f](uint64_t offset, const uint8_t* h, int32_t* channel_length,
+                    int32_t* data_length) -> std::string {
+    if (BigEndian(h, 4) != kSyncWord) return "bad sync word";
+    *channel_length = static_cast<int32_t>(BigEndian(h + 20, 4));
+    *data_length = static_cast<int32_t>(BigEndian(h + 24, 4));
+    if (*channel_length < 1 || *channel_length > kMaxChannelLength) return "bad channel length";
+    if (*data_length < 0) return "negative data length";
+    const uint64_t end = offset + kHeaderBytes + static_cast<uint64_t>(*channel_length) +
+                         static_cast<uint64_t>(*data_length);
+    if (end > f.size) return "event runs past the end of the file";
+    return "";
+  };
+  auto read_header = [&f](uint64_t offset, uint8_t* h) {
+    if (offset + kHeaderBytes > f.size) return false;
+    f.stream.clear();
+    f.stream.seekg(static_cast<std::streamoff>(offset));
+    return static_cast<bool>(f.stream.read(reinterpret_cast<char*>(h), kHeaderBytes));
+  };
+  if (f.position >= f.size) return std::nullopt;
+  uint8_t header[kHeaderBytes];
+  int32_t channel_length = 0, data_length = 0;
+  std::string why = read_header(f.position, header)
+                        ? check(f.position, header, &channel_length, &data_length)
+                        : "truncated header";
+  if (!why.empty()) {
+    // Resynchronise: the next offset whose sync word starts a plausible header.
+    const uint64_t bad = f.position;
+    uint64_t next = bad + 1;
+    bool found = false;
+    std::vector<uint8_t> window;
+    for (; next + kHeaderBytes <= f.size; ++next) {
+      if (!read_header(next, header)) break;
+      if (check(next, header, &channel_length, &data_length).empty()) {
+        found = true;
+        break;
+      }
+      // Jump to the next candidate sync byte quickly.
+      const uint64_t span = std::min<uint64_t>(f.size - next, 1 << 16);
+      window.resize(span);
+      f.stream.clear();
+      f.stream.seekg(static_cast<std::streamoff>(next + 1));
+      const std::streamsize got =
+          f.stream
+              .read(reinterpret_cast<char*>(window.data()), static_cast<std::streamsize>(span - 1))
+              .gcount();
+      uint64_t skip = static_cast<uint64_t>(got);
+      for (std::streamsize i = 0; i < got; ++i) {
+        if (window[static_cast<size_t>(i)] == 0xED) {
+          skip = static_cast<uint64_t>(i);
+          break;
+        }
+      }
+      next += skip;  // the loop's ++next lands on the candidate
+    }
+    std::string problem = "corrupt event at byte " + std::to_string(bad) + " (" + why + "): ";
+    if (!found) {
+      problems_.push_back(problem + "skipped the last " + std::to_string(f.size - bad) +
+                          " bytes, to the end of the file");
+      f.position = f.size;
+      return std::nullopt;
+    }
+    problems_.push_back(problem + "skipped " + std::to_string(next - bad) +
+                        " bytes to the next event at byte " + std::to_string(next));
+    f.position = next;
+  }
   LogEvent out;
-  out.utime = event->timestamp;
-  out.channel.assign(event->channel, event->channellen);
-  const auto* bytes = static_cast<const uint8_t*>(event->data);
-  out.data.assign(bytes, bytes + event->datalen);
-  lcm_eventlog_free_event(event);
+  out.utime = static_cast<int64_t>(BigEndian(header + 12, 8));
+  out.channel.resize(static_cast<size_t>(channel_length));
+  out.data.resize(static_cast<size_t>(data_length));
+  f.stream.clear();
+  f.stream.seekg(static_cast<std::streamoff>(f.position + kHeaderBytes));
+  f.stream.read(out.channel.data(), channel_length);
+  f.stream.read(reinterpret_cast<char*>(out.data.data()), data_length);
+  if (!f.stream) {
+    problems_.push_back("read error at byte " + std::to_string(f.position));
+    f.position = f.size;
+    return std::nullopt;
+  }
+  f.position +=
+      kHeaderBytes + static_cast<uint64_t>(channel_length) + static_cast<uint64_t>(data_length);
   return out;
 }
 

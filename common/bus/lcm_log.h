@@ -38,17 +38,28 @@ class LcmLogWriter {
   std::unique_ptr<File> file_;
 };
 
+// Reads the LCM event log format itself (each event: sync word 0xEDA1DA01, event number,
+// timestamp, channel length, data length, channel, data; big-endian) so that a corrupt
+// stretch is reported and skipped rather than ending the file silently: a header that
+// is not plausible (bad sync word, channel length outside 1..1024, data running past the
+// end of the file) is a problem naming its byte offset, and reading resumes at the next
+// sync word that starts a plausible header.
 class LcmLogReader {
  public:
   LcmLogReader();
   ~LcmLogReader();
   Status Open(const std::string& path);
-  // The next event, or nullopt at the end of the file.
+  // The next good event, or nullopt at the end of the file (or when nothing is open).
   std::optional<LogEvent> Next();
+  // Corrupt stretches met so far, one line each: "corrupt event at byte 1234 (bad sync
+  // word): skipped 56 bytes to the next event at byte 1290", or "... at the end of the
+  // file". Empty for a sound log.
+  const std::vector<std::string>& problems() const { return problems_; }
 
  private:
   struct File;
   std::unique_ptr<File> file_;
+  std::vector<std::string> problems_;
 };
 
 // Decodes an event's payload as T; nullopt when it does not decode (wrong type, truncated).

@@ -3,7 +3,12 @@
 #include <lcm/lcm.h>
 
 #include <csignal>
+#include <cstdlib>
 #include <exception>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
 
 #include <boost/asio/posix/stream_descriptor.hpp>
 #include <boost/asio/signal_set.hpp>
@@ -183,5 +188,39 @@ int64_t LcmLoop::HandlePending(int64_t max_messages) {
 }
 
 const LcmLoopStats& LcmLoop::stats() const { return impl_->stats; }
+
+void LcmLoop::RefreshKernelDrops() { impl_->stats.kernel_drops = ReadOwnUdpDrops(); }
+
+int64_t ReadOwnUdpDrops() {
+  std::set<std::string> inodes;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd", error)) {
+    std::error_code link_error;
+    const std::string target = std::filesystem::read_symlink(entry.path(), link_error).string();
+    // "socket:[12345]"
+    if (!link_error && target.rfind("socket:[", 0) == 0 && target.back() == ']') {
+      inodes.insert(target.substr(8, target.size() - 9));
+    }
+  }
+  if (error) return -1;
+  int64_t drops = 0;
+  bool read_any = false;
+  for (const char* table : {"/proc/net/udp", "/proc/net/udp6"}) {
+    std::ifstream file(table);
+    if (!file) continue;
+    read_any = true;
+    std::string line;
+    std::getline(file, line);  // header
+    while (std::getline(file, line)) {
+      // sl local rem st tx:rx tr:when retrnsmt uid timeout inode ref pointer drops
+      std::istringstream fields(line);
+      std::vector<std::string> f;
+      for (std::string field; fields >> field;) f.push_back(field);
+      if (f.size() < 13 || inodes.count(f[9]) == 0) continue;
+      drops += std::strtoll(f[12].c_str(), nullptr, 10);
+    }
+  }
+  return read_any ? drops : -1;
+}
 
 }  // namespace anchormap

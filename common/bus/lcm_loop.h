@@ -30,7 +30,15 @@ struct LcmLoopStats {
   int64_t wakeups = 0;
   int64_t max_burst = 0;  // most messages dispatched in one wake-up
   int64_t publish_failures = 0;
+  // Datagrams the kernel dropped on this process's UDP sockets (full receive buffers),
+  // from /proc/net/udp and udp6, as of the last RefreshKernelDrops(); -1 when unreadable.
+  // LCM 1.3.1 cannot report what its own per-subscription queues dropped.
+  int64_t kernel_drops = 0;
 };
+
+// The sum of the "drops" column of /proc/net/udp{,6} over the sockets this process owns
+// (matched by inode through /proc/self/fd); -1 when /proc cannot be read.
+int64_t ReadOwnUdpDrops();
 
 class LcmLoop {
  public:
@@ -68,6 +76,8 @@ class LcmLoop {
   int64_t HandlePending(int64_t max_messages = 1'000'000);
 
   const LcmLoopStats& stats() const;
+  // Updates stats().kernel_drops (reads /proc: call it at status time, not per message).
+  void RefreshKernelDrops();
 
  private:
   LcmLoop();

@@ -73,6 +73,18 @@ Status WireCursor::SkipString(const char* field, size_t max_length) {
                              " bytes long (limit " + std::to_string(max_length) + ")");
   }
   if (!Skip(static_cast<size_t>(length_with_nul))) return Truncated(field);
+  // lcm-gen's decode drops the last byte without looking: it must be the terminator. An
+  // earlier NUL would survive decoding but not encoding (which measures with strlen while
+  // getEncodedSize counts every byte: the re-encoded message would end in stray zeros).
+  const uint8_t* text = bytes_ + position_ - length_with_nul;
+  if (text[length_with_nul - 1] != 0) {
+    return Status::Error(ErrorCode::kDecodeFailed, std::string(field) + " is not NUL-terminated");
+  }
+  for (int32_t i = 0; i + 1 < length_with_nul; ++i) {
+    if (text[i] == 0) {
+      return Status::Error(ErrorCode::kDecodeFailed, std::string(field) + " has a NUL inside");
+    }
+  }
   return Status::Ok();
 }
 

@@ -4,7 +4,7 @@ namespace anchormap {
 namespace {
 
 template <typename>
-inline constexpr bool kAlwaysFalse = false;
+[[maybe_unused]] inline constexpr bool kAlwaysFalse = false;
 
 // Raw error and (optional) Jacobians for any factor type.
 Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J) {

@@ -25,6 +25,12 @@ enum class ErrorCode {
   kQueueFull,           // a bounded buffer overflowed, the oldest entry was dropped
   kSolverRejected,      // the smoother refused a measurement
   kLateSequence,        // a sequence number arriving after its gap was bridged (not a duplicate)
+  kUnsigned,            // a message without an authenticated envelope where one is required
+  kUnknownKey,          // an envelope naming a key id the receiver does not hold
+  kBadTag,              // an envelope whose HMAC tag does not match (forged or corrupted)
+  kReplay,              // an envelope whose counter was seen before (or is too old)
+  kFromFuture,          // a data time ahead of the receiver's clock by more than allowed
+  kCapReached,          // a new robot, trajectory or sender past a configured cap
   // Failures of a call or an environment.
   kInvalidArgument,   // a bad option, flag or call argument
   kIoError,           // a file that cannot be opened, read or written

@@ -42,6 +42,18 @@ const char* ToString(ErrorCode code) {
       return "solver_rejected";
     case ErrorCode::kLateSequence:
       return "late_sequence";
+    case ErrorCode::kUnsigned:
+      return "unsigned";
+    case ErrorCode::kUnknownKey:
+      return "unknown_key";
+    case ErrorCode::kBadTag:
+      return "bad_tag";
+    case ErrorCode::kReplay:
+      return "replay";
+    case ErrorCode::kFromFuture:
+      return "from_future";
+    case ErrorCode::kCapReached:
+      return "cap_reached";
     case ErrorCode::kInvalidArgument:
       return "invalid_argument";
     case ErrorCode::kIoError:

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "common/bus/authenticator.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
@@ -44,6 +45,18 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("queue_capacity", "queue-capacity", &o->queue_capacity,
          "LCM receive queue per subscription, messages");
   l->Add("log_level", "log-level", &o->log_level, "debug, info, warning or error");
+  l->Add("key_file", "key-file", &o->key_file,
+         "authenticate: inputs must be signed under a key of this file, outputs are signed "
+         "(empty: no authentication, with a warning)");
+  l->Add("key_id", "key-id", &o->key_id,
+         "the key that signs the outputs (empty: the file's first)");
+  l->Add("max_robots", "max-robots", &o->max_robots, "robots admitted; later new ones are refused");
+  l->Add("max_trajectories", "max-trajectories", &o->max_trajectories,
+         "trajectories admitted; later new ones are refused");
+  l->Add("max_scan_ranges", "max-scan-ranges", &o->max_scan_ranges,
+         "keyframes whose scan has more ranges are refused");
+  l->Add("max_future_s", "max-future-s", &o->max_future_s,
+         "data times further ahead of the clock (wall time; offline: the log's) are refused (s)");
   l->Add("channels.keyframes", "keyframes-channel", &o->channels.keyframes, "keyframe_t input");
   l->Add("channels.encounters", "encounters-channel", &o->channels.encounters, "encounter_t input");
   l->Add("channels.merged_map", "merged-map-channel", &o->channels.merged_map,
@@ -101,6 +114,29 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "trace no-return beams as free space up to the ray limit");
 }
 
+// Loads the key file into `node` (with a warning when there is none).
+Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
+  if (options.key_file.empty()) {
+    LogWarning(
+        "no --key-file: messages are not authenticated; anyone on the network can "
+        "publish keyframes and encounters");
+    return Status::Ok();
+  }
+  Result<KeyRing> keys = LoadKeyFile(options.key_file);
+  if (!keys.ok()) return keys.status();
+  AuthenticatorOptions auth;
+  auth.signing_key_id = options.key_id;
+  auth.sender = "server";
+  auth.first_counter = ServerNode::WallClock();
+  const size_t count = keys->keys.size();
+  Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+  if (!authenticator.ok()) return authenticator.status();
+  LogInfo("authentication on: " + std::to_string(count) + " key(s) from " + options.key_file +
+          ", signing with '" + authenticator->signing_key_id() + "'");
+  node->RequireAuthentication(std::move(*authenticator));
+  return Status::Ok();
+}
+
 int RunOnline(const ServerOptions& options) {
   Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create(options.lcm_url);
   if (!created.ok()) {
@@ -109,10 +145,19 @@ int RunOnline(const ServerOptions& options) {
   }
   std::unique_ptr<LcmLoop> loop = std::move(*created);
   LcmLoop* bus = loop.get();
-  ServerNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
-    const Status status = bus->Publish(channel, bytes);
-    if (!status.ok()) LogWarning(status.message());
-  });
+  ServerNode* node_pointer = nullptr;
+  ServerNode node(
+      options, [bus, &node_pointer](const std::string& channel, const std::vector<uint8_t>& bytes) {
+        Authenticator* auth = node_pointer->authenticator();
+        const Status status =
+            bus->Publish(channel, auth ? auth->Seal(channel, bytes.data(), bytes.size()) : bytes);
+        if (!status.ok()) LogWarning(status.message());
+      });
+  node_pointer = &node;
+  if (Status s = SetUpAuthentication(options, &node); !s.ok()) {
+    LogError(s.message());
+    return 1;
+  }
   auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
     node.server().SetClock(WallUtime());
     node.OnMessage(channel, data, size);
@@ -135,9 +180,11 @@ int RunOnline(const ServerOptions& options) {
   loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.ack_period_s)),
               [&node] { node.PublishAcks(); });
   auto status_line = [&node, bus] {
+    bus->RefreshKernelDrops();
     const LcmLoopStats& s = bus->stats();
     return node.server().StatusLine() + " | lcm messages " + std::to_string(s.messages_handled) +
-           " max burst " + std::to_string(s.max_burst);
+           " max burst " + std::to_string(s.max_burst) + " kernel drops " +
+           std::to_string(s.kernel_drops);
   };
   if (options.status_period_s > 0) {
     loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
@@ -175,19 +222,31 @@ int RunOffline(const ServerOptions& options) {
   std::signal(SIGTERM, OnOfflineSignal);
   ServerNode* node_pointer = nullptr;
   int64_t write_failures = 0;
-  ServerNode node(options, [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
-    if (!writer.WriteRaw(channel, node_pointer->server().data_utime(), bytes.data(), bytes.size())
-             .ok()) {
-      ++write_failures;
-    }
-  });
+  // The receive clock of a replay is the log's own: deterministic, and a keyframe dated
+  // far beyond its event's time stamp is refused as it would have been live.
+  int64_t event_utime = 0;
+  ServerNode node(
+      options,
+      [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
+        if (!writer
+                 .WriteRaw(channel, node_pointer->server().data_utime(), bytes.data(), bytes.size())
+                 .ok()) {
+          ++write_failures;
+        }
+      },
+      [&event_utime] { return event_utime; });
   node_pointer = &node;
+  if (Status s = SetUpAuthentication(options, &node); !s.ok()) {
+    LogError(s.message());
+    return 1;
+  }
   const auto start = std::chrono::steady_clock::now();
   int64_t events = 0, used = 0, next_status_utime = 0;
   while (!g_offline_stop) {
     const std::optional<LogEvent> event = reader.Next();
     if (!event) break;
     ++events;
+    event_utime = event->utime;
     if (!node.OnMessage(event->channel, event->data.data(), event->data.size())) continue;
     ++used;
     const int64_t now = node.server().data_utime();
@@ -220,6 +279,15 @@ int RunOffline(const ServerOptions& options) {
   if (write_failures > 0) {
     LogError(std::to_string(write_failures) + " writes to " + options.log_output + " failed");
     return 1;
+  }
+  if (!reader.problems().empty()) {
+    for (const std::string& problem : reader.problems()) {
+      LogError(options.log_input + ": " + problem);
+    }
+    LogError(options.log_input + " is corrupt: " + std::to_string(reader.problems().size()) +
+             " damaged stretch(es) skipped; the outputs hold the " + std::to_string(events) +
+             " events that were sound");
+    return 3;
   }
   return 0;
 }

@@ -1,29 +1,119 @@
 #include "server/node/server_node.h"
 
+#include <chrono>
+
 #include "common/bus/codec.h"
 #include "common/bus/delivery_codec.h"
 #include "common/bus/map_codec.h"
 
 namespace anchormap {
 
-ServerNode::ServerNode(const ServerOptions& options, Publish publish)
-    : options_(options), publish_(std::move(publish)), server_(options.server) {}
+int64_t ServerNode::WallClock() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+ServerNode::ServerNode(const ServerOptions& options, Publish publish, Clock clock)
+    : options_(options),
+      publish_(std::move(publish)),
+      clock_(std::move(clock)),
+      server_(options.server) {}
+
+void ServerNode::RequireAuthentication(Authenticator authenticator) {
+  authenticator_.emplace(std::move(authenticator));
+}
 
 bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
+  const bool keyframes = channel == options_.channels.keyframes;
+  if (!keyframes && channel != options_.channels.encounters) return false;
+  std::vector<uint8_t> opened;
+  if (authenticator_) {
+    Result<std::vector<uint8_t>> payload = authenticator_->Open(channel, data, size);
+    if (!payload.ok()) {
+      server_.CountRejection(payload.status(), channel);
+      return true;
+    }
+    opened = std::move(*payload);
+    data = opened.data();
+    size = opened.size();
+  }
   // The logic counts its own refusals; the node counts what does not decode.
-  if (channel == options_.channels.keyframes) {
+  if (keyframes) {
     Result<Keyframe> keyframe = DecodeKeyframe(data, size);
-    if (!keyframe.ok()) server_.CountRejection(keyframe.status(), channel);
-    if (keyframe.ok()) (void)server_.OnKeyframe(std::move(*keyframe));
-    return true;
-  }
-  if (channel == options_.channels.encounters) {
+    if (!keyframe.ok()) {
+      server_.CountRejection(keyframe.status(), channel);
+    } else {
+      OnKeyframe(std::move(*keyframe), channel);
+    }
+  } else {
     const Result<Encounter> encounter = DecodeEncounter(data, size);
-    if (!encounter.ok()) server_.CountRejection(encounter.status(), channel);
-    if (encounter.ok()) (void)server_.OnEncounter(*encounter);
-    return true;
+    if (!encounter.ok()) {
+      server_.CountRejection(encounter.status(), channel);
+    } else {
+      OnEncounter(*encounter, channel);
+    }
   }
-  return false;
+  return true;
+}
+
+Status ServerNode::CheckNotFuture(int64_t utime) const {
+  const int64_t now = clock_();
+  const int64_t allowed = static_cast<int64_t>(1e6 * options_.max_future_s);
+  // Decoded times are at most CodecLimits::kMaxUtime, so the difference cannot overflow.
+  if (utime - now > allowed) {
+    return Status::Error(ErrorCode::kFromFuture, "data time " + std::to_string(utime) + " is " +
+                                                     std::to_string((utime - now) / 1000000) +
+                                                     " s ahead of the receive clock");
+  }
+  return Status::Ok();
+}
+
+Status ServerNode::CheckRobotCap(const std::string& robot) const {
+  if (robots_.count(robot) == 0 && static_cast<int>(robots_.size()) >= options_.max_robots) {
+    return Status::Error(
+        ErrorCode::kCapReached,
+        "robot " + robot + " past the cap of " + std::to_string(options_.max_robots) + " robots");
+  }
+  return Status::Ok();
+}
+
+void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
+  Status refused = CheckNotFuture(keyframe.utime);
+  if (refused.ok() &&
+      static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
+    refused = Status::Error(ErrorCode::kCapReached,
+                            std::to_string(keyframe.scan.ranges.size()) + " ranges (cap " +
+                                std::to_string(options_.max_scan_ranges) + ")");
+  }
+  if (refused.ok()) refused = CheckRobotCap(keyframe.robot);
+  const auto trajectory = std::make_pair(keyframe.robot, keyframe.trajectory_id);
+  if (refused.ok() && trajectories_.count(trajectory) == 0 &&
+      static_cast<int>(trajectories_.size()) >= options_.max_trajectories) {
+    refused = Status::Error(ErrorCode::kCapReached,
+                            "trajectory " + std::to_string(keyframe.trajectory_id) + " of " +
+                                keyframe.robot + " past the cap of " +
+                                std::to_string(options_.max_trajectories) + " trajectories");
+  }
+  if (!refused.ok()) {
+    server_.CountRejection(refused, channel);
+    return;
+  }
+  if (server_.OnKeyframe(std::move(keyframe)).ok()) {
+    robots_.insert(trajectory.first);
+    trajectories_.insert(trajectory);
+  }
+}
+
+void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel) {
+  Status refused = CheckNotFuture(encounter.utime);
+  if (refused.ok()) refused = CheckRobotCap(encounter.observer);
+  if (refused.ok()) refused = CheckRobotCap(encounter.observed);
+  if (!refused.ok()) {
+    server_.CountRejection(refused, channel);
+    return;
+  }
+  (void)server_.OnEncounter(encounter);
 }
 
 void ServerNode::PublishMap() {

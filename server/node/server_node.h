@@ -4,12 +4,22 @@
 // and encodes its outputs for a publish callback. The online main connects it to an
 // LcmLoop (callback = LCM publish, clock = wall time); the offline main to an LCM log file
 // (callback = log writer, clock = data time). No LCM header here: bytes only.
+//
+// Hostile input is refused here, before the logic sees it (each refusal counted by reason):
+// without a valid envelope when authentication is on (unsigned, unknown_key, bad_tag,
+// replay), data times ahead of the receive clock (from_future), new robots or
+// trajectories past their caps and oversize scans (cap_reached).
 
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "common/bus/authenticator.h"
 
 #include "server/mapping_server.h"
 #include "server/node/server_options.h"
@@ -21,7 +31,16 @@ class ServerNode {
   using Publish =
       std::function<void(const std::string& channel, const std::vector<uint8_t>& bytes)>;
 
-  ServerNode(const ServerOptions& options, Publish publish);
+  // The receive clock, microseconds (future data times are measured against it).
+  using Clock = std::function<int64_t()>;
+  static int64_t WallClock();
+
+  ServerNode(const ServerOptions& options, Publish publish, Clock clock = WallClock);
+
+  // From now on inputs must be sealed under `authenticator`'s keys (see server_main.cc for
+  // the outputs, which the online main seals with authenticator()).
+  void RequireAuthentication(Authenticator authenticator);
+  Authenticator* authenticator() { return authenticator_ ? &*authenticator_ : nullptr; }
 
   // One message; channels other than the keyframe and encounter channels are ignored.
   // Returns true when the channel was one of them.
@@ -44,10 +63,20 @@ class ServerNode {
  private:
   void PublishMap();
   void PublishGrid();
+  void OnKeyframe(Keyframe keyframe, const std::string& channel);
+  void OnEncounter(const Encounter& encounter, const std::string& channel);
+  // Ok when `utime` is not too far ahead of the clock.
+  Status CheckNotFuture(int64_t utime) const;
+  // Ok when `robot` is known or the robot cap leaves room for it.
+  Status CheckRobotCap(const std::string& robot) const;
 
   ServerOptions options_;
   Publish publish_;
+  Clock clock_;
+  std::optional<Authenticator> authenticator_;
   MappingServer server_;
+  std::set<std::string> robots_;                            // admitted, at most options_.max_robots
+  std::set<std::pair<std::string, int64_t>> trajectories_;  // at most max_trajectories
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };

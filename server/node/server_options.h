@@ -35,6 +35,20 @@ struct ServerOptions {
   // Online: cumulative acknowledgements of every trajectory this often (s).
   double ack_period_s = 0.5;
   std::string log_level = "info";
+  // Authentication (common/bus/authenticator.h): with a key file, keyframes and encounters
+  // must come in anchormap.signed_t envelopes under one of its keys, and what the server
+  // publishes goes out in envelopes under key_id (empty: the file's first key).
+  std::string key_file;
+  std::string key_id;
+  // Hostile input: new robots and trajectories past these caps are refused (memory stays
+  // bounded whatever is published), as are scans of more ranges than max_scan_ranges.
+  int max_robots = 64;
+  int max_trajectories = 256;
+  int max_scan_ranges = 8192;
+  // Data times further than this ahead of the server's clock (wall time online, the log's
+  // own time stamps offline) are refused, so that a message dated 2100 cannot move the
+  // data clock.
+  double max_future_s = 30.0;
   MappingServerOptions server;
   ServerChannels channels;
 
@@ -46,6 +60,11 @@ struct ServerOptions {
     if (!(status_period_s >= 0)) return Status::Error("status_period_s must be >= 0");
     if (!(ack_period_s > 0)) return Status::Error("ack_period_s must be > 0");
     if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
+    if (max_robots < 1) return Status::Error("max_robots must be >= 1");
+    if (max_trajectories < 1) return Status::Error("max_trajectories must be >= 1");
+    if (max_scan_ranges < 1) return Status::Error("max_scan_ranges must be >= 1");
+    if (!(max_future_s >= 0)) return Status::Error("max_future_s must be >= 0");
+    if (!key_id.empty() && key_file.empty()) return Status::Error("--key-id needs --key-file");
     return server.Validate();
   }
 };

@@ -1,0 +1,84 @@
+// anchormap-server --log on a corrupt LCM log: the damaged stretch is named by its byte
+// offset, the events after it are still read, and the exit status is 3 (not 0).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/bus/codec.h"
+#include "common/bus/lcm_log.h"
+
+namespace anchormap {
+namespace {
+
+Keyframe MakeKeyframe(int32_t seq) {
+  Keyframe k;
+  k.robot = "R1";
+  k.trajectory_id = 7;
+  k.seq = seq;
+  k.utime = 1'700'000'000'000'000 + seq * 100'000;
+  k.T_local_pose = Pose2(0.5 * seq, 0, 0);
+  if (seq > 0) k.T_previous_this = Pose2(0.5, 0, 0);
+  k.T_previous_this_covariance = Eigen::Matrix3d::Identity() * 0.01;
+  k.scan.utime = k.utime;
+  k.scan.rad0 = -1.0f;
+  k.scan.radstep = 0.02f;
+  k.scan.max_range = 10.0f;
+  k.scan.ranges.assign(21, 3.0f);
+  return k;
+}
+
+std::string Slurp(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(CorruptLogTest, ServerNamesTheOffsetResynchronisesAndFails) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("anchormap_corrupt_log_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path input = dir / "in.lcmlog", output = dir / "out.lcmlog",
+                              log = dir / "server.log";
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(input.string()).ok());
+    for (int seq = 0; seq < 6; ++seq) {
+      const std::vector<uint8_t> bytes = EncodeKeyframe(MakeKeyframe(seq));
+      ASSERT_TRUE(
+          writer
+              .WriteRaw("ANCHORMAP_KEYFRAMES", MakeKeyframe(seq).utime, bytes.data(), bytes.size())
+              .ok());
+    }
+  }
+  std::string bytes = Slurp(input);
+  const size_t event = bytes.size() / 6;
+  bytes[2 * event + 1] = 'X';  // event 2's sync word
+  {
+    std::ofstream out(input, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  const std::string server = std::string(ANCHORMAP_BINARY_DIR) + "/bin/anchormap-server";
+  const std::string command = server + " --log " + input.string() + " --output " + output.string() +
+                              " > " + log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status)) << command;
+  EXPECT_EQ(WEXITSTATUS(status), 3) << Slurp(log);
+  const std::string text = Slurp(log);
+  EXPECT_NE(text.find("corrupt event at byte " + std::to_string(2 * event)), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("next event at byte " + std::to_string(3 * event)), std::string::npos)
+      << text;
+  // Five of six keyframes were read: the ones after the damage too.
+  EXPECT_NE(text.find("read 5 events"), std::string::npos) << text;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace anchormap
