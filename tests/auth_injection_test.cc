@@ -54,9 +54,9 @@ class AuthInjectionTest : public ::testing::Test {
  protected:
   void SetUp() override {
     SetMinLogLevel(LogLevel::kError);
-    std::string error;
-    loop_ = LcmLoop::Create("memq://", &error);
-    ASSERT_TRUE(loop_) << error;
+    Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+    ASSERT_TRUE(created.ok()) << created.status().message();
+    loop_ = std::move(*created);
     ServerOptions options;
     options.max_robots = 2;
     options.max_trajectories = 3;
