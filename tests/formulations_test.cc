@@ -8,7 +8,7 @@
 #include "tests/testing/data_path.h"
 #include "tests/testing/dense_oracle.h"
 #include "tests/testing/random_graph.h"
-#include "tools/bench/graph_replay.h"
+#include "tests/testing/graph_replay.h"
 
 namespace anchormap {
 namespace {

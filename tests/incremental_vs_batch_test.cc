@@ -9,7 +9,7 @@
 #include "common/io/graph_file.h"
 #include "tests/testing/data_path.h"
 #include "tests/testing/random_graph.h"
-#include "tools/bench/graph_replay.h"
+#include "tests/testing/graph_replay.h"
 
 namespace anchormap {
 namespace {

@@ -21,7 +21,7 @@
 #include "common/solver/ordering.h"
 #include "tests/testing/dense_oracle.h"
 #include "tests/testing/random_graph.h"
-#include "tools/bench/graph_replay.h"
+#include "tests/testing/graph_replay.h"
 
 namespace anchormap {
 namespace {

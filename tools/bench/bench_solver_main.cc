@@ -13,7 +13,7 @@
 #include "common/io/graph_file.h"
 #include "common/solver/smoother.h"
 #include "common/util/retain_freed_memory.h"
-#include "tools/bench/graph_replay.h"
+#include "tests/testing/graph_replay.h"
 
 namespace anchormap {
 namespace {

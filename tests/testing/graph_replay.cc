@@ -1,4 +1,4 @@
-#include "tools/bench/graph_replay.h"
+#include "tests/testing/graph_replay.h"
 
 #include <algorithm>
 #include <string>
