@@ -83,7 +83,7 @@ void AgentNode::EnableAuthentication(Authenticator authenticator) {
   authenticator_.emplace(std::move(authenticator));
 }
 
-void AgentNode::Publish(const std::string& channel, const std::vector<uint8_t>& bytes) {
+void AgentNode::PublishSealed(const std::string& channel, const std::vector<uint8_t>& bytes) {
   if (authenticator_) {
     publish_(channel, authenticator_->Seal(channel, bytes.data(), bytes.size()));
   } else {
@@ -93,7 +93,7 @@ void AgentNode::Publish(const std::string& channel, const std::vector<uint8_t>& 
 
 void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
                      const std::string& context) {
-  Publish(
+  PublishSealed(
       kind == StreamKind::kKeyframes ? options_.channels.keyframes : options_.channels.encounters,
       bytes);
   if (!options_.reliable) return;
@@ -106,9 +106,9 @@ void AgentNode::Resend(const std::vector<const Outbox::Entry*>& entries) {
   // Kept unsealed: each (re)send is sealed under a fresh counter, so a resend of a
   // message the server never saw is not a replay.
   for (const Outbox::Entry* entry : entries) {
-    Publish(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
-                                                  : options_.channels.encounters,
-            entry->bytes);
+    PublishSealed(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
+                                                        : options_.channels.encounters,
+                  entry->bytes);
   }
 }
 

@@ -62,7 +62,7 @@ class AgentNode {
   AgentNodeOptions options_;
   Publish publish_;
   // Publishes `bytes`, sealed when authentication is on.
-  void Publish(const std::string& channel, const std::vector<uint8_t>& bytes);
+  void PublishSealed(const std::string& channel, const std::vector<uint8_t>& bytes);
 
   Agent agent_;
   Outbox outbox_;

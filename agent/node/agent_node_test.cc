@@ -63,9 +63,10 @@ class AgentNodeTest : public ::testing::Test {
 };
 
 TEST_F(AgentNodeTest, ChannelsDeriveFromTheRobotName) {
-  EXPECT_EQ(node_.InputChannels(),
-            (std::vector<std::string>{"R1_ODOMETRY", "R1_LASER", "R1_ENCOUNTER",
-                                      "ANCHORMAP_ENCOUNTERS"}));
+  EXPECT_EQ(
+      node_.InputChannels(),
+      (std::vector<std::string>{"R1_ODOMETRY", "R1_LASER", "R1_ENCOUNTER", channels::kEncounters,
+                                channels::kAcks, channels::kResendRequests}));
 }
 
 TEST_F(AgentNodeTest, OdometryAndScansBecomeKeyframesWithTheMountingPoseAndRangeLimit) {

@@ -44,7 +44,7 @@ std::vector<Sample> Samples() {
   map.trajectories.push_back(
       MergedTrajectory{"R1", 1, true, Pose2(1, 2, 0.3), {5, 6}, {Pose2(), Pose2(1, 0, 0)}});
   map.trajectories.push_back(MergedTrajectory{"R2", 2, false, Pose2(), {}, {}});
-  map.encounters.push_back({1, 0, 2, 0});
+  map.encounters.push_back({"R1", 1, 0, "R2", 2, 0});
   AnchorCovariances anchors;
   anchors.anchors.push_back({"R1", 1, Pose2(1, 2, 3), Eigen::Matrix3d::Identity()});
   anchors.anchors.push_back({"R2", 2, Pose2(), Eigen::Matrix3d::Identity()});

@@ -66,13 +66,12 @@ bool ViewerState::ApplyMergedMap(const MergedMap& map, int64_t wall_utime) {
   meta_changed_ = true;
 
   std::map<std::string, bool> present;
-  std::unordered_map<int64_t, std::string> key_of_id;
-  std::unordered_map<int64_t, std::string> robot_of_id;
+  // A trajectory is named by its robot and its id together (ids of two robots may agree).
+  std::map<std::pair<std::string, int64_t>, std::string> key_of_id;
   for (const MergedTrajectory& in : map.trajectories) {
     const std::string key = TrajectoryKey(in.robot, in.trajectory_id);
     present[key] = true;
-    key_of_id.emplace(in.trajectory_id, key);
-    robot_of_id.emplace(in.trajectory_id, in.robot);
+    key_of_id.emplace(std::make_pair(in.robot, in.trajectory_id), key);
     std::vector<double> poses;
     poses.reserve(3 * in.poses.size());
     for (const Pose2& p : in.poses) {
@@ -118,17 +117,16 @@ bool ViewerState::ApplyMergedMap(const MergedMap& map, int64_t wall_utime) {
   std::vector<json> encounters;
   encounters.reserve(map.encounters.size());
   for (const EncounterLink& link : map.encounters) {
-    const auto a = key_of_id.find(link.trajectory_a);
-    const auto b = key_of_id.find(link.trajectory_b);
+    const auto a = key_of_id.find({link.robot_a, link.trajectory_a});
+    const auto b = key_of_id.find({link.robot_b, link.trajectory_b});
     if (a == key_of_id.end() || b == key_of_id.end()) {
       rejections_.Count(ErrorCode::kInvalidValue, "merged map",
                         "an encounter link names a trajectory the map does not hold");
       continue;
     }
-    encounters.push_back(
-        json::array({a->second, link.index_a, b->second, link.index_b,
-                     EncounterKind(robot_of_id[link.trajectory_a], link.trajectory_a,
-                                   robot_of_id[link.trajectory_b], link.trajectory_b)}));
+    encounters.push_back(json::array(
+        {a->second, link.index_a, b->second, link.index_b,
+         EncounterKind(link.robot_a, link.trajectory_a, link.robot_b, link.trajectory_b)}));
   }
   size_t first = 0;
   const size_t common = std::min(encounters.size(), encounters_.size());

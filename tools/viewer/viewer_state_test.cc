@@ -113,7 +113,7 @@ TEST(ViewerStateTest, AFullStateThenEachDeltaEqualsTheNextFullState) {
       map.trajectories[0].anchored = true;
       map.trajectories[0].T_global_local = Pose2(1.0, 2.0, 0.3);
     }
-    if (step % 5 == 0) map.encounters.push_back({11, step / 5, 12, 1});
+    if (step % 5 == 0) map.encounters.push_back({"R1", 11, step / 5, "R2", 12, 1});
     if (step == 20) map.encounters.erase(map.encounters.begin());          // reordered list
     if (step == 25) map.trajectories.erase(map.trajectories.begin() + 1);  // R2 gone
     if (step == 30) map.trajectories.push_back(Trajectory("R2", 99, 4));   // R2's new session
@@ -232,7 +232,7 @@ TEST(ViewerStateTest, EncountersGetTheirKindAndLinksToUnknownTrajectoriesAreRefu
   MergedMap map;
   map.update = 1;
   map.trajectories = {Trajectory("R1", 1, 5), Trajectory("R2", 2, 5)};
-  map.encounters = {{1, 2, 2, 3}, {1, 0, 1, 4}, {1, 1, 77, 0}};
+  map.encounters = {{"R1", 1, 2, "R2", 2, 3}, {"R1", 1, 0, "R1", 1, 4}, {"R1", 1, 1, "R1", 77, 0}};
   ASSERT_TRUE(state.ApplyMergedMap(map, 0));
   const json links = state.Full()["encounters"]["links"];
   ASSERT_EQ(links.size(), 2u);
