@@ -7,8 +7,8 @@
 #include "common/io/graph_file.h"
 #include "tests/testing/data_path.h"
 #include "tests/testing/dense_oracle.h"
-#include "tests/testing/random_graph.h"
 #include "tests/testing/graph_replay.h"
+#include "tests/testing/random_graph.h"
 
 namespace anchormap {
 namespace {

@@ -20,8 +20,8 @@
 
 #include "common/solver/ordering.h"
 #include "tests/testing/dense_oracle.h"
-#include "tests/testing/random_graph.h"
 #include "tests/testing/graph_replay.h"
+#include "tests/testing/random_graph.h"
 
 namespace anchormap {
 namespace {
