@@ -105,7 +105,12 @@ main() {
   received=$(grep 'final:' "$work/server.log" | sed -E 's/.* anchored [0-9]+ keyframes ([0-9]+) .*/\1/')
   log "keyframes sent $sent, held by the server $received"
   [ "$sent" = "$received" ] || { log "keyframes were lost"; exit 1; }
-  grep 'final:' "$work/server.log" | grep -q 'rejected: none' || { log "the server rejected inputs"; exit 1; }
+  # Duplicates are expected: an agent resends what stays unacknowledged (slow builds, e.g.
+  # ASan, acknowledge late) and the server recognises and ignores the copies. Any other
+  # refusal fails the test.
+  rejected=$(grep 'final:' "$work/server.log" | sed -n 's/.*rejected: \([^|]*\).*/\1/p' |
+    tr ' ' '\n' | grep -v '^duplicate_sequence=' | grep -v '^none$' | grep -v '^$' || true)
+  [ -z "$rejected" ] || { log "the server rejected inputs: $rejected"; exit 1; }
 
   run_checks "$work" || exit 1
   log "PASS"
