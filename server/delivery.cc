@@ -35,14 +35,13 @@ int32_t SeqWindow::GiveUpMissing() {
   return given_up;
 }
 
-bool ResendTracker::Due(const std::string& robot, int64_t trajectory_id, int64_t now_utime) {
-  const auto key = std::make_pair(robot, trajectory_id);
-  const auto it = last_request_utime_.find(key);
+bool ResendTracker::Due(const TrajectoryName& trajectory, int64_t now_utime) {
+  const auto it = last_request_utime_.find(trajectory);
   if (it != last_request_utime_.end() &&
       1e-6 * static_cast<double>(now_utime - it->second) < options_.resend_period_s) {
     return false;
   }
-  last_request_utime_[key] = now_utime;
+  last_request_utime_[trajectory] = now_utime;
   return true;
 }
 

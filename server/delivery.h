@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/types/trajectory_name.h"
 #include "common/util/status.h"
 
 namespace anchormap {
@@ -51,11 +52,11 @@ class ResendTracker {
  public:
   explicit ResendTracker(const DeliveryOptions& options = {}) : options_(options) {}
   // True (and remembered) when a request to this trajectory may go out at `now_utime`.
-  bool Due(const std::string& robot, int64_t trajectory_id, int64_t now_utime);
+  bool Due(const TrajectoryName& trajectory, int64_t now_utime);
 
  private:
   DeliveryOptions options_;
-  std::map<std::pair<std::string, int64_t>, int64_t> last_request_utime_;
+  std::map<TrajectoryName, int64_t> last_request_utime_;
 };
 
 }  // namespace anchormap

@@ -39,10 +39,10 @@ TEST(ResendTrackerTest, AsksATrajectoryAtMostOncePerPeriod) {
   DeliveryOptions options;
   options.resend_period_s = 0.5;
   ResendTracker tracker(options);
-  EXPECT_TRUE(tracker.Due("R1", 7, 1'000'000));
-  EXPECT_FALSE(tracker.Due("R1", 7, 1'400'000));
-  EXPECT_TRUE(tracker.Due("R1", 8, 1'400'000));  // another trajectory
-  EXPECT_TRUE(tracker.Due("R1", 7, 1'500'000));
+  EXPECT_TRUE(tracker.Due({"R1", 7}, 1'000'000));
+  EXPECT_FALSE(tracker.Due({"R1", 7}, 1'400'000));
+  EXPECT_TRUE(tracker.Due({"R1", 8}, 1'400'000));  // another trajectory
+  EXPECT_TRUE(tracker.Due({"R1", 7}, 1'500'000));
 }
 
 }  // namespace

@@ -87,7 +87,7 @@ void DirectEncounters::Resolve(const TrajectoryTable& table, bool flush,
   for (const Encounter& e : pending_) {
     const int64_t t = e.utime;
     const TrajectoryRecord* observer = e.observer_trajectory_id != 0
-                                           ? table.Find(e.observer, e.observer_trajectory_id)
+                                           ? table.Find({e.observer, e.observer_trajectory_id})
                                            : table.TrajectoryOfRobotAt(e.observer, t);
     if (observer && observer->num_keyframes() == 0) observer = nullptr;
     const TrajectoryRecord* observed = table.TrajectoryOfRobotAt(e.observed, t);

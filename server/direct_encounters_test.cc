@@ -68,10 +68,10 @@ TEST_F(DirectEncountersTest, TieCorrectsForTheMotionBetweenEncounterAndKeyframes
   AddKeyframes("B", 2, {0.0, 0.95, 1.3}, World::LocalB);
   const Encounter e = MakeEncounter(1.04);
   const Result<EncounterConstraint> tie =
-      TieEncounter(e, *table_.Find("A", 1), *table_.Find("B", 2), DirectEncounterOptions{});
+      TieEncounter(e, *table_.Find({"A", 1}), *table_.Find({"B", 2}), DirectEncounterOptions{});
   ASSERT_TRUE(tie.ok()) << tie.status().message();
-  EXPECT_EQ(tie->a, (PoseKey{0, 1}));
-  EXPECT_EQ(tie->b, (PoseKey{1, 1}));
+  EXPECT_EQ(tie->a, (PoseKey{TrajectoryId(0), 1}));
+  EXPECT_EQ(tie->b, (PoseKey{TrajectoryId(1), 1}));
   // The truth: keyframe B(0.95) seen from keyframe A(1.0).
   const Pose2 truth = Between(Compose(world_.T_world_local_a, World::LocalA(1.0)),
                               Compose(world_.T_world_local_b, World::LocalB(0.95)));
@@ -93,7 +93,7 @@ TEST_F(DirectEncountersTest, ExactWhenKeyframesAreAtTheEncounterTime) {
   AddKeyframes("B", 2, {0.0, 2.0}, World::LocalB);
   const Encounter e = MakeEncounter(2.0);
   const Result<EncounterConstraint> tie =
-      TieEncounter(e, *table_.Find("A", 1), *table_.Find("B", 2), DirectEncounterOptions{});
+      TieEncounter(e, *table_.Find({"A", 1}), *table_.Find({"B", 2}), DirectEncounterOptions{});
   ASSERT_TRUE(tie.ok());
   EXPECT_LT(PoseError(tie->measured_T_a_b, e.T_observer_observed).norm(), 1e-12);
 }
@@ -107,10 +107,10 @@ TEST_F(DirectEncountersTest, WaitsUntilBothRobotsHaveAKeyframeAfterTheEncounter)
   EXPECT_TRUE(out.constraints.empty());
   EXPECT_EQ(source.pending(), 1u);
   AddKeyframes("B", 2, {1.6}, World::LocalB);
-  source.OnKeyframeAdded(PoseKey{1, 2}, View(), &out);
+  source.OnKeyframeAdded(PoseKey{TrajectoryId(1), 2}, View(), &out);
   ASSERT_EQ(out.constraints.size(), 1u);
-  EXPECT_EQ(out.constraints[0].a, (PoseKey{0, 2}));  // A's nearest to 1.6 s: 2.0 s
-  EXPECT_EQ(out.constraints[0].b, (PoseKey{1, 2}));
+  EXPECT_EQ(out.constraints[0].a, (PoseKey{TrajectoryId(0), 2}));  // A's nearest to 1.6 s: 2.0 s
+  EXPECT_EQ(out.constraints[0].b, (PoseKey{TrajectoryId(1), 2}));
   EXPECT_EQ(source.pending(), 0u);
   EXPECT_TRUE(out.rejections.empty());
 }

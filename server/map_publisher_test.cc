@@ -54,9 +54,10 @@ class MapPublisherTest : public ::testing::Test {
   void Encounter() {
     const Pose2 world_T_b0(10.0, 5.0, kPi / 2);
     const Pose2 seen = Between(Pose2(2.0, 0.0, 0.0), Compose(world_T_b0, Pose2(1.0, 0.0, 0.0)));
-    ASSERT_TRUE(
-        smoother_.AddEncounter({0, 2}, {1, 1}, seen, Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal())
-            .ok());
+    ASSERT_TRUE(smoother_
+                    .AddEncounter({TrajectoryId(0), 2}, {TrajectoryId(1), 1}, seen,
+                                  Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal())
+                    .ok());
     ASSERT_TRUE(smoother_.Update().status.ok());
     links_.push_back({"A", 7, 2, "B", 8, 1});
   }
@@ -106,7 +107,7 @@ TEST_F(MapPublisherTest, AnchorCovariancesAreTheSmoothersMarginals) {
   ASSERT_EQ(out.anchors.size(), 2u);
   EXPECT_EQ(out.anchors[1].robot, "B");
   EXPECT_EQ(out.anchors[1].trajectory_id, 8);
-  const Eigen::Matrix3d expected = smoother_.MarginalCovariance(Key(AnchorKey{1}));
+  const Eigen::Matrix3d expected = smoother_.MarginalCovariance(Key(AnchorKey{TrajectoryId(1)}));
   EXPECT_LT((out.anchors[1].covariance - expected).norm(), 1e-15);
   // B's anchor is known through one encounter and A's odometry: looser than A's, which
   // carries the group's gauge prior.
@@ -118,9 +119,11 @@ TEST_F(MapPublisherTest, GridComesFromTheLargestGroupWithWallsWhereTheScansHit) 
   options.grid.resolution_m = 0.1;
   MapPublisher publisher(options);
   // Before the encounter the two groups are equal: the first one (A) is drawn.
-  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_), (std::vector<TrajectoryId>{0}));
+  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_),
+            (std::vector<TrajectoryId>{TrajectoryId(0)}));
   Encounter();
-  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_), (std::vector<TrajectoryId>{0, 1}));
+  EXPECT_EQ(publisher.GridTrajectories(smoother_, table_),
+            (std::vector<TrajectoryId>{TrajectoryId(0), TrajectoryId(1)}));
 
   const std::vector<GridTile> tiles = publisher.BuildGridTiles(smoother_, table_, 9, 2);
   ASSERT_FALSE(tiles.empty());

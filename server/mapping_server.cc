@@ -93,20 +93,19 @@ void MappingServer::Tick(int64_t now_utime) {
 }
 
 std::vector<DeliveryAck> MappingServer::BuildAcks() const {
-  std::map<std::pair<std::string, int64_t>, DeliveryAck> acks;
-  auto ack_for = [&](const std::string& robot, int64_t trajectory_id) -> DeliveryAck& {
-    DeliveryAck& ack = acks[{robot, trajectory_id}];
+  std::map<TrajectoryName, DeliveryAck> acks;
+  auto ack_for = [&](const TrajectoryName& trajectory) -> DeliveryAck& {
+    DeliveryAck& ack = acks[trajectory];
     ack.utime = clock_utime();
-    ack.robot = robot;
-    ack.trajectory_id = trajectory_id;
+    ack.robot = trajectory.robot;
+    ack.trajectory_id = trajectory.id;
     return ack;
   };
   for (const TrajectoryRecord& record : table_.records()) {
-    ack_for(record.robot, record.agent_trajectory_id).keyframes_next =
-        table_.NextSeq(record.solver_id);
+    ack_for(record.name()).keyframes_next = table_.NextSeq(record.solver_id);
   }
   for (const auto& [key, window] : encounter_seqs_) {
-    ack_for(key.first, key.second).encounters_next = window.next();
+    ack_for(key).encounters_next = window.next();
   }
   std::vector<DeliveryAck> out;
   for (auto& [key, ack] : acks) out.push_back(std::move(ack));
@@ -114,19 +113,18 @@ std::vector<DeliveryAck> MappingServer::BuildAcks() const {
 }
 
 std::vector<ResendRequest> MappingServer::BuildResendRequests() {
-  std::map<std::pair<std::string, int64_t>, ResendRequest> requests;
-  auto add = [&](const std::string& robot, int64_t trajectory_id, StreamKind kind,
+  std::map<TrajectoryName, ResendRequest> requests;
+  auto add = [&](const TrajectoryName& trajectory, StreamKind kind,
                  const std::vector<std::pair<int32_t, int32_t>>& ranges) {
     if (ranges.empty()) return;
-    ResendRequest& request = requests[{robot, trajectory_id}];
+    ResendRequest& request = requests[trajectory];
     request.utime = clock_utime();
-    request.robot = robot;
-    request.trajectory_id = trajectory_id;
+    request.robot = trajectory.robot;
+    request.trajectory_id = trajectory.id;
     for (const auto& [first, last] : ranges) request.ranges.push_back({kind, first, last});
   };
   for (const TrajectoryRecord& record : table_.records()) {
-    add(record.robot, record.agent_trajectory_id, StreamKind::kKeyframes,
-        table_.MissingRanges(record.solver_id));
+    add(record.name(), StreamKind::kKeyframes, table_.MissingRanges(record.solver_id));
   }
   for (auto& [key, window] : encounter_seqs_) {
     const auto missing = window.Missing();
@@ -139,17 +137,17 @@ std::vector<ResendRequest> MappingServer::BuildResendRequests() {
       const int32_t given_up = window.GiveUpMissing();
       encounters_given_up_ += given_up;
       encounter_gap_since_.erase(key);
-      LogWarning("gave up " + std::to_string(given_up) + " missing encounters of " + key.first +
-                 " trajectory " + std::to_string(key.second) + " (not resent in time)");
+      LogWarning("gave up " + std::to_string(given_up) + " missing encounters of " + key.robot +
+                 " trajectory " + std::to_string(key.id) + " (not resent in time)");
       continue;
     }
-    add(key.first, key.second, StreamKind::kEncounters, missing);
+    add(key, StreamKind::kEncounters, missing);
   }
   std::vector<ResendRequest> out;
   for (auto& [key, request] : requests) {
-    if (!resend_.Due(key.first, key.second, clock_utime())) continue;
-    LogDebug("asking " + key.first + " trajectory " + std::to_string(key.second) + " for " +
-             std::to_string(request.ranges.size()) + " missing ranges");
+    if (!resend_.Due(key, clock_utime())) continue;
+    LogDebug("asking " + key.ToString() + " for " + std::to_string(request.ranges.size()) +
+             " missing ranges");
     ++resend_requests_;
     out.push_back(std::move(request));
   }

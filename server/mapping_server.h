@@ -19,6 +19,7 @@
 #include "common/types/encounter.h"
 #include "common/types/keyframe.h"
 #include "common/types/map_outputs.h"
+#include "common/types/trajectory_name.h"
 #include "common/util/reject_counter.h"
 #include "common/util/status.h"
 #include "server/delivery.h"
@@ -146,10 +147,10 @@ class MappingServer {
   ResendTracker resend_;
   int64_t resend_requests_ = 0;
   // Relayed encounters' sequence numbers per (observer, observer trajectory id).
-  std::map<std::pair<std::string, int64_t>, SeqWindow> encounter_seqs_;
+  std::map<TrajectoryName, SeqWindow> encounter_seqs_;
   // When each encounter stream's current gap was first seen (clock); after
   // table.max_hold_s the missing encounters are given up (counted, logged).
-  std::map<std::pair<std::string, int64_t>, int64_t> encounter_gap_since_;
+  std::map<TrajectoryName, int64_t> encounter_gap_since_;
   int64_t encounters_given_up_ = 0;
 };
 

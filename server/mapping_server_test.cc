@@ -134,7 +134,7 @@ TEST_F(MappingServerTest, AnchorsAppearExactlyAtFirstEncounters) {
         EXPECT_EQ(t.T_global_local.x(), 0.0);
         EXPECT_EQ(t.T_global_local.y(), 0.0);
         EXPECT_EQ(t.T_global_local.theta(), 0.0);
-        const TrajectoryRecord* record = server.table().Find(t.robot, t.trajectory_id);
+        const TrajectoryRecord* record = server.table().Find({t.robot, t.trajectory_id});
         ASSERT_NE(record, nullptr);
         ASSERT_EQ(t.poses.size(), static_cast<size_t>(record->num_keyframes()));
         for (size_t i = 0; i < t.poses.size(); ++i) {
@@ -309,7 +309,8 @@ TEST_F(MappingServerTest, GridCoversTheLargestGroupAndTilesAreRateLimited) {
   MappingServer server(ExactTieOptions());
   for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&server, input));
   const auto members = server.publisher().GridTrajectories(server.smoother(), server.table());
-  EXPECT_EQ(members, (std::vector<TrajectoryId>{0, 1}));  // R1 + R2, not the lone R3
+  EXPECT_EQ(members, (std::vector<TrajectoryId>{TrajectoryId(0),
+                                                TrajectoryId(1)}));  // R1 + R2, not the lone R3
   const std::vector<GridTile> tiles = server.BuildGridTiles();
   ASSERT_FALSE(tiles.empty());
   int occupied = 0;
@@ -559,7 +560,7 @@ TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncou
       if (e.utime > 11'000'000) e.observer_trajectory_id = restarted_id;
       ASSERT_TRUE(server.OnEncounter(e).ok());
     }
-    const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+    const TrajectoryRecord* restarted = server.table().Find({"R1", restarted_id});
     if (restarted) {
       EXPECT_EQ(server.smoother().IsAnchored(restarted->solver_id),
                 server.stats().encounters_added == 2);
@@ -568,8 +569,8 @@ TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncou
   server.Flush();
   EXPECT_EQ(server.stats().encounters_added, 2);
   EXPECT_EQ(server.rejects().total(), 0);
-  const TrajectoryRecord* old = server.table().Find("R1", 1000);
-  const TrajectoryRecord* restarted = server.table().Find("R1", restarted_id);
+  const TrajectoryRecord* old = server.table().Find({"R1", 1000});
+  const TrajectoryRecord* restarted = server.table().Find({"R1", restarted_id});
   ASSERT_NE(old, nullptr);
   ASSERT_NE(restarted, nullptr);
   EXPECT_EQ(old->num_keyframes(), old_keyframes);

@@ -27,14 +27,14 @@ Pose2 TrajectoryRecord::OdometryPoseAt(int64_t utime) const {
 
 TrajectoryRecord& TrajectoryTable::RecordFor(const Keyframe& keyframe, bool force_new,
                                              bool* created) {
-  const auto key = std::make_pair(keyframe.robot, keyframe.trajectory_id);
+  const TrajectoryName key{keyframe.robot, keyframe.trajectory_id};
   const auto it = index_.find(key);
   *created = force_new || it == index_.end();
   if (!*created) return records_[it->second];
   TrajectoryRecord record;
   record.robot = keyframe.robot;
   record.agent_trajectory_id = keyframe.trajectory_id;
-  record.solver_id = static_cast<TrajectoryId>(records_.size());
+  record.solver_id = TrajectoryId(static_cast<int64_t>(records_.size()));
   index_[key] = records_.size();
   records_.push_back(std::move(record));
   pending_.emplace_back();
@@ -60,7 +60,7 @@ Status TrajectoryTable::Offer(Keyframe keyframe, int64_t now_utime,
     ++num_reused_ids_;
     record = &RecordFor(keyframe, /*force_new=*/true, &created);
   }
-  const size_t record_index = static_cast<size_t>(record->solver_id);
+  const size_t record_index = static_cast<size_t>(record->solver_id.value());
   Pending& pending = pending_[record_index];
   if (pending.held.count(keyframe.seq)) {
     return Status::Error(ErrorCode::kDuplicateSequence, name());
@@ -89,8 +89,9 @@ void TrajectoryTable::FlushHeld(std::vector<AdmittedKeyframe>* out) {
 std::vector<std::pair<int32_t, int32_t>> TrajectoryTable::MissingRanges(
     TrajectoryId solver_id) const {
   std::vector<std::pair<int32_t, int32_t>> ranges;
-  if (solver_id < 0 || static_cast<size_t>(solver_id) >= pending_.size()) return ranges;
-  const Pending& pending = pending_[static_cast<size_t>(solver_id)];
+  const std::optional<size_t> index = IndexOf(solver_id);
+  if (!index) return ranges;
+  const Pending& pending = pending_[*index];
   int32_t expected = pending.started ? pending.next_seq : 0;
   for (const auto& [seq, keyframe] : pending.held) {
     if (seq > expected) ranges.emplace_back(expected, seq - 1);
@@ -100,8 +101,9 @@ std::vector<std::pair<int32_t, int32_t>> TrajectoryTable::MissingRanges(
 }
 
 int32_t TrajectoryTable::NextSeq(TrajectoryId solver_id) const {
-  if (solver_id < 0 || static_cast<size_t>(solver_id) >= pending_.size()) return 0;
-  const Pending& pending = pending_[static_cast<size_t>(solver_id)];
+  const std::optional<size_t> index = IndexOf(solver_id);
+  if (!index) return 0;
+  const Pending& pending = pending_[*index];
   return pending.started ? pending.next_seq : 0;
 }
 
@@ -162,15 +164,21 @@ void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, Keyframe
   out->push_back(admitted);
 }
 
-const TrajectoryRecord* TrajectoryTable::Find(const std::string& robot,
-                                              int64_t agent_trajectory_id) const {
-  const auto it = index_.find({robot, agent_trajectory_id});
+const TrajectoryRecord* TrajectoryTable::Find(const TrajectoryName& name) const {
+  const auto it = index_.find(name);
   return it == index_.end() ? nullptr : &records_[it->second];
 }
 
 const TrajectoryRecord* TrajectoryTable::FindBySolverId(TrajectoryId solver_id) const {
-  if (solver_id < 0 || static_cast<size_t>(solver_id) >= records_.size()) return nullptr;
-  return &records_[static_cast<size_t>(solver_id)];
+  const std::optional<size_t> index = IndexOf(solver_id);
+  return index ? &records_[*index] : nullptr;
+}
+
+std::optional<size_t> TrajectoryTable::IndexOf(TrajectoryId solver_id) const {
+  // Solver ids are dense, in order of arrival: the id is the record's index.
+  const int64_t index = solver_id.value();
+  if (index < 0 || static_cast<size_t>(index) >= records_.size()) return std::nullopt;
+  return static_cast<size_t>(index);
 }
 
 const TrajectoryRecord* TrajectoryTable::TrajectoryOfRobotAt(const std::string& robot,

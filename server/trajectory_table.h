@@ -29,6 +29,7 @@
 
 #include "common/solver/keys.h"
 #include "common/types/keyframe.h"
+#include "common/types/trajectory_name.h"
 #include "common/util/reject_counter.h"
 #include "common/util/status.h"
 
@@ -54,8 +55,9 @@ struct TrajectoryTableOptions {
 // One trajectory's accepted keyframes, index i = solver PoseKey index i.
 struct TrajectoryRecord {
   std::string robot;
-  int64_t agent_trajectory_id = 0;
-  TrajectoryId solver_id = 0;
+  int64_t agent_trajectory_id = 0;  // with `robot`, the trajectory's name on the bus
+  TrajectoryId solver_id;
+  TrajectoryName name() const { return {robot, agent_trajectory_id}; }
   std::vector<int32_t> seqs;
   std::vector<int64_t> utimes;
   std::vector<Pose2> odometry_poses;  // T_local_pose as the agent sent it
@@ -105,7 +107,7 @@ class TrajectoryTable {
   // Every seq below this is admitted or given up (bridged) in trajectory `solver_id`.
   int32_t NextSeq(TrajectoryId solver_id) const;
 
-  const TrajectoryRecord* Find(const std::string& robot, int64_t agent_trajectory_id) const;
+  const TrajectoryRecord* Find(const TrajectoryName& name) const;
   const TrajectoryRecord* FindBySolverId(TrajectoryId solver_id) const;
   // The robot's trajectory (session) at `utime`: the latest one that started at or before
   // `utime`, else its earliest; nullptr for a robot never seen.
@@ -129,6 +131,8 @@ class TrajectoryTable {
   };
   // The keyframe's record; a new one when none exists or `force_new` (a reused id).
   TrajectoryRecord& RecordFor(const Keyframe& keyframe, bool force_new, bool* created);
+  // The position of `solver_id`'s record, if it has one.
+  std::optional<size_t> IndexOf(TrajectoryId solver_id) const;
   // Moves waiting keyframes into the graph while possible (or forced).
   void Drain(size_t record_index, Pending* pending, bool force, int64_t now_utime,
              std::vector<AdmittedKeyframe>* out);
@@ -138,7 +142,7 @@ class TrajectoryTable {
   TrajectoryTableOptions options_;
   std::deque<TrajectoryRecord> records_;  // stable addresses; solver id = position
   std::vector<Pending> pending_;          // parallel to records_
-  std::map<std::pair<std::string, int64_t>, size_t> index_;
+  std::map<TrajectoryName, size_t> index_;
   int64_t num_keyframes_ = 0;
   int64_t num_bridged_gaps_ = 0;
   int64_t num_reused_ids_ = 0;

@@ -30,20 +30,20 @@ TEST(TrajectoryTableTest, InOrderKeyframesEnterAtOnceWithTheirOdometryFactor) {
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 900, 1), &out).ok());
   ASSERT_EQ(out.size(), 3u);
   EXPECT_TRUE(out[0].new_trajectory);
-  EXPECT_EQ(out[0].key, (PoseKey{0, 0}));
+  EXPECT_EQ(out[0].key, (PoseKey{TrajectoryId(0), 0}));
   EXPECT_FALSE(out[0].previous);
-  EXPECT_EQ(out[1].key, (PoseKey{1, 0}));
-  EXPECT_EQ(out[2].key, (PoseKey{0, 1}));
+  EXPECT_EQ(out[1].key, (PoseKey{TrajectoryId(1), 0}));
+  EXPECT_EQ(out[2].key, (PoseKey{TrajectoryId(0), 1}));
   ASSERT_TRUE(out[2].previous);
-  EXPECT_EQ(*out[2].previous, (PoseKey{0, 0}));
+  EXPECT_EQ(*out[2].previous, (PoseKey{TrajectoryId(0), 0}));
   EXPECT_DOUBLE_EQ(out[2].T_previous_this.x(), 0.5);
   EXPECT_DOUBLE_EQ(out[2].T_previous_this_covariance(0, 0), 1e-3);
   EXPECT_FALSE(out[2].bridged_gap);
   EXPECT_EQ(table.num_robots(), 2);
   EXPECT_EQ(table.num_keyframes(), 3);
-  ASSERT_TRUE(table.Find("R1", 900));
-  EXPECT_EQ(table.Find("R1", 900)->num_keyframes(), 2);
-  EXPECT_EQ(table.Find("R2", 900), nullptr);
+  ASSERT_TRUE(table.Find({"R1", 900}));
+  EXPECT_EQ(table.Find({"R1", 900})->num_keyframes(), 2);
+  EXPECT_EQ(table.Find({"R2", 900}), nullptr);
 }
 
 TEST(TrajectoryTableTest, ReusedSequenceNumbersAreRefused) {
@@ -72,7 +72,7 @@ TEST(TrajectoryTableTest, ReorderedKeyframesWaitForTheMissingOne) {
   EXPECT_EQ(out[1].key.index, 1);
   EXPECT_EQ(out[2].key.index, 2);
   EXPECT_FALSE(out[2].bridged_gap);
-  EXPECT_EQ(table.Find("R1", 1)->seqs, (std::vector<int32_t>{0, 1, 2}));
+  EXPECT_EQ(table.Find({"R1", 1})->seqs, (std::vector<int32_t>{0, 1, 2}));
 }
 
 TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
@@ -84,7 +84,8 @@ TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
   // The hold is measured on the caller's clock from the moment the gap opened.
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 0), 0, &out).ok());
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 2), 1'000'000, &out).ok());  // seq 1 is lost
-  EXPECT_EQ(table.MissingRanges(0), (std::vector<std::pair<int32_t, int32_t>>{{1, 1}}));
+  EXPECT_EQ(table.MissingRanges(TrajectoryId(0)),
+            (std::vector<std::pair<int32_t, int32_t>>{{1, 1}}));
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 3), 2'000'000, &out).ok());  // 1.0 s open
   EXPECT_EQ(out.size(), 1u);
   table.Poll(2'200'001, &out);  // 1.2 s open: bridged
@@ -97,8 +98,8 @@ TEST(TrajectoryTableTest, LostKeyframeIsBridgedAfterTheHoldTime) {
   EXPECT_DOUBLE_EQ(bridged.T_previous_this_covariance(0, 0), 1e-3 * 2 * 2.0);
   EXPECT_FALSE(out[2].bridged_gap);
   EXPECT_EQ(table.num_bridged_gaps(), 1);
-  EXPECT_TRUE(table.MissingRanges(0).empty());
-  EXPECT_EQ(table.NextSeq(0), 4);
+  EXPECT_TRUE(table.MissingRanges(TrajectoryId(0)).empty());
+  EXPECT_EQ(table.NextSeq(TrajectoryId(0)), 4);
   // The lost keyframe arriving now is late, not a duplicate.
   EXPECT_EQ(table.Offer(MakeKeyframe("R1", 1, 1), 2'300'000, &out).code(),
             ErrorCode::kLateSequence);
@@ -134,12 +135,14 @@ TEST(TrajectoryTableTest, MissingRangesNameEveryGapBelowTheHighestWaitingSeq) {
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 4), &out).ok());
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 5), &out).ok());
   ASSERT_TRUE(table.Offer(MakeKeyframe("R1", 1, 8), &out).ok());
-  EXPECT_EQ(table.MissingRanges(0), (std::vector<std::pair<int32_t, int32_t>>{{2, 3}, {6, 7}}));
-  EXPECT_EQ(table.NextSeq(0), 2);
+  EXPECT_EQ(table.MissingRanges(TrajectoryId(0)),
+            (std::vector<std::pair<int32_t, int32_t>>{{2, 3}, {6, 7}}));
+  EXPECT_EQ(table.NextSeq(TrajectoryId(0)), 2);
   // A trajectory first seen at seq 3 misses 0..2.
   ASSERT_TRUE(table.Offer(MakeKeyframe("R2", 2, 3), &out).ok());
-  EXPECT_EQ(table.MissingRanges(1), (std::vector<std::pair<int32_t, int32_t>>{{0, 2}}));
-  EXPECT_EQ(table.NextSeq(1), 0);
+  EXPECT_EQ(table.MissingRanges(TrajectoryId(1)),
+            (std::vector<std::pair<int32_t, int32_t>>{{0, 2}}));
+  EXPECT_EQ(table.NextSeq(TrajectoryId(1)), 0);
 }
 
 TEST(TrajectoryTableTest, LateStartBeginsAtTheLowestSeqAndFlushAdmitsTheRest) {
@@ -168,7 +171,7 @@ TEST(TrajectoryTableTest, FindsTheSessionOfARobotAtATimeAndInterpolates) {
   EXPECT_EQ(table.TrajectoryOfRobotAt("R1", -5)->agent_trajectory_id, 10);
   EXPECT_EQ(table.TrajectoryOfRobotAt("R9", 0), nullptr);
 
-  const TrajectoryRecord& r = *table.Find("R1", 10);  // keyframes at 0, 0.5, 1.0, 1.5 s
+  const TrajectoryRecord& r = *table.Find({"R1", 10});  // keyframes at 0, 0.5, 1.0, 1.5 s
   EXPECT_EQ(r.NearestIndex(700'000), 1);
   EXPECT_EQ(r.NearestIndex(800'000), 2);
   EXPECT_EQ(r.NearestIndex(-1), 0);
@@ -197,9 +200,9 @@ TEST(TrajectoryTableTest, AReusedIdAfterARestartStartsANewTrajectory) {
   ASSERT_EQ(table.records().size(), 2u);
   EXPECT_EQ(table.records()[0].num_keyframes(), 4);  // the old session keeps its keyframes
   EXPECT_EQ(table.records()[1].num_keyframes(), 3);
-  EXPECT_EQ(table.Find("R1", 7), &table.records()[1]);
+  EXPECT_EQ(table.Find({"R1", 7}), &table.records()[1]);
   EXPECT_TRUE(out[4].new_trajectory);
-  EXPECT_EQ(out[4].key, (PoseKey{1, 0}));
+  EXPECT_EQ(out[4].key, (PoseKey{TrajectoryId(1), 0}));
   // Its duplicates are recognised as such.
   EXPECT_EQ(table.Offer(MakeKeyframe("R1", 7, 2, 60'000'000), &out).code(),
             ErrorCode::kDuplicateSequence);

@@ -42,7 +42,8 @@ Run Replay(const PoseGraph& graph, int robots, Formulation formulation) {
   }
   EXPECT_TRUE(smoother.BatchOptimize(1e-9).status.ok());
   for (TrajectoryId t : smoother.Trajectories()) {
-    EXPECT_EQ(smoother.GroupRoot(t), smoother.GroupRoot(0)) << "trajectory " << t << " not merged";
+    EXPECT_EQ(smoother.GroupRoot(t), smoother.GroupRoot(TrajectoryId(0)))
+        << "trajectory " << t << " not merged";
   }
   return {MergedInFirstFrame(smoother, replay), smoother.Chi2(),
           smoother.stats().iterations_to_convergence};
@@ -92,11 +93,12 @@ TEST(FormulationsTest, RelativeAndGlobalGiveTheSameMergedMapOnIntel) {
 // Two trajectories solved on their own; returns their local poses.
 std::vector<Pose2> BuildTwoTrajectories(Smoother* smoother, int poses) {
   std::vector<Pose2> locals;
-  for (TrajectoryId t : {0, 1}) {
+  for (int64_t number : {0, 1}) {
+    const TrajectoryId t(number);
     testing::RandomGraphOptions options;
     options.poses = poses;
     options.loop_closures = poses / 4;
-    options.seed = 20 + static_cast<uint32_t>(t);
+    options.seed = 20 + static_cast<uint32_t>(number);
     const PoseGraph graph = testing::RandomGraph(options);
     const GraphReplay replay(graph, 1);
     for (int k = 0; k < replay.num_steps(); ++k) {
@@ -120,8 +122,8 @@ std::vector<Pose2> BuildTwoTrajectories(Smoother* smoother, int poses) {
     }
   }
   EXPECT_TRUE(smoother->BatchOptimize().status.ok());
-  for (TrajectoryId t : {0, 1}) {
-    for (int i = 0; i < poses; ++i) locals.push_back(smoother->FramePose({t, i}));
+  for (int64_t t : {0, 1}) {
+    for (int i = 0; i < poses; ++i) locals.push_back(smoother->FramePose({TrajectoryId(t), i}));
   }
   return locals;
 }
@@ -133,35 +135,46 @@ TEST(FormulationsTest, AtAFirstEncounterOnlyTheAnchorsMove) {
   Smoother smoother(options);
   const int poses = 50;
   const std::vector<Pose2> before = BuildTwoTrajectories(&smoother, poses);
-  EXPECT_FALSE(smoother.IsAnchored(0));
-  EXPECT_FALSE(smoother.IsAnchored(1));
+  EXPECT_FALSE(smoother.IsAnchored(TrajectoryId(0)));
+  EXPECT_FALSE(smoother.IsAnchored(TrajectoryId(1)));
 
-  ASSERT_TRUE(smoother.AddEncounter({0, 30}, {1, 12}, Pose2(1.0, -0.5, 0.7), kCovariance).ok());
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 30}, {TrajectoryId(1), 12}, Pose2(1.0, -0.5, 0.7),
+                                kCovariance)
+                  .ok());
   const UpdateResult result = smoother.Update();
   ASSERT_TRUE(result.status.ok());
   EXPECT_FALSE(result.batch_step);
   EXPECT_EQ(result.anchors_created, 2);
-  EXPECT_TRUE(smoother.IsAnchored(0));
-  EXPECT_TRUE(smoother.IsAnchored(1));
+  EXPECT_TRUE(smoother.IsAnchored(TrajectoryId(0)));
+  EXPECT_TRUE(smoother.IsAnchored(TrajectoryId(1)));
 
   double worst = 0.0;
-  for (TrajectoryId t : {0, 1}) {
+  for (int64_t t : {0, 1}) {
     for (int i = 0; i < poses; ++i) {
-      worst = std::max(
-          worst,
-          PoseError(smoother.FramePose({t, i}), before[t * poses + i]).cwiseAbs().maxCoeff());
+      worst =
+          std::max(worst, PoseError(smoother.FramePose({TrajectoryId(t), i}), before[t * poses + i])
+                              .cwiseAbs()
+                              .maxCoeff());
     }
   }
   EXPECT_LE(worst, 1e-9);
   // The first anchor defines the global frame; the second satisfies the encounter exactly.
-  EXPECT_LE(PoseError(*smoother.Anchor(0), Pose2()).norm(), 1e-9);
-  const Pose2 predicted = Between(smoother.GlobalPose({0, 30}), smoother.GlobalPose({1, 12}));
+  EXPECT_LE(PoseError(*smoother.Anchor(TrajectoryId(0)), Pose2()).norm(), 1e-9);
+  const Pose2 predicted = Between(smoother.GlobalPose({TrajectoryId(0), 30}),
+                                  smoother.GlobalPose({TrajectoryId(1), 12}));
   EXPECT_LE(PoseError(predicted, Pose2(1.0, -0.5, 0.7)).norm(), 1e-9);
 
   // A second encounter now propagates information into both graphs, like a loop closure.
-  ASSERT_TRUE(smoother.AddEncounter({0, 45}, {1, 40}, Pose2(0.3, 0.1, -0.2), kCovariance).ok());
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 45}, {TrajectoryId(1), 40}, Pose2(0.3, 0.1, -0.2),
+                                kCovariance)
+                  .ok());
   ASSERT_TRUE(smoother.Update().status.ok());
-  EXPECT_GT(PoseError(smoother.FramePose({1, 40}), before[poses + 40]).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_GT(PoseError(smoother.FramePose({TrajectoryId(1), 40}), before[poses + 40])
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-6);
 }
 
 // Five robots A..E (0..4), each a short straight line.
@@ -170,7 +183,8 @@ void AddLine(Smoother* smoother, TrajectoryId t, int poses) {
     ASSERT_TRUE(smoother->AddPose({t, i}, Pose2(i, 0, 0)).ok());
     if (i > 0) {
       ASSERT_TRUE(
-          smoother->AddBetween({t, i - 1}, {t, i}, Pose2(1, 0, 0.02 * t), kCovariance).ok());
+          smoother->AddBetween({t, i - 1}, {t, i}, Pose2(1, 0, 0.02 * t.value()), kCovariance)
+              .ok());
     }
   }
 }
@@ -182,38 +196,55 @@ TEST(FormulationsTest, SeparateGroupsKeepTheirOwnGaugeUntilTheyJoin) {
     SmootherOptions options;
     options.formulation = formulation;
     Smoother smoother(options);
-    for (TrajectoryId t = 0; t < 5; ++t) AddLine(&smoother, t, 10);
+    for (int64_t t = 0; t < 5; ++t) AddLine(&smoother, TrajectoryId(t), 10);
     ASSERT_TRUE(smoother.Update().status.ok());
     const bool relative = formulation == Formulation::kRelative;
 
     // B-C and D-E form two groups first.
-    ASSERT_TRUE(smoother.AddEncounter({1, 5}, {2, 2}, Pose2(0, 2, 0.5), kCovariance).ok());
-    ASSERT_TRUE(smoother.AddEncounter({3, 4}, {4, 8}, Pose2(1, -2, -0.5), kCovariance).ok());
+    ASSERT_TRUE(
+        smoother
+            .AddEncounter({TrajectoryId(1), 5}, {TrajectoryId(2), 2}, Pose2(0, 2, 0.5), kCovariance)
+            .ok());
+    ASSERT_TRUE(smoother
+                    .AddEncounter({TrajectoryId(3), 4}, {TrajectoryId(4), 8}, Pose2(1, -2, -0.5),
+                                  kCovariance)
+                    .ok());
     UpdateResult result = smoother.Update();
     ASSERT_TRUE(result.status.ok()) << result.status.message();
-    EXPECT_EQ(smoother.IsAnchored(0), false);
-    EXPECT_EQ(smoother.IsAnchored(1), relative);
-    EXPECT_EQ(smoother.IsAnchored(3), relative);
-    EXPECT_EQ(smoother.GroupRoot(2), 1);
-    EXPECT_EQ(smoother.GroupRoot(4), 3);
-    EXPECT_NE(smoother.GroupRoot(1), smoother.GroupRoot(3));
+    EXPECT_EQ(smoother.IsAnchored(TrajectoryId(0)), false);
+    EXPECT_EQ(smoother.IsAnchored(TrajectoryId(1)), relative);
+    EXPECT_EQ(smoother.IsAnchored(TrajectoryId(3)), relative);
+    EXPECT_EQ(smoother.GroupRoot(TrajectoryId(2)), TrajectoryId(1));
+    EXPECT_EQ(smoother.GroupRoot(TrajectoryId(4)), TrajectoryId(3));
+    EXPECT_NE(smoother.GroupRoot(TrajectoryId(1)), smoother.GroupRoot(TrajectoryId(3)));
     if (relative) {
       EXPECT_FALSE(result.batch_step);  // anchors need no batch step here
     }
 
     // A meets B: A joins B's group (relative) or B's group joins A's (global).
-    ASSERT_TRUE(smoother.AddEncounter({0, 9}, {1, 0}, Pose2(3, 0, 0), kCovariance).ok());
+    ASSERT_TRUE(
+        smoother
+            .AddEncounter({TrajectoryId(0), 9}, {TrajectoryId(1), 0}, Pose2(3, 0, 0), kCovariance)
+            .ok());
     ASSERT_TRUE(smoother.Update().status.ok());
-    EXPECT_EQ(smoother.GroupRoot(0), smoother.GroupRoot(2));
+    EXPECT_EQ(smoother.GroupRoot(TrajectoryId(0)), smoother.GroupRoot(TrajectoryId(2)));
     // Then A meets E: the two groups join and one gauge prior goes.
-    ASSERT_TRUE(smoother.AddEncounter({0, 3}, {4, 0}, Pose2(0, -3, 0.2), kCovariance).ok());
+    ASSERT_TRUE(smoother
+                    .AddEncounter({TrajectoryId(0), 3}, {TrajectoryId(4), 0}, Pose2(0, -3, 0.2),
+                                  kCovariance)
+                    .ok());
     result = smoother.Update();
     ASSERT_TRUE(result.status.ok()) << result.status.message();
     EXPECT_TRUE(result.batch_step);
-    for (TrajectoryId t = 0; t < 5; ++t) EXPECT_EQ(smoother.GroupRoot(t), smoother.GroupRoot(0));
+    for (int64_t t = 0; t < 5; ++t) {
+      EXPECT_EQ(smoother.GroupRoot(TrajectoryId(t)), smoother.GroupRoot(TrajectoryId(0)));
+    }
 
     // One more cycle between the groups, then compare with a dense solve.
-    ASSERT_TRUE(smoother.AddEncounter({2, 9}, {3, 9}, Pose2(0.5, 0.5, 0.1), kCovariance).ok());
+    ASSERT_TRUE(smoother
+                    .AddEncounter({TrajectoryId(2), 9}, {TrajectoryId(3), 9}, Pose2(0.5, 0.5, 0.1),
+                                  kCovariance)
+                    .ok());
     ASSERT_TRUE(smoother.BatchOptimize().status.ok());
     int priors = 0;
     for (const Factor& f : smoother.ActiveFactors())

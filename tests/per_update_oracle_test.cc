@@ -218,8 +218,8 @@ void ExpectBothModesAtTheDenseOptimum(const PoseGraph& graph, int expected_traje
     EXPECT_LE(worst, 1e-6);
     EXPECT_NEAR(smoother->Chi2(), oracle.Chi2(optimum), 1e-9 * oracle.Chi2(optimum));
     // Every trajectory is joined by a loop closure: one group, one frame.
-    for (TrajectoryId t = 0; t < expected_trajectories; ++t) {
-      EXPECT_EQ(smoother->GroupRoot(t), smoother->GroupRoot(0));
+    for (int64_t t = 0; t < expected_trajectories; ++t) {
+      EXPECT_EQ(smoother->GroupRoot(TrajectoryId(t)), smoother->GroupRoot(TrajectoryId(0)));
     }
   }
   EXPECT_NEAR(incremental.Chi2(), batch.Chi2(), 1e-9 * batch.Chi2());

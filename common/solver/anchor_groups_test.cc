@@ -6,22 +6,23 @@ namespace anchormap {
 namespace {
 
 TEST(AnchorGroupsTest, OlderGroupSurvivesAndHandsBackTheAbsorbedPrior) {
+  const TrajectoryId a(1), b(2), c(3), d(4), e(5);
   AnchorGroups groups;
-  groups.CreateGroup(2, 100);  // B
-  groups.Join(3, 2);           // C joins B
-  groups.CreateGroup(4, 200);  // D
-  groups.Join(5, 4);           // E joins D
-  EXPECT_TRUE(groups.SameGroup(2, 3));
-  EXPECT_FALSE(groups.SameGroup(3, 5));
-  EXPECT_FALSE(groups.Contains(1));
-  groups.Join(1, 3);  // A meets C
-  EXPECT_EQ(groups.Root(1), 2);
-  const AnchorGroups::Merge merge = groups.MergeGroups(5, 1);  // E meets A
-  EXPECT_EQ(merge.surviving_root, 2);
-  EXPECT_EQ(merge.absorbed_root, 4);
+  groups.CreateGroup(b, 100);
+  groups.Join(c, b);
+  groups.CreateGroup(d, 200);
+  groups.Join(e, d);
+  EXPECT_TRUE(groups.SameGroup(b, c));
+  EXPECT_FALSE(groups.SameGroup(c, e));
+  EXPECT_FALSE(groups.Contains(a));
+  groups.Join(a, c);  // A meets C
+  EXPECT_EQ(groups.Root(a), b);
+  const AnchorGroups::Merge merge = groups.MergeGroups(e, a);  // E meets A
+  EXPECT_EQ(merge.surviving_root, b);
+  EXPECT_EQ(merge.absorbed_root, d);
   EXPECT_EQ(merge.absorbed_prior_id, 200);
-  for (TrajectoryId t : {1, 2, 3, 4, 5}) EXPECT_EQ(groups.Root(t), 2);
-  EXPECT_EQ(groups.PriorOf(5), 100);
+  for (TrajectoryId t : {a, b, c, d, e}) EXPECT_EQ(groups.Root(t), b);
+  EXPECT_EQ(groups.PriorOf(e), 100);
 }
 
 }  // namespace

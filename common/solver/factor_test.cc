@@ -62,13 +62,14 @@ std::vector<Pose2> RandomPoses(std::mt19937* rng, int n) {
 
 TEST(FactorTest, AllJacobiansEqualNumericDifferences) {
   std::mt19937 rng(3);
-  const PoseKey a{0, 3}, b{1, 5};
+  const PoseKey a{TrajectoryId(0), 3}, b{TrajectoryId(1), 5};
   for (int trial = 0; trial < 50; ++trial) {
     const Pose2 z = RandomPoses(&rng, 1)[0];
     ExpectJacobiansMatchNumeric(PriorFactor{a, z, Eigen::Matrix3d::Identity()},
                                 RandomPoses(&rng, 1));
-    ExpectJacobiansMatchNumeric(BetweenFactor{a, {0, 4}, z, Eigen::Matrix3d::Identity()},
-                                RandomPoses(&rng, 2));
+    ExpectJacobiansMatchNumeric(
+        BetweenFactor{a, {TrajectoryId(0), 4}, z, Eigen::Matrix3d::Identity()},
+        RandomPoses(&rng, 2));
     ExpectJacobiansMatchNumeric(GlobalEncounterFactor{a, b, z, Eigen::Matrix3d::Identity()},
                                 RandomPoses(&rng, 2));
     ExpectJacobiansMatchNumeric(EncounterFactor{a, b, z, Eigen::Matrix3d::Identity()},
@@ -80,15 +81,16 @@ TEST(FactorTest, EncounterPredictsRelativeGlobalPose) {
   // Anchors and local poses chosen so that the global poses are known.
   const Pose2 A_a(1, 2, 0.3), A_b(-4, 0.5, -1.2), x_a(3, -1, 2.0), x_b(0.5, 0.5, -2.9);
   const Pose2 z = Between(Compose(A_a, x_a), Compose(A_b, x_b));
-  const EncounterFactor f{{0, 0}, {1, 0}, z, Eigen::Matrix3d::Identity()};
+  const EncounterFactor f{
+      {TrajectoryId(0), 0}, {TrajectoryId(1), 0}, z, Eigen::Matrix3d::Identity()};
   EXPECT_LT(f.Error(x_a, x_b, A_a, A_b, nullptr).norm(), 1e-12);
-  EXPECT_EQ(f.keys()[2], Key(AnchorKey{0}));
-  EXPECT_EQ(f.keys()[3], Key(AnchorKey{1}));
+  EXPECT_EQ(f.keys()[2], Key(AnchorKey{TrajectoryId(0)}));
+  EXPECT_EQ(f.keys()[3], Key(AnchorKey{TrajectoryId(1)}));
 }
 
 TEST(FactorTest, LinearizeWhitens) {
   Eigen::Matrix3d S = Eigen::Matrix3d::Identity() * 10;
-  const PriorFactor prior{PoseKey{0, 0}, Pose2(1, 0, 0), S};
+  const PriorFactor prior{PoseKey{TrajectoryId(0), 0}, Pose2(1, 0, 0), S};
   const Pose2 value(1.5, 0, 0);
   const LinearizedFactor lin = Linearize(prior, &value);
   EXPECT_NEAR(lin.whitened_error.x(), 5.0, 1e-12);

@@ -60,7 +60,7 @@ Status Smoother::Impl::AddPose(PoseKey key, const Pose2& initial) {
   auto it = trajectories_.find(key.trajectory);
   if (it == trajectories_.end()) {
     if (key.index != 0) {
-      return Status::Error("trajectory " + std::to_string(key.trajectory) +
+      return Status::Error("trajectory " + std::to_string(key.trajectory.value()) +
                            " must start with pose index 0");
     }
     AddVariable(key, initial);

@@ -62,41 +62,51 @@ Values CurrentValues(const Smoother& smoother) {
 
 TEST(SmootherTest, RejectsBadInputWithReasons) {
   Smoother smoother;
-  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2()).message(),
+  EXPECT_EQ(smoother.AddPose({TrajectoryId(0), 1}, Pose2()).message(),
             "trajectory 0 must start with pose index 0");
-  ASSERT_TRUE(smoother.AddPose({0, 0}, Pose2()).ok());
-  EXPECT_EQ(smoother.AddPose({0, 0}, Pose2()).message(), "pose pose(0,0) exists already");
-  EXPECT_EQ(smoother.AddPose({0, 1}, Pose2(std::nan(""), 0, 0)).message(),
+  ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), 0}, Pose2()).ok());
+  EXPECT_EQ(smoother.AddPose({TrajectoryId(0), 0}, Pose2()).message(),
+            "pose pose(0,0) exists already");
+  EXPECT_EQ(smoother.AddPose({TrajectoryId(0), 1}, Pose2(std::nan(""), 0, 0)).message(),
             "initial pose is not finite");
-  ASSERT_TRUE(smoother.AddPose({0, 1}, Pose2()).ok());
+  ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), 1}, Pose2()).ok());
   Eigen::Matrix3d bad = kCovariance;
   bad(2, 2) = -1;
-  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 1}, Pose2(), bad).message(),
+  EXPECT_EQ(smoother.AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), 1}, Pose2(), bad).message(),
             "covariance rejected: matrix is not positive definite");
-  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 7}, Pose2(), kCovariance).message(),
+  EXPECT_EQ(smoother.AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), 7}, Pose2(), kCovariance)
+                .message(),
             "between factor on an unknown pose");
-  EXPECT_EQ(smoother.AddEncounter({0, 0}, {0, 1}, Pose2(), kCovariance).message(),
+  EXPECT_EQ(smoother.AddEncounter({TrajectoryId(0), 0}, {TrajectoryId(0), 1}, Pose2(), kCovariance)
+                .message(),
             "encounter within one trajectory: use AddBetween (a loop closure)");
-  EXPECT_EQ(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, std::nan(""), 0), kCovariance).message(),
+  EXPECT_EQ(smoother
+                .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), 1}, Pose2(1, std::nan(""), 0),
+                            kCovariance)
+                .message(),
             "measurement is not finite");
 }
 
 TEST(SmootherTest, UnconstrainedPoseWaitsInsteadOfBreakingTheSolution) {
   Smoother smoother;
-  ASSERT_TRUE(smoother.AddPose({0, 0}, Pose2()).ok());
-  ASSERT_TRUE(smoother.AddPose({0, 1}, Pose2(1, 0, 0)).ok());
-  ASSERT_TRUE(smoother.AddPose({0, 2}, Pose2(2, 0, 0)).ok());
-  ASSERT_TRUE(smoother.AddBetween({0, 1}, {0, 2}, Pose2(1, 0, 0), kCovariance).ok());
+  ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), 0}, Pose2()).ok());
+  ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), 1}, Pose2(1, 0, 0)).ok());
+  ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), 2}, Pose2(2, 0, 0)).ok());
+  ASSERT_TRUE(
+      smoother.AddBetween({TrajectoryId(0), 1}, {TrajectoryId(0), 2}, Pose2(1, 0, 0), kCovariance)
+          .ok());
   const UpdateResult result = smoother.Update();
   EXPECT_FALSE(result.status.ok());  // poses 1 and 2 are not tied to pose 0 yet
   EXPECT_NE(result.status.message().find("wait for measurements"), std::string::npos);
-  EXPECT_TRUE(smoother.FramePose({0, 0}).IsFinite());
-  ASSERT_TRUE(smoother.AddBetween({0, 0}, {0, 1}, Pose2(1, 0, 0.1), kCovariance).ok());
+  EXPECT_TRUE(smoother.FramePose({TrajectoryId(0), 0}).IsFinite());
+  ASSERT_TRUE(
+      smoother.AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), 1}, Pose2(1, 0, 0.1), kCovariance)
+          .ok());
   EXPECT_TRUE(smoother.Update().status.ok());
   // One linear step from the initial guess, then the nonlinear optimum.
-  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), 0.1, 1e-9);
+  EXPECT_NEAR(smoother.FramePose({TrajectoryId(0), 2}).y(), 0.1, 1e-9);
   EXPECT_TRUE(smoother.BatchOptimize().status.ok());
-  EXPECT_NEAR(smoother.FramePose({0, 2}).y(), std::sin(0.1), 1e-9);
+  EXPECT_NEAR(smoother.FramePose({TrajectoryId(0), 2}).y(), std::sin(0.1), 1e-9);
 }
 
 TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
@@ -107,7 +117,7 @@ TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
       options.batch_every_updates = 7;
       options.backsubstitution_threshold = threshold;
       Smoother smoother(options);
-      AddRandomTrajectory(&smoother, 0, 60, 4, /*update_each_step=*/true);
+      AddRandomTrajectory(&smoother, TrajectoryId(0), 60, 4, /*update_each_step=*/true);
       ASSERT_TRUE(smoother.BatchOptimize().status.ok());
       const DenseOracle oracle(smoother.ActiveFactors());
       const Values optimum = oracle.Solve(CurrentValues(smoother));
@@ -124,15 +134,22 @@ TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   SmootherOptions options;
   options.convergence_step = 1e-13;  // R linearised at the estimate itself
   Smoother smoother(options);
-  AddRandomTrajectory(&smoother, 0, 30, 8, false);
-  AddRandomTrajectory(&smoother, 1, 25, 9, false);
-  ASSERT_TRUE(smoother.AddEncounter({0, 10}, {1, 3}, Pose2(0.5, 0.2, 0.1), kCovariance).ok());
-  ASSERT_TRUE(smoother.AddEncounter({1, 20}, {0, 25}, Pose2(-0.5, 0.2, 3.0), kCovariance).ok());
+  AddRandomTrajectory(&smoother, TrajectoryId(0), 30, 8, false);
+  AddRandomTrajectory(&smoother, TrajectoryId(1), 25, 9, false);
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 10}, {TrajectoryId(1), 3}, Pose2(0.5, 0.2, 0.1),
+                                kCovariance)
+                  .ok());
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(1), 20}, {TrajectoryId(0), 25}, Pose2(-0.5, 0.2, 3.0),
+                                kCovariance)
+                  .ok());
   ASSERT_TRUE(smoother.BatchOptimize().status.ok());
   const DenseOracle oracle(smoother.ActiveFactors());
   const Values values = CurrentValues(smoother);
-  const std::vector<Key> keys = {AnchorKey{0}, AnchorKey{1}, PoseKey{0, 10}, PoseKey{1, 3},
-                                 PoseKey{0, 0}};
+  const std::vector<Key> keys = {AnchorKey{TrajectoryId(0)}, AnchorKey{TrajectoryId(1)},
+                                 PoseKey{TrajectoryId(0), 10}, PoseKey{TrajectoryId(1), 3},
+                                 PoseKey{TrajectoryId(0), 0}};
   const Eigen::MatrixXd expected = oracle.Covariance(values, keys);
   const Eigen::MatrixXd joint = smoother.JointCovariance(keys);
   EXPECT_LT((joint - expected).cwiseAbs().maxCoeff(), 1e-9 * expected.cwiseAbs().maxCoeff());
@@ -142,7 +159,7 @@ TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
                   .maxCoeff(),
               1e-9 * expected.cwiseAbs().maxCoeff());
   }
-  EXPECT_THROW(smoother.MarginalCovariance(PoseKey{7, 0}), std::invalid_argument);
+  EXPECT_THROW(smoother.MarginalCovariance(PoseKey{TrajectoryId(7), 0}), std::invalid_argument);
 }
 
 TEST(SmootherTest, CovarianceOfIncrementalStateEqualsDenseInverseOfItsSystem) {
@@ -154,16 +171,21 @@ TEST(SmootherTest, CovarianceOfIncrementalStateEqualsDenseInverseOfItsSystem) {
   options.batch_when_fill_grows = 0;
   Smoother smoother(options);
   for (int i = 0; i < 20; ++i) {
-    ASSERT_TRUE(smoother.AddPose({0, i}, Pose2(i, 0, 0)).ok());
+    ASSERT_TRUE(smoother.AddPose({TrajectoryId(0), i}, Pose2(i, 0, 0)).ok());
     if (i > 0) {
-      ASSERT_TRUE(smoother.AddBetween({0, i - 1}, {0, i}, Pose2(1, 0, 0), kCovariance).ok());
+      ASSERT_TRUE(smoother
+                      .AddBetween({TrajectoryId(0), i - 1}, {TrajectoryId(0), i}, Pose2(1, 0, 0),
+                                  kCovariance)
+                      .ok());
     }
     ASSERT_TRUE(smoother.Update().status.ok());
   }
-  ASSERT_TRUE(smoother.AddBetween({0, 3}, {0, 17}, Pose2(14, 0, 0), kCovariance).ok());
+  ASSERT_TRUE(
+      smoother.AddBetween({TrajectoryId(0), 3}, {TrajectoryId(0), 17}, Pose2(14, 0, 0), kCovariance)
+          .ok());
   ASSERT_TRUE(smoother.Update().status.ok());
   const DenseOracle oracle(smoother.ActiveFactors());
-  const std::vector<Key> keys = {PoseKey{0, 19}, PoseKey{0, 5}};
+  const std::vector<Key> keys = {PoseKey{TrajectoryId(0), 19}, PoseKey{TrajectoryId(0), 5}};
   const Eigen::MatrixXd expected = oracle.Covariance(CurrentValues(smoother), keys);
   EXPECT_LT((smoother.JointCovariance(keys) - expected).cwiseAbs().maxCoeff(), 1e-9);
 }
@@ -199,12 +221,13 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
     for (int i = 0; i < kPoses; ++i) {
       for (int r = 0; r < kRobots; ++r) {
         const Pose2 initial = i == 0 ? Pose2()
-                                     : Compose(smoother.FramePose({r, i - 1}),
+                                     : Compose(smoother.FramePose({TrajectoryId(r), i - 1}),
                                                graphs[r].edges[i - 1].measured_T_from_to);
-        ASSERT_TRUE(smoother.AddPose({r, i}, initial).ok());
+        ASSERT_TRUE(smoother.AddPose({TrajectoryId(r), i}, initial).ok());
         if (i > 0) {
           ASSERT_TRUE(smoother
-                          .AddBetween({r, i - 1}, {r, i}, graphs[r].edges[i - 1].measured_T_from_to,
+                          .AddBetween({TrajectoryId(r), i - 1}, {TrajectoryId(r), i},
+                                      graphs[r].edges[i - 1].measured_T_from_to,
                                       graphs[r].edges[i - 1].information.inverse())
                           .ok());
         }
@@ -212,7 +235,8 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
       if (i >= 6 && i % 4 == 2) {  // robots (a, a+1) meet; indices lag a little
         const int a = (i / 4) % kRobots, b = (a + 1) % kRobots, j = i - (i / 4) % 3;
         const Pose2 z = Between(truth(a, i), truth(b, j));
-        ASSERT_TRUE(smoother.AddEncounter({a, i}, {b, j}, z, kCovariance).ok());
+        ASSERT_TRUE(
+            smoother.AddEncounter({TrajectoryId(a), i}, {TrajectoryId(b), j}, z, kCovariance).ok());
         ++encounters;
       }
       ASSERT_TRUE(smoother.Update().status.ok());
@@ -222,7 +246,7 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
       const Values optimum = oracle.Solve(CurrentValues(smoother));
       std::vector<Key> anchors;
       for (int r = 0; r < kRobots; ++r) {
-        if (smoother.IsAnchored(r)) anchors.push_back(AnchorKey{r});
+        if (smoother.IsAnchored(TrajectoryId(r))) anchors.push_back(AnchorKey{TrajectoryId(r)});
       }
       for (const auto& [key, value] : optimum) {
         worst_error[mode] = std::max(worst_error[mode],
@@ -255,10 +279,16 @@ TEST(SmootherTest, PartialRelinearisationAndAFailedBatchStepEndAtTheOptimum) {
   options.relinearize_threshold = 0.01;
   options.batch_every_updates = 10;
   Smoother smoother(options);
-  AddRandomTrajectory(&smoother, 0, 60, 41, true);
-  AddRandomTrajectory(&smoother, 1, 60, 42, true);
-  ASSERT_TRUE(smoother.AddEncounter({0, 59}, {1, 59}, Pose2(0.5, 0.0, 0.1), kCovariance).ok());
-  ASSERT_TRUE(smoother.AddEncounter({0, 30}, {1, 20}, Pose2(0.2, 0.1, 0.0), kCovariance).ok());
+  AddRandomTrajectory(&smoother, TrajectoryId(0), 60, 41, true);
+  AddRandomTrajectory(&smoother, TrajectoryId(1), 60, 42, true);
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 59}, {TrajectoryId(1), 59}, Pose2(0.5, 0.0, 0.1),
+                                kCovariance)
+                  .ok());
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 30}, {TrajectoryId(1), 20}, Pose2(0.2, 0.1, 0.0),
+                                kCovariance)
+                  .ok());
   const Values before = CurrentValues(smoother);
   FailNextOrderingsForTesting(1);
   const UpdateResult failed = smoother.BatchOptimize();

@@ -87,7 +87,7 @@ void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
                                 std::to_string(options_.max_scan_ranges) + ")");
   }
   if (refused.ok()) refused = CheckRobotCap(keyframe.robot);
-  const auto trajectory = std::make_pair(keyframe.robot, keyframe.trajectory_id);
+  const TrajectoryName trajectory{keyframe.robot, keyframe.trajectory_id};
   if (refused.ok() && trajectories_.count(trajectory) == 0 &&
       static_cast<int>(trajectories_.size()) >= options_.max_trajectories) {
     refused = Status::Error(ErrorCode::kCapReached,
@@ -100,7 +100,7 @@ void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
     return;
   }
   if (server_.OnKeyframe(std::move(keyframe)).ok()) {
-    robots_.insert(trajectory.first);
+    robots_.insert(trajectory.robot);
     trajectories_.insert(trajectory);
   }
 }

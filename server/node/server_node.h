@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/bus/authenticator.h"
+#include "common/types/trajectory_name.h"
 
 #include "server/mapping_server.h"
 #include "server/node/server_options.h"
@@ -75,8 +76,8 @@ class ServerNode {
   Clock clock_;
   std::optional<Authenticator> authenticator_;
   MappingServer server_;
-  std::set<std::string> robots_;                            // admitted, at most options_.max_robots
-  std::set<std::pair<std::string, int64_t>> trajectories_;  // at most max_trajectories
+  std::set<std::string> robots_;           // admitted, at most options_.max_robots
+  std::set<TrajectoryName> trajectories_;  // at most max_trajectories
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };

@@ -75,7 +75,7 @@ GraphReplay::GraphReplay(const PoseGraph& graph, int robots) : robots_(std::max(
 PoseKey GraphReplay::KeyOf(int64_t id) const {
   const int t =
       static_cast<int>(std::upper_bound(starts_.begin(), starts_.end(), id) - starts_.begin()) - 1;
-  return PoseKey{t, static_cast<int32_t>(id - starts_[t])};
+  return PoseKey{TrajectoryId(t), static_cast<int32_t>(id - starts_[t])};
 }
 
 Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertices,
@@ -89,7 +89,7 @@ Status GraphReplay::AddStep(int k, Smoother* smoother, bool initial_from_vertice
     if (initial_from && initial_from->HasPose(key)) {
       initial = initial_from->FramePose(key);
     } else if (initial_from_vertices) {
-      initial = Between(vertices_[starts_[key.trajectory]], vertices_[step.new_poses[n]]);
+      initial = Between(vertices_[starts_[key.trajectory.value()]], vertices_[step.new_poses[n]]);
     } else if (odometry) {
       if (!smoother->HasPose(KeyOf(odometry->from))) {
         return Status::Error("pose " + std::to_string(odometry->from) + " was not added");

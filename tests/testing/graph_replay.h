@@ -38,7 +38,7 @@ class GraphReplay {
 
   // The trajectory and local index of global pose `id` (0 <= id < num_poses()).
   PoseKey KeyOf(int64_t id) const;
-  int64_t GlobalId(PoseKey key) const { return starts_[key.trajectory] + key.index; }
+  int64_t GlobalId(PoseKey key) const { return starts_[key.trajectory.value()] + key.index; }
 
   // Adds step `k` to `smoother`: new poses, initialised by composing their odometry
   // measurement onto the smoother's current estimate of the previous pose (the origin

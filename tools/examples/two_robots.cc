@@ -21,7 +21,7 @@
 namespace {
 
 using anchormap::Pose2;
-using anchormap::PoseKey;
+using anchormap::TrajectoryId;
 
 int failures = 0;
 
@@ -41,9 +41,10 @@ int main() {
   const Eigen::Matrix3d encounter_sigma2 = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
   const Pose2 step(1.0, 0.0, 0.0);
   const Pose2 world_T_robot2_start(4.0, 3.0, M_PI / 2);  // unknown to the robots
+  const TrajectoryId robot_1(1), robot_2(2);
 
   anchormap::Smoother smoother;  // relative formulation, iSAM defaults
-  for (int robot = 1; robot <= 2; ++robot) {
+  for (const TrajectoryId robot : {robot_1, robot_2}) {
     for (int i = 0; i <= 4; ++i) {
       const Pose2 local(static_cast<double>(i), 0.0, 0.0);  // odometry: straight ahead
       if (!smoother.AddPose({robot, i}, local).ok()) return 1;
@@ -53,23 +54,24 @@ int main() {
   }
   if (!smoother.Update().status.ok()) return 1;
   std::printf("1. odometry only\n");
-  Check(!smoother.IsAnchored(1) && !smoother.IsAnchored(2), "no anchors before an encounter");
-  const Pose2 robot2_local_3 = smoother.LocalPose({2, 3});
+  Check(!smoother.IsAnchored(robot_1) && !smoother.IsAnchored(robot_2),
+        "no anchors before an encounter");
+  const Pose2 robot2_local_3 = smoother.LocalPose({robot_2, 3});
 
   // Robot 1 at its pose 2 (world (2, 0)) sees robot 2 at its pose 1 (world (4, 4), north).
   const Pose2 world_T_r1_2(2.0, 0.0, 0.0);
   const Pose2 world_T_r2_1 = anchormap::Compose(world_T_robot2_start, step);
   const Pose2 seen_1 = anchormap::Between(world_T_r1_2, world_T_r2_1);
-  if (!smoother.AddEncounter({1, 2}, {2, 1}, seen_1, encounter_sigma2).ok()) return 1;
+  if (!smoother.AddEncounter({robot_1, 2}, {robot_2, 1}, seen_1, encounter_sigma2).ok()) return 1;
   if (!smoother.Update().status.ok()) return 1;
   std::printf("2. first encounter R1[2] -> R2[1]\n");
-  Print("anchor of robot 1", *smoother.Anchor(1));
-  Print("anchor of robot 2", *smoother.Anchor(2));
-  Check(anchormap::PoseError(smoother.LocalPose({2, 3}), robot2_local_3).norm() < 1e-12,
+  Print("anchor of robot 1", *smoother.Anchor(robot_1));
+  Print("anchor of robot 2", *smoother.Anchor(robot_2));
+  Check(anchormap::PoseError(smoother.LocalPose({robot_2, 3}), robot2_local_3).norm() < 1e-12,
         "robot 2's local poses did not move");
-  Check(anchormap::PoseError(*smoother.Anchor(2), world_T_robot2_start).norm() < 1e-9,
+  Check(anchormap::PoseError(*smoother.Anchor(robot_2), world_T_robot2_start).norm() < 1e-9,
         "robot 2's anchor is its start pose in the world (robot 1's frame)");
-  Print("robot 2 pose 3, global", smoother.GlobalPose({2, 3}));
+  Print("robot 2 pose 3, global", smoother.GlobalPose({robot_2, 3}));
 
   // Robot 1 at pose 4 sees robot 2 at pose 3, but this measurement is 0.2 m off along
   // robot 1's heading: the two encounters disagree.
@@ -77,16 +79,18 @@ int main() {
   const Pose2 world_T_r2_3 = anchormap::Compose(world_T_robot2_start, Pose2(3.0, 0.0, 0.0));
   const Pose2 truth_2 = anchormap::Between(world_T_r1_4, world_T_r2_3);
   const Pose2 seen_2(truth_2.x() + 0.2, truth_2.y(), truth_2.theta());
-  if (!smoother.AddEncounter({1, 4}, {2, 3}, seen_2, encounter_sigma2).ok()) return 1;
+  if (!smoother.AddEncounter({robot_1, 4}, {robot_2, 3}, seen_2, encounter_sigma2).ok()) return 1;
   if (!smoother.Update().status.ok()) return 1;
   const anchormap::UpdateResult converged = smoother.BatchOptimize();
   if (!converged.status.ok()) return 1;
   std::printf("3. second encounter R1[4] -> R2[3], 0.2 m off\n");
-  Print("anchor of robot 2", *smoother.Anchor(2));
+  Print("anchor of robot 2", *smoother.Anchor(robot_2));
   const double residual_1 =
-      anchormap::Between(smoother.GlobalPose({1, 2}), smoother.GlobalPose({2, 1})).x() - seen_1.x();
+      anchormap::Between(smoother.GlobalPose({robot_1, 2}), smoother.GlobalPose({robot_2, 1})).x() -
+      seen_1.x();
   const double residual_2 =
-      anchormap::Between(smoother.GlobalPose({1, 4}), smoother.GlobalPose({2, 3})).x() - seen_2.x();
+      anchormap::Between(smoother.GlobalPose({robot_1, 4}), smoother.GlobalPose({robot_2, 3})).x() -
+      seen_2.x();
   std::printf("  along-track residuals: first %+.4f m, second %+.4f m; chi2 %.4f\n", residual_1,
               residual_2, smoother.Chi2());
   // Equal covariances and stiff odometry: the least-squares answer splits the 0.2 m evenly
@@ -96,18 +100,18 @@ int main() {
         "the disagreement is split evenly between the two encounters");
   // The same factors solved in one batch give the same estimate.
   anchormap::Smoother batch;
-  for (int robot = 1; robot <= 2; ++robot) {
+  for (const TrajectoryId robot : {robot_1, robot_2}) {
     for (int i = 0; i <= 4; ++i) {
       if (!batch.AddPose({robot, i}, Pose2(static_cast<double>(i), 0.0, 0.0)).ok()) return 1;
       if (i > 0 && !batch.AddBetween({robot, i - 1}, {robot, i}, step, odometry_sigma2).ok())
         return 1;
     }
   }
-  if (!batch.AddEncounter({1, 2}, {2, 1}, seen_1, encounter_sigma2).ok()) return 1;
-  if (!batch.AddEncounter({1, 4}, {2, 3}, seen_2, encounter_sigma2).ok()) return 1;
+  if (!batch.AddEncounter({robot_1, 2}, {robot_2, 1}, seen_1, encounter_sigma2).ok()) return 1;
+  if (!batch.AddEncounter({robot_1, 4}, {robot_2, 3}, seen_2, encounter_sigma2).ok()) return 1;
   if (!batch.BatchOptimize().status.ok()) return 1;
   double largest = 0.0;
-  for (int robot = 1; robot <= 2; ++robot) {
+  for (const TrajectoryId robot : {robot_1, robot_2}) {
     for (int i = 0; i <= 4; ++i) {
       largest = std::max(largest, anchormap::PoseError(smoother.GlobalPose({robot, i}),
                                                        batch.GlobalPose({robot, i}))
