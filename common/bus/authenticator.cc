@@ -213,22 +213,13 @@ Result<std::vector<uint8_t>> Authenticator::Open(const std::string& channel, con
 
 Status CheckSignedWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  uint64_t hash = 0;
-  if (!c.ReadUint64(&hash)) {
-    return Status::Error(ErrorCode::kDecodeFailed, "truncated message at fingerprint");
-  }
-  if (hash != static_cast<uint64_t>(anchormap::signed_t::getHash())) {
-    return Status::Error(ErrorCode::kDecodeFailed, "fingerprint is not anchormap.signed_t");
-  }
+  if (Status p = CheckFingerprint<anchormap::signed_t>(&c); !p.ok()) return p;
   if (Status p = c.SkipString("key_id", kMaxIdLength); !p.ok()) return p;
   if (Status p = c.SkipString("sender", kMaxIdLength); !p.ok()) return p;
-  if (!c.Skip(8)) return Status::Error(ErrorCode::kDecodeFailed, "truncated message at counter");
+  if (Status p = c.SkipField(8, "counter"); !p.ok()) return p;
   int32_t n = 0;
   if (Status p = c.ReadCount("payload_size", kMaxPayload, 1, &n); !p.ok()) return p;
-  if (!c.Skip(static_cast<size_t>(n) + Authenticator::kTagBytes)) {
-    return Status::Error(ErrorCode::kDecodeFailed, "truncated message at payload/tag");
-  }
-  return Status::Ok();
+  return c.SkipField(static_cast<size_t>(n) + Authenticator::kTagBytes, "payload/tag");
 }
 
 }  // namespace anchormap

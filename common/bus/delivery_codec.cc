@@ -3,6 +3,7 @@
 #include "anchormap/delivery_ack_t.hpp"
 #include "anchormap/resend_request_t.hpp"
 #include "common/bus/codec_internal.h"
+#include "common/bus/wire_check.h"
 
 namespace anchormap {
 namespace {
@@ -12,41 +13,25 @@ using codec_internal::Encode;
 using codec_internal::SafeDecode;
 using codec_internal::Success;
 
-Status Truncated(const char* where) {
-  return Status::Error(ErrorCode::kDecodeFailed, std::string("truncated message at ") + where);
-}
-
-template <typename T>
-Status CheckFingerprint(WireCursor* cursor) {
-  uint64_t hash = 0;
-  if (!cursor->ReadUint64(&hash)) return Truncated("fingerprint");
-  if (hash != static_cast<uint64_t>(T::getHash())) {
-    return Status::Error(ErrorCode::kDecodeFailed,
-                         std::string("fingerprint is not ") + T::getTypeName());
-  }
-  return Status::Ok();
-}
-
 }  // namespace
 
 Status CheckDeliveryAckWire(const void* data, size_t size) {
   WireCursor c(data, size);
   if (Status p = CheckFingerprint<anchormap::delivery_ack_t>(&c); !p.ok()) return p;
-  if (!c.Skip(8)) return Truncated("utime");
+  if (Status p = c.SkipField(8, "utime"); !p.ok()) return p;
   if (Status p = c.SkipString("robot", CodecLimits::kMaxNameLength); !p.ok()) return p;
-  if (!c.Skip(8 + 4 + 4)) return Truncated("ack fields");
-  return Status::Ok();
+  return c.SkipField(8 + 4 + 4, "ack fields");
 }
 
 Status CheckResendRequestWire(const void* data, size_t size) {
   WireCursor c(data, size);
   if (Status p = CheckFingerprint<anchormap::resend_request_t>(&c); !p.ok()) return p;
-  if (!c.Skip(8)) return Truncated("utime");
+  if (!c.Skip(8)) return TruncatedAt("utime");
   if (Status p = c.SkipString("robot", CodecLimits::kMaxNameLength); !p.ok()) return p;
-  if (!c.Skip(8)) return Truncated("trajectory_id");
+  if (!c.Skip(8)) return TruncatedAt("trajectory_id");
   int32_t n = 0;
   if (Status p = c.ReadCount("num_ranges", kMaxResendRanges, 1 + 4 + 4, &n); !p.ok()) return p;
-  if (!c.Skip(9 * static_cast<size_t>(n))) return Truncated("ranges");
+  if (!c.Skip(9 * static_cast<size_t>(n))) return TruncatedAt("ranges");
   return Status::Ok();
 }
 

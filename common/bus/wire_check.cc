@@ -13,28 +13,20 @@
 namespace anchormap {
 namespace {
 
-Status Truncated(const char* where) {
-  return Status::Error(ErrorCode::kDecodeFailed, std::string("truncated message at ") + where);
-}
-
-// The 8-byte fingerprint at the start of every message must be T's.
-template <typename T>
-Status CheckHash(WireCursor* cursor) {
-  uint64_t hash = 0;
-  if (!cursor->ReadUint64(&hash)) return Truncated("fingerprint");
-  if (hash != static_cast<uint64_t>(T::getHash())) {
-    return Status::Error(ErrorCode::kDecodeFailed,
-                         std::string("fingerprint is not ") + T::getTypeName());
-  }
-  return Status::Ok();
-}
-
 #define WIRE_SKIP(cursor, n, where) \
-  if (!(cursor).Skip(n)) return Truncated(where)
+  if (!(cursor).Skip(n)) return TruncatedAt(where)
 #define WIRE_TRY(expr) \
   if (Status problem = (expr); !problem.ok()) return problem
 
 }  // namespace
+
+Status TruncatedAt(const char* field) {
+  return Status::Error(ErrorCode::kDecodeFailed, std::string("truncated message at ") + field);
+}
+
+Status WireCursor::SkipField(size_t n, const char* field) {
+  return Skip(n) ? Status::Ok() : TruncatedAt(field);
+}
 
 bool WireCursor::Skip(size_t n) {
   if (n > remaining()) return false;
@@ -62,7 +54,7 @@ bool WireCursor::ReadUint64(uint64_t* value) {
 
 Status WireCursor::SkipString(const char* field, size_t max_length) {
   int32_t length_with_nul = 0;
-  if (!ReadInt32(&length_with_nul)) return Truncated(field);
+  if (!ReadInt32(&length_with_nul)) return TruncatedAt(field);
   if (length_with_nul < 1) {
     return Status::Error(ErrorCode::kDecodeFailed,
                          std::string(field) + " has an invalid string length");
@@ -72,7 +64,7 @@ Status WireCursor::SkipString(const char* field, size_t max_length) {
                          std::string(field) + " is " + std::to_string(length_with_nul - 1) +
                              " bytes long (limit " + std::to_string(max_length) + ")");
   }
-  if (!Skip(static_cast<size_t>(length_with_nul))) return Truncated(field);
+  if (!Skip(static_cast<size_t>(length_with_nul))) return TruncatedAt(field);
   // lcm-gen's decode drops the last byte without looking: it must be the terminator. An
   // earlier NUL would survive decoding but not encoding (which measures with strlen while
   // getEncodedSize counts every byte: the re-encoded message would end in stray zeros).
@@ -90,19 +82,19 @@ Status WireCursor::SkipString(const char* field, size_t max_length) {
 
 Status WireCursor::ReadCount(const char* field, int32_t max_count, size_t min_element_bytes,
                              int32_t* count) {
-  if (!ReadInt32(count)) return Truncated(field);
+  if (!ReadInt32(count)) return TruncatedAt(field);
   if (*count < 0 || *count > max_count) {
     return Status::Error(ErrorCode::kAbsurdSize, std::string(field) + " = " +
                                                      std::to_string(*count) + " (limit " +
                                                      std::to_string(max_count) + ")");
   }
-  if (static_cast<size_t>(*count) * min_element_bytes > remaining()) return Truncated(field);
+  if (static_cast<size_t>(*count) * min_element_bytes > remaining()) return TruncatedAt(field);
   return Status::Ok();
 }
 
 Status CheckPlanarLidarWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<bot_core::planar_lidar_t>(&c));
+  WIRE_TRY(CheckFingerprint<bot_core::planar_lidar_t>(&c));
   WIRE_SKIP(c, 8, "utime");
   int32_t n = 0;
   WIRE_TRY(c.ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
@@ -115,14 +107,14 @@ Status CheckPlanarLidarWire(const void* data, size_t size) {
 
 Status CheckPoseWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<bot_core::pose_t>(&c));
+  WIRE_TRY(CheckFingerprint<bot_core::pose_t>(&c));
   WIRE_SKIP(c, 8 + 8 * (3 + 3 + 4 + 3 + 3), "pose fields");
   return Status::Ok();
 }
 
 Status CheckKeyframeWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::keyframe_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::keyframe_t>(&c));
   WIRE_SKIP(c, 8, "utime");
   WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
   WIRE_SKIP(c, 8 + 4 + 8 * (3 + 3 + 9 + 3) + 4 * 3, "keyframe fields");
@@ -134,7 +126,7 @@ Status CheckKeyframeWire(const void* data, size_t size) {
 
 Status CheckEncounterWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::encounter_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::encounter_t>(&c));
   WIRE_SKIP(c, 8, "utime");
   WIRE_TRY(c.SkipString("observer", CodecLimits::kMaxNameLength));
   WIRE_SKIP(c, 8, "observer_trajectory_id");
@@ -146,7 +138,7 @@ Status CheckEncounterWire(const void* data, size_t size) {
 
 Status CheckMergedMapWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::merged_map_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::merged_map_t>(&c));
   WIRE_SKIP(c, 16, "utime/update");
   int32_t trajectories = 0;
   // A trajectory takes at least 4 + 1 + 8 + 1 + 24 + 4 bytes.
@@ -172,7 +164,7 @@ Status CheckMergedMapWire(const void* data, size_t size) {
 
 Status CheckAnchorCovariancesWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::anchor_covariances_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::anchor_covariances_t>(&c));
   WIRE_SKIP(c, 16, "utime/update");
   int32_t anchors = 0;
   WIRE_TRY(c.ReadCount("num_anchors", CodecLimits::kMaxTrajectories, 4 + 1 + 8 + 96, &anchors));
@@ -185,7 +177,7 @@ Status CheckAnchorCovariancesWire(const void* data, size_t size) {
 
 Status CheckGridTileWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::grid_tile_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::grid_tile_t>(&c));
   WIRE_SKIP(c, 8 + 8 + 8 + 4 + 4, "tile header");
   int32_t width = 0, height = 0;
   WIRE_TRY(c.ReadCount("width", 4096, 0, &width));
@@ -197,7 +189,7 @@ Status CheckGridTileWire(const void* data, size_t size) {
 
 Status CheckServerStatusWire(const void* data, size_t size) {
   WireCursor c(data, size);
-  WIRE_TRY(CheckHash<anchormap::server_status_t>(&c));
+  WIRE_TRY(CheckFingerprint<anchormap::server_status_t>(&c));
   WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8 + 8 + 8, "status fields");
   int32_t reasons = 0;
   WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));

@@ -24,6 +24,8 @@ class WireCursor {
 
   size_t remaining() const { return size_ - position_; }
   bool Skip(size_t n);
+  // Skip(n), or the "truncated message at `field`" refusal.
+  Status SkipField(size_t n, const char* field);
   bool ReadInt32(int32_t* value);
   bool ReadUint64(uint64_t* value);
   // An LCM string: int32 length including the terminating NUL, then the bytes.
@@ -37,6 +39,21 @@ class WireCursor {
   size_t size_;
   size_t position_ = 0;
 };
+
+// The refusal of a message that ends inside `field`.
+Status TruncatedAt(const char* field);
+
+// The 8-byte fingerprint every LCM message starts with must be T's (an lcm-gen type).
+template <typename T>
+Status CheckFingerprint(WireCursor* cursor) {
+  uint64_t hash = 0;
+  if (!cursor->ReadUint64(&hash)) return TruncatedAt("fingerprint");
+  if (hash != static_cast<uint64_t>(T::getHash())) {
+    return Status::Error(ErrorCode::kDecodeFailed,
+                         std::string("fingerprint is not ") + T::getTypeName());
+  }
+  return Status::Ok();
+}
 
 // One walker per wire type; each is ok when the sizes are consistent.
 Status CheckPlanarLidarWire(const void* data, size_t size);
