@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "common/geometry/angle.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
@@ -20,20 +21,7 @@ class MapPublisherTest : public ::testing::Test {
     for (const char* robot : {"A", "B"}) {
       const int64_t trajectory = robot[0] == 'A' ? 7 : 8;
       for (int32_t seq = 0; seq < kKeyframes; ++seq) {
-        Keyframe k;
-        k.robot = robot;
-        k.trajectory_id = trajectory;
-        k.seq = seq;
-        k.utime = 1'000'000 * (seq + 1);
-        k.T_local_pose = Pose2(seq, 0.0, 0.0);
-        if (seq > 0) {
-          k.T_previous_this = Pose2(1.0, 0.0, 0.0);
-          k.T_previous_this_covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
-        }
-        k.scan.rad0 = 0.0f;
-        k.scan.radstep = 0.0f;
-        k.scan.max_range = 10.0f;
-        k.scan.ranges = {2.0f};
+        const Keyframe k = testing::StraightKeyframe(robot, trajectory, seq);
         std::vector<AdmittedKeyframe> admitted;
         EXPECT_TRUE(table_.Offer(k, &admitted).ok());
         for (const AdmittedKeyframe& a : admitted) {

@@ -8,26 +8,13 @@
 
 #include "common/bus/codec.h"
 #include "common/bus/map_codec.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
 
-// Keyframe `seq` of `robot`, driving 1 m per keyframe along its x axis.
 Keyframe MakeKeyframe(const std::string& robot, int64_t trajectory, int32_t seq) {
-  Keyframe k;
-  k.robot = robot;
-  k.trajectory_id = trajectory;
-  k.seq = seq;
-  k.utime = 1'000'000 * (seq + 1);
-  k.T_local_pose = Pose2(seq, 0.0, 0.0);
-  if (seq > 0) {
-    k.T_previous_this = Pose2(1.0, 0.0, 0.0);
-    k.T_previous_this_covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
-  }
-  k.scan.radstep = 0.01f;
-  k.scan.max_range = 10.0f;
-  k.scan.ranges = {2.0f, 2.0f, 2.0f};
-  return k;
+  return testing::StraightKeyframe(robot, trajectory, seq, /*num_rays=*/3);
 }
 
 class ServerNodeTest : public ::testing::Test {
