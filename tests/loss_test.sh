@@ -29,7 +29,8 @@ URL_B="udpm://239.255.76.68:7668?ttl=0"
 CONVERGENCE=1e-12
 MAX_WAIT_S=90
 
-log() { echo "loss_test: $*"; }
+TEST_NAME=loss_test
+source "$(dirname "$0")/system_test_lib.sh"
 
 outboxes_empty() {
   local work=$1 f
@@ -80,28 +81,20 @@ inside_namespace() {
 }
 
 main() {
-  for tool in anchormap-sim anchormap-agent anchormap-server anchormap-relay anchormap-test-compare-maps; do
-    [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
-  done
+  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-relay \
+    anchormap-test-compare-maps
   command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
     { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
-  if ! unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
-      >/dev/null 2>&1; then
+  if ! netns_available; then
     log "SKIPPED: network namespaces are unavailable here (unshare -n refused); the loss test needs a private network for its two multicast buses"
     exit $SKIP
   fi
-  local work
-  work=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-loss.XXXXXX")
-  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
-    log "files in $work"
-  else
-    trap "rm -rf '$work'" EXIT
-  fi
-  "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
-    >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+  make_work_dir
+  local work=$WORK
+  simulate $ROBOTS $DURATION_S
 
   export -f inside_namespace outboxes_empty log
-  export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S
+  export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
   cat "$work/relay.log" | grep 'anchormap-relay [a-z]*:' | sed 's/^/loss_test: /'

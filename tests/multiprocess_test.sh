@@ -27,7 +27,8 @@ URL="udpm://239.255.76.67:7667?ttl=0"
 MAX_RMSE_M=0.8
 MAX_ERROR_M=2.0
 
-log() { echo "multiprocess_test: $*"; }
+TEST_NAME=multiprocess_test
+source "$(dirname "$0")/system_test_lib.sh"
 
 
 inside_namespace() {
@@ -64,22 +65,14 @@ run_checks() {
 }
 
 main() {
-  for tool in anchormap-sim anchormap-agent anchormap-server anchormap-replay anchormap-test-check-server-output; do
-    [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
-  done
-  local work
-  work=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-multiprocess.XXXXXX")
-  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
-    log "files in $work"
-  else
-    trap "rm -rf '$work'" EXIT
-  fi
-  "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
-    >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-replay \
+    anchormap-test-check-server-output
+  make_work_dir
+  local work=$WORK
+  simulate $ROBOTS $DURATION_S
   cat "$work/sim.txt"
 
-  if ! unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
-      >/dev/null 2>&1; then
+  if ! netns_available; then
     log "network namespaces unavailable: running agents + server in one process over memq:// instead"
     "$BIN/anchormap-replay" --log "$work/sim.lcmlog" --output "$work/out.lcmlog" --log-level warning \
       || { log "anchormap-replay failed"; exit 1; }
@@ -89,7 +82,7 @@ main() {
   fi
 
   export -f inside_namespace log
-  export BIN URL ROBOTS DURATION_S SPEED
+  export BIN URL ROBOTS DURATION_S SPEED TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
   for f in "$work"/agent_R*.log "$work/server.log"; do

@@ -27,17 +27,16 @@ SPEED=2
 URL="udpm://239.255.76.67:7691?ttl=0"
 HTTP_PORT=18088
 
-log() { echo "viewer_browser_test: $*"; }
+TEST_NAME=viewer_browser_test
+source "$ROOT/tests/system_test_lib.sh"
 
 CHROMIUM=$(command -v chromium || command -v chromium-browser || true)
 if [ -z "$CHROMIUM" ]; then
   log "SKIP: no chromium (scripts/install-deps.sh installs Debian's chromium package)"
   exit $SKIP
 fi
-for tool in anchormap-sim anchormap-replay anchormap-viewer anchormap-test-viewer-browser \
-            anchormap-test-viewer-check; do
-  [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
-done
+require_tools anchormap-sim anchormap-replay anchormap-viewer anchormap-test-viewer-browser \
+  anchormap-test-viewer-check
 command -v lcm-logplayer >/dev/null || { log "lcm-logplayer is missing (liblcm-bin)"; exit 1; }
 
 # Starts headless Chromium on the viewer's page with DevTools on port $1, profile in $2.
@@ -86,15 +85,9 @@ inside_namespace() {
 }
 
 main() {
-  local work
-  work=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-viewer-test.XXXXXX")
-  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
-    log "files in $work"
-  else
-    trap "rm -rf '$work'" EXIT
-  fi
-  "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
-    >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+  make_work_dir
+  local work=$WORK
+  simulate $ROBOTS $DURATION_S
   "$BIN/anchormap-replay" --log "$work/sim.lcmlog" --output "$work/out.lcmlog" --publish-period-s 1 \
     --grid-period-s 2 --log-level warning || { log "anchormap-replay failed"; exit 1; }
   local last_update
@@ -103,7 +96,7 @@ main() {
   log "the log's last merged map is update $last_update"
 
   export -f inside_namespace start_browser log
-  export BIN URL HTTP_PORT CHROMIUM DURATION_S SPEED SKIP
+  export BIN URL HTTP_PORT CHROMIUM DURATION_S SPEED SKIP TEST_NAME
   "$ROOT/scripts/netns-run.sh" bash -c 'inside_namespace "$1" "$2"' _ "$work" "$last_update"
   local status=$?
   log "viewer: $(grep 'final:' "$work/viewer.log" | sed 's/.*final: //')"

@@ -1,0 +1,35 @@
+# Shared set-up of the multi-process system tests (tests/*_test.sh), sourced after setting
+# TEST_NAME (prefix of log lines) and BIN (the build's bin/ folder).
+
+log() { echo "$TEST_NAME: $*"; }
+
+# Exits 1 naming the first of the given bin/ tools that is not built.
+require_tools() {
+  local tool
+  for tool in "$@"; do
+    [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
+  done
+}
+
+# Sets WORK to a fresh folder, removed at exit unless ANCHORMAP_KEEP_TEST_DIR=1.
+make_work_dir() {
+  WORK=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-$TEST_NAME.XXXXXX")
+  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
+    log "files in $WORK"
+  else
+    trap "rm -rf '$WORK'" EXIT
+  fi
+}
+
+# simulate ROBOTS DURATION_S: the simulator's seed-1 run into $WORK/sim.lcmlog (its
+# summary in $WORK/sim.txt).
+simulate() {
+  "$BIN/anchormap-sim" --robots "$1" --seed 1 --duration-s "$2" --output "$WORK/sim.lcmlog" \
+    >"$WORK/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+}
+
+# True when this machine gives us a private network namespace with multicast on loopback.
+netns_available() {
+  unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
+    >/dev/null 2>&1
+}
