@@ -18,7 +18,8 @@ run_pass() {
   local dir=$1; shift
   cmake -S . -B "$dir" -DANCHORMAP_WERROR=ON "$@" >/dev/null
   cmake --build "$dir" -j "$jobs"
-  (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 900)
+  (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 900 \
+    ${ANCHORMAP_CTEST_EXCLUDE:+-E "$ANCHORMAP_CTEST_EXCLUDE"})
 }
 
 echo "== Formatting (clang-format, .clang-format at the root)"
@@ -35,7 +36,11 @@ if [ "${ANCHORMAP_SKIP_SANITIZE:-0}" != "1" ]; then
   echo "== ASan + UBSan build and tests"
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-  run_pass build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
+  # The two longest data tests (city10000 against batch, the per-update oracle in iSAM's
+  # mode: 3.5 of the pass's minutes under ASan) run in the Release pass only; their smaller
+  # siblings (M3500, the oracle in the server's mode) cover the same code here.
+  ANCHORMAP_CTEST_EXCLUDE='IncrementalVsBatchTest\.City10000|PerUpdateOracleTest\.IsamMode' \
+    run_pass build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
 fi
 fuzz_pass() {
   local seconds=${ANCHORMAP_FUZZ_SECONDS:-20}
@@ -56,22 +61,33 @@ fuzz_pass() {
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -DANCHORMAP_WERROR=ON -DANCHORMAP_FUZZ=ON \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
   cmake --build build-fuzz -j "$jobs" --target anchormap_fuzz
-  local target
+  # Targets are single-threaded: run as many at once as there are cores.
+  mkdir -p build-fuzz/artifacts
+  rm -f build-fuzz/fuzz-*.rc
+  local dir target failed=""
   for dir in tests/fuzz/corpus/*/; do
     target=$(basename "$dir")
     mkdir -p "build-fuzz/corpus/$target"
-    echo "-- fuzz-$target"
-    mkdir -p build-fuzz/artifacts
-    if ! build-fuzz/fuzz/fuzz-"$target" -max_total_time="$seconds" -timeout=20 \
+    while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
+    (
+      rc=0
+      build-fuzz/fuzz/fuzz-"$target" -max_total_time="$seconds" -timeout=20 \
         -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$target-" \
-        "build-fuzz/corpus/$target" "$dir" \
-        >"build-fuzz/fuzz-$target.log" 2>&1; then
+        "build-fuzz/corpus/$target" "$dir" >"build-fuzz/fuzz-$target.log" 2>&1 || rc=$?
+      echo $rc >"build-fuzz/fuzz-$target.rc"
+    ) &
+  done
+  wait
+  for dir in tests/fuzz/corpus/*/; do
+    target=$(basename "$dir")
+    echo "-- fuzz-$target: $(grep -E '^Done ' "build-fuzz/fuzz-$target.log" || echo 'no summary')"
+    if [ "$(cat "build-fuzz/fuzz-$target.rc" 2>/dev/null)" != 0 ]; then
       tail -n 60 "build-fuzz/fuzz-$target.log" >&2
       echo "test.sh: fuzz-$target found a bug (log: build-fuzz/fuzz-$target.log)" >&2
-      exit 1
+      failed="$failed $target"
     fi
-    grep -E '^stat::number_of_executed_units|^Done ' "build-fuzz/fuzz-$target.log" || true
   done
+  [ -z "$failed" ] || exit 1
 }
 
 if [ "${ANCHORMAP_SKIP_FUZZ:-0}" != "1" ]; then
