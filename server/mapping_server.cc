@@ -165,10 +165,16 @@ void MappingServer::Flush() {
   // End of input: one batch step, so that the last map is the converged solution rather
   // than the incremental estimate (which relinearises only at batch steps).
   if (smoother_.stats().variables > 0) {
-    const UpdateResult result = smoother_.BatchOptimize();
-    ++stats_.updates;
-    stats_.last_update_ms = 1e3 * result.seconds;
-    stats_.total_update_ms += stats_.last_update_ms;
+    CountUpdate(smoother_.BatchOptimize());
+  }
+}
+
+void MappingServer::CountUpdate(const UpdateResult& result) {
+  ++stats_.updates;
+  stats_.last_update_ms = 1e3 * result.seconds;
+  stats_.total_update_ms += stats_.last_update_ms;
+  if (options_.record_update_times) {
+    update_times_.push_back({data_utime_, stats_.last_update_ms, result.batch_step});
   }
 }
 
@@ -227,9 +233,7 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
   }
   if (!changed) return;
   const UpdateResult result = smoother_.Update();
-  ++stats_.updates;
-  stats_.last_update_ms = 1e3 * result.seconds;
-  stats_.total_update_ms += stats_.last_update_ms;
+  CountUpdate(result);
   if (!result.status.ok()) {
     ++stats_.solver_problems;
     solver_log_.Log(LogLevel::kWarning, "solver", "solver update: " + result.status.message());

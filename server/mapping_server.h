@@ -49,6 +49,9 @@ inline SmootherOptions DefaultServerSmootherOptions() {
 
 struct MappingServerOptions {
   SmootherOptions smoother = DefaultServerSmootherOptions();
+  // Keep every solver update's cost (update_times()): for benchmarks, off in the daemons,
+  // whose memory must not grow with the mission.
+  bool record_update_times = false;
   TrajectoryTableOptions table;
   DirectEncounterOptions direct;
   MapPublisherOptions publish;
@@ -71,6 +74,13 @@ struct MappingServerStats {
   int64_t solver_problems = 0;  // updates whose status was not ok
   double last_update_ms = 0.0;
   double total_update_ms = 0.0;
+};
+
+// One solver update's cost, when MappingServerOptions::record_update_times is set.
+struct UpdateTiming {
+  int64_t data_utime = 0;  // the newest input's time when the update ran
+  double ms = 0.0;         // the smoother's own wall time for the update
+  bool batch_step = false;
 };
 
 class MappingServer {
@@ -118,6 +128,7 @@ class MappingServer {
   int64_t update_count() const { return stats_.updates; }
   int64_t data_utime() const { return data_utime_; }
   const MappingServerStats& stats() const { return stats_; }
+  const std::vector<UpdateTiming>& update_times() const { return update_times_; }
   const Smoother& smoother() const { return smoother_; }
   Smoother& mutable_smoother() { return smoother_; }
   const TrajectoryTable& table() const { return table_; }
@@ -127,6 +138,8 @@ class MappingServer {
   int num_anchored() const;
 
  private:
+  // Counts (and records, if asked) one solver update.
+  void CountUpdate(const UpdateResult& result);
   // Adds admitted keyframes to the smoother and tells the sources.
   void AddKeyframes(const std::vector<AdmittedKeyframe>& admitted, EncounterSourceOutput* found);
   // Adds the sources' constraints, counts their refusals, updates the smoother if anything
@@ -142,6 +155,7 @@ class MappingServer {
   RejectCounter rejects_;
   OncePerKindLog solver_log_;
   MappingServerStats stats_;
+  std::vector<UpdateTiming> update_times_;
   int64_t data_utime_ = 0;
   int64_t clock_utime_ = -1;
   ResendTracker resend_;

@@ -5,6 +5,7 @@
 // the CPU allows: for demos, evaluation runs, and the multi-process test's fallback where
 // network namespaces are unavailable. Times are data times (the input log's utimes).
 
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -31,8 +32,23 @@ struct ReplayOptions {
   double keyframe_distance_m = 0.5;
   double keyframe_angle_rad = 0.35;
   std::string log_level = "info";
+  std::string update_times;  // CSV of every solver update's cost (benchmarks)
   ServerOptions server;
 };
+
+// One line per solver update: data time (s since the first), its cost, batch step or not.
+Status WriteUpdateTimes(const std::vector<UpdateTiming>& times, const std::string& path) {
+  std::ofstream out(path);
+  if (!out) return Status::Error(ErrorCode::kIoError, "cannot write " + path);
+  out << "data_s,update_ms,batch_step\n";
+  const int64_t start = times.empty() ? 0 : times.front().data_utime;
+  for (const UpdateTiming& t : times) {
+    out << 1e-6 * static_cast<double>(t.data_utime - start) << ',' << t.ms << ','
+        << (t.batch_step ? 1 : 0) << '\n';
+  }
+  out.close();
+  return out ? Status::Ok() : Status::Error(ErrorCode::kIoError, "cannot write " + path);
+}
 
 std::set<std::string> RobotsInLog(const std::string& path) {
   std::set<std::string> robots;
@@ -116,6 +132,13 @@ int Run(const ReplayOptions& options) {
   server.server().Flush();
   server.PublishAll();
   writer.Close();
+  if (!options.update_times.empty()) {
+    if (Status written = WriteUpdateTimes(server.server().update_times(), options.update_times);
+        !written.ok()) {
+      LogError(written.message());
+      return 1;
+    }
+  }
   for (const auto& agent : agents) LogInfo(agent->StatusLine());
   LogInfo("server: " + server.server().StatusLine());
   LogInfo("replayed " + std::to_string(events) + " events; wrote " +
@@ -147,9 +170,13 @@ int Main(int argc, char** argv) {
              &options.server.server.smoother.relinearize_threshold,
              "server: batch step when an estimate drifted this far from its linearisation point "
              "(m / rad; 0 = off)");
+  loader.Add("update_times", "update-times", &options.update_times,
+             "write every solver update's data time, cost (ms) and kind to this CSV (empty: "
+             "none; tools/bench/scale_figures.sh reads it)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
+  options.server.server.record_update_times = !options.update_times.empty();
   Status valid = options.server.Validate();
   if (options.input == options.output) valid = Status::Error("--output must differ from --log");
   if (valid.ok()) valid = loader.StartLogging(options.log_level, "anchormap-replay");

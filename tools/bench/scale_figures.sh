@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Prints the server's scale figures (issue 12) as markdown: simulated teams replayed through
+# agents + server in one process (anchormap-replay, pinned to one core), the replay's speed
+# against real time, and the cost of every solver update (median, p99, max), overall and per
+# sixth of the run, so that growth with the map shows. Run on a quiet machine after a
+# Release build:
+#
+#   tools/bench/scale_figures.sh [RUNS...]     RUN = ROBOTSxSECONDS
+#                                              (default: 100x180 20x1800, the issue's two)
+#
+# The simulator's seed is 2; files go to a temporary folder (ANCHORMAP_KEEP_TEST_DIR=1
+# keeps them).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+BIN=build/bin
+for tool in anchormap-sim anchormap-replay; do
+  [ -x "$BIN/$tool" ] || { echo "scale_figures: build first (cmake --build build)" >&2; exit 1; }
+done
+RUNS=("$@")
+[ ${#RUNS[@]} -gt 0 ] || RUNS=(100x180 20x1800)
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-scale.XXXXXX")
+if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
+  echo "scale_figures: files in $WORK" >&2
+else
+  trap "rm -rf '$WORK'" EXIT
+fi
+PIN=()
+command -v taskset >/dev/null && PIN=(taskset -c 0)
+
+# "median p99 max" of the numbers on stdin (nearest rank).
+percentiles() {
+  sort -g | awk '{ v[NR] = $1 } END {
+    if (NR == 0) { print "- - -"; exit }
+    m = int((NR + 1) / 2); p = int(0.99 * NR + 0.999999); if (p < 1) p = 1
+    printf "%.2f %.2f %.2f\n", v[m], v[p], v[NR] }'
+}
+
+echo "| robots | data s | keyframes | updates | batch steps | replay wall s | CPU s | x real time (wall) | update median ms | p99 ms | max ms | p99 ms per sixth of the run |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+for run in "${RUNS[@]}"; do
+  robots=${run%x*}
+  seconds=${run#*x}
+  log="$WORK/sim-$run.lcmlog"
+  "$BIN/anchormap-sim" --robots "$robots" --seed 2 --duration-s "$seconds" --output "$log" \
+    >"$WORK/sim-$run.txt"
+  csv="$WORK/updates-$run.csv"
+  /usr/bin/time -f "%e %U %S" -o "$WORK/time-$run.txt" "${PIN[@]}" "$BIN/anchormap-replay" \
+    --log "$log" --output "$WORK/out-$run.lcmlog" --update-times "$csv" --log-level info \
+    >"$WORK/replay-$run.txt" 2>&1 ||
+    { echo "scale_figures: replay of $run failed" >&2; tail "$WORK/replay-$run.txt" >&2; exit 1; }
+  read -r wall user sys <"$WORK/time-$run.txt"
+  cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.1f", u + s }')
+  factor=$(awk -v d="$seconds" -v w="$wall" 'BEGIN { printf "%.2f", d / w }')
+  keyframes=$(grep 'server: ' "$WORK/replay-$run.txt" | grep -o 'keyframes [0-9]*' | head -1 |
+    grep -o '[0-9]*' || echo "?")
+  updates=$(($(wc -l <"$csv") - 1))
+  batch=$(awk -F, 'NR > 1 && $3 == 1' "$csv" | wc -l)
+  read -r median p99 max < <(awk -F, 'NR > 1 { print $2 }' "$csv" | percentiles)
+  sixths=""
+  for k in 0 1 2 3 4 5; do
+    part=$(awk -F, -v k=$k -v d="$seconds" 'NR > 1 && int(6 * $1 / d) == k { print $2 }' "$csv" |
+      percentiles | cut -d' ' -f2)
+    sixths="$sixths${sixths:+ / }$part"
+  done
+  echo "| $robots | $seconds | $keyframes | $updates | $batch | $wall | $cpu | $factor | $median | $p99 | $max | $sixths |"
+done
