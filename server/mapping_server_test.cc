@@ -581,3 +581,40 @@ TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncou
 
 }  // namespace
 }  // namespace anchormap
+
+namespace anchormap {
+namespace {
+
+// Benchmarks read every update's cost; the daemons keep none (their memory must not grow).
+TEST_F(MappingServerTest, UpdateTimesAreRecordedOnlyWhenAsked) {
+  Scenario scenario(10.0, {{5.0, 0, 1}});
+  MappingServerOptions recording = ExactTieOptions();
+  recording.record_update_times = true;
+  MappingServer recorded(recording);
+  MappingServer plain(ExactTieOptions());
+  for (const auto& input : scenario.inputs) {
+    ASSERT_TRUE(Feed(&recorded, input));
+    ASSERT_TRUE(Feed(&plain, input));
+  }
+  recorded.Flush();
+  EXPECT_TRUE(plain.update_times().empty());
+  const std::vector<UpdateTiming>& times = recorded.update_times();
+  ASSERT_EQ(static_cast<int64_t>(times.size()), recorded.stats().updates);
+  double total_ms = 0.0;
+  int batch_steps = 0;
+  for (size_t i = 0; i < times.size(); ++i) {
+    total_ms += times[i].ms;
+    batch_steps += times[i].batch_step;
+    if (i > 0) {
+      EXPECT_GE(times[i].data_utime, times[i - 1].data_utime);
+    }
+  }
+  EXPECT_NEAR(total_ms, recorded.stats().total_update_ms, 1e-9 * (1.0 + total_ms));
+  EXPECT_EQ(times.front().data_utime, 1'000'000);         // the first keyframe's time
+  EXPECT_EQ(times.back().data_utime, 11'000'000);         // the last input's, at Flush
+  EXPECT_TRUE(times.back().batch_step);                   // Flush ends with a batch step
+  EXPECT_GE(batch_steps, recorded.stats().updates / 10);  // at least every 10 updates
+}
+
+}  // namespace
+}  // namespace anchormap
