@@ -73,7 +73,10 @@ void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* o
   last_scan_utime_ = scan.utime;
   // Every scan is matched (not only keyframes): the local map follows the robot closely and
   // the prediction from the last scan is short.
-  const RefinedPose refined = refiner_.Refine(scan, T_odom_body);
+  const int64_t utime = scan.utime;
+  const RefinedPose refined = refiner_.Refine(scan, T_odom_body, [this, utime](const Pose2& pose) {
+    return keyframer_.ShouldMake(pose, utime);
+  });
   if (!keyframer_.ShouldMake(refined.pose, scan.utime)) {
     if (refined.entered_map && refined.matched) map_growth_covariance_ += refined.covariance;
     return;

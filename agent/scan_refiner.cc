@@ -31,7 +31,8 @@ ScanRefiner::ScanRefiner(const ScanRefinementOptions& options) : options_(option
   if (options.enabled) matcher_.emplace(options.local_map);
 }
 
-RefinedPose ScanRefiner::Refine(const LaserScan& scan, const Pose2& T_odom_body) {
+RefinedPose ScanRefiner::Refine(const LaserScan& scan, const Pose2& T_odom_body,
+                                const std::function<bool(const Pose2&)>& needs_covariance) {
   RefinedPose refined;
   if (!matcher_) {
     refined.pose = T_odom_body;
@@ -45,7 +46,7 @@ RefinedPose ScanRefiner::Refine(const LaserScan& scan, const Pose2& T_odom_body)
     points.clear();
     ++stats_.too_few_points;
   }
-  const LocalMapUpdate update = matcher_->AddScan(points, T_odom_body);
+  const LocalMapUpdate update = matcher_->AddScan(points, T_odom_body, needs_covariance);
   refined.pose = update.pose;
   refined.matched = update.matched;
   refined.entered_map = update.keyframe;

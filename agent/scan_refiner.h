@@ -6,6 +6,7 @@
 // can show what the robot pays for the refinement. Bounded memory: the local map's few scans.
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 
 #include <Eigen/Core>
@@ -60,8 +61,11 @@ class ScanRefiner {
   explicit ScanRefiner(const ScanRefinementOptions& options);
 
   // `scan` with its mounting pose and max range set; `T_odom_body` the odometry pose at its
-  // time. Scans come in time order.
-  RefinedPose Refine(const LaserScan& scan, const Pose2& T_odom_body);
+  // time. Scans come in time order. `needs_covariance` (the caller's keyframe rule): the
+  // matcher's covariance is computed only for poses it accepts and for scans entering the local
+  // map (the only ones whose covariance is used); `covariance` is the identity otherwise.
+  RefinedPose Refine(const LaserScan& scan, const Pose2& T_odom_body,
+                     const std::function<bool(const Pose2&)>& needs_covariance);
 
   const ScanRefinementStats& stats() const { return stats_; }
   bool enabled() const { return matcher_.has_value(); }
