@@ -9,7 +9,8 @@ Agent::Agent(const AgentOptions& options)
     : options_(options),
       T_body_sensor_(options.sensor_x_m, options.sensor_y_m, options.sensor_theta_rad),
       odometry_(options.odometry),
-      keyframer_(options.keyframer) {}
+      keyframer_(options.keyframer),
+      refiner_(options.scan_matching) {}
 
 Status Agent::OnOdometry(const OdometrySample& sample, AgentOutput* out) {
   if (Status added = odometry_.Add(sample); !added.ok()) return added;
@@ -70,25 +71,58 @@ void Agent::DrainPendingScans(AgentOutput* out) {
 
 void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* out) {
   last_scan_utime_ = scan.utime;
-  if (!keyframer_.ShouldMake(T_odom_body, scan.utime)) return;
+  // Every scan is matched (not only keyframes): the local map follows the robot closely and
+  // the prediction from the last scan is short.
+  const int64_t utime = scan.utime;
+  const RefinedPose refined = refiner_.Refine(scan, T_odom_body, [this, utime](const Pose2& pose) {
+    return keyframer_.ShouldMake(pose, utime);
+  });
+  if (!keyframer_.ShouldMake(refined.pose, scan.utime)) {
+    if (refined.entered_map && refined.matched) map_growth_covariance_ += refined.covariance;
+    return;
+  }
   if (keyframer_.IsForcedAt(scan.utime)) ++stats_.forced_keyframes;
-  keyframer_.Accept(T_odom_body, scan.utime);
+  keyframer_.Accept(refined.pose, scan.utime);
 
   Keyframe keyframe;
   keyframe.robot = options_.robot;
   keyframe.trajectory_id = options_.trajectory_id;
   keyframe.seq = next_seq_++;
   keyframe.utime = scan.utime;
-  // The odometry frame is the trajectory's local frame.
-  keyframe.T_local_pose = T_odom_body;
-  if (last_keyframe_pose_) {
-    keyframe.T_previous_this = Between(*last_keyframe_pose_, T_odom_body);
-    keyframe.T_previous_this_covariance = options_.noise.Covariance(keyframe.T_previous_this);
+  // The local frame: the odometry frame, moved by the corrections scan matching made.
+  keyframe.T_local_pose = refined.pose;
+  if (last_keyframe_) {
+    keyframe.T_previous_this = Between(last_keyframe_->pose, refined.pose);
+    keyframe.T_previous_this_covariance =
+        ConstraintCovariance(*last_keyframe_, refined, keyframe.T_previous_this);
   }
   keyframe.scan = std::move(scan);
-  last_keyframe_pose_ = T_odom_body;
+  last_keyframe_ = refined;
+  map_growth_covariance_.setZero();
   ++stats_.keyframes;
   out->keyframes.push_back(std::move(keyframe));
+}
+
+Eigen::Matrix3d Agent::ConstraintCovariance(const RefinedPose& previous, const RefinedPose& current,
+                                            const Pose2& T_previous_this) {
+  if (previous.in_map && current.in_map && previous.map_generation == current.map_generation) {
+    ++stats_.matched_constraints;
+    // Both matched against the map, which meanwhile grew by scans with errors of their own:
+    // those add to the current pose's error relative to the previous one.
+    return RelativePoseCovariance(previous.pose, previous.covariance, current.pose,
+                                  current.covariance + map_growth_covariance_);
+  }
+  ++stats_.odometry_constraints;
+  return options_.noise.Covariance(T_previous_this);
+}
+
+Status Agent::SetSensorMounting(const Pose2& T_body_sensor) {
+  if (!std::isfinite(T_body_sensor.x()) || !std::isfinite(T_body_sensor.y()) ||
+      !std::isfinite(T_body_sensor.theta())) {
+    return Status::Error(ErrorCode::kNotFinite, "laser mounting pose is not finite");
+  }
+  T_body_sensor_ = T_body_sensor;
+  return Status::Ok();
 }
 
 Status Agent::OnEncounter(const Encounter& encounter, AgentOutput* out) {

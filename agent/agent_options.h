@@ -8,6 +8,7 @@
 
 #include "agent/keyframer.h"
 #include "agent/odometry_buffer.h"
+#include "agent/scan_refiner.h"
 #include "common/geometry/motion_noise.h"
 #include "common/util/status.h"
 
@@ -39,6 +40,8 @@ struct AgentOptions {
   KeyframerOptions keyframer;
   MotionNoise noise = DefaultOdometryNoise();  // of the odometry between keyframes
   OdometryBufferOptions odometry;
+  // Odometry refined by matching each scan against a local map of the last ones (on by default).
+  ScanRefinementOptions scan_matching;
 
   Status Validate() const {
     if (robot.empty()) return Status::Error("robot must be set");
@@ -50,6 +53,7 @@ struct AgentOptions {
     if (max_pending_scans < 1) return Status::Error("max_pending_scans must be >= 1");
     if (Status e = keyframer.Validate(); !e.ok()) return e;
     if (Status e = noise.Validate("noise", /*positive_base=*/true); !e.ok()) return e;
+    if (Status e = scan_matching.Validate(); !e.ok()) return e;
     return odometry.Validate();
   }
 };

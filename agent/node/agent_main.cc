@@ -32,7 +32,9 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
          "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
   l->Add("max_range_m", "max-range-m", &o->max_range_m,
          "ranges at or beyond this are no-returns (planar_lidar_t carries no max range), m");
-  l->Add("sensor.x_m", "sensor-x-m", &o->sensor_x_m, "laser position on the robot, forward (m)");
+  l->Add("sensor.x_m", "sensor-x-m", &o->sensor_x_m,
+         "laser position on the robot, forward (m; a message on the laser mount channel "
+         "replaces the sensor.* values)");
   l->Add("sensor.y_m", "sensor-y-m", &o->sensor_y_m, "laser position on the robot, left (m)");
   l->Add("sensor.theta_rad", "sensor-theta-rad", &o->sensor_theta_rad,
          "laser heading on the robot (rad)");
@@ -55,6 +57,11 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("odometry.capacity", "odometry-capacity", &o->odometry.capacity, "odometry readings kept");
   l->Add("odometry.max_gap_s", "odometry-max-gap-s", &o->odometry.max_gap_s,
          "no interpolation across a longer odometry gap (s)");
+  l->Add("scan_matching.enabled", "scan-matching", &o->scan_matching.enabled,
+         "refine odometry by matching each scan against a local map of the last ones "
+         "(false: keyframes carry raw odometry)");
+  l->Add("scan_matching.min_points", "scan-matching-min-points", &o->scan_matching.min_points,
+         "scans with fewer returns are not matched (odometry for them)");
   l->Add("max_pending_scans", "max-pending-scans", &o->max_pending_scans,
          "scans waiting for odometry to reach their time");
   l->Add("status_period_s", "status-period-s", &node->status_period_s,
@@ -68,6 +75,9 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
          "pose_t input (empty: <ROBOT>_ODOMETRY)");
   l->Add("channels.laser", "laser-channel", &node->channels.laser,
          "planar_lidar_t input (empty: <ROBOT>_LASER)");
+  l->Add("channels.laser_mount", "laser-mount-channel", &node->channels.laser_mount,
+         "pose_t input: the laser's pose on the robot, e.g. from anchormap-import-carmen "
+         "(empty: <laser channel>_MOUNT)");
   l->Add("channels.encounter", "encounter-channel", &node->channels.encounter,
          "encounter_t input from the robot's detector (empty: <ROBOT>_ENCOUNTER)");
   l->Add("channels.keyframes", "keyframes-channel", &node->channels.keyframes, "keyframe_t output");

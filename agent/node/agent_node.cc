@@ -1,5 +1,7 @@
 #include "agent/node/agent_node.h"
 
+#include <cstdio>
+
 #include "common/bus/channels.h"
 #include "common/bus/codec.h"
 #include "common/bus/delivery_codec.h"
@@ -10,6 +12,9 @@ AgentNodeOptions WithDefaultChannels(AgentNodeOptions options) {
   const std::string& robot = options.agent.robot;
   if (options.channels.odometry.empty()) options.channels.odometry = channels::Odometry(robot);
   if (options.channels.laser.empty()) options.channels.laser = channels::Laser(robot);
+  if (options.channels.laser_mount.empty()) {
+    options.channels.laser_mount = options.channels.laser + "_MOUNT";
+  }
   if (options.channels.encounter.empty()) options.channels.encounter = channels::Encounter(robot);
   return options;
 }
@@ -21,8 +26,10 @@ AgentNode::AgentNode(const AgentNodeOptions& options, Publish publish)
       outbox_(options_.outbox) {}
 
 std::vector<std::string> AgentNode::InputChannels() const {
-  return {options_.channels.odometry,   options_.channels.laser, options_.channels.encounter,
-          options_.channels.encounters, options_.channels.acks,  options_.channels.resend_requests};
+  return {options_.channels.odometry,       options_.channels.laser,
+          options_.channels.laser_mount,    options_.channels.encounter,
+          options_.channels.encounters,     options_.channels.acks,
+          options_.channels.resend_requests};
 }
 
 bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
@@ -50,6 +57,10 @@ bool AgentNode::OnMessage(const std::string& channel, const uint8_t* data, size_
   } else if (channel == options_.channels.laser) {
     Result<LaserScan> scan = DecodeLaser(data, size);
     refused = scan.ok() ? agent_.OnScan(std::move(*scan), &out) : scan.status();
+  } else if (channel == options_.channels.laser_mount) {
+    // A pose_t like odometry: the laser's pose in the body frame.
+    const Result<OdometrySample> mount = DecodeOdometry(data, size);
+    refused = mount.ok() ? agent_.SetSensorMounting(mount->T_odom_body) : mount.status();
   } else if (channel == options_.channels.encounter || channel == options_.channels.encounters) {
     const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (channel == options_.channels.encounters) {
@@ -148,7 +159,22 @@ std::string AgentNode::StatusLine() const {
          std::to_string(outbox_.stats().acknowledged) + " resent " +
          std::to_string(outbox_.stats().resent_on_request) + "+" +
          std::to_string(outbox_.stats().resent_on_timeout) + " dropped " +
-         std::to_string(outbox_.stats().dropped) + " rejected: " + rejects_.Summary();
+         std::to_string(outbox_.stats().dropped) + " " + ScanMatchingStatus() +
+         " rejected: " + rejects_.Summary();
+}
+
+std::string AgentNode::ScanMatchingStatus() const {
+  const ScanRefinementStats& r = agent_.refinement_stats();
+  if (!options_.agent.scan_matching.enabled) return "scan matching off";
+  char cpu[96];
+  std::snprintf(cpu, sizeof(cpu), " cpu %.2f ms/scan (max %.1f)", 1e3 * r.mean_scan_cpu_s(),
+                1e3 * r.max_scan_cpu_s);
+  const AgentStats& s = agent_.stats();
+  return "scan matching: matched " + std::to_string(r.matched) + "/" + std::to_string(r.scans) +
+         " odometry " + std::to_string(r.fallbacks) + " map starts " +
+         std::to_string(r.map_starts) + cpu + " constraints matched " +
+         std::to_string(s.matched_constraints) + " odometry " +
+         std::to_string(s.odometry_constraints);
 }
 
 }  // namespace anchormap

@@ -44,7 +44,8 @@ class AgentNode {
   void SetClock(int64_t now_utime) { now_utime_ = now_utime; }
   // Resends what has waited too long for an acknowledgement (call on a timer).
   void Poll(int64_t now_utime);
-  // "R1 trajectory 17...: odometry 5000 scans 1000 keyframes 120 relayed 3 rejected: none"
+  // "R1 trajectory 17...: odometry 5000 scans 1000 keyframes 120 relayed 3 ... scan matching:
+  // matched 990/1000 ... cpu 1.20 ms/scan (max 4.0) ... rejected: none"
   std::string StatusLine() const;
 
   const Agent& agent() const { return agent_; }
@@ -54,6 +55,8 @@ class AgentNode {
 
  private:
   void Emit(const AgentOutput& out, const std::string& context);
+  // Scans matched and fallen back to odometry, CPU per scan (thread clock), constraints.
+  std::string ScanMatchingStatus() const;
   void Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes, const std::string& context);
   void Resend(const std::vector<const Outbox::Entry*>& entries);
   // Acknowledgements and resend requests (for this trajectory only).

@@ -16,6 +16,9 @@ struct AgentChannels {
   // Empty: derived from the robot name (R1_ODOMETRY, R1_LASER, R1_ENCOUNTER).
   std::string odometry;
   std::string laser;
+  // The laser's mounting pose (pose_t, e.g. from anchormap-import-carmen); empty: the laser
+  // channel + "_MOUNT" (R1_LASER_MOUNT).
+  std::string laser_mount;
   std::string encounter;
   std::string keyframes = channels::kKeyframes;
   std::string encounters = channels::kEncounters;

@@ -63,10 +63,10 @@ class AgentNodeTest : public ::testing::Test {
 };
 
 TEST_F(AgentNodeTest, ChannelsDeriveFromTheRobotName) {
-  EXPECT_EQ(
-      node_.InputChannels(),
-      (std::vector<std::string>{"R1_ODOMETRY", "R1_LASER", "R1_ENCOUNTER", channels::kEncounters,
-                                channels::kAcks, channels::kResendRequests}));
+  EXPECT_EQ(node_.InputChannels(),
+            (std::vector<std::string>{"R1_ODOMETRY", "R1_LASER", "R1_LASER_MOUNT", "R1_ENCOUNTER",
+                                      channels::kEncounters, channels::kAcks,
+                                      channels::kResendRequests}));
 }
 
 TEST_F(AgentNodeTest, OdometryAndScansBecomeKeyframesWithTheMountingPoseAndRangeLimit) {
@@ -86,6 +86,31 @@ TEST_F(AgentNodeTest, OdometryAndScansBecomeKeyframesWithTheMountingPoseAndRange
   EXPECT_NEAR(keyframes[2].T_previous_this.x(), 0.5, 1e-9);
   EXPECT_NEAR(keyframes[2].T_local_pose.x() - keyframes[1].T_local_pose.x(), 0.5, 1e-9);
   EXPECT_EQ(node_.rejects().total(), 0);
+}
+
+TEST_F(AgentNodeTest, LaserMountMessageReplacesTheSensorOptions) {
+  // As anchormap-import-carmen writes it: the laser's pose on the body, before the data.
+  EXPECT_TRUE(Send("R1_LASER_MOUNT", EncodeOdometry({0, Pose2(-0.04, 0.01, 0.02)})));
+  Drive(1.0);
+  const std::vector<Keyframe> keyframes = Keyframes();
+  ASSERT_GE(keyframes.size(), 2u);
+  for (const Keyframe& k : keyframes) {
+    EXPECT_DOUBLE_EQ(k.scan.T_body_sensor.x(), -0.04);
+    EXPECT_DOUBLE_EQ(k.scan.T_body_sensor.y(), 0.01);
+    EXPECT_NEAR(k.scan.T_body_sensor.theta(), 0.02, 1e-12);
+  }
+  const std::vector<uint8_t> garbage = {1, 2};
+  EXPECT_TRUE(Send("R1_LASER_MOUNT", garbage));
+  EXPECT_EQ(node_.rejects().count(ErrorCode::kDecodeFailed), 1);
+  EXPECT_DOUBLE_EQ(node_.agent().sensor_mounting().x(), -0.04);
+}
+
+TEST_F(AgentNodeTest, StatusLineShowsScanMatchingAndItsCpu) {
+  Drive(1.0);
+  const std::string line = node_.StatusLine();
+  // 3-beam scans are too few points to match: every one is odometry.
+  EXPECT_NE(line.find("scan matching: matched 0/10 odometry 10"), std::string::npos) << line;
+  EXPECT_NE(line.find("ms/scan"), std::string::npos) << line;
 }
 
 TEST_F(AgentNodeTest, BadInputIsCountedByReasonAndOthersRelaysAreNotOurs) {

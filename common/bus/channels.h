@@ -12,11 +12,20 @@ inline constexpr char kLaserSuffix[] = "_LASER";               // planar_lidar_t
 inline constexpr char kEncounterSuffix[] = "_ENCOUNTER";       // encounter_t, observer = robot
 inline constexpr char kGroundTruthSuffix[] = "_GROUND_TRUTH";  // pose_t, simulator, eval only
 inline constexpr char kReferenceSuffix[] = "_REFERENCE";       // pose_t, importer, eval only
+// The laser's mounting pose in the robot body frame (pose_t: pos x y, yaw), from the log the
+// importer read; the agent applies it to the scans (overriding its --sensor-* flags).
+inline constexpr char kLaserMountSuffix[] = "_LASER_MOUNT";
+// The importer's --simultaneous time shift of this robot's piece (pose_t, identity pose): its
+// utime field is the shift in microseconds added to the log's times (log time = message time -
+// shift), so that anchormap-eval maps times back to the relations' clock. Eval only.
+inline constexpr char kClockShiftSuffix[] = "_CLOCK_SHIFT";
 inline std::string Odometry(const std::string& robot) { return robot + kOdometrySuffix; }
 inline std::string Laser(const std::string& robot) { return robot + kLaserSuffix; }
 inline std::string Encounter(const std::string& robot) { return robot + kEncounterSuffix; }
 inline std::string GroundTruth(const std::string& robot) { return robot + kGroundTruthSuffix; }
 inline std::string Reference(const std::string& robot) { return robot + kReferenceSuffix; }
+inline std::string LaserMount(const std::string& robot) { return robot + kLaserMountSuffix; }
+inline std::string ClockShift(const std::string& robot) { return robot + kClockShiftSuffix; }
 
 // Agents -> server.
 inline constexpr char kKeyframes[] = "ANCHORMAP_KEYFRAMES";    // keyframe_t

@@ -82,6 +82,8 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
                         const SearchWindow& window, const LatticePose& lattice,
                         const MatchOptions& options) {
   MatchResult result;
+  result.window = window;
+  result.lattice = lattice;
   result.score = lattice.score;
   result.lattice_pose = LatticeToPose(window, reference.geometry().resolution, lattice);
   result.pose = result.lattice_pose;
@@ -97,6 +99,8 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
                          RefinementOptions{refine.cutoff_m, 0, 0.0});
   }
   result.pose = refined.pose;
+  result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
+  if (!options.covariance) return result;
   ScoreCovarianceOptions covariance;
   // The noise of one point along the surface normal, estimated from the residuals (the
   // a-posteriori variance factor of least squares), so that the covariance follows the sensor
@@ -119,7 +123,6 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   result.covariance =
       ScoreDistributionCovariance(reference.field(), query, result.pose, hessian, covariance) +
       ReferenceNoiseCovariance(reference_noise, hessian, covariance.point_sigma_m, covariance);
-  result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
   return result;
 }
 

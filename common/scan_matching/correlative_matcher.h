@@ -33,6 +33,9 @@ struct MatchOptions {
   // A query point "lands near" the reference when this close to its surface.
   double overlap_distance_m = 0.1;
   bool refine = true;
+  // False: `covariance` is left at the identity (the score distribution is most of a match's
+  // cost); FinishMatch on the result's window and lattice pose gives it later, identically.
+  bool covariance = true;
 
   Status Validate() const;
 };
@@ -52,6 +55,10 @@ struct MatchResult {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   Pose2 lattice_pose;  // before refinement
   LatticeSearchStats search;
+  // Where the pose was found: FinishMatch(reference, query, window, lattice, options) gives
+  // this result again (e.g. with the covariance, when the search skipped it).
+  SearchWindow window;
+  LatticePose lattice;
 };
 
 // Matches `query` (points in its body frame) around T_reference_query `guess`. Options must be

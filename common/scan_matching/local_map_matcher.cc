@@ -37,7 +37,8 @@ void LocalMapMatcher::AddKeyframe(const PointCloud& points, const Pose2& pose) {
   ++stats_.keyframes;
 }
 
-LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T_odom_body) {
+LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T_odom_body,
+                                        const std::function<bool(const Pose2&)>& needs_covariance) {
   ++stats_.scans;
   PointCloud near;
   near.reserve(points.size());
@@ -58,7 +59,9 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     }
     return update;
   }
-  update.match = MatchLocal(*reference_, near, update.predicted, options_.match);
+  LocalMatchOptions search = options_.match;
+  if (needs_covariance) search.match.covariance = false;
+  update.match = MatchLocal(*reference_, near, update.predicted, search);
   if (!update.match) {
     ++stats_.no_match;
   } else if (update.match->score >= options_.min_score &&
@@ -75,6 +78,14 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
                      std::abs(since.theta()) >= options_.keyframe_angle_rad;
   const bool lost = since.translation().norm() >= 3.0 * options_.keyframe_distance_m ||
                     std::abs(since.theta()) >= 3.0 * options_.keyframe_angle_rad;
+  if (update.matched && search.match.covariance != options_.match.match.covariance &&
+      (moved || needs_covariance(update.pose))) {
+    // Against the reference the pose was found in, before a new keyframe changes it.
+    const LatticeSearchStats stats = update.match->search;
+    update.match = FinishMatch(*reference_, near, update.match->window, update.match->lattice,
+                               options_.match.match);
+    update.match->search = stats;
+  }
   if (update.matched && moved) {
     AddKeyframe(near, update.pose);
     update.keyframe = true;

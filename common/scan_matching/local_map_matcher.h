@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -62,7 +63,11 @@ class LocalMapMatcher {
 
   // A scan's points in its body frame (ScanToPointCloud) and the body's odometry pose at the
   // scan's time. The prediction is the last scan's pose moved by the odometry since then.
-  LocalMapUpdate AddScan(const PointCloud& points, const Pose2& T_odom_body);
+  // With `needs_covariance`, a good match's covariance is computed only when the scan enters
+  // the map or the predicate says so for the matched pose (otherwise it stays the identity):
+  // the covariance is most of a match's cost. Poses are the same either way.
+  LocalMapUpdate AddScan(const PointCloud& points, const Pose2& T_odom_body,
+                         const std::function<bool(const Pose2&)>& needs_covariance = nullptr);
 
   const LocalMapStats& stats() const { return stats_; }
   size_t num_keyframes() const { return keyframes_.size(); }

@@ -14,6 +14,7 @@
 #include <boost/program_options.hpp>
 
 #include "common/bus/channels.h"
+#include "tools/eval/clock_shift.h"
 #include "tools/eval/eval_inputs.h"
 #include "tools/eval/eval_report.h"
 #include "tools/eval/map_evaluation.h"
@@ -60,8 +61,10 @@ int main(int argc, char** argv) {
       "channel of the merged map in the server's output log")(
       "odometry", po::value(&odometry_path),
       "relations: the raw log (<R>_ODOMETRY); poses at the relations' times are then the "
-      "nearest keyframe plus the odometry motion since it, instead of keyframes only")(
-      "json", po::bool_switch(&json), "print one JSON object instead of a table");
+      "nearest keyframe plus the odometry motion since it, instead of keyframes only; its "
+      "<R>_CLOCK_SHIFT messages (anchormap-import-carmen --simultaneous) map the robots' times "
+      "back to the relations' clock")("json", po::bool_switch(&json),
+                                      "print one JSON object instead of a table");
   po::variables_map vm;
   try {
     po::store(po::command_line_parser(argc, argv).options(visible).run(), vm);
@@ -122,6 +125,11 @@ int main(int argc, char** argv) {
       return Fail(s.message(), 1);
     }
     if (odometry_by_robot.empty()) return Fail(odometry_path + ": no <R>_ODOMETRY channel", 1);
+    std::map<std::string, int64_t> shift_by_robot;
+    if (Status s = ReadClockShifts(odometry_path, &shift_by_robot); !s.ok()) {
+      return Fail(s.message(), 1);
+    }
+    ShiftToLogClock(shift_by_robot, &estimate, &odometry_by_robot);
     completion.odometry_by_robot = &odometry_by_robot;
     completion.relations = &relations;
     completion.max_time_gap_s = relations_options.max_time_gap_s;

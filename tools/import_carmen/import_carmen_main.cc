@@ -26,6 +26,8 @@ const char* kUsage =
     "  <R>_LASER     bot_core.planar_lidar_t from the laser lines\n"
     "  <R>_REFERENCE bot_core.pose_t, the laser lines' own pose (a mapping result in\n"
     "                \"corrected\" logs; raw odometry of the laser in raw logs)\n"
+    "  <R>_LASER_MOUNT bot_core.pose_t, the laser's pose on the robot (read by the agent)\n"
+    "  <R>_CLOCK_SHIFT with --simultaneous: the piece's time shift in utime (read by eval)\n"
     "Messages are sorted by time (ipc_timestamp). Other message types are counted and skipped.\n";
 
 const char* SourceName(OdometrySource source) {
@@ -90,6 +92,10 @@ void PrintSummary(const std::string& input, const std::string& output,
         robot.robot.c_str(), robot.odometry.size(), robot.scans.size(), robot.reference.size(),
         1e-6 * robot.odometry.front().utime, 1e-6 * robot.odometry.back().utime,
         robot.T_log_odometry.x(), robot.T_log_odometry.y(), robot.T_log_odometry.theta());
+    if (robot.time_shift_us != 0) {
+      std::printf("               shifted by %.6f s to start with the first piece\n",
+                  1e-6 * static_cast<double>(robot.time_shift_us));
+    }
   }
   std::printf("  written      %lld odometry, %lld scans, %lld reference messages in %.2f s\n",
               (long long)written.odometry, (long long)written.scans, (long long)written.reference,
@@ -116,6 +122,9 @@ int main(int argc, char** argv) {
       "with --split: fraction of the log's duration dropped around each cut")(
       "gap-s", po::value(&options.gap_s),
       "with --split: seconds dropped around each cut (overrides --gap-fraction)")(
+      "simultaneous", po::bool_switch(&options.simultaneous),
+      "with --split: shift the pieces in time to start together (the robots explore at the same "
+      "time); each shift is recorded for anchormap-eval")(
       "lenient", po::bool_switch(&options.lenient),
       "skip and count malformed lines instead of failing on the first")(
       "odometry-source", po::value(&odometry_source)->default_value(odometry_source),

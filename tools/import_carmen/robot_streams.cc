@@ -22,6 +22,23 @@ std::string Seconds(int64_t utime) {
   return buffer;
 }
 
+int64_t FirstUtime(const RobotStream& robot) {
+  int64_t first = robot.odometry.front().utime;
+  if (!robot.scans.empty()) first = std::min(first, robot.scans.front().utime);
+  return first;
+}
+
+// Every piece moved in time to start when the first does; the shift is kept per robot.
+void ShiftPiecesToStartTogether(std::vector<RobotStream>* robots) {
+  const int64_t start = FirstUtime(robots->front());
+  for (RobotStream& robot : *robots) {
+    robot.time_shift_us = start - FirstUtime(robot);
+    for (RobotOdometrySample& sample : robot.odometry) sample.utime += robot.time_shift_us;
+    for (RobotScan& scan : robot.scans) scan.utime += robot.time_shift_us;
+    for (StampedPose2& pose : robot.reference) pose.utime += robot.time_shift_us;
+  }
+}
+
 }  // namespace
 
 Status CarmenImportOptions::Validate() const {
@@ -36,6 +53,7 @@ Status CarmenImportOptions::Validate() const {
                          " must be >= 0, < 0.5 and leave time for every piece");
   }
   if (!std::isfinite(gap_s)) return Status::Error("gap_s: not a finite number");
+  if (simultaneous && split < 2) return Status::Error("simultaneous: needs split >= 2");
   return Status::Ok();
 }
 
@@ -143,8 +161,10 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
     (*robots)[k].reference.push_back({utime, laser.laser_pose});
   }
 
+  const Pose2 T_body_laser = EstimateLaserMounting(contents);
   for (int k = 0; k < pieces; ++k) {
     RobotStream& robot = (*robots)[k];
+    robot.T_body_laser = T_body_laser;
     if (robot.odometry.empty()) {
       const int64_t begin = k == 0 ? summary->first_utime : summary->cut_utimes[k - 1];
       const int64_t end = k == pieces - 1 ? summary->last_utime : summary->cut_utimes[k];
@@ -158,6 +178,7 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
       sample.pose = Between(robot.T_log_odometry, sample.pose);
     }
   }
+  if (options.simultaneous) ShiftPiecesToStartTogether(robots);
   return Status::Ok();
 }
 

@@ -9,6 +9,10 @@
 // odometry pose (so every piece starts at the identity, as a freshly started robot would).
 // The reference (the laser lines' x y theta) always stays in the log's frame: one common frame
 // for all pieces is what lets the evaluation align the merged map with a single transform.
+//
+// Times: the log's, unless --simultaneous shifts every piece to start when the first does (the
+// robots then explore at the same time, as a real team does); each robot's shift is kept so that
+// the evaluation can map times back to the log's clock (the relations').
 
 #include <cstdint>
 #include <string>
@@ -40,6 +44,8 @@ struct CarmenImportOptions {
   // Skip and count malformed lines instead of failing on the first.
   bool lenient = false;
   OdometrySource odometry_source = OdometrySource::kAuto;
+  // With split > 1: shift each piece's times so that all start together.
+  bool simultaneous = false;
 
   // An empty status when usable, otherwise the offending field and why.
   Status Validate() const;
@@ -67,6 +73,10 @@ struct RobotStream {
   std::vector<RobotScan> scans;
   StampedTrajectory reference;  // laser poses at the scans' times, in the log's frame
   Pose2 T_log_odometry;         // this robot's odometry frame in the log's odometry frame
+  // Added to the log's times of everything above (--simultaneous; 0 otherwise).
+  int64_t time_shift_us = 0;
+  // The laser's pose in the robot body frame (EstimateLaserMounting).
+  Pose2 T_body_laser;
 };
 
 struct SplitSummary {

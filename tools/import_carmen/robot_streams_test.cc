@@ -98,6 +98,38 @@ TEST(RobotStreamsTest, SplitMakesIndependentRobotsStartingAtTheOrigin) {
   }
 }
 
+TEST(RobotStreamsTest, SimultaneousShiftsPiecesToStartTogetherAndKeepsTheShift) {
+  CarmenImportOptions options;
+  options.split = 3;
+  options.gap_s = 2.0;
+  options.simultaneous = true;
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  const CarmenLogContents log = MakeLog();
+  ASSERT_TRUE(BuildRobotStreams(log, options, &robots, &summary).ok());
+  ASSERT_EQ(robots.size(), 3u);
+  // Pieces began at 0, 31 and 61 s of the log: all start at 0 now.
+  const int64_t expected_shift[3] = {0, -31000000, -61000000};
+  for (int k = 0; k < 3; ++k) {
+    const RobotStream& robot = robots[k];
+    EXPECT_EQ(robot.time_shift_us, expected_shift[k]) << k;
+    EXPECT_EQ(robot.odometry.front().utime, 0) << k;
+    // Log time = output time - shift: the odometry, scans and reference moved together.
+    const RobotOdometrySample& last = robot.odometry.back();
+    const Pose2 truth = PathAt(1e-6 * static_cast<double>(last.utime - robot.time_shift_us));
+    EXPECT_NEAR(Compose(robot.T_log_odometry, last.pose).y(), truth.y(), 1e-9);
+    const StampedPose2& reference = robot.reference.back();
+    EXPECT_NEAR(reference.pose.x(),
+                PathAt(1e-6 * static_cast<double>(reference.utime - robot.time_shift_us)).x() + 1.0,
+                1e-12);
+    EXPECT_EQ(robot.scans.back().utime, reference.utime);
+    // Every piece carries the log's laser mounting.
+    EXPECT_NEAR(PoseError(robot.T_body_laser, EstimateLaserMounting(log)).norm(), 0.0, 1e-15);
+  }
+  options.split = 1;
+  EXPECT_FALSE(options.Validate().ok());  // nothing to shift
+}
+
 TEST(RobotStreamsTest, DefaultGapIsTwoPercentOfTheDuration) {
   CarmenImportOptions options;
   options.split = 2;

@@ -25,7 +25,16 @@ Status ValidatePattern(const char* name, const std::string& pattern) {
   return Status::Ok();
 }
 
-enum class Kind { kOdometry = 0, kScan = 1, kReference = 2 };
+// At equal times, in this order: a robot's parameters come before its first measurements.
+enum class Kind { kLaserMount = 0, kClockShift = 1, kOdometry = 2, kScan = 3, kReference = 4 };
+
+int64_t FirstUtime(const RobotStream& robot) {
+  int64_t first = robot.odometry.empty() ? 0 : robot.odometry.front().utime;
+  if (!robot.scans.empty() && (robot.odometry.empty() || robot.scans.front().utime < first)) {
+    first = robot.scans.front().utime;
+  }
+  return first;
+}
 
 struct Event {
   int64_t utime;
@@ -82,8 +91,12 @@ Status WriteRobotStreams(const std::vector<RobotStream>& robots, const ImportCha
   if (Status s = channels.Validate(); !s.ok()) return s;
   *counts = WriteCounts();
   std::vector<Event> events;
+  const bool shifted = std::any_of(robots.begin(), robots.end(),
+                                   [](const RobotStream& r) { return r.time_shift_us != 0; });
   for (size_t r = 0; r < robots.size(); ++r) {
     const RobotStream& robot = robots[r];
+    events.push_back({FirstUtime(robot), Kind::kLaserMount, r, 0});
+    if (shifted) events.push_back({FirstUtime(robot), Kind::kClockShift, r, 0});
     for (size_t i = 0; i < robot.odometry.size(); ++i) {
       events.push_back({robot.odometry[i].utime, Kind::kOdometry, r, i});
     }
@@ -108,10 +121,24 @@ Status WriteRobotStreams(const std::vector<RobotStream>& robots, const ImportCha
     laser_channel.push_back(ChannelName(channels.laser, robot.robot));
     reference_channel.push_back(ChannelName(channels.reference, robot.robot));
   }
+  // Beside the laser channel, so that an agent finds it from the laser channel it reads.
+  const auto mount_channel = [&](size_t r) { return laser_channel[r] + "_MOUNT"; };
   for (const Event& event : events) {
     const RobotStream& robot = robots[event.robot];
     Status status = Status::Ok();
     switch (event.kind) {
+      case Kind::kLaserMount: {
+        status = writer.Write(mount_channel(event.robot), event.utime,
+                              ToPoseMessage(event.utime, robot.T_body_laser));
+        ++counts->laser_mounts;
+        break;
+      }
+      case Kind::kClockShift: {
+        status = writer.Write(channels::ClockShift(robot.robot), event.utime,
+                              ToPoseMessage(robot.time_shift_us, Pose2()));
+        ++counts->clock_shifts;
+        break;
+      }
       case Kind::kOdometry: {
         const RobotOdometrySample& s = robot.odometry[event.index];
         status = writer.Write(odometry_channel[event.robot], s.utime,

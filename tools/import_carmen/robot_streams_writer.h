@@ -1,7 +1,9 @@
 #pragma once
 // Writes the importer's robot streams into an LCM log of bot_core messages, in time order:
 // <R>_ODOMETRY (bot_core.pose_t), <R>_LASER (bot_core.planar_lidar_t) and <R>_REFERENCE
-// (bot_core.pose_t), channel names from patterns in which "{robot}" stands for the name.
+// (bot_core.pose_t), channel names from patterns in which "{robot}" stands for the name; before a
+// robot's first measurement its laser's mounting pose on <laser channel>_MOUNT (pose_t) and,
+// when pieces were shifted in time, its shift on <R>_CLOCK_SHIFT (common/bus/channels.h).
 
 #include <cstdint>
 #include <string>
@@ -39,6 +41,8 @@ struct WriteCounts {
   int64_t odometry = 0;
   int64_t scans = 0;
   int64_t reference = 0;
+  int64_t laser_mounts = 0;
+  int64_t clock_shifts = 0;
 };
 
 // Writes all robots' messages to `path` (truncated), merged in time order; at equal times

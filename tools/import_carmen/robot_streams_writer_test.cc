@@ -46,6 +46,8 @@ TEST(WriteRobotStreamsTest, MergesRobotsInTimeOrderOdometryFirst) {
   robots[0].reference = {{100, Pose2(5, 6, 0.5)}};
   robots[1].robot = "R2";
   robots[1].odometry = {{200, Pose2(3, 0, 0), 0, 0}};
+  robots[1].time_shift_us = -50;  // --simultaneous: every robot's shift is written
+  robots[1].T_body_laser = Pose2(-0.04, 0.0, 0.0);
   const std::string path =
       (std::filesystem::temp_directory_path() / "am_robot_streams.lcmlog").string();
   WriteCounts counts;
@@ -53,6 +55,8 @@ TEST(WriteRobotStreamsTest, MergesRobotsInTimeOrderOdometryFirst) {
   EXPECT_EQ(counts.odometry, 3);
   EXPECT_EQ(counts.scans, 1);
   EXPECT_EQ(counts.reference, 1);
+  EXPECT_EQ(counts.laser_mounts, 2);
+  EXPECT_EQ(counts.clock_shifts, 2);
 
   LcmLogReader reader;
   ASSERT_TRUE(reader.Open(path).ok());
@@ -74,12 +78,22 @@ TEST(WriteRobotStreamsTest, MergesRobotsInTimeOrderOdometryFirst) {
       EXPECT_EQ(pose->pos[0], 5.0);
       EXPECT_NEAR(pose->orientation[3], std::sin(0.25), 1e-15);
     }
+    if (event->channel == "R2_LASER_MOUNT") {
+      const auto pose = DecodeAs<bot_core::pose_t>(*event);
+      ASSERT_TRUE(pose.has_value());
+      EXPECT_EQ(pose->pos[0], -0.04);
+    }
+    if (event->channel == "R2_CLOCK_SHIFT") {
+      const auto pose = DecodeAs<bot_core::pose_t>(*event);
+      ASSERT_TRUE(pose.has_value());
+      EXPECT_EQ(pose->utime, -50);
+    }
   }
-  const std::vector<std::pair<std::string, int64_t>> expected = {{"R1_ODOMETRY", 100},
-                                                                 {"R1_LASER", 100},
-                                                                 {"R1_REFERENCE", 100},
-                                                                 {"R2_ODOMETRY", 200},
-                                                                 {"R1_ODOMETRY", 300}};
+  // Each robot's laser mount and clock shift come before its first measurement.
+  const std::vector<std::pair<std::string, int64_t>> expected = {
+      {"R1_LASER_MOUNT", 100}, {"R1_CLOCK_SHIFT", 100}, {"R1_ODOMETRY", 100},
+      {"R1_LASER", 100},       {"R1_REFERENCE", 100},   {"R2_LASER_MOUNT", 200},
+      {"R2_CLOCK_SHIFT", 200}, {"R2_ODOMETRY", 200},    {"R1_ODOMETRY", 300}};
   EXPECT_EQ(events, expected);
   std::filesystem::remove(path);
 }

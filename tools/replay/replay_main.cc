@@ -31,6 +31,7 @@ struct ReplayOptions {
   double max_range_m = 30.0;
   double keyframe_distance_m = 0.5;
   double keyframe_angle_rad = 0.35;
+  bool scan_matching = true;
   std::string log_level = "info";
   std::string update_times;  // CSV of every solver update's cost (benchmarks)
   ServerOptions server;
@@ -100,6 +101,7 @@ int Run(const ReplayOptions& options) {
     agent_options.agent.max_range_m = options.max_range_m;
     agent_options.agent.keyframer.max_distance_m = options.keyframe_distance_m;
     agent_options.agent.keyframer.max_angle_rad = options.keyframe_angle_rad;
+    agent_options.agent.scan_matching.enabled = options.scan_matching;
     if (Status valid = agent_options.Validate(); !valid.ok()) return LogError(valid.message()), 2;
     agents.push_back(std::make_unique<AgentNode>(agent_options, publish));
     AgentNode* agent = agents.back().get();
@@ -159,6 +161,8 @@ int Main(int argc, char** argv) {
              "agents' keyframe distance (m)");
   loader.Add("keyframe_angle_rad", "keyframe-angle-rad", &options.keyframe_angle_rad,
              "agents' keyframe angle (rad)");
+  loader.Add("scan_matching", "scan-matching", &options.scan_matching,
+             "agents refine odometry by scan matching (false: raw odometry)");
   loader.Add("publish.map_period_s", "publish-period-s",
              &options.server.server.publish.map_period_s, "server map period (data time, s)");
   loader.Add("publish.grid_period_s", "grid-period-s", &options.server.server.publish.grid_period_s,
