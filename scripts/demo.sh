@@ -134,7 +134,9 @@ replay_stage() {
   local agents=()
   if have anchormap-agent; then
     for i in $(seq 1 "$ROBOTS"); do
-      "$BIN/anchormap-agent" --robot "R$i" --lcm-url "$URL" > "$OUT/logs/agent-R$i.log" 2>&1 &
+      # Room for the replay's bursts while the agent matches a scan (a few ms each).
+      "$BIN/anchormap-agent" --robot "R$i" --lcm-url "$URL&recv_buf_size=4194304" \
+        > "$OUT/logs/agent-R$i.log" 2>&1 &
       agents+=("$!")
       started+=("$!")
     done
