@@ -143,6 +143,7 @@ Result<GridTile> DecodeGridTile(const void* data, size_t size) {
 std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   anchormap::server_status_t m;
   m.utime = s.utime;
+  m.instance_id = s.instance_id;
   m.update = s.update;
   m.num_robots = s.num_robots;
   m.num_trajectories = s.num_trajectories;
@@ -163,8 +164,13 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
 Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   anchormap::server_status_t m;
   if (Status p = SafeDecode(data, size, CheckServerStatusWire, &m); !p.ok()) return p;
+  if (m.instance_id < 0) {
+    return Status::Error(ErrorCode::kInvalidValue,
+                         "negative server instance id " + std::to_string(m.instance_id));
+  }
   ServerStatus s;
   s.utime = m.utime;
+  s.instance_id = m.instance_id;
   s.update = m.update;
   s.num_robots = m.num_robots;
   s.num_trajectories = m.num_trajectories;

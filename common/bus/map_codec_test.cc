@@ -65,6 +65,7 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   EXPECT_DOUBLE_EQ(g->resolution_m, 0.1);
 
   ServerStatus status;
+  status.instance_id = 0x1234567890abcdefLL;
   status.num_robots = 3;
   status.keyframes = 400;
   status.rejections = {{"not_finite", 2}, {"duplicate_sequence", 1}};
@@ -72,6 +73,7 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   const auto s = DecodeServerStatus(bytes.data(), bytes.size());
   ASSERT_TRUE(s.ok()) << s.status().message();
   EXPECT_EQ(s->keyframes, 400);
+  EXPECT_EQ(s->instance_id, 0x1234567890abcdefLL);
   ASSERT_EQ(s->rejections.size(), 2u);
   EXPECT_EQ(s->rejections[1].first, "duplicate_sequence");
   EXPECT_EQ(s->rejections[1].second, 1);
@@ -86,6 +88,15 @@ TEST(MapCodecTest, ForgedCountsAreRefused) {
   const auto d = DecodeMergedMap(bytes.data(), bytes.size());
   EXPECT_FALSE(d.ok());
   EXPECT_EQ(d.status().code(), ErrorCode::kAbsurdSize);
+}
+
+TEST(MapCodecTest, NegativeInstanceIdIsRefused) {
+  ServerStatus status;
+  status.instance_id = -5;
+  const auto bytes = EncodeServerStatus(status);
+  const auto s = DecodeServerStatus(bytes.data(), bytes.size());
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), ErrorCode::kInvalidValue);
 }
 
 }  // namespace

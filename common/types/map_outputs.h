@@ -72,6 +72,7 @@ struct GridTile {
 
 struct ServerStatus {
   int64_t utime = 0;
+  int64_t instance_id = 0;  // random per server process start (> 0 online, 0 offline)
   int64_t update = 0;
   int32_t num_robots = 0;
   int32_t num_trajectories = 0;

@@ -38,23 +38,58 @@ bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size
     data = opened.data();
     size = opened.size();
   }
+  Dispatch(channel, data, size, /*replaying=*/false);
+  return true;
+}
+
+void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_t size,
+                          bool replaying) {
   // The logic counts its own refusals; the node counts what does not decode.
-  if (keyframes) {
+  if (channel == options_.channels.keyframes) {
     Result<Keyframe> keyframe = DecodeKeyframe(data, size);
     if (!keyframe.ok()) {
       server_.CountRejection(keyframe.status(), channel);
     } else {
-      OnKeyframe(std::move(*keyframe), channel);
+      OnKeyframe(std::move(*keyframe), channel, data, size, replaying);
     }
   } else {
     const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (!encounter.ok()) {
       server_.CountRejection(encounter.status(), channel);
     } else {
-      OnEncounter(*encounter, channel);
+      OnEncounter(*encounter, channel, data, size, replaying);
     }
   }
+}
+
+bool ServerNode::Replay(const LogEvent& event) {
+  if (event.channel == kJournalTick) {
+    server_.Tick(event.utime);
+    return true;
+  }
+  if (event.channel != options_.channels.keyframes &&
+      event.channel != options_.channels.encounters) {
+    return false;
+  }
+  server_.SetClock(event.utime);
+  Dispatch(event.channel, event.data.data(), event.data.size(), /*replaying=*/true);
   return true;
+}
+
+void ServerNode::Tick(int64_t now_utime) {
+  const int64_t updates = server_.update_count();
+  server_.Tick(now_utime);
+  if (journal_ && server_.update_count() != updates) {
+    const Status status = journal_(kJournalTick, now_utime, nullptr, 0);
+    if (!status.ok()) server_.CountRejection(status, kJournalTick);
+  }
+}
+
+bool ServerNode::Journaled(const std::string& channel, const uint8_t* data, size_t size) {
+  if (!journal_) return true;
+  const Status status = journal_(channel, server_.clock_utime(), data, size);
+  if (!status.ok()) server_.CountRejection(status, channel);
+  return status.ok();
 }
 
 Status ServerNode::CheckNotFuture(int64_t utime) const {
@@ -78,8 +113,11 @@ Status ServerNode::CheckRobotCap(const std::string& robot) const {
   return Status::Ok();
 }
 
-void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
-  Status refused = CheckNotFuture(keyframe.utime);
+void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel, const uint8_t* data,
+                            size_t size, bool replaying) {
+  // Replayed inputs passed these checks when they were journaled (against that moment's
+  // clock, which the future check must not see again).
+  Status refused = replaying ? Status::Ok() : CheckNotFuture(keyframe.utime);
   if (refused.ok() &&
       static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
     refused = Status::Error(ErrorCode::kCapReached,
@@ -99,20 +137,23 @@ void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
     server_.CountRejection(refused, channel);
     return;
   }
+  if (!replaying && !Journaled(channel, data, size)) return;
   if (server_.OnKeyframe(std::move(keyframe)).ok()) {
     robots_.insert(trajectory.robot);
     trajectories_.insert(trajectory);
   }
 }
 
-void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel) {
-  Status refused = CheckNotFuture(encounter.utime);
+void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel,
+                             const uint8_t* data, size_t size, bool replaying) {
+  Status refused = replaying ? Status::Ok() : CheckNotFuture(encounter.utime);
   if (refused.ok()) refused = CheckRobotCap(encounter.observer);
   if (refused.ok()) refused = CheckRobotCap(encounter.observed);
   if (!refused.ok()) {
     server_.CountRejection(refused, channel);
     return;
   }
+  if (!replaying && !Journaled(channel, data, size)) return;
   (void)server_.OnEncounter(encounter);
 }
 
@@ -136,6 +177,7 @@ void ServerNode::PublishDue(int64_t now_utime) {
   if (publisher.MapDue(now_utime, update)) {
     PublishMap();
     publisher.MarkMapPublished(now_utime, update);
+    last_map_utime_ = now_utime;
   }
   if (publisher.GridDue(now_utime, update)) {
     PublishGrid();
@@ -143,8 +185,19 @@ void ServerNode::PublishDue(int64_t now_utime) {
   }
 }
 
+void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
+  if (server_.update_count() == 0) return;  // nothing mapped yet
+  if (last_map_utime_ > 0 && static_cast<double>(now_utime - last_map_utime_) < 1e6 * period_s) {
+    return;
+  }
+  PublishMap();
+  last_map_utime_ = now_utime;
+}
+
 void ServerNode::PublishStatus() {
-  publish_(options_.channels.status, EncodeServerStatus(server_.BuildStatus()));
+  ServerStatus status = server_.BuildStatus();
+  status.instance_id = instance_id_;
+  publish_(options_.channels.status, EncodeServerStatus(status));
 }
 
 void ServerNode::PublishAcks() {
