@@ -263,6 +263,8 @@ int RunOnline(const ServerOptions& options) {
   LogInfo("instance " + std::to_string(node.instance_id()) + " listening on " +
           options.channels.keyframes + " and " + options.channels.encounters + " (" +
           (options.lcm_url.empty() ? std::string("default LCM URL") : options.lcm_url) + ")");
+  // A restarted server says so at once (its new instance id), with what the journal gave it.
+  node.PublishStatus();
   loop->Run();
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
