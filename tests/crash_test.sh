@@ -4,7 +4,7 @@
 #   anchormap-sim (3 robots, 60 s) -> sim.lcmlog
 #   lcm-logplayer -> 3 x anchormap-agent, anchormap-server --journal DIR, one bus
 #   lcm-logger records what the agents published (agents.lcmlog) and the server's outputs
-# While the replay runs (30 s), the server is SIGKILLed KILLS times, each after a random
+# While the replay runs (30 s; the kills may go on a few seconds longer), the server is SIGKILLed KILLS times, each after a random
 # 1.0-4.0 s of life, and restarted with its journal after a random 0-0.7 s down (what the
 # agents publish meanwhile is lost and must be resent); seeded: ANCHORMAP_CRASH_SEED,
 # printed.
@@ -51,6 +51,18 @@ start_server() {
   server=$!
 }
 
+# Waits (at most 20 s) until server number `run` is on the bus: a background child of a
+# script ignores SIGINT until the server installs its handler, so a stop sent earlier
+# would be lost.
+wait_until_listening() {
+  local work=$1 run=$2 i
+  for i in $(seq 1 200); do
+    grep -q 'listening on' "$work/server_$run.log" 2>/dev/null && return 0
+    sleep 0.1
+  done
+  log "server $run never came up"; return 1
+}
+
 inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
@@ -86,6 +98,9 @@ inside_namespace() {
     start_server "$work" $run
   done
   wait "$player" || { log "lcm-logplayer failed"; return 1; }
+  wait_until_listening "$work" $run || return 1
+  # The agents' status lines (every second) must postdate the last restart.
+  sleep 1.5
   local waited=0
   until outboxes_empty "$work"; do
     sleep 1
@@ -124,7 +139,8 @@ main() {
   "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
     >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
 
-  export -f inside_namespace outboxes_empty start_server milliseconds_as_seconds log
+  export -f inside_namespace outboxes_empty start_server milliseconds_as_seconds \
+    wait_until_listening log
   export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
