@@ -113,31 +113,37 @@ Status ServerNode::CheckRobotCap(const std::string& robot) const {
   return Status::Ok();
 }
 
+Status ServerNode::CheckKeyframe(const Keyframe& keyframe) const {
+  if (Status refused = CheckNotFuture(keyframe.utime); !refused.ok()) return refused;
+  if (static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
+    return Status::Error(ErrorCode::kCapReached,
+                         std::to_string(keyframe.scan.ranges.size()) + " ranges (cap " +
+                             std::to_string(options_.max_scan_ranges) + ")");
+  }
+  if (Status refused = CheckRobotCap(keyframe.robot); !refused.ok()) return refused;
+  if (trajectories_.count(TrajectoryName{keyframe.robot, keyframe.trajectory_id}) == 0 &&
+      static_cast<int>(trajectories_.size()) >= options_.max_trajectories) {
+    return Status::Error(ErrorCode::kCapReached,
+                         "trajectory " + std::to_string(keyframe.trajectory_id) + " of " +
+                             keyframe.robot + " past the cap of " +
+                             std::to_string(options_.max_trajectories) + " trajectories");
+  }
+  return Status::Ok();
+}
+
 void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel, const uint8_t* data,
                             size_t size, bool replaying) {
-  // Replayed inputs passed these checks when they were journaled (against that moment's
-  // clock, which the future check must not see again).
-  Status refused = replaying ? Status::Ok() : CheckNotFuture(keyframe.utime);
-  if (refused.ok() &&
-      static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
-    refused = Status::Error(ErrorCode::kCapReached,
-                            std::to_string(keyframe.scan.ranges.size()) + " ranges (cap " +
-                                std::to_string(options_.max_scan_ranges) + ")");
+  // Replayed inputs passed the checks when they were journaled: checked again (against
+  // today's clock, or caps changed since) some could be refused although the agents were
+  // told they arrived.
+  if (!replaying) {
+    if (Status refused = CheckKeyframe(keyframe); !refused.ok()) {
+      server_.CountRejection(refused, channel);
+      return;
+    }
+    if (!Journaled(channel, data, size)) return;
   }
-  if (refused.ok()) refused = CheckRobotCap(keyframe.robot);
   const TrajectoryName trajectory{keyframe.robot, keyframe.trajectory_id};
-  if (refused.ok() && trajectories_.count(trajectory) == 0 &&
-      static_cast<int>(trajectories_.size()) >= options_.max_trajectories) {
-    refused = Status::Error(ErrorCode::kCapReached,
-                            "trajectory " + std::to_string(keyframe.trajectory_id) + " of " +
-                                keyframe.robot + " past the cap of " +
-                                std::to_string(options_.max_trajectories) + " trajectories");
-  }
-  if (!refused.ok()) {
-    server_.CountRejection(refused, channel);
-    return;
-  }
-  if (!replaying && !Journaled(channel, data, size)) return;
   if (server_.OnKeyframe(std::move(keyframe)).ok()) {
     robots_.insert(trajectory.robot);
     trajectories_.insert(trajectory);
@@ -146,14 +152,16 @@ void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel, const
 
 void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel,
                              const uint8_t* data, size_t size, bool replaying) {
-  Status refused = replaying ? Status::Ok() : CheckNotFuture(encounter.utime);
-  if (refused.ok()) refused = CheckRobotCap(encounter.observer);
-  if (refused.ok()) refused = CheckRobotCap(encounter.observed);
-  if (!refused.ok()) {
-    server_.CountRejection(refused, channel);
-    return;
+  if (!replaying) {
+    Status refused = CheckNotFuture(encounter.utime);
+    if (refused.ok()) refused = CheckRobotCap(encounter.observer);
+    if (refused.ok()) refused = CheckRobotCap(encounter.observed);
+    if (!refused.ok()) {
+      server_.CountRejection(refused, channel);
+      return;
+    }
+    if (!Journaled(channel, data, size)) return;
   }
-  if (!replaying && !Journaled(channel, data, size)) return;
   (void)server_.OnEncounter(encounter);
 }
 

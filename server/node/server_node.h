@@ -99,6 +99,8 @@ class ServerNode {
                    size_t size, bool replaying);
   // Appends an input about to be applied; false (refusal counted) when that failed.
   bool Journaled(const std::string& channel, const uint8_t* data, size_t size);
+  // Ok when `keyframe` passes the node's checks (time, scan size, caps).
+  Status CheckKeyframe(const Keyframe& keyframe) const;
   // Ok when `utime` is not too far ahead of the clock.
   Status CheckNotFuture(int64_t utime) const;
   // Ok when `robot` is known or the robot cap leaves room for it.
