@@ -1,6 +1,9 @@
 #include "common/bus/journal.h"
 
+#include <fcntl.h>
 #include <lcm/eventlog.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -19,10 +22,12 @@ constexpr size_t kEventHeaderBytes = 4 + 8 + 8 + 4 + 4;
 }  // namespace
 
 struct Journal::File {
+  int lock_fd = -1;
   lcm_eventlog_t* log = nullptr;
   std::vector<char> buffer;
   ~File() {
     if (log) lcm_eventlog_destroy(log);
+    if (lock_fd >= 0) ::close(lock_fd);  // releases the lock
   }
 };
 
@@ -38,6 +43,15 @@ Result<std::unique_ptr<Journal>> Journal::Open(const std::string& dir,
                          "cannot create journal directory '" + dir + "': " + error.message());
   }
   std::unique_ptr<Journal> journal(new Journal());
+  journal->file_ = std::make_unique<File>();
+  File& f = *journal->file_;
+  const std::string lock_path = (fs::path(dir) / "journal.lock").string();
+  f.lock_fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (f.lock_fd < 0) return Status::Error(ErrorCode::kIoError, "cannot open " + lock_path);
+  if (::flock(f.lock_fd, LOCK_EX | LOCK_NB) != 0) {
+    return Status::Error(ErrorCode::kIoError,
+                         "the journal in '" + dir + "' is in use by another process");
+  }
   journal->path_ = (fs::path(dir) / "journal.lcmlog").string();
   existing->clear();
   if (fs::exists(journal->path_)) {
@@ -76,8 +90,6 @@ Result<std::unique_ptr<Journal>> Journal::Open(const std::string& dir,
     journal->bytes_ = static_cast<int64_t>(good);
   }
   journal->events_ = static_cast<int64_t>(existing->size());
-  journal->file_ = std::make_unique<File>();
-  File& f = *journal->file_;
   f.log = lcm_eventlog_create(journal->path_.c_str(), "a");
   if (!f.log) {
     return Status::Error(ErrorCode::kIoError,

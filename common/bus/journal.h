@@ -7,7 +7,10 @@
 // event goes to the kernel in one write(2) (a stdio buffer larger than any event, flushed
 // per event), so a kill cannot leave half an event in practice; if a tail was cut short
 // anyway (a full disk, a power cut), Open drops it with a warning and appends from the last
-// whole event. Corruption before the tail is an error: the server must not guess.
+// whole event. Corruption before the tail is an error: the server must not guess. One
+// process at a time: Open takes an exclusive lock (flock on DIR/journal.lock, released
+// by the kernel when the process dies, SIGKILL included), so two servers started on one
+// directory cannot interleave their inputs.
 //
 // What the events mean is the server node's business (server/node/server_node.h); this
 // file only stores them.
@@ -28,7 +31,7 @@ class Journal {
   ~Journal();
 
   // Opens (creating DIR and the file if needed) for appending; the events already in the
-  // journal, in order, go to `*existing`.
+  // journal, in order, go to `*existing`. kIoError when another process holds it.
   static Result<std::unique_ptr<Journal>> Open(const std::string& dir,
                                                std::vector<LogEvent>* existing);
 

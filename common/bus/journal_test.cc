@@ -105,6 +105,22 @@ TEST_F(JournalTest, CorruptionBeforeTheEndIsRefused) {
   EXPECT_NE(journal.status().message().find("corrupt"), std::string::npos);
 }
 
+TEST_F(JournalTest, OneProcessAtATime) {
+  std::vector<LogEvent> existing;
+  {
+    auto first = Journal::Open(dir_.string(), &existing);
+    ASSERT_TRUE(first.ok());
+    AppendEvents(first->get(), 0, 2);
+    // A second opener (another server on the same directory) is refused while it lives.
+    auto second = Journal::Open(dir_.string(), &existing);
+    ASSERT_FALSE(second.ok());
+    EXPECT_NE(second.status().message().find("in use"), std::string::npos);
+  }
+  auto again = Journal::Open(dir_.string(), &existing);
+  ASSERT_TRUE(again.ok()) << again.status().message();
+  ExpectEvents(existing, 2);
+}
+
 TEST_F(JournalTest, AnUncreatableDirectoryIsAnError) {
   std::vector<LogEvent> existing;
   EXPECT_FALSE(Journal::Open("/proc/anchormap_no_such_dir/x", &existing).ok());
