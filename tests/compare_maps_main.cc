@@ -121,7 +121,7 @@ int Main(int argc, char** argv) {
     const ServerStatus& s = *got->status;
     std::cout << "compare-maps: server status: keyframes " << s.keyframes << " encounters "
               << s.encounters << " bridged gaps " << s.bridged_gaps << " resend requests "
-              << s.resend_requests << " refused:";
+              << s.resend_requests << " kernel drops " << s.kernel_drops << " refused:";
     for (const auto& [reason, count] : s.rejections) std::cout << " " << reason << "=" << count;
     std::cout << "\n";
     if (s.bridged_gaps != 0) ok = false;

@@ -66,6 +66,7 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
 
   ServerStatus status;
   status.instance_id = 0x1234567890abcdefLL;
+  status.kernel_drops = 17;
   status.num_robots = 3;
   status.keyframes = 400;
   status.rejections = {{"not_finite", 2}, {"duplicate_sequence", 1}};
@@ -74,6 +75,7 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   ASSERT_TRUE(s.ok()) << s.status().message();
   EXPECT_EQ(s->keyframes, 400);
   EXPECT_EQ(s->instance_id, 0x1234567890abcdefLL);
+  EXPECT_EQ(s->kernel_drops, 17);
   ASSERT_EQ(s->rejections.size(), 2u);
   EXPECT_EQ(s->rejections[1].first, "duplicate_sequence");
   EXPECT_EQ(s->rejections[1].second, 1);
@@ -90,11 +92,20 @@ TEST(MapCodecTest, ForgedCountsAreRefused) {
   EXPECT_EQ(d.status().code(), ErrorCode::kAbsurdSize);
 }
 
-TEST(MapCodecTest, NegativeInstanceIdIsRefused) {
+TEST(MapCodecTest, NegativeInstanceIdAndDropCountsAreRefused) {
   ServerStatus status;
   status.instance_id = -5;
-  const auto bytes = EncodeServerStatus(status);
-  const auto s = DecodeServerStatus(bytes.data(), bytes.size());
+  auto bytes = EncodeServerStatus(status);
+  auto s = DecodeServerStatus(bytes.data(), bytes.size());
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), ErrorCode::kInvalidValue);
+  status.instance_id = 5;
+  status.kernel_drops = -1;  // "cannot be seen": fine
+  bytes = EncodeServerStatus(status);
+  EXPECT_TRUE(DecodeServerStatus(bytes.data(), bytes.size()).ok());
+  status.kernel_drops = -2;
+  bytes = EncodeServerStatus(status);
+  s = DecodeServerStatus(bytes.data(), bytes.size());
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), ErrorCode::kInvalidValue);
 }

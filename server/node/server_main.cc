@@ -241,6 +241,7 @@ int RunOnline(const ServerOptions& options) {
   auto status_line = [&node, bus, &journal] {
     bus->RefreshKernelDrops();
     const LcmLoopStats& s = bus->stats();
+    node.set_kernel_drops(s.kernel_drops);
     std::string line = node.server().StatusLine() + " | lcm messages " +
                        std::to_string(s.messages_handled) + " max burst " +
                        std::to_string(s.max_burst) + " kernel drops " +
@@ -269,8 +270,9 @@ int RunOnline(const ServerOptions& options) {
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
   node.server().Flush();
+  const std::string final_line = status_line();  // (also refreshes the drop count)
   node.PublishAll();
-  LogInfo("final: " + status_line());
+  LogInfo("final: " + final_line);
   return 0;
 }
 

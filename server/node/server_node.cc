@@ -205,6 +205,7 @@ void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
 void ServerNode::PublishStatus() {
   ServerStatus status = server_.BuildStatus();
   status.instance_id = instance_id_;
+  status.kernel_drops = kernel_drops_;
   publish_(options_.channels.status, EncodeServerStatus(status));
 }
 

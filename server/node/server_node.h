@@ -74,6 +74,9 @@ class ServerNode {
   // Online: the merged map and anchor covariances again when none went out for
   // `period_s` (a lost datagram must not leave subscribers with a stale map for long).
   void RepublishMapDue(int64_t now_utime, double period_s);
+  // What the kernel dropped on the server's sockets, for the status message (the online
+  // main reads it from /proc; stays 0 offline, -1 where it cannot be seen).
+  void set_kernel_drops(int64_t drops) { kernel_drops_ = drops; }
   // Stamped on every status message (0 unless set; the online main draws one at random).
   void set_instance_id(int64_t id) { instance_id_ = id; }
   int64_t instance_id() const { return instance_id_; }
@@ -115,6 +118,7 @@ class ServerNode {
   std::set<std::string> robots_;           // admitted, at most options_.max_robots
   std::set<TrajectoryName> trajectories_;  // at most max_trajectories
   int64_t instance_id_ = 0;
+  int64_t kernel_drops_ = 0;
   int64_t last_map_utime_ = 0;  // caller's clock of the last map publication (0: none)
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
