@@ -32,7 +32,8 @@ CONVERGENCE=1e-12
 MAX_WAIT_S=60
 SEED=${ANCHORMAP_CRASH_SEED:-$(date +%s)}
 
-log() { echo "crash_test: $*"; }
+TEST_NAME=crash_test
+source "$(dirname "$0")/system_test_lib.sh"
 
 milliseconds_as_seconds() { printf '%d.%03d' $(($1 / 1000)) $(($1 % 1000)); }
 
@@ -119,29 +120,20 @@ inside_namespace() {
 }
 
 main() {
-  for tool in anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps; do
-    [ -x "$BIN/$tool" ] || { log "$BIN/$tool is missing"; exit 1; }
-  done
+  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps
   command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
     { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
-  if ! unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
-      >/dev/null 2>&1; then
+  if ! netns_available; then
     log "SKIPPED: network namespaces are unavailable here (unshare -n refused); the crash test needs a private network for its multicast bus"
     exit $SKIP
   fi
-  local work
-  work=$(mktemp -d "${TMPDIR:-/tmp}/anchormap-crash.XXXXXX")
-  if [ "${ANCHORMAP_KEEP_TEST_DIR:-0}" = "1" ]; then
-    log "files in $work"
-  else
-    trap "rm -rf '$work'" EXIT
-  fi
-  "$BIN/anchormap-sim" --robots $ROBOTS --seed 1 --duration-s $DURATION_S --output "$work/sim.lcmlog" \
-    >"$work/sim.txt" || { log "anchormap-sim failed"; exit 1; }
+  make_work_dir
+  local work=$WORK
+  simulate $ROBOTS $DURATION_S
 
   export -f inside_namespace outboxes_empty start_server milliseconds_as_seconds \
     wait_until_listening log
-  export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED
+  export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
   for run in $(seq 1 $KILLS); do
