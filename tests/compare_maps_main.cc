@@ -4,9 +4,11 @@
 // keyframes they join (each named by robot, trajectory id and index); poses are compared in the
 // frame of the first robot's first keyframe (the global frame is the first anchored group's, which
 // depends on arrival order).
-//   --map OUT.lcmlog --reference REF.lcmlog [--tolerance 1e-9]
+//   --map OUT.lcmlog --reference REF.lcmlog [--tolerance 1e-9] [--instances N]
 // Also prints the last server_status_t of --map (bridged gaps, resend requests, refusals)
-// and fails when it counts bridged gaps. Exit 0 equal, 1 different, 2 usage.
+// and fails when it counts bridged gaps; with --instances N (crash_test.sh), fails unless
+// --map's status messages carry N distinct server instance ids (N server processes).
+// Exit 0 equal, 1 different, 2 usage.
 
 #include <cmath>
 #include <cstdio>
@@ -27,6 +29,7 @@ namespace {
 struct Last {
   std::optional<MergedMap> map;
   std::optional<ServerStatus> status;
+  std::set<int64_t> instance_ids;
 };
 
 std::optional<Last> ReadLast(const std::string& path) {
@@ -42,7 +45,10 @@ std::optional<Last> ReadLast(const std::string& path) {
       if (map.ok()) last.map = *map;
     } else if (event->channel == "ANCHORMAP_SERVER_STATUS") {
       auto status = DecodeServerStatus(event->data.data(), event->data.size());
-      if (status.ok()) last.status = *status;
+      if (status.ok()) {
+        last.instance_ids.insert(status->instance_id);
+        last.status = *status;
+      }
     }
   }
   return last;
@@ -87,11 +93,14 @@ Index Build(const MergedMap& map) {
 int Main(int argc, char** argv) {
   std::string map_path, reference_path;
   double tolerance = 1e-9;
+  int instances = 0;
   OptionsLoader loader("anchormap-test-compare-maps", "--map OUT.lcmlog --reference REF.lcmlog",
                        "Compares the last merged maps of two server output logs.");
   loader.Add("map", "map", &map_path, "server outputs to check", true);
   loader.Add("reference", "reference", &reference_path, "server outputs to compare with", true);
   loader.Add("tolerance", "tolerance", &tolerance, "pose tolerance (m, rad)");
+  loader.Add("instances", "instances", &instances,
+             "server instance ids expected in --map's status messages (0 = not checked)");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   const auto got = ReadLast(map_path);
@@ -112,10 +121,16 @@ int Main(int argc, char** argv) {
     const ServerStatus& s = *got->status;
     std::cout << "compare-maps: server status: keyframes " << s.keyframes << " encounters "
               << s.encounters << " bridged gaps " << s.bridged_gaps << " resend requests "
-              << s.resend_requests << " refused:";
+              << s.resend_requests << " kernel drops " << s.kernel_drops << " refused:";
     for (const auto& [reason, count] : s.rejections) std::cout << " " << reason << "=" << count;
     std::cout << "\n";
     if (s.bridged_gaps != 0) ok = false;
+  }
+  std::cout << "compare-maps: " << got->instance_ids.size() << " server instance id(s) in "
+            << map_path << "\n";
+  if (instances > 0 && static_cast<int>(got->instance_ids.size()) != instances) {
+    std::cout << "compare-maps: expected " << instances << " server instances\n";
+    ok = false;
   }
   const Index g = Build(*got->map);
   const Index w = Build(*want->map);

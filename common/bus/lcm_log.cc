@@ -69,6 +69,7 @@ Status LcmLogReader::Open(const std::string& path) {
   file_->stream = std::ifstream(path, std::ios::binary);
   problems_.clear();
   file_->position = 0;
+  end_of_last_event_ = 0;
   if (!file_->stream) {
     file_->size = 0;
     return Status::Error(ErrorCode::kIoError, "cannot open LCM log '" + path + "' for reading");
@@ -163,6 +164,7 @@ std::optional<LogEvent> LcmLogReader::Next() {
   }
   f.position +=
       kHeaderBytes + static_cast<uint64_t>(channel_length) + static_cast<uint64_t>(data_length);
+  end_of_last_event_ = f.position;
   return out;
 }
 

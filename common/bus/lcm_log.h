@@ -55,11 +55,15 @@ class LcmLogReader {
   // word): skipped 56 bytes to the next event at byte 1290", or "... at the end of the
   // file". Empty for a sound log.
   const std::vector<std::string>& problems() const { return problems_; }
+  // The byte just past the last good event returned by Next() (0 before the first): where
+  // a writer appending to a log whose tail was cut short should continue.
+  uint64_t end_of_last_event() const { return end_of_last_event_; }
 
  private:
   struct File;
   std::unique_ptr<File> file_;
   std::vector<std::string> problems_;
+  uint64_t end_of_last_event_ = 0;
 };
 
 // Decodes an event's payload as T; nullopt when it does not decode (wrong type, truncated).

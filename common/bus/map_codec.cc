@@ -143,6 +143,7 @@ Result<GridTile> DecodeGridTile(const void* data, size_t size) {
 std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   anchormap::server_status_t m;
   m.utime = s.utime;
+  m.instance_id = s.instance_id;
   m.update = s.update;
   m.num_robots = s.num_robots;
   m.num_trajectories = s.num_trajectories;
@@ -152,6 +153,7 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
   m.last_update_ms = s.last_update_ms;
   m.bridged_gaps = s.bridged_gaps;
   m.resend_requests = s.resend_requests;
+  m.kernel_drops = s.kernel_drops;
   m.num_reasons = static_cast<int32_t>(s.rejections.size());
   for (const auto& [reason, count] : s.rejections) {
     m.rejection_reasons.push_back(reason);
@@ -163,8 +165,17 @@ std::vector<uint8_t> EncodeServerStatus(const ServerStatus& s) {
 Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   anchormap::server_status_t m;
   if (Status p = SafeDecode(data, size, CheckServerStatusWire, &m); !p.ok()) return p;
+  if (m.kernel_drops < -1) {
+    return Status::Error(ErrorCode::kInvalidValue,
+                         "kernel drop count " + std::to_string(m.kernel_drops) + " below -1");
+  }
+  if (m.instance_id < 0) {
+    return Status::Error(ErrorCode::kInvalidValue,
+                         "negative server instance id " + std::to_string(m.instance_id));
+  }
   ServerStatus s;
   s.utime = m.utime;
+  s.instance_id = m.instance_id;
   s.update = m.update;
   s.num_robots = m.num_robots;
   s.num_trajectories = m.num_trajectories;
@@ -174,6 +185,7 @@ Result<ServerStatus> DecodeServerStatus(const void* data, size_t size) {
   s.last_update_ms = m.last_update_ms;
   s.bridged_gaps = m.bridged_gaps;
   s.resend_requests = m.resend_requests;
+  s.kernel_drops = m.kernel_drops;
   for (size_t i = 0; i < m.rejection_reasons.size(); ++i) {
     s.rejections.emplace_back(m.rejection_reasons[i], m.rejection_counts[i]);
   }

@@ -65,6 +65,8 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   EXPECT_DOUBLE_EQ(g->resolution_m, 0.1);
 
   ServerStatus status;
+  status.instance_id = 0x1234567890abcdefLL;
+  status.kernel_drops = 17;
   status.num_robots = 3;
   status.keyframes = 400;
   status.rejections = {{"not_finite", 2}, {"duplicate_sequence", 1}};
@@ -72,6 +74,8 @@ TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {
   const auto s = DecodeServerStatus(bytes.data(), bytes.size());
   ASSERT_TRUE(s.ok()) << s.status().message();
   EXPECT_EQ(s->keyframes, 400);
+  EXPECT_EQ(s->instance_id, 0x1234567890abcdefLL);
+  EXPECT_EQ(s->kernel_drops, 17);
   ASSERT_EQ(s->rejections.size(), 2u);
   EXPECT_EQ(s->rejections[1].first, "duplicate_sequence");
   EXPECT_EQ(s->rejections[1].second, 1);
@@ -86,6 +90,24 @@ TEST(MapCodecTest, ForgedCountsAreRefused) {
   const auto d = DecodeMergedMap(bytes.data(), bytes.size());
   EXPECT_FALSE(d.ok());
   EXPECT_EQ(d.status().code(), ErrorCode::kAbsurdSize);
+}
+
+TEST(MapCodecTest, NegativeInstanceIdAndDropCountsAreRefused) {
+  ServerStatus status;
+  status.instance_id = -5;
+  auto bytes = EncodeServerStatus(status);
+  auto s = DecodeServerStatus(bytes.data(), bytes.size());
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), ErrorCode::kInvalidValue);
+  status.instance_id = 5;
+  status.kernel_drops = -1;  // "cannot be seen": fine
+  bytes = EncodeServerStatus(status);
+  EXPECT_TRUE(DecodeServerStatus(bytes.data(), bytes.size()).ok());
+  status.kernel_drops = -2;
+  bytes = EncodeServerStatus(status);
+  s = DecodeServerStatus(bytes.data(), bytes.size());
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), ErrorCode::kInvalidValue);
 }
 
 }  // namespace

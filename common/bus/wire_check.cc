@@ -190,7 +190,7 @@ Status CheckGridTileWire(const void* data, size_t size) {
 Status CheckServerStatusWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckFingerprint<anchormap::server_status_t>(&c));
-  WIRE_SKIP(c, 8 + 8 + 12 + 8 + 8 + 8 + 8 + 8, "status fields");
+  WIRE_SKIP(c, 8 + 8 + 8 + 12 + 8 + 8 + 8 + 8 + 8 + 8, "status fields");
   int32_t reasons = 0;
   WIRE_TRY(c.ReadCount("num_reasons", 1000, 13, &reasons));
   for (int32_t r = 0; r < reasons; ++r) WIRE_TRY(c.SkipString("reason", 256));

@@ -72,6 +72,7 @@ struct GridTile {
 
 struct ServerStatus {
   int64_t utime = 0;
+  int64_t instance_id = 0;  // random per server process start (> 0 online, 0 offline)
   int64_t update = 0;
   int32_t num_robots = 0;
   int32_t num_trajectories = 0;
@@ -81,6 +82,7 @@ struct ServerStatus {
   double last_update_ms = 0.0;
   int64_t bridged_gaps = 0;     // keyframe gaps bridged after waiting (lost keyframes)
   int64_t resend_requests = 0;  // resend requests published
+  int64_t kernel_drops = 0;     // datagrams the kernel dropped on the server's sockets (-1: unseen)
   std::vector<std::pair<std::string, int64_t>> rejections;  // reason -> count (non-zero)
 };
 

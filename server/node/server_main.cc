@@ -3,13 +3,18 @@
 // covariances, the occupancy grid and its status. Offline (--log IN --output OUT): reads
 // keyframes and encounters from an LCM log as fast as it can, writes the same outputs to
 // another log (stamped with data time, so equal inputs give equal outputs) and exits.
+// Online with --journal DIR: every input is journaled before it is applied, and a
+// restarted server replays the journal first (crash recovery; common/bus/journal.h).
 
 #include <chrono>
 #include <csignal>
+#include <ctime>
 #include <iostream>
+#include <random>
 #include <sstream>
 
 #include "common/bus/authenticator.h"
+#include "common/bus/journal.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
@@ -28,6 +33,14 @@ int64_t WallUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
+}
+
+// A random positive 63-bit id for this process (its status messages tell restarts apart).
+int64_t DrawInstanceId() {
+  std::random_device device;
+  const uint64_t bits = (static_cast<uint64_t>(device()) << 32) ^ device();
+  const auto id = static_cast<int64_t>(bits >> 1);
+  return id == 0 ? 1 : id;
 }
 
 void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
@@ -71,6 +84,12 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "resend_request_t output (online)");
   l->Add("ack_period_s", "ack-period-s", &o->ack_period_s,
          "online: acknowledge every trajectory's keyframes / encounters this often (s)");
+  l->Add("map_republish_period_s", "map-republish-period-s", &o->map_republish_period_s,
+         "online: publish the merged map and anchor covariances again when none went out for "
+         "this long (s; 0 = only after updates)");
+  l->Add("journal_dir", "journal", &o->journal_dir,
+         "online: write-ahead journal directory; an existing journal there is replayed at start "
+         "(crash recovery)");
   l->Add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
          "ask a trajectory for missing keyframes / encounters at most this often (s)");
   l->Add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
@@ -137,6 +156,33 @@ Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
   return Status::Ok();
 }
 
+// Opens the journal in `dir`, replays what it holds through `node` (the same handlers, with
+// the clocks they saw live) and has the node journal every input from now on.
+Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, ServerNode* node) {
+  std::vector<LogEvent> events;
+  Result<std::unique_ptr<Journal>> journal = Journal::Open(dir, &events);
+  if (!journal.ok()) return journal.status();
+  const auto start = std::chrono::steady_clock::now();
+  const std::clock_t cpu_start = std::clock();
+  int64_t replayed = 0;
+  for (const LogEvent& event : events) {
+    if (node->Replay(event)) ++replayed;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
+  std::ostringstream line;
+  line << "journal " << (*journal)->path() << ": replayed " << replayed << " of " << events.size()
+       << " events (" << (*journal)->bytes() << " bytes) in " << seconds << " s (" << cpu_seconds
+       << " s CPU); resuming with " << node->server().StatusLine();
+  LogInfo(line.str());
+  Journal* appender = journal->get();
+  node->SetJournal(
+      [appender](const std::string& channel, int64_t clock_utime, const uint8_t* data,
+                 size_t size) { return appender->Append(channel, clock_utime, data, size); });
+  return journal;
+}
+
 int RunOnline(const ServerOptions& options) {
   Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create(options.lcm_url);
   if (!created.ok()) {
@@ -154,9 +200,19 @@ int RunOnline(const ServerOptions& options) {
         if (!status.ok()) LogWarning(status.message());
       });
   node_pointer = &node;
+  node.set_instance_id(DrawInstanceId());
   if (Status s = SetUpAuthentication(options, &node); !s.ok()) {
     LogError(s.message());
     return 1;
+  }
+  std::unique_ptr<Journal> journal;
+  if (!options.journal_dir.empty()) {
+    Result<std::unique_ptr<Journal>> opened = OpenAndReplayJournal(options.journal_dir, &node);
+    if (!opened.ok()) {
+      LogError(opened.status().message());
+      return 1;
+    }
+    journal = std::move(*opened);
   }
   auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
     node.server().SetClock(WallUtime());
@@ -172,19 +228,29 @@ int RunOnline(const ServerOptions& options) {
   }
   // Updates that arrived within a map period of the last publication go out from here;
   // gaps that waited too long are bridged; missing keyframes / encounters are asked for.
-  loop->Every(std::chrono::milliseconds(100), [&node] {
-    node.server().Tick(WallUtime());
+  loop->Every(std::chrono::milliseconds(100), [&node, &options] {
+    node.Tick(WallUtime());
     node.PublishResendRequests();
     node.PublishDue(WallUtime());
+    if (options.map_republish_period_s > 0) {
+      node.RepublishMapDue(WallUtime(), options.map_republish_period_s);
+    }
   });
   loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.ack_period_s)),
               [&node] { node.PublishAcks(); });
-  auto status_line = [&node, bus] {
+  auto status_line = [&node, bus, &journal] {
     bus->RefreshKernelDrops();
     const LcmLoopStats& s = bus->stats();
-    return node.server().StatusLine() + " | lcm messages " + std::to_string(s.messages_handled) +
-           " max burst " + std::to_string(s.max_burst) + " kernel drops " +
-           std::to_string(s.kernel_drops);
+    node.set_kernel_drops(s.kernel_drops);
+    std::string line = node.server().StatusLine() + " | lcm messages " +
+                       std::to_string(s.messages_handled) + " max burst " +
+                       std::to_string(s.max_burst) + " kernel drops " +
+                       std::to_string(s.kernel_drops);
+    if (journal) {
+      line += " | journal " + std::to_string(journal->events()) + " events " +
+              std::to_string(journal->bytes()) + " bytes";
+    }
+    return line;
   };
   if (options.status_period_s > 0) {
     loop->Every(std::chrono::milliseconds(static_cast<int64_t>(1e3 * options.status_period_s)),
@@ -195,15 +261,18 @@ int RunOnline(const ServerOptions& options) {
   }
   loop->StopOnSignals(
       [](int number) { LogInfo("signal " + std::to_string(number) + ": stopping"); });
-  LogInfo("listening on " + options.channels.keyframes + " and " + options.channels.encounters +
-          " (" + (options.lcm_url.empty() ? std::string("default LCM URL") : options.lcm_url) +
-          ")");
+  LogInfo("instance " + std::to_string(node.instance_id()) + " listening on " +
+          options.channels.keyframes + " and " + options.channels.encounters + " (" +
+          (options.lcm_url.empty() ? std::string("default LCM URL") : options.lcm_url) + ")");
+  // A restarted server says so at once (its new instance id), with what the journal gave it.
+  node.PublishStatus();
   loop->Run();
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
   node.server().Flush();
+  const std::string final_line = status_line();  // (also refreshes the drop count)
   node.PublishAll();
-  LogInfo("final: " + status_line());
+  LogInfo("final: " + final_line);
   return 0;
 }
 

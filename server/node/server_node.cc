@@ -38,23 +38,58 @@ bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size
     data = opened.data();
     size = opened.size();
   }
+  Dispatch(channel, data, size, /*replaying=*/false);
+  return true;
+}
+
+void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_t size,
+                          bool replaying) {
   // The logic counts its own refusals; the node counts what does not decode.
-  if (keyframes) {
+  if (channel == options_.channels.keyframes) {
     Result<Keyframe> keyframe = DecodeKeyframe(data, size);
     if (!keyframe.ok()) {
       server_.CountRejection(keyframe.status(), channel);
     } else {
-      OnKeyframe(std::move(*keyframe), channel);
+      OnKeyframe(std::move(*keyframe), channel, data, size, replaying);
     }
   } else {
     const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (!encounter.ok()) {
       server_.CountRejection(encounter.status(), channel);
     } else {
-      OnEncounter(*encounter, channel);
+      OnEncounter(*encounter, channel, data, size, replaying);
     }
   }
+}
+
+bool ServerNode::Replay(const LogEvent& event) {
+  if (event.channel == kJournalTick) {
+    server_.Tick(event.utime);
+    return true;
+  }
+  if (event.channel != options_.channels.keyframes &&
+      event.channel != options_.channels.encounters) {
+    return false;
+  }
+  server_.SetClock(event.utime);
+  Dispatch(event.channel, event.data.data(), event.data.size(), /*replaying=*/true);
   return true;
+}
+
+void ServerNode::Tick(int64_t now_utime) {
+  const int64_t updates = server_.update_count();
+  server_.Tick(now_utime);
+  if (journal_ && server_.update_count() != updates) {
+    const Status status = journal_(kJournalTick, now_utime, nullptr, 0);
+    if (!status.ok()) server_.CountRejection(status, kJournalTick);
+  }
+}
+
+bool ServerNode::Journaled(const std::string& channel, const uint8_t* data, size_t size) {
+  if (!journal_) return true;
+  const Status status = journal_(channel, server_.clock_utime(), data, size);
+  if (!status.ok()) server_.CountRejection(status, channel);
+  return status.ok();
 }
 
 Status ServerNode::CheckNotFuture(int64_t utime) const {
@@ -78,40 +113,54 @@ Status ServerNode::CheckRobotCap(const std::string& robot) const {
   return Status::Ok();
 }
 
-void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel) {
-  Status refused = CheckNotFuture(keyframe.utime);
-  if (refused.ok() &&
-      static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
-    refused = Status::Error(ErrorCode::kCapReached,
-                            std::to_string(keyframe.scan.ranges.size()) + " ranges (cap " +
-                                std::to_string(options_.max_scan_ranges) + ")");
+Status ServerNode::CheckKeyframe(const Keyframe& keyframe) const {
+  if (Status refused = CheckNotFuture(keyframe.utime); !refused.ok()) return refused;
+  if (static_cast<int64_t>(keyframe.scan.ranges.size()) > options_.max_scan_ranges) {
+    return Status::Error(ErrorCode::kCapReached,
+                         std::to_string(keyframe.scan.ranges.size()) + " ranges (cap " +
+                             std::to_string(options_.max_scan_ranges) + ")");
   }
-  if (refused.ok()) refused = CheckRobotCap(keyframe.robot);
-  const TrajectoryName trajectory{keyframe.robot, keyframe.trajectory_id};
-  if (refused.ok() && trajectories_.count(trajectory) == 0 &&
+  if (Status refused = CheckRobotCap(keyframe.robot); !refused.ok()) return refused;
+  if (trajectories_.count(TrajectoryName{keyframe.robot, keyframe.trajectory_id}) == 0 &&
       static_cast<int>(trajectories_.size()) >= options_.max_trajectories) {
-    refused = Status::Error(ErrorCode::kCapReached,
-                            "trajectory " + std::to_string(keyframe.trajectory_id) + " of " +
-                                keyframe.robot + " past the cap of " +
-                                std::to_string(options_.max_trajectories) + " trajectories");
+    return Status::Error(ErrorCode::kCapReached,
+                         "trajectory " + std::to_string(keyframe.trajectory_id) + " of " +
+                             keyframe.robot + " past the cap of " +
+                             std::to_string(options_.max_trajectories) + " trajectories");
   }
-  if (!refused.ok()) {
-    server_.CountRejection(refused, channel);
-    return;
+  return Status::Ok();
+}
+
+void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel, const uint8_t* data,
+                            size_t size, bool replaying) {
+  // Replayed inputs passed the checks when they were journaled: checked again (against
+  // today's clock, or caps changed since) some could be refused although the agents were
+  // told they arrived.
+  if (!replaying) {
+    if (Status refused = CheckKeyframe(keyframe); !refused.ok()) {
+      server_.CountRejection(refused, channel);
+      return;
+    }
+    if (!Journaled(channel, data, size)) return;
   }
+  const TrajectoryName trajectory{keyframe.robot, keyframe.trajectory_id};
   if (server_.OnKeyframe(std::move(keyframe)).ok()) {
     robots_.insert(trajectory.robot);
     trajectories_.insert(trajectory);
   }
 }
 
-void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel) {
-  Status refused = CheckNotFuture(encounter.utime);
-  if (refused.ok()) refused = CheckRobotCap(encounter.observer);
-  if (refused.ok()) refused = CheckRobotCap(encounter.observed);
-  if (!refused.ok()) {
-    server_.CountRejection(refused, channel);
-    return;
+void ServerNode::OnEncounter(const Encounter& encounter, const std::string& channel,
+                             const uint8_t* data, size_t size, bool replaying) {
+  if (!replaying) {
+    Status refused = CheckNotFuture(encounter.utime);
+    if (refused.ok()) refused = CheckRobotCap(encounter.observer);
+    if (refused.ok()) refused = CheckRobotCap(encounter.observed);
+    if (!refused.ok()) {
+      server_.CountRejection(refused, channel);
+      return;
+    }
+    if (!Journaled(channel, data, size)) return;
   }
   (void)server_.OnEncounter(encounter);
 }
@@ -136,6 +185,7 @@ void ServerNode::PublishDue(int64_t now_utime) {
   if (publisher.MapDue(now_utime, update)) {
     PublishMap();
     publisher.MarkMapPublished(now_utime, update);
+    last_map_utime_ = now_utime;
   }
   if (publisher.GridDue(now_utime, update)) {
     PublishGrid();
@@ -143,8 +193,20 @@ void ServerNode::PublishDue(int64_t now_utime) {
   }
 }
 
+void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
+  if (server_.update_count() == 0) return;  // nothing mapped yet
+  if (last_map_utime_ > 0 && static_cast<double>(now_utime - last_map_utime_) < 1e6 * period_s) {
+    return;
+  }
+  PublishMap();
+  last_map_utime_ = now_utime;
+}
+
 void ServerNode::PublishStatus() {
-  publish_(options_.channels.status, EncodeServerStatus(server_.BuildStatus()));
+  ServerStatus status = server_.BuildStatus();
+  status.instance_id = instance_id_;
+  status.kernel_drops = kernel_drops_;
+  publish_(options_.channels.status, EncodeServerStatus(status));
 }
 
 void ServerNode::PublishAcks() {

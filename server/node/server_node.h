@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/bus/authenticator.h"
+#include "common/bus/lcm_log.h"
 #include "common/types/trajectory_name.h"
 
 #include "server/mapping_server.h"
@@ -46,11 +47,39 @@ class ServerNode {
   // One message; channels other than the keyframe and encounter channels are ignored.
   // Returns true when the channel was one of them.
   bool OnMessage(const std::string& channel, const uint8_t* data, size_t size);
+
+  // Crash recovery (online, --journal; common/bus/journal.h stores the events). From now
+  // on every keyframe and encounter that passed this node's checks (envelope opened,
+  // decoded, not from the future, within the caps) is given to `append` with the logic's
+  // clock before MappingServer sees it (refusals by the logic, such as duplicates, are
+  // journaled too and refused again on replay). When `append` fails the input is refused
+  // (kIoError) and not applied: unacknowledged, the agent resends it. A Tick that bridged
+  // gaps is appended as a kJournalTick event right after it (nothing is published in
+  // between).
+  using JournalAppend = std::function<Status(const std::string& channel, int64_t clock_utime,
+                                             const uint8_t* data, size_t size)>;
+  static constexpr char kJournalTick[] = "ANCHORMAP_JOURNAL_TICK";
+  void SetJournal(JournalAppend append) { journal_ = std::move(append); }
+  // Applies one journal event as it was applied live: the logic's clock set to the event's
+  // time, the same handlers, nothing appended. Events of other channels are ignored
+  // (returns false).
+  bool Replay(const LogEvent& event);
+  // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
+  void Tick(int64_t now_utime);
   // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor
   // covariances after an update (at most once per map period), the grid tiles at most once
   // per grid period.
   void PublishDue(int64_t now_utime);
   void PublishStatus();
+  // Online: the merged map and anchor covariances again when none went out for
+  // `period_s` (a lost datagram must not leave subscribers with a stale map for long).
+  void RepublishMapDue(int64_t now_utime, double period_s);
+  // What the kernel dropped on the server's sockets, for the status message (the online
+  // main reads it from /proc; stays 0 offline, -1 where it cannot be seen).
+  void set_kernel_drops(int64_t drops) { kernel_drops_ = drops; }
+  // Stamped on every status message (0 unless set; the online main draws one at random).
+  void set_instance_id(int64_t id) { instance_id_ = id; }
+  int64_t instance_id() const { return instance_id_; }
   // Publishes map, covariances, grid tiles and status now (end of an offline run).
   void PublishAll();
   // Online delivery: acknowledgements of every trajectory; resend requests that are due.
@@ -64,8 +93,17 @@ class ServerNode {
  private:
   void PublishMap();
   void PublishGrid();
-  void OnKeyframe(Keyframe keyframe, const std::string& channel);
-  void OnEncounter(const Encounter& encounter, const std::string& channel);
+  // Decodes and hands on a keyframe or encounter (`data` already out of its envelope);
+  // `replaying`: from the journal (checked when it was journaled, not journaled again).
+  void Dispatch(const std::string& channel, const uint8_t* data, size_t size, bool replaying);
+  void OnKeyframe(Keyframe keyframe, const std::string& channel, const uint8_t* data, size_t size,
+                  bool replaying);
+  void OnEncounter(const Encounter& encounter, const std::string& channel, const uint8_t* data,
+                   size_t size, bool replaying);
+  // Appends an input about to be applied; false (refusal counted) when that failed.
+  bool Journaled(const std::string& channel, const uint8_t* data, size_t size);
+  // Ok when `keyframe` passes the node's checks (time, scan size, caps).
+  Status CheckKeyframe(const Keyframe& keyframe) const;
   // Ok when `utime` is not too far ahead of the clock.
   Status CheckNotFuture(int64_t utime) const;
   // Ok when `robot` is known or the robot cap leaves room for it.
@@ -75,9 +113,13 @@ class ServerNode {
   Publish publish_;
   Clock clock_;
   std::optional<Authenticator> authenticator_;
+  JournalAppend journal_;
   MappingServer server_;
   std::set<std::string> robots_;           // admitted, at most options_.max_robots
   std::set<TrajectoryName> trajectories_;  // at most max_trajectories
+  int64_t instance_id_ = 0;
+  int64_t kernel_drops_ = 0;
+  int64_t last_map_utime_ = 0;  // caller's clock of the last map publication (0: none)
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };

@@ -88,5 +88,144 @@ TEST_F(ServerNodeTest, UndecodableBytesAreCountedByReasonOnTheirChannel) {
   EXPECT_EQ(node_.server().stats().keyframes_received, 0);
 }
 
+// The inputs of a live session, journaled as the online main does (the logic's clock set to
+// the receive time before each message, timer ticks in between).
+class ServerNodeJournalTest : public ServerNodeTest {
+ protected:
+  ServerNodeJournalTest() {
+    node_.SetJournal(
+        [this](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
+          if (fail_appends_) return Status::Error(ErrorCode::kIoError, "disk full");
+          LogEvent event;
+          event.channel = channel;
+          event.utime = clock_utime;
+          event.data.assign(data, data + size);
+          journal_.push_back(std::move(event));
+          return Status::Ok();
+        });
+  }
+  // A message received at `clock_s` (seconds of the logic's clock).
+  void Receive(double clock_s, const std::string& channel, const std::vector<uint8_t>& bytes) {
+    node_.server().SetClock(static_cast<int64_t>(1e6 * clock_s));
+    Send(channel, bytes);
+  }
+
+  std::vector<LogEvent> journal_;
+  bool fail_appends_ = false;
+};
+
+void ExpectSameMap(const MergedMap& a, const MergedMap& b) {
+  ASSERT_EQ(a.trajectories.size(), b.trajectories.size());
+  for (size_t t = 0; t < a.trajectories.size(); ++t) {
+    const MergedTrajectory& x = a.trajectories[t];
+    const MergedTrajectory& y = b.trajectories[t];
+    EXPECT_EQ(x.robot, y.robot);
+    EXPECT_EQ(x.trajectory_id, y.trajectory_id);
+    EXPECT_EQ(x.anchored, y.anchored);
+    EXPECT_EQ(x.pose_utimes, y.pose_utimes);
+    ASSERT_EQ(x.poses.size(), y.poses.size());
+    for (size_t i = 0; i < x.poses.size(); ++i) {
+      // Bit for bit: the same inputs through the same handlers in the same order.
+      EXPECT_EQ(x.poses[i].x(), y.poses[i].x()) << x.robot << " pose " << i;
+      EXPECT_EQ(x.poses[i].y(), y.poses[i].y()) << x.robot << " pose " << i;
+      EXPECT_EQ(x.poses[i].theta(), y.poses[i].theta()) << x.robot << " pose " << i;
+    }
+  }
+  EXPECT_EQ(a.encounters.size(), b.encounters.size());
+}
+
+TEST_F(ServerNodeJournalTest, ReplayingTheJournalRebuildsTheSameGraphsAndEstimate) {
+  // R1 in order with one duplicate; R2 out of order (seq 2 held until 1 comes); R3 with a
+  // gap that never fills, bridged by a tick after the hold time.
+  for (int32_t seq = 0; seq < 4; ++seq) {
+    Receive(1.0 + seq, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq)));
+  }
+  Receive(5.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 2)));  // duplicate
+  for (int32_t seq : {0, 2, 1, 3}) {
+    Receive(6.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq)));
+  }
+  for (int32_t seq : {0, 1, 3, 4}) {
+    Receive(7.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R3", 13, seq)));
+  }
+  node_.Tick(8'000'000);  // gap not old enough: nothing changes, nothing journaled
+  const size_t before_bridge = journal_.size();
+  node_.Tick(18'000'000);  // 11 s after the gap opened: bridged (max_hold_s 10)
+  ASSERT_EQ(journal_.size(), before_bridge + 1);
+  EXPECT_EQ(journal_.back().channel, ServerNode::kJournalTick);
+  Encounter e;
+  e.utime = 2'000'000;
+  e.observer = "R1";
+  e.observer_trajectory_id = 11;
+  e.observed = "R2";
+  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
+  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  Receive(19.0, channels::kEncounters, EncodeEncounter(e));
+  e.observed = "R3";
+  e.utime = 3'000'000;
+  e.T_observer_observed = Pose2(1.0, -2.0, 0.5);
+  Receive(19.5, channels::kEncounters, EncodeEncounter(e));
+  Receive(20.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 4)));
+  // 12 keyframes + 1 duplicate + 1 tick + 2 encounters + 1 keyframe.
+  EXPECT_EQ(journal_.size(), 17u);
+  EXPECT_EQ(node_.server().table().num_bridged_gaps(), 1);
+
+  ServerNode restarted(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  for (const LogEvent& event : journal_) EXPECT_TRUE(restarted.Replay(event));
+  ExpectSameMap(node_.server().BuildMergedMap(), restarted.server().BuildMergedMap());
+  EXPECT_EQ(restarted.server().update_count(), node_.server().update_count());
+  EXPECT_EQ(restarted.server().table().num_keyframes(), node_.server().table().num_keyframes());
+  EXPECT_EQ(restarted.server().table().num_bridged_gaps(), 1);
+  EXPECT_EQ(restarted.server().rejects().count(ErrorCode::kDuplicateSequence), 1);
+  EXPECT_EQ(restarted.server().rejects().total(), node_.server().rejects().total());
+  const std::vector<DeliveryAck> acks = node_.server().BuildAcks();
+  const std::vector<DeliveryAck> replayed_acks = restarted.server().BuildAcks();
+  ASSERT_EQ(acks.size(), replayed_acks.size());
+  for (size_t i = 0; i < acks.size(); ++i) {
+    EXPECT_EQ(acks[i].robot, replayed_acks[i].robot);
+    EXPECT_EQ(acks[i].keyframes_next, replayed_acks[i].keyframes_next);
+    EXPECT_EQ(acks[i].encounters_next, replayed_acks[i].encounters_next);
+  }
+  // Replay journals nothing, and other channels are not the journal's.
+  LogEvent other;
+  other.channel = "SOMEONE_ELSES_CHANNEL";
+  EXPECT_FALSE(restarted.Replay(other));
+}
+
+TEST_F(ServerNodeJournalTest, AnInputThatCannotBeJournaledIsRefusedNotApplied) {
+  Receive(1.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 0)));
+  fail_appends_ = true;
+  Receive(2.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 1)));
+  EXPECT_EQ(node_.server().table().num_keyframes(), 1);
+  EXPECT_EQ(node_.server().rejects().count(ErrorCode::kIoError), 1);
+  // The agent's resend, once the disk has room again, is accepted.
+  fail_appends_ = false;
+  Receive(3.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 1)));
+  EXPECT_EQ(node_.server().table().num_keyframes(), 2);
+  EXPECT_EQ(journal_.size(), 2u);
+}
+
+TEST_F(ServerNodeTest, StatusCarriesTheInstanceIdAndTheMapIsRepublishedWhenQuiet) {
+  node_.set_instance_id(987654321);
+  node_.PublishStatus();
+  const auto& status_bytes = published_[channels::kServerStatus].at(0);
+  const Result<ServerStatus> status = DecodeServerStatus(status_bytes.data(), status_bytes.size());
+  ASSERT_TRUE(status.ok());
+  EXPECT_EQ(status->instance_id, 987654321);
+
+  node_.RepublishMapDue(1'000'000, 5.0);  // nothing mapped yet: nothing to repeat
+  EXPECT_TRUE(published_[channels::kMergedMap].empty());
+  Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 0)));
+  node_.PublishDue(2'000'000);
+  ASSERT_EQ(published_[channels::kMergedMap].size(), 1u);
+  node_.RepublishMapDue(6'000'000, 5.0);  // 4 s after the last one: not yet
+  EXPECT_EQ(published_[channels::kMergedMap].size(), 1u);
+  node_.RepublishMapDue(7'000'000, 5.0);
+  EXPECT_EQ(published_[channels::kMergedMap].size(), 2u);
+  EXPECT_EQ(published_[channels::kAnchorCovariances].size(), 2u);
+  EXPECT_EQ(published_[channels::kMergedMap][0], published_[channels::kMergedMap][1]);
+  node_.RepublishMapDue(8'000'000, 5.0);
+  EXPECT_EQ(published_[channels::kMergedMap].size(), 2u);
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -34,6 +34,13 @@ struct ServerOptions {
   int queue_capacity = 10000;
   // Online: cumulative acknowledgements of every trajectory this often (s).
   double ack_period_s = 0.5;
+  // Online: the merged map and anchor covariances are published again when none went out
+  // for this long (s; 0 = only after updates), so one lost datagram does not leave
+  // subscribers with a stale map.
+  double map_republish_period_s = 5.0;
+  // Online crash recovery: the write-ahead journal's directory (empty = none). At start the
+  // journal found there is replayed (same graphs and estimate), then the server goes live.
+  std::string journal_dir;
   std::string log_level = "info";
   // Authentication (common/bus/authenticator.h): with a key file, keyframes and encounters
   // must come in anchormap.signed_t envelopes under one of its keys, and what the server
@@ -59,6 +66,9 @@ struct ServerOptions {
       return Status::Error("--output must differ from --log");
     if (!(status_period_s >= 0)) return Status::Error("status_period_s must be >= 0");
     if (!(ack_period_s > 0)) return Status::Error("ack_period_s must be > 0");
+    if (!(map_republish_period_s >= 0)) return Status::Error("map_republish_period_s must be >= 0");
+    if (!journal_dir.empty() && !log_input.empty())
+      return Status::Error("--journal is for the online server (not with --log)");
     if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
     if (max_robots < 1) return Status::Error("max_robots must be >= 1");
     if (max_trajectories < 1) return Status::Error("max_trajectories must be >= 1");

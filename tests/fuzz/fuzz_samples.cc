@@ -99,6 +99,8 @@ std::map<std::string, std::vector<std::vector<uint8_t>>> SeedInputs() {
   tile.cells[5] = 100;
   seeds["grid_tile"].push_back(EncodeGridTile(tile));
   ServerStatus status;
+  status.instance_id = 4242;
+  status.kernel_drops = 3;
   status.num_robots = 2;
   status.rejections = {{"not_finite", 3}, {"replay", 1}};
   seeds["server_status"].push_back(EncodeServerStatus(status));
