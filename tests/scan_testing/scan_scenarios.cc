@@ -19,7 +19,9 @@ void AddBox(SyntheticWorld* world, double x0, double y0, double x1, double y1) {
 
 SyntheticWorld LoopWorld() {
   SyntheticWorld world;
-  AddBox(&world, 0.0, 0.0, 20.0, 14.0);  // outer walls
+  // Outer walls, the block off-centre: a block centred in the room would make the room look
+  // the same turned by 180 degrees (the pillars alone do not tell the two apart).
+  AddBox(&world, 0.0, 0.0, 23.0, 16.0);
   AddBox(&world, 5.0, 4.0, 15.0, 10.0);  // the block the loop goes round
   // Pillars and alcove walls, each of its own size, near the walls.
   AddBox(&world, 0.6, 2.5, 1.0, 3.1);
@@ -35,7 +37,7 @@ SyntheticWorld LoopWorld() {
   AddBox(&world, 15.0, 7.0, 15.6, 7.4);    // on its east side
   AddBox(&world, 7.5, 3.4, 8.4, 4.0);      // on its south side
   world.min_corner = {0.0, 0.0};
-  world.max_corner = {20.0, 14.0};
+  world.max_corner = {23.0, 16.0};
   return world;
 }
 

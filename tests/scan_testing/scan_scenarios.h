@@ -14,7 +14,7 @@
 
 namespace anchormap::testing {
 
-// A 20 m x 14 m room around a 10 m x 6 m block: a corridor loop 2.5-5 m wide, with
+// A 23 m x 16 m room around a 10 m x 6 m block: a corridor loop 4-8 m wide, with
 // pillars and alcoves of different sizes along the walls so that no two places look alike.
 SyntheticWorld LoopWorld();
 
