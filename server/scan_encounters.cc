@@ -21,6 +21,8 @@ Status ScanEncounterOptions::Validate() const {
   if (max_global_per_keyframe < 0)
     return Status::Error("scan.max_global_per_keyframe must be >= 0");
   if (!(pcm_chi2 > 0) || !(gate_chi2 > 0)) return Status::Error("scan chi2 gates must be > 0");
+  if (!(alternative_ratio >= 1)) return Status::Error("scan.alternative_ratio must be >= 1");
+  if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
   if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
@@ -50,6 +52,7 @@ double LargestSigma(const Eigen::Matrix2d& covariance) {
 EncounterCandidate Reversed(const EncounterCandidate& c) {
   EncounterCandidate r = c;
   std::swap(r.a, r.b);
+  r.a_is_query = !c.a_is_query;
   Eigen::Matrix3d J;
   r.T_a_b = Between(c.T_a_b, Pose2(), &J, nullptr);
   r.covariance = J * c.covariance * J.transpose();
@@ -64,13 +67,15 @@ void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
   while (static_cast<int>(waiting_.size()) > options_.max_waiting) waiting_.pop_front();
 }
 
-void ScanEncounters::Poll(int64_t /*now_utime*/, const GraphView& graph,
-                          EncounterSourceOutput* out) {
+void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
+  now_utime_ = std::max(now_utime_, now_utime);
   Examine(graph, out);
+  JoinQualified(/*flush=*/false, graph, out);
 }
 
 void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
+  JoinQualified(/*flush=*/true, graph, out);
   for (auto& [pair, kept] : kept_) {
     stats_.unconfirmed += static_cast<int64_t>(kept.size());
     stats_.kept -= static_cast<int64_t>(kept.size());
@@ -236,22 +241,33 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   const EncounterCandidate candidate =
       offered.a.trajectory < offered.b.trajectory ? offered : Reversed(offered);
   const Pair pair{candidate.a.trajectory, candidate.b.trajectory};
-  std::deque<EncounterCandidate>& kept = kept_[pair];
-  for (auto it = kept.begin(); it != kept.end(); ++it) {
-    if (std::abs(it->b.index - candidate.b.index) < options_.pcm_min_separation &&
-        std::abs(it->a.index - candidate.a.index) < options_.pcm_min_separation) {
-      continue;  // one place seen twice is no second opinion
+  std::deque<Kept>& kept = kept_[pair];
+  std::vector<bool> agrees(kept.size(), false);
+  int consistent = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    // One place seen twice is no second opinion: the two must be apart in both
+    // trajectories (a symmetric spot makes every match there agree).
+    const EncounterCandidate& other = kept[i].candidate;
+    if (std::abs(other.a.index - candidate.a.index) < options_.pcm_min_separation ||
+        std::abs(other.b.index - candidate.b.index) < options_.pcm_min_separation) {
+      continue;
     }
-    if (!Consistent(*it, candidate, graph)) continue;
-    // Two mutually consistent candidates: both enter; the first joins the groups.
-    stats_.accepted += 2;
-    --stats_.kept;
-    Emit(*it, out);
-    Emit(candidate, out);
-    kept.erase(it);
-    return;
+    if (!Consistent(kept[i].candidate, candidate, graph)) continue;
+    agrees[i] = true;
+    ++kept[i].support;
+    ++consistent;
   }
-  kept.push_back(candidate);
+  // The strongest hypothesis this candidate disagrees with.
+  int alternative = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    if (!agrees[i]) alternative = std::max(alternative, 1 + kept[i].support);
+  }
+  const int support = 1 + consistent;
+  if (consistent >= 1 && support >= options_.alternative_ratio * alternative) {
+    // Qualified: joins after the hold, unless other evidence joins the pair first.
+    qualified_since_.emplace(pair, now_utime_);
+  }
+  kept.push_back({candidate, consistent});
   ++stats_.kept;
   if (static_cast<int>(kept.size()) > options_.max_kept) {
     kept.pop_front();
@@ -286,15 +302,54 @@ bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCan
   return Mahalanobis2(Pose2::FromVector(predict(x)), c2.T_a_b, covariance) <= options_.pcm_chi2;
 }
 
+void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {
+  for (auto it = qualified_since_.begin(); it != qualified_since_.end();) {
+    const Pair pair = it->first;
+    const bool joined = InOneFrame(graph.smoother, pair.first, pair.second);
+    const bool due =
+        1e-6 * static_cast<double>(now_utime_ - it->second) >= options_.first_join_hold_s;
+    if (!joined && !flush && !due) {
+      ++it;
+      continue;
+    }
+    it = qualified_since_.erase(it);
+    if (joined) continue;  // ResolveKept gates the kept candidates
+    // The best supported kept candidate and those consistent with it join the pair.
+    std::deque<Kept>& kept = kept_[pair];
+    if (kept.empty()) continue;
+    size_t best = 0;
+    for (size_t i = 1; i < kept.size(); ++i) {
+      if (kept[i].support > kept[best].support) best = i;
+    }
+    std::deque<Kept> rest;
+    for (size_t i = 0; i < kept.size(); ++i) {
+      const bool agrees =
+          i == best || (std::abs(kept[i].candidate.a.index - kept[best].candidate.a.index) >=
+                            options_.pcm_min_separation &&
+                        std::abs(kept[i].candidate.b.index - kept[best].candidate.b.index) >=
+                            options_.pcm_min_separation &&
+                        Consistent(kept[i].candidate, kept[best].candidate, graph));
+      if (agrees) {
+        Emit(kept[i].candidate, out);
+        ++stats_.accepted;
+        --stats_.kept;
+      } else {
+        rest.push_back(kept[i]);
+      }
+    }
+    kept = std::move(rest);
+  }
+}
+
 void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* out) {
   for (auto it = kept_.begin(); it != kept_.end();) {
     if (!InOneFrame(graph.smoother, it->first.first, it->first.second)) {
       ++it;
       continue;
     }
-    for (const EncounterCandidate& candidate : it->second) {
+    for (const Kept& k : it->second) {
       --stats_.kept;
-      GateAndEmit(candidate, graph, out);
+      GateAndEmit(k.candidate, graph, out);
     }
     it = kept_.erase(it);
   }

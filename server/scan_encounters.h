@@ -12,7 +12,11 @@
 //   Mangelson et al., ICRA 2018: the loop candidate 1, odometry in one, candidate 2
 //   reversed, odometry in the other, is the identity within the chi-square gate). Lone
 //   candidates are kept (at most max_kept per pair); when the pair comes into one frame
-//   by other evidence (a direct encounter) they are gated against the estimate instead;
+//   by other evidence (a direct encounter) they are gated against the estimate instead.
+//   A symmetric building makes whole sets of wrong candidates agree with each other (the
+//   place turned by 180 degrees): a hypothesis joins only when it has at least twice the
+//   support of any kept candidate it disagrees with (alternative_ratio), so that two
+//   supported hypotheses wait for more evidence or a direct encounter;
 // - against a trajectory of its group: when the predicted distance to one of the other's
 //   submap centres is below near_distance_m (the thesis' 4 m), a window search around
 //   the prediction; accepted with overlap >= near_min_overlap (85 %) and a chi-square
@@ -45,9 +49,19 @@ struct ScanEncounterOptions {
   int max_global_per_keyframe = 4;
   double global_min_score = 0.55;
   double global_min_overlap = 0.7;
-  double pcm_chi2 = 11.34;      // 3 dof, 99 %
-  int pcm_min_separation = 10;  // keyframes between the two candidates (different places)
-  int max_kept = 200;           // lone candidates kept per pair of trajectories
+  double pcm_chi2 = 11.34;  // 3 dof, 99 %
+  // Keyframes between two candidates that confirm each other, in each trajectory (another
+  // place on both sides).
+  int pcm_min_separation = 10;
+  int max_kept = 200;  // lone candidates kept per pair of trajectories
+  // A consistent set joins when (1 + its consistent kept candidates) is at least this
+  // times (1 + the support) of every kept candidate outside it.
+  double alternative_ratio = 2.0;
+  // A qualified first encounter waits this long (data time) before it joins: a direct,
+  // identified encounter arriving meanwhile joins the pair instead and the kept candidates
+  // are gated against it. Buildings with symmetric floors (the simulator's offices) make
+  // whole sets of matches agree on a turned copy of the place; a direct encounter does not.
+  double first_join_hold_s = 30.0;
   // Joined trajectories: window search near the prediction.
   double near_distance_m = 4.0;
   double near_min_overlap = 0.85;
@@ -75,6 +89,10 @@ struct EncounterCandidate {
   Pose2 T_a_b;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   int64_t utime = 0;
+  // The keyframe whose scan was the query (b unless the candidate was turned round): two
+  // candidates from one query scan are one piece of evidence, not two.
+  bool a_is_query = false;
+  PoseKey query() const { return a_is_query ? a : b; }
 };
 
 class ScanEncounters : public EncounterSource {
@@ -110,6 +128,8 @@ class ScanEncounters : public EncounterSource {
                   EncounterSourceOutput* out);
   // Kept candidates of pairs that came into one frame: gated against the estimate.
   void ResolveKept(const GraphView& graph, EncounterSourceOutput* out);
+  // Joins the qualified pairs whose hold ran out (all of them when `flush`).
+  void JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out);
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
@@ -122,7 +142,13 @@ class ScanEncounters : public EncounterSource {
   std::deque<PoseKey> waiting_;
   std::map<TrajectoryId, std::vector<Submap>> submaps_;
   std::map<Pair, size_t> global_cursor_;
-  std::map<Pair, std::deque<EncounterCandidate>> kept_;
+  struct Kept {
+    EncounterCandidate candidate;
+    int support = 0;  // later candidates consistent with it (at other places)
+  };
+  std::map<Pair, std::deque<Kept>> kept_;
+  std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
+  int64_t now_utime_ = 0;
   std::map<Pair, int32_t> near_quiet_until_;  // keyed (examined trajectory, other)
   CandidateStats stats_;
 };
