@@ -43,7 +43,7 @@ LoopRun RunLoop(bool loop_closures, uint64_t seed) {
   for (const Keyframe& k : keyframes) EXPECT_TRUE(server.OnKeyframe(k).ok());
   server.Flush();
   LoopRun run;
-  const std::vector<Pose2> estimate = server.smoother().GlobalTrajectory(0);
+  const std::vector<Pose2> estimate = server.smoother().GlobalTrajectory(TrajectoryId(0));
   EXPECT_EQ(estimate.size(), path.size());
   for (size_t i = 0; i < path.size() && i < estimate.size(); ++i) {
     const double error =
