@@ -14,6 +14,7 @@
 
 #include "common/geometry/pose2.h"
 #include "common/solver/keys.h"
+#include "common/types/constraint_kind.h"
 #include "common/types/encounter.h"
 #include "common/util/status.h"
 #include "server/trajectory_table.h"
@@ -22,7 +23,9 @@ namespace anchormap {
 
 class Smoother;
 
-// An encounter tied to two keyframes: pose b measured in the frame of pose a.
+// An encounter tied to two keyframes: pose b measured in the frame of pose a. A loop closure
+// (kind kLoopClosure) ties two keyframes of one trajectory and enters the smoother as a
+// between factor; the other kinds join two trajectories.
 struct EncounterConstraint {
   PoseKey a;
   PoseKey b;
@@ -30,6 +33,7 @@ struct EncounterConstraint {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   int64_t utime = 0;   // when it was observed
   std::string source;  // the source's name, for logs and statistics
+  ConstraintKind kind = ConstraintKind::kDirectEncounter;
 };
 
 // What a source produced in one call.
@@ -42,6 +46,9 @@ struct EncounterSourceOutput {
 struct GraphView {
   const TrajectoryTable& table;
   const Smoother& smoother;  // current estimates (valid after the last Update())
+  // The same smoother for covariance queries (memoised, hence not const); null when the
+  // caller offers none (sources that need covariances then do nothing).
+  Smoother* covariances = nullptr;
 };
 
 class EncounterSource {
@@ -63,6 +70,8 @@ class EncounterSource {
   virtual void Flush(const GraphView& /*graph*/, EncounterSourceOutput* /*out*/) {}
   // Items waiting inside the source (for the status line).
   virtual size_t pending() const { return 0; }
+  // The source's own figures for the status line ("" for none).
+  virtual std::string StatsLine() const { return ""; }
 };
 
 }  // namespace anchormap

@@ -14,6 +14,8 @@ MappingServer::MappingServer(const MappingServerOptions& options)
       publisher_(options.publish),
       resend_(options.delivery) {
   sources_.push_back(std::make_unique<DirectEncounters>(options.direct));
+  if (options.loop_closures) sources_.push_back(std::make_unique<LoopClosures>(options.loop));
+  if (options.scan_encounters) sources_.push_back(std::make_unique<ScanEncounters>(options.scan));
 }
 
 MappingServer::~MappingServer() = default;
@@ -45,7 +47,7 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
   table_.Poll(clock_utime(), &admitted);
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_};
+  const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
   Commit(found, !admitted.empty(), "keyframe");
   return Status::Ok();
@@ -71,7 +73,7 @@ Status MappingServer::OnEncounter(const Encounter& encounter) {
     return refused;
   }
   EncounterSourceOutput found;
-  const GraphView graph{table_, smoother_};
+  const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) {
     source->OnEncounterMessage(encounter, graph, &found);
     source->Poll(data_utime_, graph, &found);
@@ -87,7 +89,7 @@ void MappingServer::Tick(int64_t now_utime) {
   if (admitted.empty()) return;
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_};
+  const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
   Commit(found, true, "tick");
 }
@@ -159,7 +161,7 @@ void MappingServer::Flush() {
   table_.FlushHeld(&admitted);
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_};
+  const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Flush(graph, &found);
   Commit(found, !admitted.empty(), "flush");
   // End of input: one batch step, so that the last map is the converged solution rather
@@ -205,7 +207,7 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
       rejects_.Count(ErrorCode::kSolverRejected, "keyframe", status.message());
       continue;
     }
-    const GraphView graph{table_, smoother_};
+    const GraphView graph{table_, smoother_, &smoother_};
     for (auto& source : sources_) source->OnKeyframeAdded(a.key, graph, found);
   }
 }
@@ -214,22 +216,28 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
                            const std::string& context) {
   for (const Status& refused : found.rejections) rejects_.Count(refused, context);
   for (const EncounterConstraint& c : found.constraints) {
+    // A loop closure stays inside its trajectory's local frame: a between factor.
+    const bool within = c.a.trajectory == c.b.trajectory;
     const bool first =
-        !smoother_.IsAnchored(c.a.trajectory) || !smoother_.IsAnchored(c.b.trajectory);
-    const Status status = smoother_.AddEncounter(c.a, c.b, c.measured_T_a_b, c.covariance);
+        !within && (!smoother_.IsAnchored(c.a.trajectory) || !smoother_.IsAnchored(c.b.trajectory));
+    const Status status = within ? smoother_.AddBetween(c.a, c.b, c.measured_T_a_b, c.covariance)
+                                 : smoother_.AddEncounter(c.a, c.b, c.measured_T_a_b, c.covariance);
     if (!status.ok()) {
       rejects_.Count(ErrorCode::kSolverRejected, "encounter", status.message());
       continue;
     }
     changed = true;
     ++stats_.encounters_added;
+    ++stats_.added_by_kind[static_cast<int>(c.kind)];
     const TrajectoryRecord* a = table_.FindBySolverId(c.a.trajectory);
     const TrajectoryRecord* b = table_.FindBySolverId(c.b.trajectory);
-    links_.push_back(
-        {a->robot, a->agent_trajectory_id, c.a.index, b->robot, b->agent_trajectory_id, c.b.index});
-    LogInfo("encounter " + a->robot + "[" + std::to_string(c.a.index) + "] -> " + b->robot + "[" +
-            std::to_string(c.b.index) + "] (" + c.source + ")" +
-            (first ? ", anchors created" : ""));
+    links_.push_back({a->robot, a->agent_trajectory_id, c.a.index, b->robot, b->agent_trajectory_id,
+                      c.b.index, c.kind});
+    // Loop closures come by the hundred on a real log: debug level.
+    Log(within ? LogLevel::kDebug : LogLevel::kInfo,
+        std::string(within ? "loop closure " : "encounter ") + a->robot + "[" +
+            std::to_string(c.a.index) + "] -> " + b->robot + "[" + std::to_string(c.b.index) +
+            "] (" + c.source + ")" + (first ? ", anchors created" : ""));
   }
   if (!changed) return;
   const UpdateResult result = smoother_.Update();
@@ -291,7 +299,12 @@ std::string MappingServer::StatusLine() const {
                 waiting_encounters, static_cast<long long>(table_.num_bridged_gaps()),
                 static_cast<long long>(encounters_given_up_),
                 static_cast<long long>(resend_requests_));
-  return std::string(text) + " rejected: " + rejects_.Summary();
+  std::string line = std::string(text) + " rejected: " + rejects_.Summary();
+  for (const auto& source : sources_) {
+    const std::string stats = source->StatsLine();
+    if (!stats.empty()) line += "; " + stats;
+  }
+  return line;
 }
 
 }  // namespace anchormap

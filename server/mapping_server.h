@@ -4,9 +4,11 @@
 // plain values. One pose graph per trajectory in its own local frame (the agent's
 // odometry frame); a trajectory's anchor appears at its first encounter (the smoother's
 // relative formulation, docs/METHOD.md section 4). Encounter sources are pluggable
-// (EncounterSource); the direct-encounter source is always present. Tests drive this class
+// (EncounterSource); the direct-encounter source is always present, loop closures and scan
+// encounters (scan matching) unless switched off. Tests drive this class
 // directly; ServerNode connects it to bytes and server_main.cc to LCM.
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -25,7 +27,9 @@
 #include "server/delivery.h"
 #include "server/direct_encounters.h"
 #include "server/encounter_source.h"
+#include "server/loop_closures.h"
 #include "server/map_publisher.h"
+#include "server/scan_encounters.h"
 #include "server/trajectory_table.h"
 
 namespace anchormap {
@@ -54,6 +58,11 @@ struct MappingServerOptions {
   bool record_update_times = false;
   TrajectoryTableOptions table;
   DirectEncounterOptions direct;
+  // Scan matching on the keyframes' scans (keyframes without a scan are skipped).
+  bool loop_closures = true;
+  LoopClosureOptions loop;
+  bool scan_encounters = true;
+  ScanEncounterOptions scan;
   MapPublisherOptions publish;
   DeliveryOptions delivery;
 
@@ -62,6 +71,8 @@ struct MappingServerOptions {
     if (Status e = smoother.Validate(); !e.ok()) return Status::Error("smoother: " + e.message());
     if (Status e = table.Validate(); !e.ok()) return e;
     if (Status e = direct.Validate(); !e.ok()) return e;
+    if (Status e = loop.Validate(); !e.ok()) return e;
+    if (Status e = scan.Validate(); !e.ok()) return e;
     return publish.Validate();
   }
 };
@@ -69,7 +80,9 @@ struct MappingServerOptions {
 struct MappingServerStats {
   int64_t keyframes_received = 0;
   int64_t encounters_received = 0;
-  int64_t encounters_added = 0;
+  int64_t encounters_added = 0;  // of every kind, loop closures included
+  // Added constraints by ConstraintKind (direct, scan encounter, loop closure).
+  std::array<int64_t, kNumConstraintKinds> added_by_kind{};
   int64_t updates = 0;
   int64_t solver_problems = 0;  // updates whose status was not ok
   double last_update_ms = 0.0;

@@ -45,6 +45,7 @@ std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
     out.index_a = link.index_a;
     out.trajectory_b = link.trajectory_b;
     out.index_b = link.index_b;
+    out.kind = static_cast<int8_t>(link.kind);
     m.encounters.push_back(out);
   }
   return Encode(m);
@@ -67,8 +68,13 @@ Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
     map.trajectories.push_back(std::move(out));
   }
   for (const anchormap::encounter_link_t& link : m.encounters) {
+    if (!IsValidConstraintKind(link.kind)) {
+      return Status::Error(ErrorCode::kInvalidValue,
+                           "encounter link kind " + std::to_string(link.kind) + " unknown");
+    }
     map.encounters.push_back({link.robot_a, link.trajectory_a, link.index_a, link.robot_b,
-                              link.trajectory_b, link.index_b});
+                              link.trajectory_b, link.index_b,
+                              static_cast<ConstraintKind>(link.kind)});
   }
   return Success(std::move(map));
 }

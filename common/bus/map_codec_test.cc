@@ -35,6 +35,31 @@ TEST(MapCodecTest, MergedMapRoundTrips) {
   EXPECT_EQ(d.encounters[0].robot_a, "R1");
   EXPECT_EQ(d.encounters[0].robot_b, "R2");
   EXPECT_EQ(d.encounters[0].index_a, 1);
+  EXPECT_EQ(d.encounters[0].kind, ConstraintKind::kDirectEncounter);
+}
+
+TEST(MapCodecTest, EncounterLinksCarryTheirKind) {
+  MergedMap map;
+  map.trajectories.push_back(
+      MergedTrajectory{"R1", 1, true, Pose2(), {1, 2}, {Pose2(), Pose2(1, 0, 0)}});
+  map.trajectories.push_back(
+      MergedTrajectory{"R2", 2, true, Pose2(), {1, 2}, {Pose2(), Pose2(1, 0, 0)}});
+  map.encounters.push_back({"R1", 1, 0, "R2", 2, 0, ConstraintKind::kDirectEncounter});
+  map.encounters.push_back({"R1", 1, 1, "R2", 2, 1, ConstraintKind::kScanEncounter});
+  map.encounters.push_back({"R1", 1, 0, "R1", 1, 1, ConstraintKind::kLoopClosure});
+  std::vector<uint8_t> bytes = EncodeMergedMap(map);
+  const auto decoded = DecodeMergedMap(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  ASSERT_EQ(decoded->encounters.size(), 3u);
+  EXPECT_EQ(decoded->encounters[0].kind, ConstraintKind::kDirectEncounter);
+  EXPECT_EQ(decoded->encounters[1].kind, ConstraintKind::kScanEncounter);
+  EXPECT_EQ(decoded->encounters[2].kind, ConstraintKind::kLoopClosure);
+
+  // An unknown kind (the last byte of the message is the last link's kind) is refused.
+  bytes.back() = 7;
+  const auto refused = DecodeMergedMap(bytes.data(), bytes.size());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidValue);
 }
 
 TEST(MapCodecTest, AnchorCovariancesTileAndStatusRoundTrip) {

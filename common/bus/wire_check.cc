@@ -151,13 +151,13 @@ Status CheckMergedMapWire(const void* data, size_t size) {
     WIRE_SKIP(c, 32 * static_cast<size_t>(poses), "poses");
   }
   int32_t encounters = 0;
-  // A link takes at least 2 * (4 + 1 + 8 + 4) bytes.
-  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 34, &encounters));
+  // A link takes at least 2 * (4 + 1 + 8 + 4) + 1 bytes.
+  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 35, &encounters));
   for (int32_t e = 0; e < encounters; ++e) {
     WIRE_TRY(c.SkipString("robot_a", CodecLimits::kMaxNameLength));
     WIRE_SKIP(c, 12, "trajectory_a/index_a");
     WIRE_TRY(c.SkipString("robot_b", CodecLimits::kMaxNameLength));
-    WIRE_SKIP(c, 12, "trajectory_b/index_b");
+    WIRE_SKIP(c, 12 + 1, "trajectory_b/index_b/kind");
   }
   return Status::Ok();
 }

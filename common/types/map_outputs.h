@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/types/constraint_kind.h"
 
 namespace anchormap {
 
@@ -26,7 +27,8 @@ struct MergedTrajectory {
 };
 
 // An encounter in the map: the two keyframes it joins (robot + agent trajectory id, which
-// is unique per robot only; keyframe indices in pose order of the merged map).
+// is unique per robot only; keyframe indices in pose order of the merged map), and what
+// found it (a loop closure joins two keyframes of one trajectory).
 struct EncounterLink {
   std::string robot_a;
   int64_t trajectory_a = 0;
@@ -34,6 +36,7 @@ struct EncounterLink {
   std::string robot_b;
   int64_t trajectory_b = 0;
   int32_t index_b = 0;
+  ConstraintKind kind = ConstraintKind::kDirectEncounter;
 };
 
 struct MergedMap {

@@ -124,6 +124,23 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "sigma added per metre of time correction");
   l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
          &s.direct.inflation.theta_base_rad, "heading sigma added for clock offsets (rad)");
+  l->Add("loop.enabled", "loop-closures", &s.loop_closures,
+         "find loop closures within a trajectory by scan matching");
+  l->Add("loop.max_distance_m", "loop-max-distance-m", &s.loop.max_distance_m,
+         "a loop-closure candidate may lie this close to the keyframe (m)");
+  l->Add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
+         "a loop closure's match needs this fraction of points near the submap's walls");
+  l->Add("scan.enabled", "scan-encounters", &s.scan_encounters,
+         "find encounters between trajectories by scan matching");
+  l->Add("scan.near_distance_m", "scan-near-distance-m", &s.scan.near_distance_m,
+         "joined trajectories: window search when predicted this close (m)");
+  l->Add("scan.near_min_overlap", "scan-near-min-overlap", &s.scan.near_min_overlap,
+         "joined trajectories: a match needs this overlap");
+  l->Add("scan.global_every", "scan-global-every", &s.scan.global_every,
+         "unjoined trajectories: every N-th keyframe is searched globally");
+  l->Add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
+         &s.scan.max_global_per_keyframe,
+         "unjoined trajectories: submaps searched per keyframe (taken in turn)");
   l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
          "cells per tile side");

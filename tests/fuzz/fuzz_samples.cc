@@ -86,7 +86,9 @@ std::map<std::string, std::vector<std::vector<uint8_t>>> SeedInputs() {
   map.trajectories.push_back(MergedTrajectory{
       "R1", 11, true, Pose2(1, 2, 0.3), {kEpoch, kEpoch + 1}, {Pose2(), Pose2(1, 0, 0)}});
   map.trajectories.push_back(MergedTrajectory{"R2", 12, false, Pose2(), {}, {}});
-  map.encounters.push_back({"R1", 11, 1, "R2", 12, 0});
+  map.encounters.push_back({"R1", 11, 1, "R2", 12, 0, ConstraintKind::kDirectEncounter});
+  map.encounters.push_back({"R1", 11, 0, "R2", 12, 0, ConstraintKind::kScanEncounter});
+  map.encounters.push_back({"R1", 11, 0, "R1", 11, 1, ConstraintKind::kLoopClosure});
   seeds["merged_map"].push_back(EncodeMergedMap(map));
   AnchorCovariances anchors;
   anchors.utime = kEpoch;

@@ -11,6 +11,10 @@ namespace {
 
 constexpr Rgb kBlack{0, 0, 0};
 constexpr Rgb kDark{40, 40, 40};
+// Encounter links by kind: direct encounters dark, scan encounters magenta (no trajectory
+// colour is close), loop closures light grey and thin (there are hundreds).
+constexpr Rgb kScanEncounterColor{220, 0, 170};
+constexpr Rgb kLoopClosureColor{150, 150, 150};
 constexpr Rgb kWhite{255, 255, 255};
 constexpr Rgb kFrame{120, 120, 120};
 
@@ -120,8 +124,20 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
         const Pose2* a = map->FindPose(link.a, link.index_a);
         const Pose2* b = map->FindPose(link.b, link.index_b);
         if (!a || !b) continue;
-        canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()), kDark, 1.5,
-                    0.8);
+        switch (link.kind) {
+          case ConstraintKind::kDirectEncounter:
+            canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()), kDark, 1.5,
+                        0.8);
+            break;
+          case ConstraintKind::kScanEncounter:
+            canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()),
+                        kScanEncounterColor, 1.5, 0.8);
+            break;
+          case ConstraintKind::kLoopClosure:
+            canvas.Line(view.ToPixel(a->translation()), view.ToPixel(b->translation()),
+                        kLoopClosureColor, 1.0, 0.6);
+            break;
+        }
       }
     }
   }
@@ -133,7 +149,11 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
     title += Format("   update %.0f: %.0f trajectories, %.0f keyframes",
                     static_cast<double>(map->update), static_cast<double>(map->trajectories.size()),
                     static_cast<double>(keyframes));
-    title += Format(", %.0f encounters", static_cast<double>(map->encounters.size()));
+    int by_kind[kNumConstraintKinds] = {};
+    for (const EncounterLink& link : map->encounters) ++by_kind[static_cast<int>(link.kind)];
+    title += Format(", encounters: %.0f direct (dark)", static_cast<double>(by_kind[0]));
+    title += Format(", %.0f scan (magenta)", static_cast<double>(by_kind[1]));
+    title += Format(", %.0f loop closures (grey)", static_cast<double>(by_kind[2]));
   } else {
     title += "   (no merged map in the log)";
   }

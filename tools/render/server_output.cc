@@ -48,10 +48,12 @@ std::optional<MergedMap> FromMessage(const anchormap::merged_map_t& message) {
     map.trajectories.push_back(std::move(view));
   }
   for (const anchormap::encounter_link_t& link : message.encounters) {
+    if (!IsValidConstraintKind(link.kind)) return std::nullopt;
     map.encounters.push_back({{link.robot_a, link.trajectory_a},
                               link.index_a,
                               {link.robot_b, link.trajectory_b},
-                              link.index_b});
+                              link.index_b,
+                              static_cast<ConstraintKind>(link.kind)});
   }
   return map;
 }

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "common/types/constraint_kind.h"
+
 #include "common/bus/channels.h"
 #include "common/geometry/pose2.h"
 #include "common/util/status.h"
@@ -28,6 +30,7 @@ struct EncounterLink {
   int index_a = 0;  // keyframe index within a's poses
   TrajectoryKey b;
   int index_b = 0;
+  ConstraintKind kind = ConstraintKind::kDirectEncounter;  // drawn in its own colour
 };
 
 struct MergedMap {

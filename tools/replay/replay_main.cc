@@ -177,6 +177,10 @@ int Main(int argc, char** argv) {
   loader.Add("update_times", "update-times", &options.update_times,
              "write every solver update's data time, cost (ms) and kind to this CSV (empty: "
              "none; tools/bench/scale_figures.sh reads it)");
+  loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
+             "server: loop closures within a trajectory by scan matching");
+  loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
+             "server: encounters between trajectories by scan matching");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;

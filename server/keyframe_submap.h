@@ -1,0 +1,28 @@
+#pragma once
+// A matching reference made of one trajectory's neighbouring keyframes: the scans of
+// keyframes [center - half_width, center + half_width] placed at their current estimates
+// in the frame of the center keyframe. Loop closures and scan encounters match a new
+// keyframe against such a submap rather than against one scan: more walls, fewer aliases.
+
+#include <memory>
+#include <vector>
+
+#include "common/scan_matching/point_cloud.h"
+#include "common/scan_matching/scan_reference.h"
+#include "common/solver/keys.h"
+#include "common/solver/smoother.h"
+#include "server/trajectory_table.h"
+
+namespace anchormap {
+
+// The points of keyframe `index` of `record` in its body frame, cut at max_range_m.
+PointCloud KeyframePoints(const TrajectoryRecord& record, int index, double max_range_m);
+
+// The submap around `center` (which the smoother must hold); keyframes the smoother does
+// not hold yet are left out. nullptr when it holds no point.
+std::unique_ptr<ScanReference> BuildKeyframeSubmap(const TrajectoryRecord& record,
+                                                   const Smoother& smoother, PoseKey center,
+                                                   int half_width, double max_range_m,
+                                                   const ScanReferenceOptions& options);
+
+}  // namespace anchormap

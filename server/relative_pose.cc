@@ -1,0 +1,56 @@
+#include "server/relative_pose.h"
+
+#include <limits>
+#include <vector>
+
+#include <Eigen/Cholesky>
+
+namespace anchormap {
+
+bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b) {
+  if (a == b) return true;
+  return smoother.IsAnchored(a) && smoother.IsAnchored(b) &&
+         smoother.GroupRoot(a) == smoother.GroupRoot(b);
+}
+
+std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b) {
+  if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
+  if (!smoother->HasCovariance(a) || !smoother->HasCovariance(b)) return std::nullopt;
+  PredictedRelativePose out;
+  if (a.trajectory == b.trajectory) {
+    Eigen::Matrix3d J_a, J_b;
+    out.T_a_b = Between(smoother->FramePose(a), smoother->FramePose(b), &J_a, &J_b);
+    const Eigen::MatrixXd joint = smoother->JointCovariance({a, b});
+    Eigen::Matrix<double, 3, 6> J;
+    J << J_a, J_b;
+    out.covariance = J * joint * J.transpose();
+    return out;
+  }
+  const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
+  if (!smoother->HasCovariance(anchor_a) || !smoother->HasCovariance(anchor_b)) {
+    return std::nullopt;
+  }
+  Eigen::Matrix3d dga_dA, dga_dx, dgb_dA, dgb_dx, dh_dga, dh_dgb;
+  const Pose2 global_a =
+      Compose(smoother->Value(anchor_a), smoother->FramePose(a), &dga_dA, &dga_dx);
+  const Pose2 global_b =
+      Compose(smoother->Value(anchor_b), smoother->FramePose(b), &dgb_dA, &dgb_dx);
+  out.T_a_b = Between(global_a, global_b, &dh_dga, &dh_dgb);
+  const Eigen::MatrixXd joint = smoother->JointCovariance({a, b, anchor_a, anchor_b});
+  Eigen::Matrix<double, 3, 12> J;
+  J << dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA;
+  out.covariance = J * joint * J.transpose();
+  return out;
+}
+
+double Mahalanobis2(const Pose2& predicted, const Pose2& measured,
+                    const Eigen::Matrix3d& covariance) {
+  const Eigen::Vector3d error = PoseError(predicted, measured);
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (covariance + covariance.transpose()));
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || ldlt.vectorD().minCoeff() <= 0.0) {
+    return std::numeric_limits<double>::infinity();
+  }
+  return error.dot(ldlt.solve(error));
+}
+
+}  // namespace anchormap

@@ -1,0 +1,35 @@
+#pragma once
+// The current estimate of keyframe b seen from keyframe a, with its covariance from the
+// smoother's joint covariance of the variables involved (docs/METHOD.md section 6): the
+// two poses when both are in one trajectory, the two poses and the two anchors when the
+// trajectories share an anchored group. It is what a loop-closure or encounter candidate
+// is gated against before it may enter the graph.
+
+#include <optional>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/solver/keys.h"
+#include "common/solver/smoother.h"
+
+namespace anchormap {
+
+struct PredictedRelativePose {
+  Pose2 T_a_b;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // (x, y, theta) of T_a_b
+};
+
+// nullopt when a and b are not in one frame (different groups, or unanchored and in
+// different trajectories) or a variable is not solved yet.
+std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b);
+
+// True when a and b are expressed in one frame (same trajectory, or one anchored group).
+bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);
+
+// Squared Mahalanobis distance of `measured` from `predicted` under `covariance`
+// (the sum of both sides' covariances); +inf when it is not invertible.
+double Mahalanobis2(const Pose2& predicted, const Pose2& measured,
+                    const Eigen::Matrix3d& covariance);
+
+}  // namespace anchormap

@@ -1,0 +1,385 @@
+#include "server/scan_encounters.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
+
+#include "common/geometry/numeric_diff.h"
+#include "common/scan_matching/point_cloud.h"
+#include "server/keyframe_submap.h"
+#include "server/relative_pose.h"
+
+namespace anchormap {
+
+Status ScanEncounterOptions::Validate() const {
+  if (submap_half_width < 0) return Status::Error("scan.submap_half_width must be >= 0");
+  if (submap_stride < 1) return Status::Error("scan.submap_stride must be >= 1");
+  if (!(max_range_m > 0)) return Status::Error("scan.max_range_m must be > 0");
+  if (global_every < 1) return Status::Error("scan.global_every must be >= 1");
+  if (max_global_per_keyframe < 0)
+    return Status::Error("scan.max_global_per_keyframe must be >= 0");
+  if (!(pcm_chi2 > 0) || !(gate_chi2 > 0)) return Status::Error("scan chi2 gates must be > 0");
+  if (!(alternative_ratio >= 1)) return Status::Error("scan.alternative_ratio must be >= 1");
+  if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
+  if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
+  if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
+  if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
+  if (!(near_min_overlap >= 0 && near_min_overlap <= 1))
+    return Status::Error("scan.near_min_overlap must be in [0, 1]");
+  if (near_cooldown_keyframes < 0)
+    return Status::Error("scan.near_cooldown_keyframes must be >= 0");
+  if (!(min_window_m > 0) || !(max_window_m >= min_window_m))
+    return Status::Error("scan window: 0 < min_window_m <= max_window_m");
+  if (!(min_window_rad > 0) || !(max_window_rad >= min_window_rad))
+    return Status::Error("scan window: 0 < min_window_rad <= max_window_rad");
+  if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
+    return Status::Error("scan covariance floors must be >= 0");
+  if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
+  if (Status s = reference.Validate(); !s.ok()) return s;
+  return match.Validate();
+}
+
+namespace {
+
+double LargestSigma(const Eigen::Matrix2d& covariance) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(covariance);
+  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
+}
+
+// The same candidate seen from the other side: a measured in the frame of b.
+EncounterCandidate Reversed(const EncounterCandidate& c) {
+  EncounterCandidate r = c;
+  std::swap(r.a, r.b);
+  r.a_is_query = !c.a_is_query;
+  Eigen::Matrix3d J;
+  r.T_a_b = Between(c.T_a_b, Pose2(), &J, nullptr);
+  r.covariance = J * c.covariance * J.transpose();
+  return r;
+}
+
+}  // namespace
+
+void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
+                                     EncounterSourceOutput* /*out*/) {
+  waiting_.push_back(key);
+  while (static_cast<int>(waiting_.size()) > options_.max_waiting) waiting_.pop_front();
+}
+
+void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
+  now_utime_ = std::max(now_utime_, now_utime);
+  Examine(graph, out);
+  JoinQualified(/*flush=*/false, graph, out);
+}
+
+void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
+  Examine(graph, out);
+  JoinQualified(/*flush=*/true, graph, out);
+  for (auto& [pair, kept] : kept_) {
+    stats_.unconfirmed += static_cast<int64_t>(kept.size());
+    stats_.kept -= static_cast<int64_t>(kept.size());
+  }
+  kept_.clear();
+}
+
+void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out) {
+  if (graph.covariances == nullptr) return;
+  ResolveKept(graph, out);
+  BuildSubmaps(graph);
+  std::deque<PoseKey> still_waiting;
+  for (const PoseKey key : waiting_) {
+    if (!graph.covariances->HasCovariance(key)) {
+      still_waiting.push_back(key);
+      continue;
+    }
+    ExamineKeyframe(key, graph, out);
+  }
+  waiting_ = std::move(still_waiting);
+}
+
+void ScanEncounters::BuildSubmaps(const GraphView& graph) {
+  for (const TrajectoryRecord& record : graph.table.records()) {
+    std::vector<Submap>& submaps = submaps_[record.solver_id];
+    for (;;) {
+      const int center =
+          options_.submap_half_width + static_cast<int>(submaps.size()) * options_.submap_stride;
+      const PoseKey last{record.solver_id, center + options_.submap_half_width};
+      if (last.index >= record.num_keyframes() || !graph.covariances->HasCovariance(last)) break;
+      std::shared_ptr<const ScanReference> reference =
+          BuildKeyframeSubmap(record, graph.smoother, PoseKey{record.solver_id, center},
+                              options_.submap_half_width, options_.max_range_m, options_.reference);
+      submaps.push_back({PoseKey{record.solver_id, center}, std::move(reference)});
+    }
+  }
+}
+
+void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
+                                     EncounterSourceOutput* out) {
+  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  if (record == nullptr || key.index >= record->num_keyframes()) return;
+  if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return;
+  for (const TrajectoryRecord& other : graph.table.records()) {
+    if (other.solver_id == key.trajectory) continue;
+    if (InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
+      SearchNear(key, other.solver_id, graph, out);
+    } else if (key.index % options_.global_every == 0) {
+      SearchGlobally(key, other.solver_id, graph, out);
+    }
+  }
+}
+
+void ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph,
+                                    EncounterSourceOutput* out) {
+  const std::vector<Submap>& submaps = submaps_[other];
+  if (submaps.empty()) return;
+  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
+  if (query.empty()) return;
+  GlobalSearchOptions search;
+  search.match = options_.match;
+  search.match.min_score = options_.global_min_score;
+  size_t& cursor = global_cursor_[{key.trajectory, other}];
+  const size_t tries =
+      std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
+  for (size_t t = 0; t < tries; ++t) {
+    const Submap& submap = submaps[cursor % submaps.size()];
+    ++cursor;
+    if (!submap.reference) continue;
+    ++stats_.candidates;
+    const std::optional<MatchResult> match = GlobalSearch(*submap.reference, query, search);
+    if (!match) {
+      ++stats_.no_match;
+      continue;
+    }
+    if (match->overlap < options_.global_min_overlap) {
+      ++stats_.weak_match;
+      continue;
+    }
+    EncounterCandidate candidate;
+    candidate.a = submap.center;
+    candidate.b = key;
+    candidate.T_a_b = match->pose;
+    candidate.covariance = match->covariance;
+    candidate.covariance.diagonal() +=
+        Eigen::Vector3d(options_.floor_sigma_m * options_.floor_sigma_m,
+                        options_.floor_sigma_m * options_.floor_sigma_m,
+                        options_.floor_sigma_rad * options_.floor_sigma_rad);
+    candidate.utime = record->utimes[static_cast<size_t>(key.index)];
+    OfferCandidate(candidate, graph, out);
+    // Joined now (or waiting for the update that joins them): no further search.
+    if (!out->constraints.empty() && out->constraints.back().b == key) return;
+  }
+}
+
+void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
+                                EncounterSourceOutput* out) {
+  if (options_.near_distance_m <= 0) return;
+  const auto quiet = near_quiet_until_.find({key.trajectory, other});
+  if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
+  const std::vector<Submap>& submaps = submaps_[other];
+  const Pose2 global_key = graph.smoother.GlobalPose(key);
+  const Submap* nearest = nullptr;
+  double nearest_distance = std::numeric_limits<double>::infinity();
+  for (const Submap& submap : submaps) {
+    if (!submap.reference) continue;
+    const double distance =
+        (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
+    if (distance < nearest_distance) {
+      nearest_distance = distance;
+      nearest = &submap;
+    }
+  }
+  if (nearest == nullptr || nearest_distance > options_.near_distance_m) return;
+  const std::optional<PredictedRelativePose> predicted =
+      PredictRelativePose(graph.covariances, nearest->center, key);
+  if (!predicted) return;
+  ++stats_.candidates;
+  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
+  LocalMatchOptions window;
+  window.match = options_.match;
+  window.linear_window_m =
+      std::clamp(3.0 * LargestSigma(predicted->covariance.topLeftCorner<2, 2>()),
+                 options_.min_window_m, options_.max_window_m);
+  window.angular_window_rad =
+      std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
+                 options_.min_window_rad, options_.max_window_rad);
+  const std::optional<MatchResult> match =
+      MatchLocal(*nearest->reference, query, predicted->T_a_b, window);
+  if (!match) {
+    ++stats_.no_match;
+    return;
+  }
+  if (match->score < options_.near_min_score || match->overlap < options_.near_min_overlap) {
+    ++stats_.weak_match;
+    return;
+  }
+  EncounterCandidate candidate;
+  candidate.a = nearest->center;
+  candidate.b = key;
+  candidate.T_a_b = match->pose;
+  candidate.covariance = match->covariance;
+  candidate.covariance.diagonal() +=
+      Eigen::Vector3d(options_.floor_sigma_m * options_.floor_sigma_m,
+                      options_.floor_sigma_m * options_.floor_sigma_m,
+                      options_.floor_sigma_rad * options_.floor_sigma_rad);
+  candidate.utime = record->utimes[static_cast<size_t>(key.index)];
+  if (GateAndEmit(candidate, graph, out)) {
+    near_quiet_until_[{key.trajectory, other}] = key.index + 1 + options_.near_cooldown_keyframes;
+  }
+}
+
+void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const GraphView& graph,
+                                    EncounterSourceOutput* out) {
+  if (graph.covariances == nullptr || offered.a.trajectory == offered.b.trajectory) return;
+  if (InOneFrame(graph.smoother, offered.a.trajectory, offered.b.trajectory)) {
+    GateAndEmit(offered, graph, out);
+    return;
+  }
+  // Oriented with a in the smaller trajectory id, so that every candidate of a pair compares.
+  const EncounterCandidate candidate =
+      offered.a.trajectory < offered.b.trajectory ? offered : Reversed(offered);
+  const Pair pair{candidate.a.trajectory, candidate.b.trajectory};
+  std::deque<Kept>& kept = kept_[pair];
+  std::vector<bool> agrees(kept.size(), false);
+  int consistent = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    // One place seen twice is no second opinion: the two must be apart in both
+    // trajectories (a symmetric spot makes every match there agree).
+    const EncounterCandidate& other = kept[i].candidate;
+    if (std::abs(other.a.index - candidate.a.index) < options_.pcm_min_separation ||
+        std::abs(other.b.index - candidate.b.index) < options_.pcm_min_separation) {
+      continue;
+    }
+    if (!Consistent(kept[i].candidate, candidate, graph)) continue;
+    agrees[i] = true;
+    ++kept[i].support;
+    ++consistent;
+  }
+  // The strongest hypothesis this candidate disagrees with.
+  int alternative = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    if (!agrees[i]) alternative = std::max(alternative, 1 + kept[i].support);
+  }
+  const int support = 1 + consistent;
+  if (consistent >= 1 && support >= options_.alternative_ratio * alternative) {
+    // Qualified: joins after the hold, unless other evidence joins the pair first.
+    qualified_since_.emplace(pair, now_utime_);
+  }
+  kept.push_back({candidate, consistent});
+  ++stats_.kept;
+  if (static_cast<int>(kept.size()) > options_.max_kept) {
+    kept.pop_front();
+    --stats_.kept;
+    ++stats_.unconfirmed;
+  }
+}
+
+bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                                const GraphView& graph) const {
+  // Within each trajectory, the estimate from c1's keyframe to c2's, with covariance.
+  const std::optional<PredictedRelativePose> in_a =
+      PredictRelativePose(graph.covariances, c1.a, c2.a);
+  const std::optional<PredictedRelativePose> in_b =
+      PredictRelativePose(graph.covariances, c1.b, c2.b);
+  if (!in_a || !in_b) return false;
+  // c2 predicted from c1: T_a2_b2 = T_a2_a1 (+) T_a1_b1 (+) T_b1_b2.
+  auto predict = [&](const Eigen::VectorXd& v) -> Eigen::Vector3d {
+    const Pose2 a1_a2 = Pose2(v[0], v[1], v[2]);
+    const Pose2 a1_b1 = Pose2(v[3], v[4], v[5]);
+    const Pose2 b1_b2 = Pose2(v[6], v[7], v[8]);
+    return Compose(a1_a2.Inverse(), Compose(a1_b1, b1_b2)).vector();
+  };
+  Eigen::VectorXd x(9);
+  x << in_a->T_a_b.vector(), c1.T_a_b.vector(), in_b->T_a_b.vector();
+  const Eigen::Matrix<double, 3, Eigen::Dynamic> J = NumericJacobian(predict, x);
+  Eigen::Matrix<double, 9, 9> blocks = Eigen::Matrix<double, 9, 9>::Zero();
+  blocks.block<3, 3>(0, 0) = in_a->covariance;
+  blocks.block<3, 3>(3, 3) = c1.covariance;
+  blocks.block<3, 3>(6, 6) = in_b->covariance;
+  const Eigen::Matrix3d covariance = J * blocks * J.transpose() + c2.covariance;
+  return Mahalanobis2(Pose2::FromVector(predict(x)), c2.T_a_b, covariance) <= options_.pcm_chi2;
+}
+
+void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {
+  for (auto it = qualified_since_.begin(); it != qualified_since_.end();) {
+    const Pair pair = it->first;
+    const bool joined = InOneFrame(graph.smoother, pair.first, pair.second);
+    const bool due =
+        1e-6 * static_cast<double>(now_utime_ - it->second) >= options_.first_join_hold_s;
+    if (!joined && !flush && !due) {
+      ++it;
+      continue;
+    }
+    it = qualified_since_.erase(it);
+    if (joined) continue;  // ResolveKept gates the kept candidates
+    // The best supported kept candidate and those consistent with it join the pair.
+    std::deque<Kept>& kept = kept_[pair];
+    if (kept.empty()) continue;
+    size_t best = 0;
+    for (size_t i = 1; i < kept.size(); ++i) {
+      if (kept[i].support > kept[best].support) best = i;
+    }
+    std::deque<Kept> rest;
+    for (size_t i = 0; i < kept.size(); ++i) {
+      const bool agrees =
+          i == best || (std::abs(kept[i].candidate.a.index - kept[best].candidate.a.index) >=
+                            options_.pcm_min_separation &&
+                        std::abs(kept[i].candidate.b.index - kept[best].candidate.b.index) >=
+                            options_.pcm_min_separation &&
+                        Consistent(kept[i].candidate, kept[best].candidate, graph));
+      if (agrees) {
+        Emit(kept[i].candidate, out);
+        ++stats_.accepted;
+        --stats_.kept;
+      } else {
+        rest.push_back(kept[i]);
+      }
+    }
+    kept = std::move(rest);
+  }
+}
+
+void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* out) {
+  for (auto it = kept_.begin(); it != kept_.end();) {
+    if (!InOneFrame(graph.smoother, it->first.first, it->first.second)) {
+      ++it;
+      continue;
+    }
+    for (const Kept& k : it->second) {
+      --stats_.kept;
+      GateAndEmit(k.candidate, graph, out);
+    }
+    it = kept_.erase(it);
+  }
+}
+
+bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
+                                 EncounterSourceOutput* out) {
+  const std::optional<PredictedRelativePose> predicted =
+      PredictRelativePose(graph.covariances, candidate.a, candidate.b);
+  if (!predicted ||
+      Mahalanobis2(predicted->T_a_b, candidate.T_a_b,
+                   predicted->covariance + candidate.covariance) > options_.gate_chi2) {
+    ++stats_.gate_rejected;
+    return false;
+  }
+  ++stats_.accepted;
+  Emit(candidate, out);
+  return true;
+}
+
+void ScanEncounters::Emit(const EncounterCandidate& candidate, EncounterSourceOutput* out) {
+  EncounterConstraint constraint;
+  constraint.a = candidate.a;
+  constraint.b = candidate.b;
+  constraint.measured_T_a_b = candidate.T_a_b;
+  constraint.covariance = candidate.covariance;
+  constraint.utime = candidate.utime;
+  constraint.source = name();
+  constraint.kind = ConstraintKind::kScanEncounter;
+  out->constraints.push_back(constraint);
+}
+
+}  // namespace anchormap

@@ -1,0 +1,158 @@
+#pragma once
+// Encounters between trajectories found by scan matching (issue 11, items 4 and 5), the
+// EncounterSource beside the direct one. Each trajectory's solved keyframes are cut into
+// submaps (KeyframeSubmap: 2 half_width + 1 keyframes every submap_stride, drawn once at
+// the estimates of the time). A keyframe is examined once the smoother has solved it:
+// - against a trajectory not in its anchored group (no prior): every global_every-th
+//   keyframe is searched globally (GlobalSearch, every heading, the submap's whole grid)
+//   in up to max_global_per_keyframe of the other's submaps, taken in turn. A match with
+//   enough score and overlap is a candidate, not yet a constraint: a first encounter
+//   joins two groups only when two candidates of the same pair of trajectories at
+//   different places agree through each trajectory's own estimate (pairwise consistency,
+//   Mangelson et al., ICRA 2018: the loop candidate 1, odometry in one, candidate 2
+//   reversed, odometry in the other, is the identity within the chi-square gate). Lone
+//   candidates are kept (at most max_kept per pair); when the pair comes into one frame
+//   by other evidence (a direct encounter) they are gated against the estimate instead.
+//   A symmetric building makes whole sets of wrong candidates agree with each other (the
+//   place turned by 180 degrees): a hypothesis joins only when it has at least twice the
+//   support of any kept candidate it disagrees with (alternative_ratio), so that two
+//   supported hypotheses wait for more evidence or a direct encounter;
+// - against a trajectory of its group: when the predicted distance to one of the other's
+//   submap centres is below near_distance_m (the thesis' 4 m), a window search around
+//   the prediction; accepted with overlap >= near_min_overlap (85 %) and a chi-square
+//   gate against the estimate and the joint covariance.
+// Matching runs on the caller's thread; results are deterministic.
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/scan_matching/correlative_matcher.h"
+#include "common/scan_matching/global_search.h"
+#include "common/scan_matching/scan_reference.h"
+#include "common/util/status.h"
+#include "server/candidate_stats.h"
+#include "server/encounter_source.h"
+
+namespace anchormap {
+
+struct ScanEncounterOptions {
+  int submap_half_width = 5;
+  int submap_stride = 10;
+  double max_range_m = 15.0;
+  // Unjoined trajectories: global search.
+  // The global search is the costly part (the server matches on its event loop): every
+  // 5th keyframe, 2 submaps (the multiprocess test's server fell behind real time with 3, 4).
+  int global_every = 5;
+  int max_global_per_keyframe = 2;
+  double global_min_score = 0.55;
+  double global_min_overlap = 0.7;
+  double pcm_chi2 = 11.34;  // 3 dof, 99 %
+  // Keyframes between two candidates that confirm each other, in each trajectory (another
+  // place on both sides).
+  int pcm_min_separation = 10;
+  int max_kept = 200;  // lone candidates kept per pair of trajectories
+  // A consistent set joins when (1 + its consistent kept candidates) is at least this
+  // times (1 + the support) of every kept candidate outside it.
+  double alternative_ratio = 2.0;
+  // A qualified first encounter waits this long (data time) before it joins: a direct,
+  // identified encounter arriving meanwhile joins the pair instead and the kept candidates
+  // are gated against it. Buildings with symmetric floors (the simulator's offices) make
+  // whole sets of matches agree on a turned copy of the place; a direct encounter does not.
+  double first_join_hold_s = 30.0;
+  // Joined trajectories: window search near the prediction.
+  double near_distance_m = 4.0;
+  double near_min_overlap = 0.85;
+  double near_min_score = 0.5;
+  int near_cooldown_keyframes = 3;
+  double gate_chi2 = 11.34;  // 3 dof, 99 %
+  double min_window_m = 0.4;
+  double max_window_m = 2.0;
+  double min_window_rad = 0.2;
+  double max_window_rad = 0.6;
+  // Added to the matcher's covariance: submaps are drawn at estimated poses.
+  double floor_sigma_m = 0.02;
+  double floor_sigma_rad = 0.005;
+  int max_waiting = 200;
+  ScanReferenceOptions reference{0.05, 0.05, 0.5, 7};
+  MatchOptions match;
+
+  Status Validate() const;
+};
+
+// A candidate encounter: keyframe b measured in the frame of keyframe a.
+struct EncounterCandidate {
+  PoseKey a;
+  PoseKey b;
+  Pose2 T_a_b;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int64_t utime = 0;
+  // The keyframe whose scan was the query (b unless the candidate was turned round): two
+  // candidates from one query scan are one piece of evidence, not two.
+  bool a_is_query = false;
+  PoseKey query() const { return a_is_query ? a : b; }
+};
+
+class ScanEncounters : public EncounterSource {
+ public:
+  explicit ScanEncounters(const ScanEncounterOptions& options = {}) : options_(options) {}
+
+  std::string name() const override { return "scan"; }
+  void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
+  void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
+  void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
+  size_t pending() const override { return waiting_.size(); }
+  std::string StatsLine() const override { return stats_.Summary(name()); }
+  const CandidateStats& stats() const { return stats_; }
+
+  // A candidate from outside the matcher (tests inject false ones): it takes the same
+  // path as a matched one (pairwise consistency when unjoined, the gate when joined).
+  void OfferCandidate(const EncounterCandidate& candidate, const GraphView& graph,
+                      EncounterSourceOutput* out);
+
+ private:
+  struct Submap {
+    PoseKey center;
+    std::shared_ptr<const ScanReference> reference;
+  };
+  using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
+
+  void Examine(const GraphView& graph, EncounterSourceOutput* out);
+  void BuildSubmaps(const GraphView& graph);
+  void ExamineKeyframe(PoseKey key, const GraphView& graph, EncounterSourceOutput* out);
+  void SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph,
+                      EncounterSourceOutput* out);
+  void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
+                  EncounterSourceOutput* out);
+  // Kept candidates of pairs that came into one frame: gated against the estimate.
+  void ResolveKept(const GraphView& graph, EncounterSourceOutput* out);
+  // Joins the qualified pairs whose hold ran out (all of them when `flush`).
+  void JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out);
+  // True when the gate against the estimate accepts it (counts either way).
+  bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
+                   EncounterSourceOutput* out);
+  void Emit(const EncounterCandidate& candidate, EncounterSourceOutput* out);
+  // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
+  bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                  const GraphView& graph) const;
+
+  ScanEncounterOptions options_;
+  std::deque<PoseKey> waiting_;
+  std::map<TrajectoryId, std::vector<Submap>> submaps_;
+  std::map<Pair, size_t> global_cursor_;
+  struct Kept {
+    EncounterCandidate candidate;
+    int support = 0;  // later candidates consistent with it (at other places)
+  };
+  std::map<Pair, std::deque<Kept>> kept_;
+  std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
+  int64_t now_utime_ = 0;
+  std::map<Pair, int32_t> near_quiet_until_;  // keyed (examined trajectory, other)
+  CandidateStats stats_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,137 @@
+#include "tests/scan_testing/scan_scenarios.h"
+
+#include <cmath>
+#include <random>
+
+namespace anchormap::testing {
+
+namespace {
+
+void AddBox(SyntheticWorld* world, double x0, double y0, double x1, double y1) {
+  const Eigen::Vector2d lo(x0, y0), c1(x1, y0), hi(x1, y1), c3(x0, y1);
+  world->walls.push_back({lo, c1});
+  world->walls.push_back({c1, hi});
+  world->walls.push_back({hi, c3});
+  world->walls.push_back({c3, lo});
+}
+
+}  // namespace
+
+SyntheticWorld LoopWorld() {
+  SyntheticWorld world;
+  // Outer walls, the block off-centre: a block centred in the room would make the room look
+  // the same turned by 180 degrees (the pillars alone do not tell the two apart).
+  AddBox(&world, 0.0, 0.0, 23.0, 16.0);
+  AddBox(&world, 5.0, 4.0, 15.0, 10.0);  // the block the loop goes round
+  // Pillars and alcove walls, each of its own size, near the walls.
+  AddBox(&world, 0.6, 2.5, 1.0, 3.1);
+  AddBox(&world, 0.5, 8.0, 1.3, 8.4);
+  AddBox(&world, 9.0, 0.4, 9.5, 1.2);
+  AddBox(&world, 13.0, 0.5, 14.2, 0.9);
+  AddBox(&world, 18.8, 5.5, 19.4, 6.0);
+  AddBox(&world, 18.5, 11.0, 19.0, 12.2);
+  AddBox(&world, 6.0, 13.0, 6.8, 13.5);
+  AddBox(&world, 15.5, 12.8, 16.0, 13.6);
+  AddBox(&world, 3.8, 6.5, 5.0, 6.8);      // a stub on the block's west side
+  AddBox(&world, 11.0, 10.0, 11.3, 10.9);  // on its north side
+  AddBox(&world, 15.0, 7.0, 15.6, 7.4);    // on its east side
+  AddBox(&world, 7.5, 3.4, 8.4, 4.0);      // on its south side
+  world.min_corner = {0.0, 0.0};
+  world.max_corner = {23.0, 16.0};
+  return world;
+}
+
+SyntheticWorld TwinCorridorWorld() {
+  SyntheticWorld world;
+  // Corridor walls: y in [0, 3] and [10, 13], x from 4 to 20, with identical doors' jambs.
+  for (double dy : {0.0, 10.0}) {
+    world.walls.push_back({{4.0, 0.0 + dy}, {20.0, 0.0 + dy}});
+    world.walls.push_back({{4.0, 3.0 + dy}, {20.0, 3.0 + dy}});
+    world.walls.push_back({{20.0, 0.0 + dy}, {20.0, 3.0 + dy}});
+    for (double x : {8.0, 12.5, 17.0}) {
+      AddBox(&world, x, 0.0 + dy, x + 0.4, 0.3 + dy);
+      AddBox(&world, x + 1.0, 2.7 + dy, x + 1.3, 3.0 + dy);
+    }
+  }
+  // The hall joining them: x in [0, 4], y in [0, 13], distinct pillars.
+  world.walls.push_back({{0.0, 0.0}, {4.0, 0.0}});
+  world.walls.push_back({{0.0, 13.0}, {4.0, 13.0}});
+  world.walls.push_back({{0.0, 0.0}, {0.0, 13.0}});
+  world.walls.push_back({{4.0, 3.0}, {4.0, 10.0}});
+  AddBox(&world, 1.0, 5.0, 1.6, 5.4);
+  AddBox(&world, 2.2, 8.3, 2.5, 9.2);
+  world.min_corner = {0.0, 0.0};
+  world.max_corner = {20.0, 13.0};
+  return world;
+}
+
+std::vector<Pose2> RectanglePath(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+                                 double step_m, double laps) {
+  const Eigen::Vector2d corners[4] = {lo, {hi.x(), lo.y()}, hi, {lo.x(), hi.y()}};
+  const double perimeter = 2.0 * ((hi.x() - lo.x()) + (hi.y() - lo.y()));
+  const int steps = static_cast<int>(std::floor(laps * perimeter / step_m));
+  std::vector<Pose2> path;
+  for (int s = 0; s <= steps; ++s) {
+    double along = std::fmod(s * step_m, perimeter);
+    for (int side = 0; side < 4; ++side) {
+      const Eigen::Vector2d a = corners[side], b = corners[(side + 1) % 4];
+      const double length = (b - a).norm();
+      if (along < length - 1e-9 || side == 3) {
+        const Eigen::Vector2d direction = (b - a) / length;
+        const Eigen::Vector2d p = a + along * direction;
+        path.emplace_back(p.x(), p.y(), std::atan2(direction.y(), direction.x()));
+        break;
+      }
+      along -= length;
+    }
+  }
+  return path;
+}
+
+std::vector<Pose2> StraightPath(const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+                                double step_m) {
+  const Eigen::Vector2d d = to - from;
+  const double heading = std::atan2(d.y(), d.x());
+  const int steps = static_cast<int>(std::floor(d.norm() / step_m));
+  std::vector<Pose2> path;
+  for (int s = 0; s <= steps; ++s) {
+    const Eigen::Vector2d p = from + d.normalized() * (s * step_m);
+    path.emplace_back(p.x(), p.y(), heading);
+  }
+  return path;
+}
+
+std::vector<Keyframe> DriveKeyframes(const SyntheticWorld& world, const std::vector<Pose2>& path,
+                                     const std::string& robot, int64_t trajectory_id,
+                                     int64_t start_utime, const OdometryNoise& noise,
+                                     uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  SyntheticLaser laser;
+  std::vector<Keyframe> keyframes;
+  Pose2 odometry;
+  for (size_t i = 0; i < path.size(); ++i) {
+    Keyframe k;
+    k.robot = robot;
+    k.trajectory_id = trajectory_id;
+    k.seq = static_cast<int32_t>(i);
+    k.utime = start_utime + static_cast<int64_t>(i) * 500'000;
+    if (i > 0) {
+      const Pose2 truth = Between(path[i - 1], path[i]);
+      k.T_previous_this = Pose2(truth.x() + noise.sigma_xy_m * normal(rng),
+                                truth.y() + noise.sigma_xy_m * normal(rng),
+                                truth.theta() + noise.sigma_theta_rad * normal(rng));
+      k.T_previous_this_covariance =
+          Eigen::Vector3d(noise.sigma_xy_m * noise.sigma_xy_m, noise.sigma_xy_m * noise.sigma_xy_m,
+                          noise.sigma_theta_rad * noise.sigma_theta_rad)
+              .asDiagonal();
+      odometry = Compose(odometry, k.T_previous_this);
+    }
+    k.T_local_pose = odometry;
+    k.scan = SimulateScan(world, laser, path[i], &rng);
+    keyframes.push_back(std::move(k));
+  }
+  return keyframes;
+}
+
+}  // namespace anchormap::testing
