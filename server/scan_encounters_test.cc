@@ -76,6 +76,7 @@ TeamRun RunTeam(const SyntheticWorld& world, const std::vector<Pose2>& path1,
   const std::vector<Keyframe> k2 =
       DriveKeyframes(world, path2, "R2", 2, 1'000'000, OdometryNoise{0.01, 0.005}, seed + 100);
   MappingServerOptions options;
+  options.loop_closures = true;     // each robot's own map closed by scan matching too
   options.scan_encounters = false;  // added below, to read its statistics
   MappingServer server(options);
   ScanEncounterOptions scan_options;

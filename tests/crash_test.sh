@@ -37,13 +37,6 @@ source "$(dirname "$0")/system_test_lib.sh"
 
 milliseconds_as_seconds() { printf '%d.%03d' $(($1 / 1000)) $(($1 % 1000)); }
 
-outboxes_empty() {
-  local work=$1 f
-  for f in "$work"/agent_R*.log; do
-    grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -q 'outbox 0 (' || return 1
-  done
-}
-
 # Starts server number `run`; its pid in the caller's `server`.
 start_server() {
   local work=$1 run=$2
@@ -102,13 +95,7 @@ inside_namespace() {
   wait_until_listening "$work" $run || return 1
   # The agents' status lines (every second) must postdate the last restart.
   sleep 1.5
-  local waited=0
-  until outboxes_empty "$work"; do
-    sleep 1
-    waited=$((waited + 1))
-    if [ $waited -ge $MAX_WAIT_S ]; then log "agents still hold unacknowledged messages after ${MAX_WAIT_S} s"; break; fi
-  done
-  log "every agent's outbox empty ${waited} s after the replay"
+  wait_for_outboxes "$work" $MAX_WAIT_S
   local status=0
   for pid in "${agents[@]}"; do
     kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
@@ -131,7 +118,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace outboxes_empty start_server milliseconds_as_seconds \
+  export -f inside_namespace outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
     wait_until_listening log
   export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"

@@ -32,13 +32,6 @@ MAX_WAIT_S=90
 TEST_NAME=loss_test
 source "$(dirname "$0")/system_test_lib.sh"
 
-outboxes_empty() {
-  local work=$1 f
-  for f in "$work"/agent_R*.log; do
-    grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -q 'outbox 0 (' || return 1
-  done
-}
-
 inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
@@ -62,13 +55,7 @@ inside_namespace() {
   sleep 1
   log "replaying $DURATION_S s of $ROBOTS robots at ${SPEED}x through a link that drops 30 %"
   LCM_DEFAULT_URL="$URL_A" lcm-logplayer --speed=$SPEED "$work/sim.lcmlog" || { log "lcm-logplayer failed"; return 1; }
-  local waited=0
-  until outboxes_empty "$work"; do
-    sleep 1
-    waited=$((waited + 1))
-    if [ $waited -ge $MAX_WAIT_S ]; then log "agents still hold unacknowledged messages after ${MAX_WAIT_S} s"; break; fi
-  done
-  log "every agent's outbox empty ${waited} s after the replay"
+  wait_for_outboxes "$work" $MAX_WAIT_S
   local status=0
   for pid in "${agents[@]}"; do
     kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
@@ -93,7 +80,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace outboxes_empty log
+  export -f inside_namespace outboxes_empty wait_for_outboxes log
   export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

@@ -33,3 +33,27 @@ netns_available() {
   unshare -n sh -c 'ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo' \
     >/dev/null 2>&1
 }
+
+# True when every agent's last status line (WORK_DIR/agent_R*.log) shows an empty outbox:
+# everything it published was acknowledged by the server.
+outboxes_empty() {
+  local f
+  for f in "$1"/agent_R*.log; do
+    grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -q 'outbox 0 (' || return 1
+  done
+}
+
+# wait_for_outboxes WORK_DIR MAX_S: waits until outboxes_empty (a mission ends when the
+# server holds everything; agents resend meanwhile), at most MAX_S seconds.
+wait_for_outboxes() {
+  local waited=0
+  until outboxes_empty "$1"; do
+    sleep 1
+    waited=$((waited + 1))
+    if [ $waited -ge "$2" ]; then
+      log "agents still hold unacknowledged messages after $2 s"
+      return 1
+    fi
+  done
+  log "every agent's outbox empty ${waited} s after the replay"
+}

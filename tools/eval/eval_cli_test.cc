@@ -88,7 +88,7 @@ class EvalCliTest : public ::testing::Test {
       ASSERT_TRUE(truth.Write("R2_ODOMETRY", odometry.utime, odometry).ok());
     }
     map.num_trajectories = 2;
-    map.encounters.push_back({"R1", 1, 0, "R2", 2, 0});
+    map.encounters.push_back({"R1", 1, 0, "R2", 2, 0, /*kind: direct*/ 0});
     map.num_encounters = 1;
     LcmLogWriter out;
     ASSERT_TRUE(out.Open(map_).ok());

@@ -49,7 +49,7 @@ merged_map_t MakeMap(int64_t update, std::vector<trajectory_t> trajectories,
     return std::string("?");
   };
   for (const auto& [a, b] : links) {
-    map.encounters.push_back({robot_of(a), a, 0, robot_of(b), b, 0});
+    map.encounters.push_back({robot_of(a), a, 0, robot_of(b), b, 0, /*kind: direct*/ 0});
   }
   map.num_encounters = static_cast<int32_t>(map.encounters.size());
   return map;
