@@ -14,12 +14,7 @@ std::string TrajectoryKey(const std::string& robot, int64_t id) {
   return robot + "/" + std::to_string(id);
 }
 
-std::string EncounterKind(const std::string& robot_a, int64_t trajectory_a,
-                          const std::string& robot_b, int64_t trajectory_b) {
-  if (trajectory_a == trajectory_b && robot_a == robot_b) return "same_trajectory";
-  if (robot_a == robot_b) return "same_robot";
-  return "inter_robot";
-}
+std::string EncounterKind(const EncounterLink& link) { return ToString(link.kind); }
 
 ViewerState::ViewerState(ViewerStateOptions options) : options_(options) {}
 
@@ -52,6 +47,7 @@ void ViewerState::Clear() {
 void ViewerState::NoteUpdate(Stream stream, int64_t update) {
   if (update < last_update_[stream]) {
     ++restarts_;
+    restart_inferred_ = true;
     Clear();
     for (int64_t& last : last_update_) last = -1;
   }
@@ -124,9 +120,8 @@ bool ViewerState::ApplyMergedMap(const MergedMap& map, int64_t wall_utime) {
                         "an encounter link names a trajectory the map does not hold");
       continue;
     }
-    encounters.push_back(json::array(
-        {a->second, link.index_a, b->second, link.index_b,
-         EncounterKind(link.robot_a, link.trajectory_a, link.robot_b, link.trajectory_b)}));
+    encounters.push_back(
+        json::array({a->second, link.index_a, b->second, link.index_b, EncounterKind(link)}));
   }
   size_t first = 0;
   const size_t common = std::min(encounters.size(), encounters_.size());
@@ -218,7 +213,18 @@ bool ViewerState::ApplyAnchorCovariances(const AnchorCovariances& anchors, int64
 }
 
 bool ViewerState::ApplyStatus(const ServerStatus& status, int64_t wall_utime) {
+  // A new instance id is a restart, also when the server resumed from its journal with the
+  // same update numbers (then the new instance re-sends the same map).
+  if (status.instance_id != 0 && status.instance_id != instance_id_) {
+    if (instance_id_ != 0 && !restart_inferred_) {
+      ++restarts_;
+      Clear();
+      for (int64_t& last : last_update_) last = -1;
+    }
+    instance_id_ = status.instance_id;
+  }
   NoteUpdate(kStatus, status.update);
+  restart_inferred_ = false;
   last_message_wall_utime_ = wall_utime;
   meta_changed_ = true;
   json rejections = json::object();

@@ -98,6 +98,11 @@ class ViewerState {
   ViewerStateOptions options_;
   int64_t seq_ = 0;
   int64_t restarts_ = 0;
+  // The server's instance id (0: none seen, or an offline run); a new one is a restart.
+  int64_t instance_id_ = 0;
+  // A restart was inferred from an update number going back since the last status: the
+  // new instance's id, when it comes, is the same restart.
+  bool restart_inferred_ = false;
   int64_t last_update_[kNumStreams] = {-1, -1, -1, -1};  // per stream, since the last restart
   int64_t map_update_ = -1;
   int64_t map_utime_ = 0;
@@ -121,10 +126,8 @@ class ViewerState {
 
 // "ROBOT/ID", the trajectories' key in the JSON messages.
 std::string TrajectoryKey(const std::string& robot, int64_t id);
-// An encounter link's kind, from its two ends: "inter_robot" (two robots met),
-// "same_robot" (a robot's new session met its earlier one) or "same_trajectory" (a loop
-// closure within one trajectory). The merged map carries no kind of its own.
-std::string EncounterKind(const std::string& robot_a, int64_t trajectory_a,
-                          const std::string& robot_b, int64_t trajectory_b);
+// An encounter link's kind as the page names it: the wire's ("direct", "scan", "loop";
+// common/types/constraint_kind.h).
+std::string EncounterKind(const EncounterLink& link);
 
 }  // namespace anchormap::viewer

@@ -224,20 +224,55 @@ TEST(ViewerStateTest, AnUpdateNumberGoingBackIsAServerRestart) {
   EXPECT_EQ(delta["trajectories"].size(), 1u);
 }
 
+// A server restarted from its journal keeps its update numbers: its new instance id (in
+// the status message) tells. One restart is counted once, whichever tells first.
+TEST(ViewerStateTest, ANewInstanceIdIsAServerRestartCountedOnce) {
+  ViewerState state;
+  ServerStatus status;
+  status.update = 40;
+  status.instance_id = 111;
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  status.update = 41;
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  EXPECT_EQ(state.restarts(), 0);
+  status.instance_id = 222;  // resumed from its journal: the same update numbers
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  EXPECT_EQ(state.restarts(), 1);
+  // Without a journal: the update number goes back first, then the new id arrives.
+  status.update = 50;
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  MergedMap map;
+  map.update = 3;
+  map.trajectories = {Trajectory("R1", 1, 2)};
+  ASSERT_TRUE(state.ApplyMergedMap(map, 0));
+  map.update = 60;
+  ASSERT_TRUE(state.ApplyMergedMap(map, 0));
+  map.update = 2;  // back again: the restart, inferred
+  ASSERT_TRUE(state.ApplyMergedMap(map, 0));
+  EXPECT_EQ(state.restarts(), 2);
+  status.update = 2;
+  status.instance_id = 333;  // the same restart, told again
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  EXPECT_EQ(state.restarts(), 2);
+  status.instance_id = 0;  // an offline run's outputs carry none: no restart
+  status.update = 3;
+  ASSERT_TRUE(state.ApplyStatus(status, 0));
+  EXPECT_EQ(state.restarts(), 2);
+}
+
 TEST(ViewerStateTest, EncountersGetTheirKindAndLinksToUnknownTrajectoriesAreRefused) {
-  EXPECT_EQ(EncounterKind("R1", 1, "R2", 2), "inter_robot");
-  EXPECT_EQ(EncounterKind("R1", 1, "R1", 5), "same_robot");
-  EXPECT_EQ(EncounterKind("R1", 1, "R1", 1), "same_trajectory");
   ViewerState state;
   MergedMap map;
   map.update = 1;
   map.trajectories = {Trajectory("R1", 1, 5), Trajectory("R2", 2, 5)};
-  map.encounters = {{"R1", 1, 2, "R2", 2, 3}, {"R1", 1, 0, "R1", 1, 4}, {"R1", 1, 1, "R1", 77, 0}};
+  map.encounters = {{"R1", 1, 2, "R2", 2, 3, ConstraintKind::kDirectEncounter},
+                    {"R1", 1, 0, "R1", 1, 4, ConstraintKind::kLoopClosure},
+                    {"R1", 1, 1, "R1", 77, 0, ConstraintKind::kScanEncounter}};
   ASSERT_TRUE(state.ApplyMergedMap(map, 0));
   const json links = state.Full()["encounters"]["links"];
   ASSERT_EQ(links.size(), 2u);
-  EXPECT_EQ(links[0], json({"R1/1", 2, "R2/2", 3, "inter_robot"}));
-  EXPECT_EQ(links[1][4], "same_trajectory");
+  EXPECT_EQ(links[0], json({"R1/1", 2, "R2/2", 3, "direct"}));
+  EXPECT_EQ(links[1][4], "loop");
   EXPECT_EQ(state.rejections().count(ErrorCode::kInvalidValue), 1);
 }
 

@@ -115,9 +115,9 @@
 
   // Encounter kinds (tools/viewer/viewer_state.h); any other kind gets the fallback style.
   const kKinds = {
-    inter_robot: { label: 'encounter (two robots)', color: [200, 0, 160], dash: [] },
-    same_robot: { label: 'same robot, new session', color: [230, 120, 0], dash: [6, 3] },
-    same_trajectory: { label: 'loop closure', color: [0, 140, 70], dash: [2, 3] },
+    direct: { label: 'direct encounter (one robot saw another)', color: [200, 0, 160], dash: [] },
+    scan: { label: 'scan encounter (matched scans)', color: [230, 120, 0], dash: [6, 3] },
+    loop: { label: 'loop closure', color: [0, 140, 70], dash: [2, 3] },
   };
   const kFallbackKind = { label: 'other kind', color: [90, 90, 90], dash: [8, 4, 2, 4] };
 
