@@ -77,6 +77,7 @@ inline anchormap::merged_map_t TestMergedMap(int64_t update) {
   link.robot_b = "R2";
   link.trajectory_b = 12;
   link.index_b = 1;
+  link.kind = 0;  // direct (lcm-gen leaves plain fields uninitialised)
   map.encounters.push_back(link);
   map.num_encounters = 1;
   return map;
