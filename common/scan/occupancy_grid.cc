@@ -37,6 +37,11 @@ Status OccupancyGridOptions::Validate() const {
 
 OccupancyGrid::OccupancyGrid(const OccupancyGridOptions& options) : options_(options) {}
 
+namespace {
+// Farther than this from the map's origin, a point has no cell (1e7 m at 5 cm is 2e8 cells).
+constexpr double kMaxCoordinateM = 1e7;
+}  // namespace
+
 uint64_t OccupancyGrid::TileKey(int64_t tile_x, int64_t tile_y) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(tile_x)) << 32) |
          static_cast<uint64_t>(static_cast<uint32_t>(tile_y));
@@ -79,6 +84,9 @@ int8_t OccupancyGrid::Occupancy(int64_t cell_x, int64_t cell_y) const {
 
 void OccupancyGrid::InsertRay(const Eigen::Vector2d& from_map, const Eigen::Vector2d& to_map,
                               bool hit) {
+  for (const Eigen::Vector2d& p : {from_map, to_map}) {
+    if (!p.allFinite() || p.cwiseAbs().maxCoeff() > kMaxCoordinateM) return;  // no cells
+  }
   const auto [x0, y0] = CellOf(from_map);
   const auto [x1, y1] = CellOf(to_map);
   const auto cells = BresenhamLine(x0, y0, x1, y1);
@@ -95,6 +103,9 @@ void OccupancyGrid::InsertScan(const LaserScan& scan, const Pose2& T_map_body) {
   // traced cells cost 40 % of a 10-robot server run).
   const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
   const Eigen::Vector2d origin = T_map_sensor.translation();
+  // A pose that is not finite, or absurdly far away, has no cells (its cell numbers would
+  // overflow): such a scan is skipped (the fuzzer fed one through the server).
+  if (!T_map_sensor.IsFinite() || origin.cwiseAbs().maxCoeff() > kMaxCoordinateM) return;
   const auto [x0, y0] = CellOf(origin);
   const int64_t radius =
       static_cast<int64_t>(std::ceil(options_.max_ray_length_m / options_.resolution_m)) + 2;
