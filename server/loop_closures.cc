@@ -158,10 +158,8 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph,
       ++stats_.weak_match;
       continue;
     }
-    Eigen::Matrix3d covariance = match->covariance;
-    covariance.diagonal() += Eigen::Vector3d(options_.floor_sigma_m * options_.floor_sigma_m,
-                                             options_.floor_sigma_m * options_.floor_sigma_m,
-                                             options_.floor_sigma_rad * options_.floor_sigma_rad);
+    const Eigen::Matrix3d covariance =
+        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
     if (Mahalanobis2(predicted.T_a_b, match->pose, predicted.covariance + covariance) >
         options_.gate_chi2) {
       ++stats_.gate_rejected;

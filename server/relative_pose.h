@@ -32,4 +32,13 @@ bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);
 double Mahalanobis2(const Pose2& predicted, const Pose2& measured,
                     const Eigen::Matrix3d& covariance);
 
+// A matcher's covariance with independent floors added (sigma_m on x and y, sigma_rad on
+// theta): scan matches are never trusted below the floors.
+inline Eigen::Matrix3d WithCovarianceFloor(Eigen::Matrix3d covariance, double sigma_m,
+                                           double sigma_rad) {
+  covariance.diagonal() +=
+      Eigen::Vector3d(sigma_m * sigma_m, sigma_m * sigma_m, sigma_rad * sigma_rad);
+  return covariance;
+}
+
 }  // namespace anchormap

@@ -160,11 +160,8 @@ void ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const Graph
     candidate.a = submap.center;
     candidate.b = key;
     candidate.T_a_b = match->pose;
-    candidate.covariance = match->covariance;
-    candidate.covariance.diagonal() +=
-        Eigen::Vector3d(options_.floor_sigma_m * options_.floor_sigma_m,
-                        options_.floor_sigma_m * options_.floor_sigma_m,
-                        options_.floor_sigma_rad * options_.floor_sigma_rad);
+    candidate.covariance =
+        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
     candidate.utime = record->utimes[static_cast<size_t>(key.index)];
     OfferCandidate(candidate, graph, out);
     // Joined now (or waiting for the update that joins them): no further search.
@@ -219,11 +216,8 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   candidate.a = nearest->center;
   candidate.b = key;
   candidate.T_a_b = match->pose;
-  candidate.covariance = match->covariance;
-  candidate.covariance.diagonal() +=
-      Eigen::Vector3d(options_.floor_sigma_m * options_.floor_sigma_m,
-                      options_.floor_sigma_m * options_.floor_sigma_m,
-                      options_.floor_sigma_rad * options_.floor_sigma_rad);
+  candidate.covariance =
+      WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
   candidate.utime = record->utimes[static_cast<size_t>(key.index)];
   if (GateAndEmit(candidate, graph, out)) {
     near_quiet_until_[{key.trajectory, other}] = key.index + 1 + options_.near_cooldown_keyframes;
