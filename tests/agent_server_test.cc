@@ -24,6 +24,7 @@
 #include "common/bus/map_codec.h"
 #include "common/util/log.h"
 #include "server/node/server_node.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -346,8 +347,7 @@ TEST_F(AgentServerTest, BadMessagesAreCountedWhereTheyArriveAndChangeNothing) {
 // The same keyframes and encounters, recorded to a log, through `anchormap-server --log`:
 // the offline run is deterministic and agrees with the online one.
 TEST_F(AgentServerTest, OfflineServerOnARecordedLogIsDeterministicAndAgrees) {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("agent_server_test_" + std::to_string(getpid()));
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir();
   std::filesystem::create_directories(dir);
   LcmLogWriter recorder;
   ASSERT_TRUE(recorder.Open((dir / "keyframes.lcmlog").string()).ok());

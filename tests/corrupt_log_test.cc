@@ -14,6 +14,7 @@
 
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -41,8 +42,7 @@ std::string Slurp(const std::filesystem::path& path) {
 }
 
 TEST(CorruptLogTest, ServerNamesTheOffsetResynchronisesAndFails) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("anchormap_corrupt_log_" + std::to_string(getpid()));
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir();
   std::filesystem::create_directories(dir);
   const std::filesystem::path input = dir / "in.lcmlog", output = dir / "out.lcmlog",
                               log = dir / "server.log";

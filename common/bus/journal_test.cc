@@ -1,4 +1,5 @@
 #include "common/bus/journal.h"
+#include "tests/testing/scratch.h"
 
 #include <filesystem>
 #include <fstream>
@@ -13,9 +14,7 @@ namespace fs = std::filesystem;
 class JournalTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("anchormap_journal_test_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    dir_ = ::anchormap::testing::ScratchDir() / "journal";
     fs::remove_all(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }

@@ -7,13 +7,13 @@
 #include <gtest/gtest.h>
 
 #include "bot_core/pose_t.hpp"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
 
 TEST(LcmLogTest, WritesAndReadsTypedEvents) {
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "anchormap_lcm_log_test.lcmlog").string();
+  const std::string path = ::anchormap::testing::ScratchPath("test.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -44,8 +44,7 @@ TEST(LcmLogTest, WritesAndReadsTypedEvents) {
 // garbage ends the file: the reader names each corrupt offset, resynchronises at the next
 // sound event and returns the others intact.
 TEST(LcmLogTest, ReportsAndSkipsCorruptEvents) {
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "anchormap_lcm_log_corrupt.lcmlog").string();
+  const std::string path = ::anchormap::testing::ScratchPath("corrupt.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());

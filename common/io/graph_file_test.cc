@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/testing/data_path.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -50,8 +51,7 @@ TEST(GraphFileTest, RoundTripsBothFormats) {
   PoseGraph graph;
   ASSERT_TRUE(ParsePoseGraph(kSmallG2o, "small.g2o", &graph).ok());
   for (GraphFormat format : {GraphFormat::kG2o, GraphFormat::kToro}) {
-    const std::string path =
-        (std::filesystem::temp_directory_path() / "anchormap_graph_roundtrip.txt").string();
+    const std::string path = ::anchormap::testing::ScratchPath("graph_roundtrip.txt");
     ASSERT_TRUE(WritePoseGraph(path, graph, format).ok());
     PoseGraph back;
     ASSERT_TRUE(ReadPoseGraph(path, &back).ok());

@@ -1,4 +1,5 @@
 #include "common/io/map_file.h"
+#include "tests/testing/scratch.h"
 
 #include <filesystem>
 #include <fstream>
@@ -8,9 +9,7 @@
 namespace anchormap {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 GrayImage Gradient(int width, int height, int max_value) {
   GrayImage image;
@@ -25,7 +24,7 @@ GrayImage Gradient(int width, int height, int max_value) {
 TEST(MapFileTest, PgmRoundTrip8And16Bit) {
   for (int max_value : {255, 1000}) {
     const GrayImage image = Gradient(13, 7, max_value);
-    const std::string path = TempPath("round_trip.pgm");
+    const std::string path = ScratchPath("round_trip.pgm");
     ASSERT_TRUE(WritePgm(path, image).ok());
     // 8-bit: header "P5\n13 7\n255\n" (12 bytes) + 91 bytes; 16-bit: twice the data.
     EXPECT_EQ(std::filesystem::file_size(path), max_value > 255 ? 13u + 182u : 12u + 91u);
@@ -39,7 +38,7 @@ TEST(MapFileTest, PgmRoundTrip8And16Bit) {
 }
 
 TEST(MapFileTest, ReadsAsciiPgmWithComments) {
-  const std::string path = TempPath("ascii.pgm");
+  const std::string path = ScratchPath("ascii.pgm");
   std::ofstream(path) << "P2\n# a comment\n3 2 # trailing\n9\n0 1 2\n7 8 9\n";
   GrayImage image;
   ASSERT_TRUE(ReadPgm(path, &image).ok());
@@ -51,7 +50,7 @@ TEST(MapFileTest, ReadsAsciiPgmWithComments) {
 
 TEST(MapFileTest, RejectsBadPgm) {
   GrayImage image;
-  const std::string path = TempPath("bad.pgm");
+  const std::string path = ScratchPath("bad.pgm");
   std::ofstream(path) << "P6\n3 2\n255\n";
   EXPECT_FALSE(ReadPgm(path, &image).ok());
   std::ofstream(path, std::ios::trunc) << "P5\n3 2\n255\nab";  // 2 of 6 bytes
@@ -60,7 +59,7 @@ TEST(MapFileTest, RejectsBadPgm) {
   EXPECT_NE(truncated.message().find("truncated"), std::string::npos);
   std::ofstream(path, std::ios::trunc) << "P2\n2 1\n5\n3 6\n";  // pixel above max
   EXPECT_FALSE(ReadPgm(path, &image).ok());
-  EXPECT_FALSE(ReadPgm(TempPath("absent.pgm"), &image).ok());
+  EXPECT_FALSE(ReadPgm(ScratchPath("absent.pgm"), &image).ok());
 }
 
 TEST(MapFileTest, YamlRoundTrip) {
@@ -69,7 +68,7 @@ TEST(MapFileTest, YamlRoundTrip) {
   metadata.resolution_m = 0.05;
   metadata.origin[0] = -12.5;
   metadata.origin[1] = 3.25;
-  const std::string path = TempPath("map.yaml");
+  const std::string path = ScratchPath("map.yaml");
   ASSERT_TRUE(WriteMapYaml(path, metadata).ok());
   MapMetadata back;
   ASSERT_TRUE(ReadMapYaml(path, &back).ok());
@@ -83,7 +82,7 @@ TEST(MapFileTest, YamlRoundTrip) {
 }
 
 TEST(MapFileTest, YamlErrorsNameTheLine) {
-  const std::string path = TempPath("bad.yaml");
+  const std::string path = ScratchPath("bad.yaml");
   std::ofstream(path) << "image: m.pgm\nresolution: fast\n";
   MapMetadata unused;
   const Status status = ReadMapYaml(path, &unused);

@@ -1,4 +1,5 @@
 #include "common/io/trajectory_file.h"
+#include "tests/testing/scratch.h"
 
 #include <cmath>
 #include <filesystem>
@@ -9,9 +10,7 @@
 namespace anchormap {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 TEST(TrajectoryFileTest, ParsesYawOnlyQuaternion) {
   StampedPose2 pose;
@@ -43,7 +42,7 @@ TEST(TrajectoryFileTest, WriteThenReadRoundTripsToMicrosecondsAndTenDigits) {
   StampedTrajectory poses = {{976052857337530, Pose2(1.25, -3.5, 3.0)},
                              {976052857537531, Pose2(-1e-3, 12345.678, -2.5)},
                              {-500000, Pose2(0, 0, M_PI)}};
-  const std::string path = TempPath("anchormap_trajectory_file_test.txt");
+  const std::string path = ScratchPath("anchormap_trajectory_file_test.txt");
   ASSERT_TRUE(WriteTrajectoryFile(path, poses, "test").ok());
   StampedTrajectory read;
   ASSERT_TRUE(ReadTrajectoryFile(path, &read).ok());
@@ -59,7 +58,7 @@ TEST(TrajectoryFileTest, WriteThenReadRoundTripsToMicrosecondsAndTenDigits) {
 }
 
 TEST(TrajectoryFileTest, ReadErrorsNameFileAndLine) {
-  const std::string path = TempPath("anchormap_trajectory_file_bad.txt");
+  const std::string path = ScratchPath("anchormap_trajectory_file_bad.txt");
   {
     std::ofstream out(path);
     out << "# header\n\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0\n";

@@ -1,4 +1,5 @@
 #include "common/util/options_loader.h"
+#include "tests/testing/scratch.h"
 
 #include <unistd.h>
 
@@ -44,8 +45,8 @@ class OptionsLoaderTest : public ::testing::Test {
   }
 
   std::string WriteConfig(const std::string& text) {
-    const auto path = std::filesystem::temp_directory_path() /
-                      ("options_loader_test_" + std::to_string(getpid()) + ".cfg");
+    const auto path =
+        ::anchormap::testing::ScratchDir() / ("options_" + std::to_string(files_.size()) + ".cfg");
     std::ofstream(path) << text;
     files_.push_back(path.string());
     return path.string();

@@ -8,6 +8,7 @@
 
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -20,9 +21,7 @@ bot_core::pose_t PoseMessage(int64_t utime) {
 }
 
 TEST(ClockShiftTest, ReadsShiftsAndMovesEstimateAndOdometryBack) {
-  const std::string path = (std::filesystem::temp_directory_path() /
-                            (std::to_string(getpid()) + "_am_clock_shift.lcmlog"))
-                               .string();
+  const std::string path = ::anchormap::testing::ScratchPath("am_clock_shift.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());

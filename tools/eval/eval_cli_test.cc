@@ -14,15 +14,14 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "common/geometry/pose2.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / (std::to_string(getpid()) + "_" + name)).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 std::string ReadText(const std::string& path) {
   std::ifstream in(path);
@@ -38,7 +37,7 @@ struct RunResult {
 };
 
 RunResult RunEval(const std::string& arguments) {
-  const std::string out = TempPath("am_eval_cli.out"), err = TempPath("am_eval_cli.err");
+  const std::string out = ScratchPath("am_eval_cli.out"), err = ScratchPath("am_eval_cli.err");
   const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/anchormap-eval " +
                               arguments + " >" + out + " 2>" + err;
   const int status = std::system(command.c_str());
@@ -53,8 +52,8 @@ RunResult RunEval(const std::string& arguments) {
 class EvalCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    truth_ = TempPath("am_eval_cli_truth.lcmlog");
-    map_ = TempPath("am_eval_cli_map.lcmlog");
+    truth_ = ScratchPath("am_eval_cli_truth.lcmlog");
+    map_ = ScratchPath("am_eval_cli_map.lcmlog");
     LcmLogWriter truth;
     ASSERT_TRUE(truth.Open(truth_).ok());
     merged_map_t map{};
@@ -121,7 +120,7 @@ TEST_F(EvalCliTest, AteTableAndJson) {
 TEST_F(EvalCliTest, RelationsOnOneRobot) {
   // R2's estimate moves 1 m per second along its own x: relation (0, 2) of 2 m is exact, the
   // relation (1, 3) claims 2.5 m and 0.1 rad: errors 0.5 and 0.1.
-  const std::string relations = TempPath("am_eval_cli.relations");
+  const std::string relations = ScratchPath("am_eval_cli.relations");
   std::ofstream(relations) << "0.0 2.0 2.0 0 0 0 0 0\n1.0 3.0 2.5 0 0 0 0 0.1\n";
   const RunResult result =
       RunEval("--relations " + relations + " --map " + map_ + " --robot R2 --json");
@@ -137,7 +136,7 @@ TEST_F(EvalCliTest, RelationsOnOneRobot) {
 TEST_F(EvalCliTest, RelationsBetweenKeyframesNeedTheOdometry) {
   // 0.5 s and 2.5 s are no keyframe times. With the odometry: X(0.5) = keyframe 0 + 0.5 m,
   // X(2.5) = keyframe 2 + 0.5 m, 2 m apart; the relation claims 2.2 m: error 0.2.
-  const std::string relations = TempPath("am_eval_cli_between.relations");
+  const std::string relations = ScratchPath("am_eval_cli_between.relations");
   std::ofstream(relations) << "0.5 2.5 2.2 0 0 0 0 0\n";
   const std::string common = "--relations " + relations + " --map " + map_ + " --robot R2 --json";
   const RunResult keyframes_only = RunEval(common);

@@ -11,14 +11,12 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "common/io/trajectory_file.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / (std::to_string(getpid()) + "_" + name))
-      .string();
-}
+using ::anchormap::testing::ScratchPath;
 
 trajectory_t MakeTrajectory(const std::string& robot, int64_t id, bool anchored,
                             const std::vector<std::array<double, 4>>& utime_x_y_theta) {
@@ -85,7 +83,7 @@ TEST(ConvertMergedMapTest, GroupsFromEncounterLinksLargestFirst) {
 }
 
 TEST(ReadMapEstimateTest, UsesTheLastDecodableMapAndCountsJunk) {
-  const std::string path = TempPath("am_eval_map.lcmlog");
+  const std::string path = ScratchPath("am_eval_map.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -117,7 +115,7 @@ TEST(ReadMapEstimateTest, UsesTheLastDecodableMapAndCountsJunk) {
 }
 
 TEST(ReadReferencesTest, GroundTruthPreferredQuaternionDecodedTumAccepted) {
-  const std::string path = TempPath("am_eval_truth.lcmlog");
+  const std::string path = ScratchPath("am_eval_truth.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -148,7 +146,7 @@ TEST(ReadReferencesTest, GroundTruthPreferredQuaternionDecodedTumAccepted) {
   EXPECT_NEAR(r1[2].pose.theta(), -2.0, 1e-12);
   EXPECT_EQ(references.by_robot.at("R2")[0].pose.x(), 102.0);
 
-  const std::string tum = TempPath("am_eval_truth.txt");
+  const std::string tum = ScratchPath("am_eval_truth.txt");
   ASSERT_TRUE(WriteTrajectoryFile(tum, {{5, Pose2(1, 2, 0.5)}}).ok());
   EXPECT_FALSE(IsLcmLogFile(tum));
   ASSERT_TRUE(ReadReferences(tum, "R7", &references).ok());

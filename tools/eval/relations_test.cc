@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/testing/data_path.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -27,8 +28,7 @@ TEST(RelationsFileTest, ParsesLinesAndReportsErrors) {
   EXPECT_EQ(ParseRelationLine("1 2 3 0 0 0 0 yaw", &relation).message(),
             "field yaw 'yaw' is not a finite number");
 
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "am_relations_test.relations").string();
+  const std::string path = ::anchormap::testing::ScratchPath("am_relations_test.relations");
   std::ofstream(path) << "# comment\n1 2 0 0 0 0 0 0\n\n1 2 0 0 0 0 0\n";
   std::vector<Relation> relations;
   EXPECT_EQ(ReadRelationsFile(path, &relations).message(),

@@ -6,12 +6,13 @@
 #include <gtest/gtest.h>
 
 #include "tests/testing/data_path.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  const std::string path = ::anchormap::testing::ScratchPath(name);
   std::ofstream(path) << text;
   return path;
 }

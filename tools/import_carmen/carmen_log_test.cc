@@ -1,4 +1,5 @@
 #include "tools/import_carmen/carmen_log.h"
+#include "tests/testing/scratch.h"
 
 #include <zlib.h>
 
@@ -13,9 +14,7 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 // A FLASER line of `n` ranges 1.0, 1.5, 2.0, ... followed by the given tail.
 std::string Flaser(int n, const std::string& tail) {
@@ -181,7 +180,7 @@ TEST(CarmenLogReaderTest, PlainAndGzipGiveTheSameLines) {
   const std::string long_line = Flaser(20000, "0 0 0 0 0 0 1 h 1");
   const std::string text = "# comment\r\nODOM 0 0 0 0 0 0 1 h 1\n" + long_line + "\n\nlast";
   for (bool gzip : {false, true}) {
-    const std::string path = TempPath(gzip ? "am_carmen_reader.log.gz" : "am_carmen_reader.log");
+    const std::string path = ScratchPath(gzip ? "am_carmen_reader.log.gz" : "am_carmen_reader.log");
     WriteFile(path, text, gzip);
     Status status = Status::Ok();
     const std::vector<std::string> lines = ReadAllLines(path, &status);
@@ -197,7 +196,7 @@ TEST(CarmenLogReaderTest, PlainAndGzipGiveTheSameLines) {
 }
 
 TEST(CarmenLogReaderTest, NulBytesStayInsideTheirLine) {
-  const std::string path = TempPath("am_carmen_nul.log");
+  const std::string path = ScratchPath("am_carmen_nul.log");
   WriteFile(path, std::string("ODOM 0 0\0 0 0 0 0 1 h 1\nODOM 0 0 0 0 0 0 2 h 2\n", 47), false);
   Status status = Status::Ok();
   const std::vector<std::string> lines = ReadAllLines(path, &status);
@@ -213,7 +212,7 @@ TEST(CarmenLogReaderTest, NulBytesStayInsideTheirLine) {
 TEST(CarmenLogReaderTest, TruncatedGzipIsAReadErrorNotASilentEnd) {
   std::string text;
   for (int i = 0; i < 20000; ++i) text += "ODOM " + std::to_string(i) + " 0 0 0 0 0 1 h 1\n";
-  const std::string path = TempPath("am_carmen_truncated.log.gz");
+  const std::string path = ScratchPath("am_carmen_truncated.log.gz");
   WriteFile(path, text, true);
   std::filesystem::resize_file(path, std::filesystem::file_size(path) / 2);
   Status status = Status::Ok();

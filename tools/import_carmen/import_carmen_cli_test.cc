@@ -14,6 +14,7 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "tests/testing/data_path.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -33,14 +34,11 @@ std::string ReadText(const std::string& path) {
   return text.str();
 }
 
-// A temporary path unique to this process (ctest runs the tests of this file in parallel).
-std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / (std::to_string(getpid()) + "_" + name)).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 RunResult RunImporter(const std::string& arguments) {
-  const std::string out = TempPath("am_import_cli.out");
-  const std::string err = TempPath("am_import_cli.err");
+  const std::string out = ScratchPath("am_import_cli.out");
+  const std::string err = ScratchPath("am_import_cli.err");
   const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/anchormap-import-carmen " +
                               arguments + " >" + out + " 2>" + err;
   const int status = std::system(command.c_str());
@@ -81,8 +79,8 @@ TEST(ImportCarmenCliTest, HelpAndBadFlags) {
 }
 
 TEST(ImportCarmenCliTest, MalformedLineFailsWithFileAndLineUnlessLenient) {
-  const std::string input = TempPath("am_cli_malformed.log");
-  const std::string output = TempPath("am_cli_malformed.lcmlog");
+  const std::string input = ScratchPath("am_cli_malformed.log");
+  const std::string output = ScratchPath("am_cli_malformed.lcmlog");
   std::ofstream(input) << "ODOM 0 0 0 0 0 0 1.0 h 1.0\n"
                           "FLASER 2 1.0 2.0 0 0 0 0 0 0 1.0 h 1.0\n"
                           "FLASER 2 1.0 0 0 0 0 0 0 1.5 h 1.5\n"
@@ -115,7 +113,7 @@ class ImportRealLogTest : public ::testing::TestWithParam<RealLog> {};
 // Every scan and every odometry line of the file becomes one LCM message.
 TEST_P(ImportRealLogTest, MessageCountsEqualTheFile) {
   ANCHORMAP_REQUIRE_DATA(input, GetParam().file);
-  const std::string output = TempPath("am_cli_real.lcmlog");
+  const std::string output = ScratchPath("am_cli_real.lcmlog");
   const RunResult result = RunImporter(input + " --output " + output + " --robot R3");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto counts = CountChannels(output);
@@ -139,7 +137,7 @@ INSTANTIATE_TEST_SUITE_P(SharedData, ImportRealLogTest,
 
 TEST(ImportCarmenCliTest, SplitOfARealLogGivesRobotsStartingAtTheOrigin) {
   ANCHORMAP_REQUIRE_DATA(input, "benchmark/aces.clf.gz");
-  const std::string output = TempPath("am_cli_split.lcmlog");
+  const std::string output = ScratchPath("am_cli_split.lcmlog");
   const RunResult result = RunImporter(input + " --output " + output + " --split 3 --gap-s 20");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   LcmLogReader reader;
@@ -182,7 +180,7 @@ TEST(ImportCarmenCliTest, SplitOfARealLogGivesRobotsStartingAtTheOrigin) {
 
 TEST(ImportCarmenCliTest, SimultaneousPiecesStartTogetherWithShiftAndMountRecorded) {
   ANCHORMAP_REQUIRE_DATA(input, "benchmark/fr079.clf.gz");
-  const std::string output = TempPath("am_cli_simultaneous.lcmlog");
+  const std::string output = ScratchPath("am_cli_simultaneous.lcmlog");
   const RunResult result = RunImporter(input + " --output " + output + " --split 2 --simultaneous");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   LcmLogReader reader;

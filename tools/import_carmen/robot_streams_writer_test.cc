@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "common/bus/lcm_log.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -48,8 +49,7 @@ TEST(WriteRobotStreamsTest, MergesRobotsInTimeOrderOdometryFirst) {
   robots[1].odometry = {{200, Pose2(3, 0, 0), 0, 0}};
   robots[1].time_shift_us = -50;  // --simultaneous: every robot's shift is written
   robots[1].T_body_laser = Pose2(-0.04, 0.0, 0.0);
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "am_robot_streams.lcmlog").string();
+  const std::string path = ::anchormap::testing::ScratchPath("am_robot_streams.lcmlog");
   WriteCounts counts;
   ASSERT_TRUE(WriteRobotStreams(robots, ImportChannels(), path, &counts).ok());
   EXPECT_EQ(counts.odometry, 3);

@@ -1,4 +1,5 @@
 #include "tools/render/map_export.h"
+#include "tests/testing/scratch.h"
 
 #include <filesystem>
 #include <fstream>
@@ -9,9 +10,7 @@
 namespace anchormap::render {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 // A PGM decoder independent of common/io/map_file: header by stream extraction, then the
 // raw bytes.
@@ -40,7 +39,7 @@ OccupancyRaster TestRaster() {
 }
 
 TEST(MapExportTest, PgmPixelsFollowMapSaverWithTheTopRowFirst) {
-  const std::string pgm = TempPath("export.pgm");
+  const std::string pgm = ScratchPath("export.pgm");
   const std::string yaml = YamlPathFor(pgm);
   EXPECT_EQ(std::filesystem::path(yaml).filename(), "export.yaml");
   ASSERT_TRUE(WriteMapServerFiles(TestRaster(), pgm, yaml).ok());
@@ -57,8 +56,8 @@ TEST(MapExportTest, PgmPixelsFollowMapSaverWithTheTopRowFirst) {
 }
 
 TEST(MapExportTest, YamlHasTheMapServerFields) {
-  const std::string pgm = TempPath("fields.pgm");
-  const std::string yaml = TempPath("fields.yaml");
+  const std::string pgm = ScratchPath("fields.pgm");
+  const std::string yaml = ScratchPath("fields.yaml");
   ASSERT_TRUE(WriteMapServerFiles(TestRaster(), pgm, yaml).ok());
   std::ifstream in(yaml);
   std::stringstream text;
@@ -73,9 +72,9 @@ TEST(MapExportTest, YamlHasTheMapServerFields) {
 }
 
 TEST(MapExportTest, YamlInAnotherFolderNamesTheImageAbsolutely) {
-  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "export_sub";
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir() / "export_sub";
   std::filesystem::create_directories(dir);
-  const std::string pgm = TempPath("elsewhere.pgm");
+  const std::string pgm = ScratchPath("elsewhere.pgm");
   const std::string yaml = (dir / "elsewhere.yaml").string();
   ASSERT_TRUE(WriteMapServerFiles(TestRaster(), pgm, yaml).ok());
   std::ifstream in(yaml);
@@ -85,7 +84,8 @@ TEST(MapExportTest, YamlInAnotherFolderNamesTheImageAbsolutely) {
 }
 
 TEST(MapExportTest, EmptyRasterIsAnError) {
-  EXPECT_FALSE(WriteMapServerFiles(OccupancyRaster{}, TempPath("e.pgm"), TempPath("e.yaml")).ok());
+  EXPECT_FALSE(
+      WriteMapServerFiles(OccupancyRaster{}, ScratchPath("e.pgm"), ScratchPath("e.yaml")).ok());
 }
 
 }  // namespace

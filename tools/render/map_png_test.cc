@@ -5,14 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/scratch.h"
 #include "tools/render/testing_helpers.h"
 
 namespace anchormap::render {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 struct Rendered {
   ServerOutput output;
@@ -23,11 +22,11 @@ struct Rendered {
 
 Rendered RenderTestLog(bool with_grid, const MapPngOptions& options = MapPngOptions{}) {
   Rendered r;
-  const std::string log = TempPath("map_png_test.lcmlog");
+  const std::string log = ScratchPath("map_png_test.lcmlog");
   EXPECT_TRUE(testing::WriteTestServerLog(log).ok());
   EXPECT_TRUE(ReadServerOutput(log, ChannelNames{}, &r.output).ok());
   if (with_grid) r.raster = AssembleGrid(r.output.grid);
-  const std::string png = TempPath(with_grid ? "map_grid.png" : "map_nogrid.png");
+  const std::string png = ScratchPath(with_grid ? "map_grid.png" : "map_nogrid.png");
   const ColorAssignment colors({{"R1", 11}, {"R2", 12}, {"R3", 13}});
   EXPECT_TRUE(RenderMapPng(&*r.output.map, r.raster, colors, options, png, &r.viewport).ok());
   EXPECT_TRUE(testing::DecodePng(png, &r.png));  // decoded by libpng, not cairo

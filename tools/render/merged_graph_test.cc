@@ -4,13 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/scratch.h"
 #include "tools/render/testing_helpers.h"
 
 namespace anchormap::render {
 namespace {
 
 TEST(MergedGraphTest, VerticesChainsAndEncounterEdges) {
-  const std::string log = (std::filesystem::path(::testing::TempDir()) / "graph.lcmlog").string();
+  const std::string log = ::anchormap::testing::ScratchPath("graph.lcmlog");
   ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(log, ChannelNames{}, &output).ok());
@@ -36,7 +37,7 @@ TEST(MergedGraphTest, VerticesChainsAndEncounterEdges) {
   EXPECT_TRUE(encounter.information.isIdentity());
 
   // Written with graph_file and read back.
-  const std::string path = (std::filesystem::path(::testing::TempDir()) / "merged.g2o").string();
+  const std::string path = ::anchormap::testing::ScratchPath("merged.g2o");
   ASSERT_TRUE(WritePoseGraph(path, graph, GraphFormat::kG2o).ok());
   PoseGraph back;
   ASSERT_TRUE(ReadPoseGraph(path, &back).ok());

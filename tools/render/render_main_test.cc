@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/scratch.h"
 #include "tools/render/testing_helpers.h"
 
 namespace anchormap::render {
@@ -20,8 +21,7 @@ int RunRender(const std::string& arguments) {
 }
 
 TEST(RenderMainTest, WritesEveryOutput) {
-  const std::filesystem::path dir =
-      std::filesystem::path(::testing::TempDir()) / "render_main_test";
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir() / "render_main_test";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string log = (dir / "run.lcmlog").string();
@@ -51,8 +51,7 @@ TEST(RenderMainTest, ExitCodes) {
 }
 
 TEST(RenderMainTest, PgmWithoutGridFailsButPngIsStillWritten) {
-  const std::filesystem::path dir =
-      std::filesystem::path(::testing::TempDir()) / "render_main_nogrid";
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir() / "render_main_nogrid";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string log = (dir / "run.lcmlog").string();

@@ -5,17 +5,16 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/scratch.h"
 #include "tools/render/testing_helpers.h"
 
 namespace anchormap::render {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
-  const std::string path = TempPath("server_output.lcmlog");
+  const std::string path = ScratchPath("server_output.lcmlog");
   ASSERT_TRUE(testing::WriteTestServerLog(path).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
@@ -55,7 +54,7 @@ TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
 }
 
 TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
-  const std::string path = TempPath("server_output_bad.lcmlog");
+  const std::string path = ScratchPath("server_output_bad.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -89,7 +88,7 @@ TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
 }
 
 TEST(ServerOutputTest, TilesMissingFromTheLastUpdateComeFromRecentOnes) {
-  const std::string path = TempPath("server_output_cut.lcmlog");
+  const std::string path = ScratchPath("server_output_cut.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -113,7 +112,7 @@ TEST(ServerOutputTest, TilesMissingFromTheLastUpdateComeFromRecentOnes) {
 }
 
 TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
-  const std::string path = TempPath("server_output_old.lcmlog");
+  const std::string path = ScratchPath("server_output_old.lcmlog");
   {
     LcmLogWriter writer;
     ASSERT_TRUE(writer.Open(path).ok());
@@ -132,7 +131,7 @@ TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
 
 TEST(ServerOutputTest, MissingFileIsAnError) {
   ServerOutput output;
-  EXPECT_FALSE(ReadServerOutput(TempPath("absent.lcmlog"), ChannelNames{}, &output).ok());
+  EXPECT_FALSE(ReadServerOutput(ScratchPath("absent.lcmlog"), ChannelNames{}, &output).ok());
 }
 
 }  // namespace

@@ -5,14 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/scratch.h"
 #include "tools/render/testing_helpers.h"
 
 namespace anchormap::render {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 bool NearColor(const Rgb& a, const Rgb& b, int tolerance) {
   return std::abs(a.r - b.r) <= tolerance && std::abs(a.g - b.g) <= tolerance &&
@@ -20,12 +19,12 @@ bool NearColor(const Rgb& a, const Rgb& b, int tolerance) {
 }
 
 TEST(UncertaintyPlotTest, OneLinePerAnchorAtItsValues) {
-  const std::string log = TempPath("plot.lcmlog");
+  const std::string log = ScratchPath("plot.lcmlog");
   ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(log, ChannelNames{}, &output).ok());
   const ColorAssignment colors({{"R1", 11}, {"R2", 12}});
-  const std::string png = TempPath("plot.png");
+  const std::string png = ScratchPath("plot.png");
   PlotFrame frame;
   UncertaintyPlotOptions options;
   ASSERT_TRUE(RenderUncertaintyPlot(output.anchor_samples, colors, options, png, &frame).ok());
@@ -50,7 +49,7 @@ TEST(UncertaintyPlotTest, OneLinePerAnchorAtItsValues) {
 }
 
 TEST(UncertaintyPlotTest, EmptyPlotStillWritesAPng) {
-  const std::string png = TempPath("empty_plot.png");
+  const std::string png = ScratchPath("empty_plot.png");
   ASSERT_TRUE(RenderUncertaintyPlot({}, ColorAssignment({}), UncertaintyPlotOptions{}, png).ok());
   testing::DecodedPng image;
   EXPECT_TRUE(testing::DecodePng(png, &image));

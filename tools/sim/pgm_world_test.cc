@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "common/geometry/angle.h"
+#include "tests/testing/scratch.h"
 #include "tools/sim/route_planner.h"
 #include "tools/sim/world.h"
 
@@ -61,7 +62,7 @@ TEST(PgmWorldTest, OccupiedPixelsBecomeWallsAtTheirBorders) {
 }
 
 TEST(PgmWorldTest, LoadsPgmAndYamlFiles) {
-  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "pgm_world_test";
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir() / "pgm_world_test";
   std::filesystem::create_directories(dir);
   ASSERT_TRUE(WritePgm((dir / "world.pgm").string(), TestImage()).ok());
   {

@@ -10,13 +10,12 @@
 
 #include "bot_core/planar_lidar_t.hpp"
 #include "common/bus/lcm_log.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap::sim {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
-}
+using ::anchormap::testing::ScratchPath;
 
 std::vector<char> FileBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -32,9 +31,9 @@ SimOptions ShortRun(uint64_t seed) {
 }
 
 TEST(SimLogTest, SameSeedGivesIdenticalBytesAndOtherSeedsDiffer) {
-  const std::string a = TempPath("sim_a.lcmlog");
-  const std::string b = TempPath("sim_b.lcmlog");
-  const std::string c = TempPath("sim_c.lcmlog");
+  const std::string a = ScratchPath("sim_a.lcmlog");
+  const std::string b = ScratchPath("sim_b.lcmlog");
+  const std::string c = ScratchPath("sim_c.lcmlog");
   ASSERT_TRUE(WriteSimulationLog(ShortRun(7), a, nullptr).ok());
   ASSERT_TRUE(WriteSimulationLog(ShortRun(7), b, nullptr).ok());
   ASSERT_TRUE(WriteSimulationLog(ShortRun(8), c, nullptr).ok());
@@ -49,8 +48,8 @@ TEST(SimLogTest, ChangingTheLaserDoesNotChangeTheOdometry) {
   SimOptions options = ShortRun(3);
   SimOptions other = options;
   other.laser.beams = 181;
-  const std::string a = TempPath("streams_a.lcmlog");
-  const std::string b = TempPath("streams_b.lcmlog");
+  const std::string a = ScratchPath("streams_a.lcmlog");
+  const std::string b = ScratchPath("streams_b.lcmlog");
   ASSERT_TRUE(WriteSimulationLog(options, a, nullptr).ok());
   ASSERT_TRUE(WriteSimulationLog(other, b, nullptr).ok());
   LcmLogReader ra, rb;
@@ -68,7 +67,7 @@ TEST(SimLogTest, ChangingTheLaserDoesNotChangeTheOdometry) {
 }
 
 TEST(SimLogTest, LogHoldsTheContractChannelsAtTheirRates) {
-  const std::string path = TempPath("sim_channels.lcmlog");
+  const std::string path = ScratchPath("sim_channels.lcmlog");
   SimOptions options = ShortRun(1);
   options.duration_s = 60.0;
   SimSummary summary;
@@ -153,7 +152,7 @@ TEST(SimLogTest, RobotsMoveAndOdometryDriftsModestly) {
   SimOptions options = ShortRun(4);
   options.duration_s = 120.0;
   SimSummary summary;
-  const std::string path = TempPath("sim_drift.lcmlog");
+  const std::string path = ScratchPath("sim_drift.lcmlog");
   ASSERT_TRUE(WriteSimulationLog(options, path, &summary).ok());
   for (double d : summary.distance_m) {
     EXPECT_GT(d, 30.0);  // at 0.8 m/s with turns and pauses
@@ -168,7 +167,7 @@ TEST(SimLogTest, HundredRobotsGiveAValidLog) {
   options.duration_s = 2.0;
   options.laser.beams = 91;
   SimSummary summary;
-  const std::string path = TempPath("sim_100.lcmlog");
+  const std::string path = ScratchPath("sim_100.lcmlog");
   ASSERT_TRUE(WriteSimulationLog(options, path, &summary).ok());
   EXPECT_EQ(summary.robots, 100);
   EXPECT_EQ(summary.scans, 100 * 21);
@@ -190,7 +189,7 @@ TEST(SimLogTest, HundredRobotsGiveAValidLog) {
 TEST(SimLogTest, MissingPgmWorldFailsCleanly) {
   SimOptions options = ShortRun(1);
   options.world = "/nonexistent/world.pgm";
-  const Status status = WriteSimulationLog(options, TempPath("never.lcmlog"), nullptr);
+  const Status status = WriteSimulationLog(options, ScratchPath("never.lcmlog"), nullptr);
   EXPECT_FALSE(status.ok());
   EXPECT_NE(status.message().find("world.pgm"), std::string::npos);
 }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include "tests/testing/scratch.h"
 
 namespace {
 
@@ -28,7 +29,7 @@ TEST(SimMainTest, HelpAndBadFlags) {
 }
 
 TEST(SimMainTest, WritesALogAndAPreview) {
-  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "sim_main_test";
+  const std::filesystem::path dir = ::anchormap::testing::ScratchDir() / "sim_main_test";
   std::filesystem::create_directories(dir);
   const std::string log = (dir / "sim.lcmlog").string();
   const std::string png = (dir / "preview.png").string();

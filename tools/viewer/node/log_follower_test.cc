@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "common/bus/lcm_log.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap::viewer {
 namespace {
@@ -26,7 +27,7 @@ void WriteBytes(const std::string& path, const std::vector<uint8_t>& bytes, size
 class LogFollowerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const std::string dir = ::testing::TempDir();
+    const std::string dir = ::anchormap::testing::ScratchDir().string();
     source_ = dir + "/follower_source.lcmlog";
     followed_ = dir + "/follower_followed.lcmlog";
     std::remove(followed_.c_str());
