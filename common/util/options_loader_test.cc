@@ -36,11 +36,11 @@ class OptionsLoaderTest : public ::testing::Test {
     args.insert(args.begin(), "demo");
     std::vector<const char*> argv;
     for (const auto& a : args) argv.push_back(a.c_str());
-    testing::internal::CaptureStderr();
-    testing::internal::CaptureStdout();
+    ::testing::internal::CaptureStderr();
+    ::testing::internal::CaptureStdout();
     ParseOutcome outcome = loader_.Parse(static_cast<int>(argv.size()), argv.data());
-    stderr_ = testing::internal::GetCapturedStderr();
-    stdout_ = testing::internal::GetCapturedStdout();
+    stderr_ = ::testing::internal::GetCapturedStderr();
+    stdout_ = ::testing::internal::GetCapturedStdout();
     return outcome;
   }
 

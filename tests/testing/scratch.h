@@ -22,11 +22,23 @@ inline std::filesystem::path ScratchDir() {
     if (c == '/') c = '_';  // parameterised test names contain slashes
   }
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / folder;
-  static std::filesystem::path created;
-  if (created != dir) {
+  // Removed at exit when every test passed; kept for a look when one failed.
+  struct Folder {
+    std::filesystem::path path;
+    void RemoveIfAllPassed() {
+      std::error_code ignored;
+      if (!path.empty() && ::testing::UnitTest::GetInstance()->Passed()) {
+        std::filesystem::remove_all(path, ignored);
+      }
+    }
+    ~Folder() { RemoveIfAllPassed(); }
+  };
+  static Folder created;
+  if (created.path != dir) {
+    created.RemoveIfAllPassed();  // the previous test's, when the binary runs several
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
-    created = dir;
+    created.path = dir;
   }
   return dir;
 }
