@@ -15,6 +15,7 @@
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "server/node/server_node.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
@@ -34,20 +35,8 @@ Authenticator MakeAuth(const std::string& keys, const std::string& sender, int64
 }
 
 Keyframe MakeKeyframe(const std::string& robot, int64_t trajectory, int32_t seq) {
-  Keyframe k;
-  k.robot = robot;
-  k.trajectory_id = trajectory;
-  k.seq = seq;
-  k.utime = kNow - 10'000'000 + seq * 100'000;
-  k.T_local_pose = Pose2(0.5 * seq, 0, 0);
-  if (seq > 0) k.T_previous_this = Pose2(0.5, 0, 0);
-  k.T_previous_this_covariance = Eigen::Matrix3d::Identity() * 0.01;
-  k.scan.utime = k.utime;
-  k.scan.rad0 = -1.0f;
-  k.scan.radstep = 0.02f;
-  k.scan.max_range = 10.0f;
-  k.scan.ranges.assign(21, 3.0f);
-  return k;
+  return testing::StraightKeyframe(robot, trajectory, seq, /*num_rays=*/21,
+                                   /*first_utime=*/kNow - 100'000'000);
 }
 
 class AuthInjectionTest : public ::testing::Test {

@@ -15,25 +15,14 @@
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 #include "tests/testing/scratch.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
 
 Keyframe MakeKeyframe(int32_t seq) {
-  Keyframe k;
-  k.robot = "R1";
-  k.trajectory_id = 7;
-  k.seq = seq;
-  k.utime = 1'700'000'000'000'000 + seq * 100'000;
-  k.T_local_pose = Pose2(0.5 * seq, 0, 0);
-  if (seq > 0) k.T_previous_this = Pose2(0.5, 0, 0);
-  k.T_previous_this_covariance = Eigen::Matrix3d::Identity() * 0.01;
-  k.scan.utime = k.utime;
-  k.scan.rad0 = -1.0f;
-  k.scan.radstep = 0.02f;
-  k.scan.max_range = 10.0f;
-  k.scan.ranges.assign(21, 3.0f);
-  return k;
+  return testing::StraightKeyframe("R1", 7, seq, /*num_rays=*/21,
+                                   /*first_utime=*/1'700'000'000'000'000);
 }
 
 std::string Slurp(const std::filesystem::path& path) {

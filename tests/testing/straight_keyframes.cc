@@ -5,12 +5,12 @@
 namespace anchormap::testing {
 
 Keyframe StraightKeyframe(const std::string& robot, int64_t trajectory_id, int32_t seq,
-                          int num_rays) {
+                          int num_rays, int64_t first_utime) {
   Keyframe k;
   k.robot = robot;
   k.trajectory_id = trajectory_id;
   k.seq = seq;
-  k.utime = 1'000'000 * (static_cast<int64_t>(seq) + 1);
+  k.utime = first_utime + 1'000'000 * static_cast<int64_t>(seq);
   k.T_local_pose = Pose2(seq, 0.0, 0.0);
   if (seq > 0) {
     k.T_previous_this = Pose2(1.0, 0.0, 0.0);
