@@ -6,24 +6,37 @@
 // acknowledgement came within a timeout (the last messages of a burst, whose loss the
 // server cannot see).
 //
-// Memory is bounded (OutboxOptions::max_bytes): past the bound the oldest entries are
+// Memory is bounded (OutboxOptions::max_bytes). Past the bound the oldest entries are
+// spilled to a scratch file in OutboxOptions::spill_dir (agent/spill_file.h) and read back
+// from it, in order, when they are resent: nothing is lost while the agent runs, however
+// long the server is away, until the spill file reaches max_spill_bytes. Only then (or
+// without a spill folder, or when the file cannot be written) are the oldest entries
 // dropped, counted (dropped()) and reported to the caller as a kQueueFull Status; the
 // server then bridges the gap after its hold time. The clock is the caller's (wall time).
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <map>
+#include <memory>
+#include <string>
 #include <vector>
 
+#include "agent/spill_file.h"
 #include "common/types/delivery.h"
 #include "common/util/status.h"
 
 namespace anchormap {
 
 struct OutboxOptions {
-  // Bytes kept for resending at most (keyframes with scans are a few KB each; 64 MiB keeps
-  // hours of a typical robot's keyframes while the server is unreachable).
+  // Bytes kept in memory for resending at most (keyframes with scans are a few KB each;
+  // 64 MiB keeps hours of a typical robot's keyframes while the server is unreachable).
   int64_t max_bytes = int64_t{64} << 20;
+  // Folder of the spill file (empty: no spilling; past max_bytes the oldest are dropped).
+  std::string spill_dir;
+  // Bytes written to the spill file at most (it is emptied when everything in it has been
+  // acknowledged); past it the oldest in memory are dropped.
+  int64_t max_spill_bytes = int64_t{4} << 30;
   // An unacknowledged entry is sent again after this long without an acknowledgement or
   // a request, then after 2 and 4 times this (and 4 times this from then on).
   double resend_timeout_s = 2.0;
@@ -32,6 +45,7 @@ struct OutboxOptions {
 
   Status Validate() const {
     if (max_bytes < 1024) return Status::Error("outbox.max_bytes must be >= 1024");
+    if (max_spill_bytes < 0) return Status::Error("outbox.max_spill_bytes must be >= 0");
     if (!(resend_timeout_s > 0)) return Status::Error("outbox.resend_timeout_s must be > 0");
     if (max_resend_per_poll < 1) return Status::Error("outbox.max_resend_per_poll must be >= 1");
     return Status::Ok();
@@ -44,46 +58,83 @@ struct OutboxStats {
   int64_t resent_on_request = 0;
   int64_t resent_on_timeout = 0;
   int64_t requested_but_gone = 0;  // asked for, but acknowledged or dropped before
-  int64_t dropped = 0;             // pushed out by the memory bound, never acknowledged
+  int64_t spilled = 0;             // written to the spill file (past the memory bound)
+  int64_t read_back = 0;           // read from the spill file to be resent
+  int64_t spill_failures = 0;      // spill writes or reads that failed (logged by the caller)
+  int64_t dropped = 0;             // pushed out by the bounds, never acknowledged
 };
 
 class Outbox {
  public:
-  struct Entry {
+  // A message to send again: its stream, sequence number and encoded bytes.
+  struct Message {
     StreamKind kind = StreamKind::kKeyframes;
     int32_t seq = 0;
     std::vector<uint8_t> bytes;
-    int64_t last_sent_utime = 0;
-    int sends = 1;
   };
 
   explicit Outbox(const OutboxOptions& options = {}) : options_(options) {}
 
   // Keeps a message that has just been sent for the first time. Returns kQueueFull when
-  // the memory bound pushed older unacknowledged entries out (they are counted).
+  // the bounds pushed older unacknowledged entries out (they are counted), kIoError when
+  // the spill file failed (the entries it should have taken were dropped).
   Status Add(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes, int64_t now_utime);
   // A cumulative acknowledgement: frees every entry below the two bounds.
   void Acknowledge(int32_t keyframes_next, int32_t encounters_next);
-  // The kept entries in `ranges`, in stream and seq order, marked as sent at `now_utime`.
-  std::vector<const Entry*> Requested(const std::vector<SeqRange>& ranges, int64_t now_utime);
+  // The kept entries in `ranges`, in stream and seq order (spilled ones read back), marked
+  // as sent at `now_utime`.
+  std::vector<Message> Requested(const std::vector<SeqRange>& ranges, int64_t now_utime);
   // The unacknowledged entries whose resend timeout (with back-off) has run out, oldest
   // first, at most max_resend_per_poll, marked as sent at `now_utime`.
-  std::vector<const Entry*> TimedOut(int64_t now_utime);
+  std::vector<Message> TimedOut(int64_t now_utime);
 
   size_t size() const { return keyframes_.size() + encounters_.size(); }
-  size_t bytes() const { return bytes_; }
+  // What is unacknowledged, for a log line: "keyframes 120..122 (3), encounters 4..4 (1)".
+  std::string Unacknowledged() const;
+  size_t bytes() const { return bytes_; }  // in memory
+  size_t spilled_entries() const { return spilled_entries_; }
+  int64_t spill_file_bytes() const { return spill_ ? spill_->size() : 0; }
   const OutboxStats& stats() const { return stats_; }
+  // The last spill failure (Ok when none).
+  const Status& spill_error() const { return spill_error_; }
 
  private:
-  std::map<int32_t, Entry>& Stream(StreamKind kind) {
+  struct Entry {
+    StreamKind kind = StreamKind::kKeyframes;
+    int32_t seq = 0;
+    std::vector<uint8_t> bytes;  // empty when spilled
+    int64_t spill_offset = -1;   // >= 0: the bytes are in the spill file
+    size_t size = 0;
+    int64_t last_sent_utime = 0;
+    int sends = 1;
+    bool spilled() const { return spill_offset >= 0; }
+  };
+  using Stream = std::map<int32_t, Entry>;
+
+  Stream& StreamOf(StreamKind kind) {
     return kind == StreamKind::kKeyframes ? keyframes_ : encounters_;
   }
-  void Erase(std::map<int32_t, Entry>* stream, std::map<int32_t, Entry>::iterator it);
+  void Erase(Stream* stream, Stream::iterator it);
+  // Moves the oldest in-memory entries out (to the spill file, or dropped) until the
+  // memory bound holds; returns how many were dropped.
+  int64_t EnforceMemoryBound();
+  // The oldest entry of `stream` still in memory (end() when none).
+  Stream::iterator OldestInMemory(Stream* stream);
+  // Writes `entry` to the spill file; false when it cannot (full, no folder, I/O error).
+  bool Spill(Entry* entry);
+  // A copy of `entry` to send, marked as sent; false when its spilled bytes cannot be read.
+  bool TakeForSending(Entry* entry, int64_t now_utime, std::vector<Message>* out);
 
   OutboxOptions options_;
-  std::map<int32_t, Entry> keyframes_;
-  std::map<int32_t, Entry> encounters_;
-  size_t bytes_ = 0;
+  Stream keyframes_;
+  Stream encounters_;
+  size_t in_memory_[2] = {0, 0};  // entries in memory per stream (index: kind)
+  size_t bytes_ = 0;              // bytes in memory
+  size_t spilled_entries_ = 0;
+  int32_t last_spilled_seq_[2] = {std::numeric_limits<int32_t>::min(),
+                                  std::numeric_limits<int32_t>::min()};  // per stream
+  std::unique_ptr<SpillFile> spill_;
+  Status spill_error_;
   OutboxStats stats_;
 };
 

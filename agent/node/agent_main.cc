@@ -7,6 +7,7 @@
 
 #include "agent/node/agent_node.h"
 #include "agent/node/agent_node_options.h"
+#include "agent/spill_file.h"
 #include "agent/trajectory_id.h"
 #include "common/bus/authenticator.h"
 #include "common/bus/lcm_loop.h"
@@ -90,8 +91,50 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("outbox.max_bytes", "outbox-max-bytes", &node->outbox.max_bytes,
          "bytes of unacknowledged keyframes / encounters kept for resending; past it the "
          "oldest are dropped and counted (queue_full)");
+  l->Add("outbox.spill_dir", "outbox-spill-dir", &node->outbox.spill_dir,
+         "past --outbox-max-bytes the oldest unacknowledged messages go to a scratch file in "
+         "this folder (unlinked at once: nothing is left behind) and are read back for resends "
+         "(empty: no spilling, the oldest are dropped)");
+  l->Add("outbox.max_spill_bytes", "outbox-max-spill-bytes", &node->outbox.max_spill_bytes,
+         "bytes the spill file may hold; past it the oldest are dropped and counted (queue_full)");
+  l->Add("exit_ack_wait_s", "exit-ack-wait-s", &node->exit_ack_wait_s,
+         "on SIGINT / SIGTERM, wait up to this long for the server to acknowledge what was "
+         "published, then exit saying what was left unacknowledged (s; 0: exit at once; a "
+         "second signal ends the wait)");
   l->Add("outbox.resend_timeout_s", "resend-timeout-s", &node->outbox.resend_timeout_s,
          "resend an unacknowledged message after this long (s; then 2x, then 4x)");
+}
+
+// On SIGINT / SIGTERM (Run has returned) what the server has not acknowledged yet is not
+// dropped at once: the loop runs on (acknowledgements, resend requests, timeout resends)
+// until the outbox is empty, for at most `wait_s`; a second signal ends the wait.
+void WaitForAcknowledgements(double wait_s, LcmLoop* loop, const AgentNode& node) {
+  const Outbox& outbox = node.outbox();
+  if (outbox.size() == 0) {
+    LogInfo("everything published was acknowledged by the server");
+    return;
+  }
+  if (wait_s > 0) {
+    std::ostringstream line;
+    line << "waiting up to " << wait_s << " s for the server to acknowledge " << outbox.size()
+         << " messages (" << outbox.Unacknowledged() << "; a second signal ends the wait)";
+    LogInfo(line.str());
+    loop->StopOnSignals(
+        [](int number) { LogWarning("signal " + std::to_string(number) + ": not waiting"); });
+    const auto start = std::chrono::steady_clock::now();
+    const bool all = loop->RunUntil([&outbox] { return outbox.size() == 0; },
+                                    std::chrono::milliseconds(static_cast<int64_t>(1e3 * wait_s)));
+    if (all) {
+      line.str("");
+      line << "everything published was acknowledged by the server after "
+           << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+           << " s";
+      LogInfo(line.str());
+      return;
+    }
+  }
+  LogWarning("exiting with " + std::to_string(outbox.size()) +
+             " messages the server has not acknowledged: " + outbox.Unacknowledged());
 }
 
 int Main(int argc, char** argv) {
@@ -120,6 +163,17 @@ int Main(int argc, char** argv) {
   }
   std::unique_ptr<LcmLoop> loop = std::move(*created);
   LcmLoop* bus = loop.get();
+  if (!options.outbox.spill_dir.empty()) {
+    // A folder that cannot take the spill file is said now, not when the server has been
+    // away long enough to need it.
+    if (Result<std::unique_ptr<SpillFile>> probe = SpillFile::Create(options.outbox.spill_dir);
+        !probe.ok()) {
+      LogWarning(probe.status().message() + ": the outbox will not spill (past " +
+                 std::to_string(options.outbox.max_bytes) +
+                 " bytes unacknowledged, the oldest are dropped)");
+      options.outbox.spill_dir.clear();
+    }
+  }
   AgentNode node(options, [bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
     const Status status = bus->Publish(channel, bytes);
     if (!status.ok()) LogWarning(status.message());
@@ -147,10 +201,14 @@ int Main(int argc, char** argv) {
             options.key_file);
     node.EnableAuthentication(std::move(*authenticator));
   }
+  bool stopping = false;
   for (const std::string& channel : node.InputChannels()) {
     const Status status = loop->Subscribe(
         channel,
-        [&node](const std::string& c, const uint8_t* data, size_t size) {
+        [&node, &stopping](const std::string& c, const uint8_t* data, size_t size) {
+          // Stopping: no new keyframes, only the server's acknowledgements and requests.
+          const AgentChannels& channels = node.options().channels;
+          if (stopping && c != channels.acks && c != channels.resend_requests) return;
           node.SetClock(WallUtime());
           node.OnMessage(c, data, size);
         },
@@ -171,6 +229,8 @@ int Main(int argc, char** argv) {
   LogInfo("listening on " + options.channels.odometry + ", " + options.channels.laser + ", " +
           options.channels.encounter);
   loop->Run();
+  stopping = true;
+  WaitForAcknowledgements(options.exit_ack_wait_s, loop.get(), node);
   LogInfo("final: " + node.StatusLine() + " | lcm max burst " +
           std::to_string(bus->stats().max_burst));
   return 0;

@@ -113,13 +113,13 @@ void AgentNode::Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes,
   }
 }
 
-void AgentNode::Resend(const std::vector<const Outbox::Entry*>& entries) {
+void AgentNode::Resend(const std::vector<Outbox::Message>& messages) {
   // Kept unsealed: each (re)send is sealed under a fresh counter, so a resend of a
   // message the server never saw is not a replay.
-  for (const Outbox::Entry* entry : entries) {
-    PublishSealed(entry->kind == StreamKind::kKeyframes ? options_.channels.keyframes
-                                                        : options_.channels.encounters,
-                  entry->bytes);
+  for (const Outbox::Message& message : messages) {
+    PublishSealed(message.kind == StreamKind::kKeyframes ? options_.channels.keyframes
+                                                         : options_.channels.encounters,
+                  message.bytes);
   }
 }
 
@@ -155,7 +155,9 @@ std::string AgentNode::StatusLine() const {
          std::to_string(s.forced_keyframes) + ") encounters relayed " +
          std::to_string(s.encounters_relayed) + " waiting scans " +
          std::to_string(agent_.pending_scans()) + " outbox " + std::to_string(outbox_.size()) +
-         " (" + std::to_string(outbox_.bytes()) + " bytes) acknowledged " +
+         " (" + std::to_string(outbox_.bytes()) + " bytes; spilled " +
+         std::to_string(outbox_.spilled_entries()) + ", " +
+         std::to_string(outbox_.spill_file_bytes()) + " bytes on disk) acknowledged " +
          std::to_string(outbox_.stats().acknowledged) + " resent " +
          std::to_string(outbox_.stats().resent_on_request) + "+" +
          std::to_string(outbox_.stats().resent_on_timeout) + " dropped " +

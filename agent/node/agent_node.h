@@ -58,7 +58,7 @@ class AgentNode {
   // Scans matched and fallen back to odometry, CPU per scan (thread clock), constraints.
   std::string ScanMatchingStatus() const;
   void Send(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes, const std::string& context);
-  void Resend(const std::vector<const Outbox::Entry*>& entries);
+  void Resend(const std::vector<Outbox::Message>& messages);
   // Acknowledgements and resend requests (for this trajectory only).
   void OnDelivery(const std::string& channel, const uint8_t* data, size_t size);
 

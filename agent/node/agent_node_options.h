@@ -26,10 +26,21 @@ struct AgentChannels {
   std::string resend_requests = channels::kResendRequests;  // resend_request_t input
 };
 
+// The daemon's outbox spills past its memory bound to /var/tmp (on disk on Debian, where
+// /tmp may be a tmpfs in memory): a server away for long must not cost keyframes.
+inline OutboxOptions SpillingOutboxOptions() {
+  OutboxOptions options;
+  options.spill_dir = "/var/tmp";
+  return options;
+}
+
 struct AgentNodeOptions {
   AgentOptions agent;
   AgentChannels channels;
-  OutboxOptions outbox;
+  OutboxOptions outbox = SpillingOutboxOptions();
+  // On SIGINT / SIGTERM the agent waits up to this long for the server to acknowledge
+  // what it published before it exits (0: exits at once).
+  double exit_ack_wait_s = 10.0;
   // Keep what is published for resending until acknowledged (off where the bus loses
   // nothing and no server acknowledges: anchormap-replay over memq://).
   bool reliable = true;
@@ -42,6 +53,7 @@ struct AgentNodeOptions {
 
   Status Validate() const {
     if (status_period_s < 0) return Status::Error("status_period_s must be >= 0");
+    if (!(exit_ack_wait_s >= 0)) return Status::Error("exit_ack_wait_s must be >= 0");
     if (Status e = outbox.Validate(); !e.ok()) return e;
     if (!key_id.empty() && key_file.empty()) return Status::Error("--key-id needs --key-file");
     return agent.Validate();

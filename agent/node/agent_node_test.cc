@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include "common/bus/codec.h"
+#include "common/bus/delivery_codec.h"
+#include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
@@ -156,6 +158,64 @@ TEST_F(AgentNodeTest, OwnEncountersAreRelayedWithTheTrajectoryAndForceAKeyframe)
   EXPECT_TRUE(Send("R1_LASER", EncodeLaser(scan)));
   EXPECT_EQ(Keyframes().size(), before + 1);
   EXPECT_EQ(Keyframes().back().utime, 1'105'000);
+}
+
+// The server is away: with a 1 KiB memory bound the agent's outbox spills what it
+// published to a file; when the server asks for everything, all of it goes out again, in
+// order and byte for byte, and its acknowledgement empties outbox and file.
+TEST(AgentNodeSpillTest, ASmallBoundSpillsAndEverythingIsDeliveredInOrderAfterwards) {
+  AgentNodeOptions options;
+  options.agent.robot = "R1";
+  options.agent.trajectory_id = 5;
+  options.agent.keyframer.max_distance_m = 0.45;
+  options.agent.keyframer.max_interval_s = 0;
+  options.agent.scan_matching.enabled = false;
+  options.outbox.max_bytes = 1024;
+  options.outbox.spill_dir = testing::ScratchDir().string();
+  std::vector<std::vector<uint8_t>> sent;
+  AgentNode node(options, [&sent](const std::string& channel, const std::vector<uint8_t>& b) {
+    if (channel == channels::kKeyframes) sent.push_back(b);
+  });
+  for (int64_t t = 0; t <= 30'000'000; t += 20'000) {
+    const auto odometry = EncodeOdometry({t, Pose2(1e-6 * t, 0, 0)});
+    node.OnMessage("R1_ODOMETRY", odometry.data(), odometry.size());
+    if (t % 100'000 == 20'000) {
+      LaserScan scan;
+      scan.utime = t - 15'000;
+      scan.radstep = 0.01f;
+      scan.ranges.assign(90, 4.0f);
+      const auto laser = EncodeLaser(scan);
+      node.OnMessage("R1_LASER", laser.data(), laser.size());
+    }
+  }
+  const size_t published = sent.size();
+  ASSERT_GE(published, 50u);
+  EXPECT_EQ(node.outbox().size(), published);
+  EXPECT_LE(node.outbox().bytes(), 1024u);
+  EXPECT_GE(node.outbox().spilled_entries(), published - 3);
+  EXPECT_EQ(node.outbox().stats().dropped, 0);
+  EXPECT_EQ(node.rejects().total(), 0) << node.rejects().Summary();
+
+  ResendRequest request;
+  request.robot = "R1";
+  request.trajectory_id = 5;
+  request.ranges = {{StreamKind::kKeyframes, 0, static_cast<int32_t>(published) - 1}};
+  auto bytes = EncodeResendRequest(request);
+  node.OnMessage(channels::kResendRequests, bytes.data(), bytes.size());
+  ASSERT_EQ(sent.size(), 2 * published);
+  for (size_t i = 0; i < published; ++i) {
+    ASSERT_EQ(sent[published + i], sent[i]) << "keyframe " << i;
+    EXPECT_EQ(DecodeKeyframe(sent[published + i].data(), sent[published + i].size())->seq,
+              static_cast<int32_t>(i));
+  }
+  DeliveryAck ack;
+  ack.robot = "R1";
+  ack.trajectory_id = 5;
+  ack.keyframes_next = static_cast<int32_t>(published);
+  bytes = EncodeDeliveryAck(ack);
+  node.OnMessage(channels::kAcks, bytes.data(), bytes.size());
+  EXPECT_EQ(node.outbox().size(), 0u);
+  EXPECT_EQ(node.outbox().spill_file_bytes(), 0);
 }
 
 }  // namespace
