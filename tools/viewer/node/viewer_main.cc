@@ -8,6 +8,7 @@
 #include <memory>
 #include <sstream>
 
+#include "common/bus/authenticator.h"
 #include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
@@ -29,6 +30,7 @@ struct ViewerOptions {
   int queue_capacity = 1000;
   int max_tiles = 20000;
   std::string log_level = "info";
+  std::string key_file;
 };
 
 int64_t WallUtime() {
@@ -58,12 +60,37 @@ void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
   l->Add("queue_capacity", "queue-capacity", &o->queue_capacity,
          "LCM receive queue per subscription, messages");
   l->Add("log_level", "log-level", &o->log_level, "debug, info, warning or error");
+  l->Add("key_file", "key-file", &o->key_file,
+         "accept only the server's outputs signed with a key of this file (the server's "
+         "--key-file; empty: unsigned outputs, with a warning)");
   l->Add("channels.merged_map", "merged-map-channel", &o->channels.merged_map,
          "merged_map_t input");
   l->Add("channels.grid_tiles", "grid-tiles-channel", &o->channels.grid_tiles, "grid_tile_t input");
   l->Add("channels.anchor_covariances", "anchor-covariances-channel",
          &o->channels.anchor_covariances, "anchor_covariances_t input");
   l->Add("channels.status", "status-channel", &o->channels.status, "server_status_t input");
+}
+
+// With a key file the viewer checks the server's signature on every output (like the
+// server checks the agents'); without, it warns: anyone on the network could draw a map.
+Status SetUpAuthentication(const std::string& key_file, ViewerNode* node) {
+  if (key_file.empty()) {
+    LogWarning(
+        "no --key-file: the server's outputs are not authenticated; anyone on the "
+        "network can publish a map this viewer draws");
+    return Status::Ok();
+  }
+  Result<KeyRing> keys = LoadKeyFile(key_file);
+  if (!keys.ok()) return keys.status();
+  AuthenticatorOptions auth;
+  auth.sender = "viewer";  // (it never signs)
+  const size_t count = keys->keys.size();
+  Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+  if (!authenticator.ok()) return authenticator.status();
+  LogInfo("authentication on: the server's outputs are checked against " + std::to_string(count) +
+          " key(s) from " + key_file);
+  node->RequireAuthentication(std::move(*authenticator));
+  return Status::Ok();
 }
 
 int Run(const ViewerOptions& options) {
@@ -79,6 +106,10 @@ int Run(const ViewerOptions& options) {
   state_options.max_tiles = options.max_tiles;
   ViewerState state(state_options);
   ViewerNode node(options.channels, &state);
+  if (Status s = SetUpAuthentication(options.key_file, &node); !s.ok()) {
+    LogError(s.message());
+    return 1;
+  }
   std::unique_ptr<WebServer> web;
   auto push = [&state, &web] {
     if (!state.HasChanges()) return;

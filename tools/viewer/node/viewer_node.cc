@@ -1,6 +1,7 @@
 #include "tools/viewer/node/viewer_node.h"
 
 #include <utility>
+#include <vector>
 
 #include "common/bus/map_codec.h"
 
@@ -20,9 +21,27 @@ const T* Accept(const Result<T>& decoded, const std::string& channel, RejectCoun
 ViewerNode::ViewerNode(ViewerChannels channels, ViewerState* state)
     : channels_(std::move(channels)), state_(state) {}
 
+void ViewerNode::RequireAuthentication(Authenticator authenticator) {
+  authenticator_.emplace(std::move(authenticator));
+}
+
 bool ViewerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size,
                            int64_t wall_utime) {
+  const bool known = channel == channels_.merged_map || channel == channels_.grid_tiles ||
+                     channel == channels_.anchor_covariances || channel == channels_.status;
+  if (!known) return false;
   ++messages_;
+  std::vector<uint8_t> opened;
+  if (authenticator_) {
+    Result<std::vector<uint8_t>> payload = authenticator_->Open(channel, data, size);
+    if (!payload.ok()) {
+      rejections_.Count(payload.status(), channel);
+      return false;
+    }
+    opened = std::move(*payload);
+    data = opened.data();
+    size = opened.size();
+  }
   if (channel == channels_.merged_map) {
     const auto decoded = DecodeMergedMap(data, size);
     const MergedMap* map = Accept(decoded, channel, &rejections_);
@@ -43,8 +62,7 @@ bool ViewerNode::OnMessage(const std::string& channel, const uint8_t* data, size
     const ServerStatus* status = Accept(decoded, channel, &rejections_);
     return status && state_->ApplyStatus(*status, wall_utime);
   }
-  --messages_;
-  return false;
+  return false;  // (not reached: `known` above)
 }
 
 }  // namespace anchormap::viewer

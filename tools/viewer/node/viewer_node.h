@@ -5,8 +5,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
+#include "common/bus/authenticator.h"
 #include "common/bus/channels.h"
 #include "common/util/reject_counter.h"
 #include "tools/viewer/viewer_state.h"
@@ -23,6 +25,11 @@ struct ViewerChannels {
 class ViewerNode {
  public:
   ViewerNode(ViewerChannels channels, ViewerState* state);
+  // From now on every message must be sealed by the server under one of `authenticator`'s
+  // keys (anchormap-server --key-file signs its outputs): a forged map, a replayed or
+  // unsigned one is refused and counted (unsigned, unknown_key, bad_tag, replay) instead of
+  // drawn.
+  void RequireAuthentication(Authenticator authenticator);
   // Decodes and applies one message; false when refused (counted) or on another channel.
   bool OnMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_utime);
   const ViewerChannels& channels() const { return channels_; }
@@ -34,6 +41,7 @@ class ViewerNode {
   ViewerState* state_;
   RejectCounter rejections_;
   int64_t messages_ = 0;
+  std::optional<Authenticator> authenticator_;
 };
 
 }  // namespace anchormap::viewer
