@@ -7,7 +7,9 @@
 //   --map OUT.lcmlog --reference REF.lcmlog [--tolerance 1e-9] [--instances N]
 // Also prints the last server_status_t of --map (bridged gaps, resend requests, refusals)
 // and fails when it counts bridged gaps; with --instances N (crash_test.sh), fails unless
-// --map's status messages carry N distinct server instance ids (N server processes).
+// --map's status messages carry N distinct server instance ids (N server processes); with
+// --trajectories N (agent_restart_test.sh), fails unless --map's merged map holds N
+// trajectories, every one of them anchored (joined to the others by an encounter).
 // Exit 0 equal, 1 different, 2 usage.
 
 #include <cmath>
@@ -94,6 +96,7 @@ int Main(int argc, char** argv) {
   std::string map_path, reference_path;
   double tolerance = 1e-9;
   int instances = 0;
+  int trajectories = 0;
   OptionsLoader loader("anchormap-test-compare-maps", "--map OUT.lcmlog --reference REF.lcmlog",
                        "Compares the last merged maps of two server output logs.");
   loader.Add("map", "map", &map_path, "server outputs to check", true);
@@ -101,6 +104,8 @@ int Main(int argc, char** argv) {
   loader.Add("tolerance", "tolerance", &tolerance, "pose tolerance (m, rad)");
   loader.Add("instances", "instances", &instances,
              "server instance ids expected in --map's status messages (0 = not checked)");
+  loader.Add("trajectories", "trajectories", &trajectories,
+             "trajectories expected in --map's merged map, all anchored (0 = not checked)");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   const auto got = ReadLast(map_path);
@@ -131,6 +136,20 @@ int Main(int argc, char** argv) {
   if (instances > 0 && static_cast<int>(got->instance_ids.size()) != instances) {
     std::cout << "compare-maps: expected " << instances << " server instances\n";
     ok = false;
+  }
+  if (trajectories > 0) {
+    int anchored = 0;
+    for (const MergedTrajectory& t : got->map->trajectories) {
+      anchored += t.anchored ? 1 : 0;
+      std::cout << "compare-maps: trajectory " << t.robot << " " << t.trajectory_id << ": "
+                << t.poses.size() << " keyframes, " << (t.anchored ? "anchored" : "NOT anchored")
+                << "\n";
+    }
+    if (static_cast<int>(got->map->trajectories.size()) != trajectories ||
+        anchored != trajectories) {
+      std::cout << "compare-maps: expected " << trajectories << " trajectories, all anchored\n";
+      ok = false;
+    }
   }
   const Index g = Build(*got->map);
   const Index w = Build(*want->map);

@@ -89,8 +89,8 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("channels.resend_requests", "resend-requests-channel", &node->channels.resend_requests,
          "resend_request_t input (the server asks for missing keyframes / encounters)");
   l->Add("outbox.max_bytes", "outbox-max-bytes", &node->outbox.max_bytes,
-         "bytes of unacknowledged keyframes / encounters kept for resending; past it the "
-         "oldest are dropped and counted (queue_full)");
+         "bytes of unacknowledged keyframes / encounters kept in memory for resending; past "
+         "it the oldest spill to --outbox-spill-dir");
   l->Add("outbox.spill_dir", "outbox-spill-dir", &node->outbox.spill_dir,
          "past --outbox-max-bytes the oldest unacknowledged messages go to a scratch file in "
          "this folder (unlinked at once: nothing is left behind) and are read back for resends "
