@@ -156,7 +156,9 @@ std::string AgentNode::StatusLine() const {
          std::to_string(s.encounters_relayed) + " waiting scans " +
          std::to_string(agent_.pending_scans()) + " outbox " + std::to_string(outbox_.size()) +
          " (" + std::to_string(outbox_.bytes()) + " bytes; spilled " +
-         std::to_string(outbox_.spilled_entries()) + ", " +
+         std::to_string(outbox_.spilled_entries()) + " (" +
+         std::to_string(outbox_.stats().spilled) + " in all, " +
+         std::to_string(outbox_.stats().read_back) + " read back), " +
          std::to_string(outbox_.spill_file_bytes()) + " bytes on disk) acknowledged " +
          std::to_string(outbox_.stats().acknowledged) + " resent " +
          std::to_string(outbox_.stats().resent_on_request) + "+" +
