@@ -19,6 +19,10 @@ inline constexpr char kLaserMountSuffix[] = "_LASER_MOUNT";
 // utime field is the shift in microseconds added to the log's times (log time = message time -
 // shift), so that anchormap-eval maps times back to the relations' clock. Eval only.
 inline constexpr char kClockShiftSuffix[] = "_CLOCK_SHIFT";
+// anchormap-import-carmen, one bot_core.pose_t per scan whose stamp in the log stepped back and
+// was repaired: utime is the scan's time in the log written, pos[0] the log's stamp minus the
+// repaired time in microseconds, so that anchormap-eval finds the relations' scans. Eval only.
+inline constexpr char kTimeRepairSuffix[] = "_TIME_REPAIR";
 inline std::string Odometry(const std::string& robot) { return robot + kOdometrySuffix; }
 inline std::string Laser(const std::string& robot) { return robot + kLaserSuffix; }
 inline std::string Encounter(const std::string& robot) { return robot + kEncounterSuffix; }
@@ -26,6 +30,7 @@ inline std::string GroundTruth(const std::string& robot) { return robot + kGroun
 inline std::string Reference(const std::string& robot) { return robot + kReferenceSuffix; }
 inline std::string LaserMount(const std::string& robot) { return robot + kLaserMountSuffix; }
 inline std::string ClockShift(const std::string& robot) { return robot + kClockShiftSuffix; }
+inline std::string TimeRepair(const std::string& robot) { return robot + kTimeRepairSuffix; }
 
 // Agents -> server.
 inline constexpr char kKeyframes[] = "ANCHORMAP_KEYFRAMES";    // keyframe_t

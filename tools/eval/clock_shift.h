@@ -8,10 +8,12 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "common/types/stamped_pose2.h"
 #include "common/util/status.h"
 #include "tools/eval/eval_inputs.h"
+#include "tools/eval/relations.h"
 
 namespace anchormap {
 
@@ -23,5 +25,17 @@ Status ReadClockShifts(const std::string& path, std::map<std::string, int64_t>* 
 // poses in `odometry_by_robot` (may be null). Robots without a shift are left alone.
 void ShiftToLogClock(const std::map<std::string, int64_t>& shift_by_robot, MapEstimate* estimate,
                      std::map<std::string, StampedTrajectory>* odometry_by_robot);
+
+// The scans anchormap-import-carmen re-timed because their stamps stepped back in the log
+// (<R>_TIME_REPAIR, tools/import_carmen RepairedLaserTimes): the log's stamp -> the repaired
+// time, both on the log's clock (each robot's shift taken off). Empty for a log without.
+Status ReadTimeRepairs(const std::string& path,
+                       const std::map<std::string, int64_t>& shift_by_robot,
+                       std::map<int64_t, int64_t>* repaired_by_stamp);
+
+// Moves each relation end stamped exactly (to the microsecond) like a re-timed scan to that
+// scan's repaired time; returns how many ends moved.
+int64_t ApplyTimeRepairs(const std::map<int64_t, int64_t>& repaired_by_stamp,
+                         std::vector<Relation>* relations);
 
 }  // namespace anchormap

@@ -60,5 +60,35 @@ TEST(ClockShiftTest, ReadsShiftsAndMovesEstimateAndOdometryBack) {
   std::filesystem::remove(path);
 }
 
+TEST(ClockShiftTest, TimeRepairsMoveTheRelationsOfReTimedScans) {
+  const std::string path = ::anchormap::testing::ScratchPath("am_time_repair.lcmlog");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(path).ok());
+    ASSERT_TRUE(writer.Write("R2_CLOCK_SHIFT", 100, PoseMessage(-5'000'000)).ok());
+    bot_core::pose_t repair = PoseMessage(1'500'000);  // R1: stamped 0.1 s, repaired 1.5 s
+    repair.pos[0] = -1'400'000.0;
+    ASSERT_TRUE(writer.Write("R1_TIME_REPAIR", 1'500'000, repair).ok());
+    repair = PoseMessage(2'000'000);  // R2, shifted by -5 s: stamped 6.5 s, repaired 7.0 s
+    repair.pos[0] = -500'000.0;
+    ASSERT_TRUE(writer.Write("R2_TIME_REPAIR", 2'000'000, repair).ok());
+    writer.Close();
+  }
+  std::map<std::string, int64_t> shifts;
+  ASSERT_TRUE(ReadClockShifts(path, &shifts).ok());
+  std::map<int64_t, int64_t> repaired_by_stamp;
+  ASSERT_TRUE(ReadTimeRepairs(path, shifts, &repaired_by_stamp).ok());
+  EXPECT_EQ(repaired_by_stamp,
+            (std::map<int64_t, int64_t>{{100'000, 1'500'000}, {6'500'000, 7'000'000}}));
+  std::vector<Relation> relations = {
+      {0.1, 6.5, Pose2()}, {0.100001, 3.0, Pose2()}, {6.5, 0.1, Pose2()}};
+  EXPECT_EQ(ApplyTimeRepairs(repaired_by_stamp, &relations), 4);
+  EXPECT_DOUBLE_EQ(relations[0].t1_s, 1.5);
+  EXPECT_DOUBLE_EQ(relations[0].t2_s, 7.0);
+  EXPECT_DOUBLE_EQ(relations[1].t1_s, 0.100001);  // another scan: not moved
+  EXPECT_DOUBLE_EQ(relations[2].t2_s, 1.5);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace anchormap

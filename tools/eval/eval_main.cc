@@ -7,6 +7,7 @@
 // --map and --truth also accept TUM trajectory files. Exit status: 0 done, 1 bad input or
 // nothing could be evaluated, 2 bad command line.
 
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <string>
@@ -45,6 +46,7 @@ int main(int argc, char** argv) {
   std::string map_channel = channels::kMergedMap;
   RelationsOptions relations_options;
   bool json = false;
+  std::string relation_errors_path, estimate_path;
   po::options_description visible("Options");
   visible.add_options()("help,h", "print this help and exit")(
       "map", po::value(&map_path), "the estimate: server output LCM log or TUM file (required)")(
@@ -64,7 +66,13 @@ int main(int argc, char** argv) {
       "nearest keyframe plus the odometry motion since it, instead of keyframes only; its "
       "<R>_CLOCK_SHIFT messages (anchormap-import-carmen --simultaneous) map the robots' times "
       "back to the relations' clock")("json", po::bool_switch(&json),
-                                      "print one JSON object instead of a table");
+                                      "print one JSON object instead of a table")(
+      "relation-errors", po::value(&relation_errors_path),
+      "relations: also write each evaluated relation's errors to this file, one a line "
+      "\"t1 t2 distance_m translation_error_m rotation_error_rad\" (where the error comes from)")(
+      "write-estimate", po::value(&estimate_path),
+      "relations: also write the poses the relations were evaluated on, one a line \"t x y "
+      "theta frame\" (keyframes, or keyframes and completed poses with --odometry)");
   po::variables_map vm;
   try {
     po::store(po::command_line_parser(argc, argv).options(visible).run(), vm);
@@ -130,6 +138,11 @@ int main(int argc, char** argv) {
       return Fail(s.message(), 1);
     }
     ShiftToLogClock(shift_by_robot, &estimate, &odometry_by_robot);
+    std::map<int64_t, int64_t> repaired_by_stamp;
+    if (Status s = ReadTimeRepairs(odometry_path, shift_by_robot, &repaired_by_stamp); !s.ok()) {
+      return Fail(s.message(), 1);
+    }
+    ApplyTimeRepairs(repaired_by_stamp, &relations);
     completion.odometry_by_robot = &odometry_by_robot;
     completion.relations = &relations;
     completion.max_time_gap_s = relations_options.max_time_gap_s;
@@ -147,7 +160,29 @@ int main(int argc, char** argv) {
   report.map_update = estimate.update;
   report.estimate_poses = static_cast<int64_t>(relations_estimate.poses.size());
   report.max_time_gap_s = relations_options.max_time_gap_s;
-  report.result = EvaluateRelations(relations, relations_estimate, relations_options);
+  if (!estimate_path.empty()) {
+    std::ofstream out(estimate_path);
+    out.precision(10);
+    const StampedTrajectory& poses = relations_estimate.poses;
+    for (size_t i = 0; i < poses.size(); ++i) {
+      out << 1e-6 * static_cast<double>(poses[i].utime) << ' ' << poses[i].pose.x() << ' '
+          << poses[i].pose.y() << ' ' << poses[i].pose.theta() << ' '
+          << (relations_estimate.frame_ids.empty() ? 0 : relations_estimate.frame_ids[i]) << '\n';
+    }
+    if (!out) return Fail("cannot write " + estimate_path, 1);
+  }
+  std::vector<RelationError> per_relation;
+  report.result = EvaluateRelations(relations, relations_estimate, relations_options,
+                                    relation_errors_path.empty() ? nullptr : &per_relation);
+  if (!relation_errors_path.empty()) {
+    std::ofstream out(relation_errors_path);
+    out.precision(10);
+    for (const RelationError& e : per_relation) {
+      out << e.t1_s << ' ' << e.t2_s << ' ' << e.distance_m << ' ' << e.translation_m << ' '
+          << e.rotation_rad << '\n';
+    }
+    if (!out) return Fail("cannot write " + relation_errors_path, 1);
+  }
   report.odometry_path = odometry_path;
   report.completed_trajectories = completed_trajectories;
   std::cout << (json ? FormatRelationsJson(report) : FormatRelationsTable(report));

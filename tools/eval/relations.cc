@@ -66,7 +66,8 @@ Status RelationsOptions::Validate() const {
 
 RelationsResult EvaluateRelations(const std::vector<Relation>& relations,
                                   const RelationsEstimate& estimate,
-                                  const RelationsOptions& options) {
+                                  const RelationsOptions& options,
+                                  std::vector<RelationError>* per_relation) {
   RelationsResult result;
   result.relations = static_cast<int64_t>(relations.size());
   const StampedTrajectory& poses = estimate.poses;
@@ -93,6 +94,10 @@ RelationsResult EvaluateRelations(const std::vector<Relation>& relations,
     const Pose2 estimated = Between(poses[i1].pose, poses[i2].pose);
     translation_errors.push_back((estimated.translation() - relation.T_1_2.translation()).norm());
     rotation_errors.push_back(std::abs(AngleDifference(estimated.theta(), relation.T_1_2.theta())));
+    if (per_relation != nullptr) {
+      per_relation->push_back({relation.t1_s, relation.t2_s, relation.T_1_2.translation().norm(),
+                               translation_errors.back(), rotation_errors.back()});
+    }
   }
   result.evaluated = static_cast<int64_t>(translation_errors.size());
   for (size_t i = 0; i < translation_errors.size(); ++i) {

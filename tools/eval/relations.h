@@ -62,9 +62,20 @@ struct RelationsResult {
   double rotation_sq_mean_rad2 = 0.0;
 };
 
+// One evaluated relation's errors, to find where in a run the error comes from.
+struct RelationError {
+  double t1_s = 0.0;
+  double t2_s = 0.0;
+  double distance_m = 0.0;  // the reference relation's length
+  double translation_m = 0.0;
+  double rotation_rad = 0.0;
+};
+
 // Evaluates every relation once. Costs O(r log n) for r relations and n poses.
+// With `per_relation`, each evaluated relation's errors are appended to it, in input order.
 RelationsResult EvaluateRelations(const std::vector<Relation>& relations,
                                   const RelationsEstimate& estimate,
-                                  const RelationsOptions& options);
+                                  const RelationsOptions& options,
+                                  std::vector<RelationError>* per_relation = nullptr);
 
 }  // namespace anchormap

@@ -65,7 +65,19 @@ TEST(EvaluateRelationsTest, HandComputedTinyCase) {
   // Times 0.04 s off still match the default 0.05 s tolerance.
   std::vector<Relation> shifted = relations;
   shifted[0].t1_s = 1.04;
-  const RelationsResult r = EvaluateRelations(shifted, estimate, RelationsOptions());
+  std::vector<RelationError> per_relation;
+  const RelationsResult r = EvaluateRelations(shifted, estimate, RelationsOptions(), &per_relation);
+  // Each evaluated relation's own errors, in input order: (1,2) 0.1 m, (2,3) 0.3 m, (1,3) 0.5 m.
+  ASSERT_EQ(per_relation.size(), 3u);
+  EXPECT_DOUBLE_EQ(per_relation[0].t1_s, 1.04);
+  EXPECT_NEAR(per_relation[0].distance_m, 1.1, 1e-12);
+  EXPECT_NEAR(per_relation[0].translation_m, 0.1, 1e-12);
+  EXPECT_NEAR(per_relation[1].translation_m, 0.3, 1e-12);
+  EXPECT_NEAR(per_relation[2].t2_s, 3.0, 1e-12);
+  EXPECT_NEAR(per_relation[2].translation_m, 0.5, 1e-12);
+  EXPECT_NEAR(
+      per_relation[0].rotation_rad + per_relation[1].rotation_rad + per_relation[2].rotation_rad,
+      0.6, 1e-12);
   EXPECT_EQ(r.relations, 7);
   EXPECT_EQ(r.evaluated, 3);
   EXPECT_EQ(r.skipped_outside_span, 2);

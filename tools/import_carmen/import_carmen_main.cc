@@ -70,9 +70,10 @@ void PrintSummary(const std::string& input, const std::string& output,
   std::printf(")\n");
   std::printf(
       "  time         %.6f .. %.6f s, duration %.3f s; steps back in file order: "
-      "ODOM %lld, laser %lld\n",
+      "ODOM %lld, laser %lld; scan times repaired %lld (file order is the true order)\n",
       1e-6 * split.first_utime, 1e-6 * split.last_utime, split.duration_s(),
-      (long long)s.odometry_steps_back, (long long)s.laser_steps_back);
+      (long long)s.odometry_steps_back, (long long)s.laser_steps_back,
+      (long long)split.repaired_scan_times);
   const Pose2 mounting = EstimateLaserMounting(contents);
   std::printf(
       "  odometry     from %s; laser pose in the body frame (median over scans): "

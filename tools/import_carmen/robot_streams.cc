@@ -36,6 +36,7 @@ void ShiftPiecesToStartTogether(std::vector<RobotStream>* robots) {
     for (RobotOdometrySample& sample : robot.odometry) sample.utime += robot.time_shift_us;
     for (RobotScan& scan : robot.scans) scan.utime += robot.time_shift_us;
     for (StampedPose2& pose : robot.reference) pose.utime += robot.time_shift_us;
+    for (RobotStream::TimeRepair& repair : robot.time_repairs) repair.utime += robot.time_shift_us;
   }
 }
 
@@ -73,6 +74,35 @@ std::vector<std::string> PieceRobotNames(const std::string& robot, int count) {
   return names;
 }
 
+std::vector<int64_t> RepairedLaserTimes(const std::vector<CarmenLaser>& lasers, int64_t* repaired) {
+  *repaired = 0;
+  std::vector<int64_t> utimes(lasers.size());
+  size_t i = 0;
+  while (i < lasers.size()) {
+    const int64_t stamped = SecondsToUtime(lasers[i].ipc_time_s);
+    if (i == 0 || stamped > utimes[i - 1]) {
+      utimes[i] = stamped;
+      ++i;
+      continue;
+    }
+    // A run [i, end) stamped at or before the last good time; `end` is stamped after it.
+    const int64_t last_good = utimes[i - 1];
+    size_t end = i;
+    while (end < lasers.size() && SecondsToUtime(lasers[end].ipc_time_s) <= last_good) ++end;
+    const int64_t run = static_cast<int64_t>(end - i);
+    const int64_t span =
+        end < lasers.size() ? SecondsToUtime(lasers[end].ipc_time_s) - last_good : run + 1;
+    for (int64_t k = 0; k < run; ++k) {
+      // Evenly inside (last_good, next): at least 1 us apart when the span is tiny.
+      utimes[i + static_cast<size_t>(k)] =
+          last_good + std::max<int64_t>(k + 1, span * (k + 1) / (run + 1));
+    }
+    *repaired += run;
+    i = end;
+  }
+  return utimes;
+}
+
 Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOptions& options,
                          std::vector<RobotStream>* robots, SplitSummary* summary) {
   if (Status s = options.Validate(); !s.ok()) return s;
@@ -81,9 +111,15 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
 
   // Odometry in the log's frame, sorted by time; std::stable_sort keeps file order for ties.
   OdometrySource source = options.odometry_source;
+  int64_t repaired = 0;
+  const std::vector<int64_t> laser_utimes = RepairedLaserTimes(contents.lasers, &repaired);
   if (source == OdometrySource::kAuto) {
-    source = contents.odometry.empty() ? OdometrySource::kLaserLines : OdometrySource::kOdomLines;
+    // The ODOM lines' stamps step back with the lasers' and cannot be put in order against
+    // them; the laser lines' own odometry poses sit exactly at the repaired scan times.
+    source = contents.odometry.empty() || repaired > 0 ? OdometrySource::kLaserLines
+                                                       : OdometrySource::kOdomLines;
   }
+  summary->repaired_scan_times = repaired;
   summary->odometry_source_used = source;
   std::vector<RobotOdometrySample> odometry;
   if (source == OdometrySource::kOdomLines) {
@@ -91,8 +127,9 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
       odometry.push_back({SecondsToUtime(o.ipc_time_s), o.pose, o.tv_mps, o.rv_radps});
     }
   } else {
-    for (const CarmenLaser& l : contents.lasers) {
-      odometry.push_back({SecondsToUtime(l.ipc_time_s), l.robot_pose, l.tv_mps, l.rv_radps});
+    for (size_t i = 0; i < contents.lasers.size(); ++i) {
+      const CarmenLaser& l = contents.lasers[i];
+      odometry.push_back({laser_utimes[i], l.robot_pose, l.tv_mps, l.rv_radps});
     }
   }
   const auto by_time = [](const auto& a, const auto& b) { return a.utime < b.utime; };
@@ -100,9 +137,8 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
 
   std::vector<size_t> scan_order(contents.lasers.size());
   std::iota(scan_order.begin(), scan_order.end(), 0);
-  std::stable_sort(scan_order.begin(), scan_order.end(), [&](size_t a, size_t b) {
-    return contents.lasers[a].ipc_time_s < contents.lasers[b].ipc_time_s;
-  });
+  std::stable_sort(scan_order.begin(), scan_order.end(),
+                   [&](size_t a, size_t b) { return laser_utimes[a] < laser_utimes[b]; });
 
   if (odometry.empty()) {
     return Status::Error(source == OdometrySource::kOdomLines
@@ -111,8 +147,8 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
   }
   if (scan_order.empty()) return Status::Error("the log has no FLASER or ROBOTLASER1 lines");
 
-  const int64_t first_scan = SecondsToUtime(contents.lasers[scan_order.front()].ipc_time_s);
-  const int64_t last_scan = SecondsToUtime(contents.lasers[scan_order.back()].ipc_time_s);
+  const int64_t first_scan = laser_utimes[scan_order.front()];
+  const int64_t last_scan = laser_utimes[scan_order.back()];
   summary->first_utime = std::min(odometry.front().utime, first_scan);
   summary->last_utime = std::max(odometry.back().utime, last_scan);
   const int pieces = options.split;
@@ -145,7 +181,7 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
   }
   for (size_t index : scan_order) {
     const CarmenLaser& laser = contents.lasers[index];
-    const int64_t utime = SecondsToUtime(laser.ipc_time_s);
+    const int64_t utime = laser_utimes[index];
     const int k = piece_of(utime);
     if (k < 0) {
       ++summary->dropped_scans;
@@ -159,6 +195,8 @@ Status BuildRobotStreams(const CarmenLogContents& contents, const CarmenImportOp
     scan.intensities = laser.remissions;
     (*robots)[k].scans.push_back(std::move(scan));
     (*robots)[k].reference.push_back({utime, laser.laser_pose});
+    const int64_t stamped = SecondsToUtime(laser.ipc_time_s);
+    if (stamped != utime) (*robots)[k].time_repairs.push_back({utime, stamped - utime});
   }
 
   const Pose2 T_body_laser = EstimateLaserMounting(contents);

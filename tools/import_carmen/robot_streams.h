@@ -25,7 +25,9 @@
 namespace anchormap {
 
 enum class OdometrySource {
-  kAuto,        // ODOM lines when the log has any, otherwise the laser lines' robot poses
+  // ODOM lines when the log has any and its laser lines' times never step back in file order,
+  // otherwise the laser lines' robot poses (see RepairedLaserTimes)
+  kAuto,
   kOdomLines,   // the ODOM lines
   kLaserLines,  // the odom_x odom_y odom_theta fields of the laser lines
 };
@@ -77,6 +79,14 @@ struct RobotStream {
   int64_t time_shift_us = 0;
   // The laser's pose in the robot body frame (EstimateLaserMounting).
   Pose2 T_body_laser;
+  // Scans whose log time stepped back in file order and was repaired (RepairedLaserTimes):
+  // `utime` is the scan's time here (shifted like the rest), `stamped_minus_repaired_us` what
+  // the log stamped minus the repaired time, so that anchormap-eval finds the relations' scans.
+  struct TimeRepair {
+    int64_t utime = 0;
+    int64_t stamped_minus_repaired_us = 0;
+  };
+  std::vector<TimeRepair> time_repairs;
 };
 
 struct SplitSummary {
@@ -87,6 +97,7 @@ struct SplitSummary {
   int64_t gap_us = 0;
   int64_t dropped_odometry = 0;  // inside the gaps
   int64_t dropped_scans = 0;
+  int64_t repaired_scan_times = 0;  // laser lines whose time stepped back (RepairedLaserTimes)
   double duration_s() const { return 1e-6 * static_cast<double>(last_utime - first_utime); }
 };
 
@@ -95,6 +106,14 @@ int64_t SecondsToUtime(double seconds);
 
 // The robot names of `count` pieces made from `robot` (see CarmenImportOptions::robot).
 std::vector<std::string> PieceRobotNames(const std::string& robot, int count);
+
+// The laser lines' times in microseconds, in file order, made strictly increasing. Some logs
+// (Intel) have runs of lines stamped up to a second earlier than the line before them although
+// their odometry poses continue the motion in file order: file order is the true order, the
+// stamps are wrong. A run of lines stamped before the last good one gets times spread evenly
+// between that line and the next line stamped after it (1 us apart after the last good one at
+// the log's end); *repaired counts them. The relations files name scans by their stamps.
+std::vector<int64_t> RepairedLaserTimes(const std::vector<CarmenLaser>& lasers, int64_t* repaired);
 
 // Builds one stream per robot. Fails when the log has no odometry or no scans, or when a piece
 // ends up without odometry (a gap too large for the log).

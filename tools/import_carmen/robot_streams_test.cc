@@ -142,19 +142,56 @@ TEST(RobotStreamsTest, DefaultGapIsTwoPercentOfTheDuration) {
   EXPECT_EQ(summary.dropped_scans, 3);
 }
 
-TEST(RobotStreamsTest, SortsByTimeAndKeepsFileOrderForTies) {
+TEST(RobotStreamsTest, SortsOdometryByTimeAndKeepsFileOrderForTies) {
   CarmenLogContents contents = MakeLog();
   std::swap(contents.odometry[10], contents.odometry[11]);  // 1.1 s logged before 1.0 s
-  contents.lasers[3].ipc_time_s = 0.1;                      // a late line with an early time
   std::vector<RobotStream> robots;
   SplitSummary summary;
   ASSERT_TRUE(BuildRobotStreams(contents, CarmenImportOptions(), &robots, &summary).ok());
+  EXPECT_EQ(summary.odometry_source_used, OdometrySource::kOdomLines);
   for (size_t i = 1; i < robots[0].odometry.size(); ++i) {
     ASSERT_LT(robots[0].odometry[i - 1].utime, robots[0].odometry[i].utime) << i;
   }
-  EXPECT_EQ(robots[0].scans[1].utime, 100000);
-  EXPECT_EQ(robots[0].reference[1].utime, 100000);
-  EXPECT_NEAR(robots[0].reference[1].pose.x(), PathAt(1.5).x() + 1.0, 1e-12);
+  EXPECT_TRUE(robots[0].time_repairs.empty());
+}
+
+TEST(RobotStreamsTest, LaserTimesSteppingBackAreRepairedInFileOrder) {
+  // Like the Intel log: lines 3 and 4 (at 1.5 s and 2.0 s) stamped 1.4 s and 1.1 s earlier
+  // although their poses continue the motion; they are spread evenly between 1.0 s and 2.5 s.
+  CarmenLogContents contents = MakeLog();
+  contents.lasers[3].ipc_time_s = 0.1;
+  contents.lasers[4].ipc_time_s = 0.9;
+  int64_t repaired = 0;
+  const std::vector<int64_t> utimes = RepairedLaserTimes(contents.lasers, &repaired);
+  EXPECT_EQ(repaired, 2);
+  ASSERT_EQ(utimes.size(), 181u);
+  EXPECT_EQ(utimes[2], 1'000'000);
+  EXPECT_EQ(utimes[3], 1'500'000);
+  EXPECT_EQ(utimes[4], 2'000'000);
+  EXPECT_EQ(utimes[5], 2'500'000);
+
+  // The streams: scans in file order at the repaired times, odometry from the laser lines (the
+  // ODOM lines' stamps cannot be ordered against them), the repairs recorded for eval.
+  std::vector<RobotStream> robots;
+  SplitSummary summary;
+  ASSERT_TRUE(BuildRobotStreams(contents, CarmenImportOptions(), &robots, &summary).ok());
+  EXPECT_EQ(summary.repaired_scan_times, 2);
+  EXPECT_EQ(summary.odometry_source_used, OdometrySource::kLaserLines);
+  ASSERT_EQ(robots[0].odometry.size(), 181u);
+  EXPECT_EQ(robots[0].odometry[3].utime, 1'500'000);
+  EXPECT_DOUBLE_EQ(robots[0].odometry[3].pose.x(), PathAt(1.5).x());
+  EXPECT_EQ(robots[0].scans[4].utime, 2'000'000);
+  EXPECT_NEAR(robots[0].reference[4].pose.x(), PathAt(2.0).x() + 1.0, 1e-12);
+  ASSERT_EQ(robots[0].time_repairs.size(), 2u);
+  EXPECT_EQ(robots[0].time_repairs[0].utime, 1'500'000);
+  EXPECT_EQ(robots[0].time_repairs[0].stamped_minus_repaired_us, -1'400'000);
+  EXPECT_EQ(robots[0].time_repairs[1].stamped_minus_repaired_us, -1'100'000);
+
+  // A run to the end of the log: 1 us apart after the last good time.
+  contents.lasers[180].ipc_time_s = 1.0;
+  RepairedLaserTimes(contents.lasers, &repaired);
+  EXPECT_EQ(repaired, 3);
+  EXPECT_EQ(RepairedLaserTimes(contents.lasers, &repaired)[180], 89'500'001);
 }
 
 TEST(RobotStreamsTest, OdometryFromLaserLinesWhenTheLogHasNoOdom) {

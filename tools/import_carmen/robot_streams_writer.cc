@@ -26,7 +26,14 @@ Status ValidatePattern(const char* name, const std::string& pattern) {
 }
 
 // At equal times, in this order: a robot's parameters come before its first measurements.
-enum class Kind { kLaserMount = 0, kClockShift = 1, kOdometry = 2, kScan = 3, kReference = 4 };
+enum class Kind {
+  kLaserMount = 0,
+  kClockShift = 1,
+  kOdometry = 2,
+  kScan = 3,
+  kReference = 4,
+  kTimeRepair = 5
+};
 
 int64_t FirstUtime(const RobotStream& robot) {
   int64_t first = robot.odometry.empty() ? 0 : robot.odometry.front().utime;
@@ -106,6 +113,9 @@ Status WriteRobotStreams(const std::vector<RobotStream>& robots, const ImportCha
     for (size_t i = 0; i < robot.reference.size(); ++i) {
       events.push_back({robot.reference[i].utime, Kind::kReference, r, i});
     }
+    for (size_t i = 0; i < robot.time_repairs.size(); ++i) {
+      events.push_back({robot.time_repairs[i].utime, Kind::kTimeRepair, r, i});
+    }
   }
   std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
     if (a.utime != b.utime) return a.utime < b.utime;
@@ -137,6 +147,16 @@ Status WriteRobotStreams(const std::vector<RobotStream>& robots, const ImportCha
         status = writer.Write(channels::ClockShift(robot.robot), event.utime,
                               ToPoseMessage(robot.time_shift_us, Pose2()));
         ++counts->clock_shifts;
+        break;
+      }
+      case Kind::kTimeRepair: {
+        bot_core::pose_t message{};
+        message.utime = event.utime;
+        message.pos[0] =
+            static_cast<double>(robot.time_repairs[event.index].stamped_minus_repaired_us);
+        message.orientation[0] = 1.0;
+        status = writer.Write(channels::TimeRepair(robot.robot), event.utime, message);
+        ++counts->time_repairs;
         break;
       }
       case Kind::kOdometry: {

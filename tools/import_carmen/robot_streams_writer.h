@@ -43,6 +43,7 @@ struct WriteCounts {
   int64_t reference = 0;
   int64_t laser_mounts = 0;
   int64_t clock_shifts = 0;
+  int64_t time_repairs = 0;
 };
 
 // Writes all robots' messages to `path` (truncated), merged in time order; at equal times
