@@ -146,6 +146,8 @@ TEST_F(EvalCliTest, RelationsBetweenKeyframesNeedTheOdometry) {
   const RunResult completed = RunEval(common + " --odometry " + truth_);
   ASSERT_EQ(completed.exit_code, 0) << completed.err;
   EXPECT_NE(completed.out.find("\"completed_trajectories\": 1"), std::string::npos);
+  // No <R>_TIME_REPAIR in that log: no relation end moved.
+  EXPECT_NE(completed.out.find("\"time_repaired_ends\": 0"), std::string::npos);
   EXPECT_NE(completed.out.find("\"translation_m\": {\"count\": 1, \"mean\": 0.2,"),
             std::string::npos)
       << completed.out;

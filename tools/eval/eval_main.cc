@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
   std::map<std::string, StampedTrajectory> odometry_by_robot;
   OdometryCompletion completion;
   int completed_trajectories = 0;
+  int64_t time_repaired_ends = 0;
   if (!odometry_path.empty()) {
     int64_t undecodable = 0;
     if (Status s = ReadPoseChannels(odometry_path, channels::kOdometrySuffix, &odometry_by_robot,
@@ -142,7 +143,7 @@ int main(int argc, char** argv) {
     if (Status s = ReadTimeRepairs(odometry_path, shift_by_robot, &repaired_by_stamp); !s.ok()) {
       return Fail(s.message(), 1);
     }
-    ApplyTimeRepairs(repaired_by_stamp, &relations);
+    time_repaired_ends = ApplyTimeRepairs(repaired_by_stamp, &relations);
     completion.odometry_by_robot = &odometry_by_robot;
     completion.relations = &relations;
     completion.max_time_gap_s = relations_options.max_time_gap_s;
@@ -185,6 +186,7 @@ int main(int argc, char** argv) {
   }
   report.odometry_path = odometry_path;
   report.completed_trajectories = completed_trajectories;
+  report.time_repaired_ends = time_repaired_ends;
   std::cout << (json ? FormatRelationsJson(report) : FormatRelationsTable(report));
   if (report.result.evaluated == 0) return Fail("no relation could be evaluated", 1);
   return 0;

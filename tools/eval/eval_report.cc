@@ -148,7 +148,8 @@ std::string FormatRelationsTable(const RelationsReport& r) {
   if (!r.odometry_path.empty()) {
     text += "poses at the relation times: nearest keyframe + odometry motion from " +
             r.odometry_path + " (" + std::to_string(r.completed_trajectories) +
-            " trajectories completed)\n";
+            " trajectories completed, " + std::to_string(r.time_repaired_ends) +
+            " relation ends moved to re-timed scans)\n";
   }
   return text;
 }
@@ -163,7 +164,8 @@ std::string FormatRelationsJson(const RelationsReport& r) {
       << ", \"max_time_gap_s\": " << Number(r.max_time_gap_s)
       << ", \"odometry\": " << (r.odometry_path.empty() ? "null" : JsonString(r.odometry_path))
       << ", \"completed_trajectories\": " << r.completed_trajectories
-      << ", \"relations\": " << x.relations << ", \"evaluated\": " << x.evaluated
+      << ", \"time_repaired_ends\": " << r.time_repaired_ends << ", \"relations\": " << x.relations
+      << ", \"evaluated\": " << x.evaluated
       << ", \"skipped\": {\"outside_span\": " << x.skipped_outside_span
       << ", \"no_pose_near\": " << x.skipped_no_pose_near
       << ", \"across_frames\": " << x.skipped_across_frames

@@ -41,6 +41,7 @@ struct RelationsReport {
   double max_time_gap_s = 0.0;
   std::string odometry_path;       // "" = keyframes only
   int completed_trajectories = 0;  // trajectories completed with odometry
+  int64_t time_repaired_ends = 0;  // relation ends moved to a re-timed scan (clock_shift.h)
   RelationsResult result;
 };
 
