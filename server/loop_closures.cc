@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
+#include <limits>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -58,12 +61,14 @@ void LoopClosures::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
   while (static_cast<int>(waiting_.size()) > options_.max_waiting) waiting_.pop_front();
 }
 
-void LoopClosures::Poll(int64_t /*now_utime*/, const GraphView& graph, EncounterSourceOutput* out) {
+void LoopClosures::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
+  now_utime_ = std::max(now_utime_, now_utime);
   Examine(graph, out);
 }
 
 void LoopClosures::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
+  UseMatches(now_utime_, /*all=*/true, out);
 }
 
 void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
@@ -75,13 +80,48 @@ void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
       still_waiting.push_back(key);
       continue;
     }
-    ExamineKeyframe(key, graph, out);
+    ExamineKeyframe(key, graph);
+    UseMatches(now_utime_, /*all=*/false, out);
   }
   waiting_ = std::move(still_waiting);
+  UseMatches(now_utime_, /*all=*/false, out);
 }
 
-void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph,
-                                   EncounterSourceOutput* out) {
+void LoopClosures::UseMatches(int64_t now_utime, bool all, EncounterSourceOutput* out) {
+  while (!matches_.empty() && (all || matches_.front().due_utime <= now_utime)) {
+    const PendingMatch pending = std::move(matches_.front());
+    matches_.pop_front();
+    const std::optional<MatchResult> match = pending.result.get();
+    if (!match) {
+      ++stats_.no_match;
+      continue;
+    }
+    if (match->score < options_.min_score || match->overlap < options_.min_overlap) {
+      ++stats_.weak_match;
+      continue;
+    }
+    const Eigen::Matrix3d covariance =
+        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
+    if (Mahalanobis2(pending.predicted.T_a_b, match->pose,
+                     pending.predicted.covariance + covariance) > options_.gate_chi2) {
+      ++stats_.gate_rejected;
+      continue;
+    }
+    ++stats_.accepted;
+    EncounterConstraint constraint;
+    constraint.a = pending.candidate;
+    constraint.b = pending.key;
+    constraint.measured_T_a_b = match->pose;
+    constraint.covariance = covariance;
+    constraint.utime = pending.key_utime;
+    constraint.source = name();
+    constraint.kind = ConstraintKind::kLoopClosure;
+    out->constraints.push_back(constraint);
+    quiet_until_[pending.key.trajectory] = pending.key.index + 1 + options_.cooldown_keyframes;
+  }
+}
+
+void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   Smoother* smoother = graph.covariances;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return;
@@ -130,11 +170,13 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph,
   }
   if (chosen.empty()) return;
 
-  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
+  // The jobs own what they read: the query's points, the submap (immutable once built).
+  const auto query =
+      std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   for (const auto& [j, predicted] : chosen) {
     ++stats_.candidates;
     const PoseKey candidate{key.trajectory, j};
-    const std::unique_ptr<ScanReference> submap =
+    std::shared_ptr<const ScanReference> submap =
         BuildKeyframeSubmap(*record, graph.smoother, candidate, options_.submap_half_width,
                             options_.max_range_m, options_.reference);
     if (!submap) {
@@ -149,33 +191,25 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph,
         std::clamp(3.0 * sigma_xy, options_.min_window_m, options_.max_window_m);
     window.angular_window_rad =
         std::clamp(3.0 * sigma_theta, options_.min_window_rad, options_.max_window_rad);
-    const std::optional<MatchResult> match = MatchLocal(*submap, query, predicted.T_a_b, window);
-    if (!match) {
-      ++stats_.no_match;
-      continue;
+    PendingMatch pending;
+    pending.candidate = candidate;
+    pending.key = key;
+    pending.key_utime = record->utimes[static_cast<size_t>(key.index)];
+    pending.due_utime =
+        pool_ ? schedule_.DueUtime(pending.key_utime) : std::numeric_limits<int64_t>::min();
+    pending.predicted = predicted;
+    const Pose2 guess = predicted.T_a_b;
+    auto job = [submap, query, guess, window] {
+      return MatchLocal(*submap, *query, guess, window);
+    };
+    if (pool_) {
+      pending.result = pool_->Submit(std::move(job));
+    } else {
+      std::promise<std::optional<MatchResult>> done;
+      done.set_value(job());
+      pending.result = done.get_future().share();
     }
-    if (match->score < options_.min_score || match->overlap < options_.min_overlap) {
-      ++stats_.weak_match;
-      continue;
-    }
-    const Eigen::Matrix3d covariance =
-        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
-    if (Mahalanobis2(predicted.T_a_b, match->pose, predicted.covariance + covariance) >
-        options_.gate_chi2) {
-      ++stats_.gate_rejected;
-      continue;
-    }
-    ++stats_.accepted;
-    EncounterConstraint constraint;
-    constraint.a = candidate;
-    constraint.b = key;
-    constraint.measured_T_a_b = match->pose;
-    constraint.covariance = covariance;
-    constraint.utime = record->utimes[static_cast<size_t>(key.index)];
-    constraint.source = name();
-    constraint.kind = ConstraintKind::kLoopClosure;
-    out->constraints.push_back(constraint);
-    quiet_until_[key.trajectory] = key.index + 1 + options_.cooldown_keyframes;
+    matches_.push_back(std::move(pending));
   }
 }
 

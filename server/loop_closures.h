@@ -10,11 +10,16 @@
 //      covariance; a good match has score >= min_score and overlap >= min_overlap;
 //   3. a chi-square gate of the match against the prediction (both covariances) before it
 //      enters the graph as a between factor (kind kLoopClosure).
-// Matching runs on the caller's thread; results are deterministic.
+// Step 2 runs on the MatchPool's workers (or on the caller's thread without a pool); step 3
+// and what follows from it happen when the canonical input reaches the keyframe's time plus
+// the schedule's lag (MatchSchedule), waiting for the match if needed: the results do not
+// depend on thread timing or the number of workers.
 
 #include <cstdint>
 #include <deque>
+#include <future>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "common/scan_matching/correlative_matcher.h"
@@ -22,6 +27,8 @@
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
 #include "server/encounter_source.h"
+#include "server/match_pool.h"
+#include "server/relative_pose.h"
 
 namespace anchormap {
 
@@ -56,22 +63,42 @@ struct LoopClosureOptions {
 
 class LoopClosures : public EncounterSource {
  public:
-  explicit LoopClosures(const LoopClosureOptions& options = {}) : options_(options) {}
+  // Without a pool, matches run on the caller's thread and are used at once (lag 0).
+  explicit LoopClosures(const LoopClosureOptions& options = {}, MatchPool* pool = nullptr,
+                        MatchSchedule schedule = {})
+      : options_(options), pool_(pool), schedule_(schedule) {}
 
   std::string name() const override { return "loop"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
-  size_t pending() const override { return waiting_.size(); }
+  size_t pending() const override { return waiting_.size() + matches_.size(); }
   std::string StatsLine() const override { return stats_.Summary(name()); }
   const CandidateStats& stats() const { return stats_; }
 
  private:
   // Examines the waiting keyframes the smoother has solved.
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
-  void ExamineKeyframe(PoseKey key, const GraphView& graph, EncounterSourceOutput* out);
+  // Chooses the keyframe's candidates and hands their matches to the pool.
+  void ExamineKeyframe(PoseKey key, const GraphView& graph);
+  // Uses the matches due at `now_utime` (all when `all`), in the order they were made.
+  void UseMatches(int64_t now_utime, bool all, EncounterSourceOutput* out);
+
+  // A match on its way: what its result is checked against.
+  struct PendingMatch {
+    int64_t due_utime = 0;
+    PoseKey candidate;
+    PoseKey key;
+    int64_t key_utime = 0;
+    PredictedRelativePose predicted;
+    std::shared_future<std::optional<MatchResult>> result;
+  };
 
   LoopClosureOptions options_;
+  MatchPool* pool_;
+  MatchSchedule schedule_;
+  std::deque<PendingMatch> matches_;
+  int64_t now_utime_ = 0;
   std::deque<PoseKey> waiting_;
   std::map<TrajectoryId, int32_t> quiet_until_;  // cooldown per trajectory
   CandidateStats stats_;

@@ -10,12 +10,21 @@ namespace anchormap {
 MappingServer::MappingServer(const MappingServerOptions& options)
     : options_(options),
       smoother_(options.smoother),
+      receipt_(options.table),
+      order_(options.order),
       table_(options.table),
       publisher_(options.publish),
+      pool_(std::make_unique<MatchPool>(options.match_workers)),
       resend_(options.delivery) {
   sources_.push_back(std::make_unique<DirectEncounters>(options.direct));
-  if (options.loop_closures) sources_.push_back(std::make_unique<LoopClosures>(options.loop));
-  if (options.scan_encounters) sources_.push_back(std::make_unique<ScanEncounters>(options.scan));
+  if (options.loop_closures) {
+    sources_.push_back(
+        std::make_unique<LoopClosures>(options.loop, pool_.get(), options.match_schedule));
+  }
+  if (options.scan_encounters) {
+    sources_.push_back(
+        std::make_unique<ScanEncounters>(options.scan, pool_.get(), options.match_schedule));
+  }
 }
 
 MappingServer::~MappingServer() = default;
@@ -32,24 +41,31 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
   ++stats_.keyframes_received;
   data_utime_ = std::max(data_utime_, keyframe.utime);
   std::vector<AdmittedKeyframe> admitted;
-  const int64_t reused_before = table_.num_reused_ids();
-  const std::string robot = keyframe.robot;  // the keyframe (and its scan) moves into the table
-  const int64_t trajectory_id = keyframe.trajectory_id;
-  if (Status offered = table_.Offer(std::move(keyframe), clock_utime(), &admitted); !offered.ok()) {
+  const int64_t reused_before = receipt_.num_reused_ids();
+  const TrajectoryName name{keyframe.robot, keyframe.trajectory_id};
+  const auto arrival_key =
+      std::make_tuple(keyframe.robot, keyframe.trajectory_id, keyframe.seq, keyframe.utime);
+  // The delivery table needs no scan: the keyframe waits here with it until admitted.
+  LaserScan scan = std::move(keyframe.scan);
+  Keyframe without_scan = keyframe;
+  keyframe.scan = std::move(scan);
+  if (Status offered = receipt_.Offer(std::move(without_scan), clock_utime(), &admitted);
+      !offered.ok()) {
     rejects_.Count(offered, "keyframe");
     return offered;
   }
-  if (table_.num_reused_ids() != reused_before) {
-    LogWarning(robot + " restarted with the trajectory id " + std::to_string(trajectory_id) +
+  arrived_.emplace(arrival_key, std::move(keyframe));
+  if (receipt_.num_reused_ids() != reused_before) {
+    LogWarning(name.robot + " restarted with the trajectory id " + std::to_string(name.id) +
                " of an earlier session: a new trajectory under the same name");
-    encounter_seqs_.erase({robot, trajectory_id});
+    encounter_seqs_.erase(name);
   }
-  table_.Poll(clock_utime(), &admitted);
-  EncounterSourceOutput found;
-  AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_, &smoother_};
-  for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
-  Commit(found, !admitted.empty(), "keyframe");
+  if (const TrajectoryRecord* record = receipt_.Find(name)) {
+    order_.Heard(record->solver_id, clock_utime());
+  }
+  receipt_.Poll(clock_utime(), &admitted);
+  Enqueue(admitted);
+  Release(/*at_end=*/false);
   return Status::Ok();
 }
 
@@ -72,26 +88,82 @@ Status MappingServer::OnEncounter(const Encounter& encounter) {
     rejects_.Count(refused, "encounter");
     return refused;
   }
+  order_.AddEncounter(encounter, clock_utime());
+  Release(/*at_end=*/false);
+  return Status::Ok();
+}
+
+void MappingServer::Enqueue(const std::vector<AdmittedKeyframe>& admitted) {
+  for (const AdmittedKeyframe& a : admitted) {
+    const TrajectoryRecord* record = receipt_.FindBySolverId(a.key.trajectory);
+    const size_t i = static_cast<size_t>(a.key.index);
+    const auto it = arrived_.find(std::make_tuple(record->robot, record->agent_trajectory_id,
+                                                  record->seqs[i], record->utimes[i]));
+    if (it == arrived_.end()) {  // cannot happen: every offered keyframe was kept
+      rejects_.Count(ErrorCode::kSolverRejected, "keyframe", "admitted keyframe not kept");
+      continue;
+    }
+    order_.AddKeyframe(a.key.trajectory, std::move(it->second), clock_utime());
+    arrived_.erase(it);
+  }
+}
+
+void MappingServer::Release(bool at_end) {
+  // Settling is for the bus (online: a wall clock is set); offline inputs are complete.
+  const bool settle = clock_utime_ >= 0;
+  for (;;) {
+    std::vector<TrajectoryId> silenced;
+    std::optional<OrderedInput> input =
+        at_end ? order_.NextAtEnd() : order_.Next(clock_utime(), settle, &silenced);
+    for (const TrajectoryId id : silenced) {
+      const TrajectoryRecord* record = receipt_.FindBySolverId(id);
+      LogWarning(record->name().ToString() + " silent for " +
+                 std::to_string(options_.order.patience_s) +
+                 " s: it no longer holds the other trajectories' inputs");
+    }
+    if (!input) return;
+    released_utime_ = std::max(released_utime_, input->utime());
+    if (input->is_keyframe) {
+      ApplyKeyframe(std::move(input->keyframe));
+    } else {
+      ApplyEncounter(input->encounter);
+    }
+  }
+}
+
+void MappingServer::ApplyKeyframe(Keyframe keyframe) {
+  std::vector<AdmittedKeyframe> admitted;
+  if (Status offered = table_.Offer(std::move(keyframe), released_utime_, &admitted);
+      !offered.ok()) {
+    rejects_.Count(offered, "keyframe");
+    return;
+  }
+  // A gap the delivery table bridged (or a trajectory it started late) reaches the graph
+  // as a sequence gap: bridged here at once, by the same rule.
+  table_.FlushHeld(&admitted);
+  EncounterSourceOutput found;
+  AddKeyframes(admitted, &found);
+  const GraphView graph{table_, smoother_, &smoother_};
+  for (auto& source : sources_) source->Poll(released_utime_, graph, &found);
+  Commit(found, !admitted.empty(), "keyframe");
+}
+
+void MappingServer::ApplyEncounter(const Encounter& encounter) {
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) {
     source->OnEncounterMessage(encounter, graph, &found);
-    source->Poll(data_utime_, graph, &found);
+    source->Poll(released_utime_, graph, &found);
   }
   Commit(found, false, "encounter");
-  return Status::Ok();
 }
 
 void MappingServer::Tick(int64_t now_utime) {
   SetClock(now_utime);
   std::vector<AdmittedKeyframe> admitted;
-  table_.Poll(clock_utime(), &admitted);
-  if (admitted.empty()) return;
-  EncounterSourceOutput found;
-  AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_, &smoother_};
-  for (auto& source : sources_) source->Poll(data_utime_, graph, &found);
-  Commit(found, true, "tick");
+  receipt_.Poll(clock_utime(), &admitted);
+  Enqueue(admitted);
+  Release(/*at_end=*/false);
 }
 
 std::vector<DeliveryAck> MappingServer::BuildAcks() const {
@@ -103,8 +175,8 @@ std::vector<DeliveryAck> MappingServer::BuildAcks() const {
     ack.trajectory_id = trajectory.id;
     return ack;
   };
-  for (const TrajectoryRecord& record : table_.records()) {
-    ack_for(record.name()).keyframes_next = table_.NextSeq(record.solver_id);
+  for (const TrajectoryRecord& record : receipt_.records()) {
+    ack_for(record.name()).keyframes_next = receipt_.NextSeq(record.solver_id);
   }
   for (const auto& [key, window] : encounter_seqs_) {
     ack_for(key).encounters_next = window.next();
@@ -125,8 +197,8 @@ std::vector<ResendRequest> MappingServer::BuildResendRequests() {
     request.trajectory_id = trajectory.id;
     for (const auto& [first, last] : ranges) request.ranges.push_back({kind, first, last});
   };
-  for (const TrajectoryRecord& record : table_.records()) {
-    add(record.name(), StreamKind::kKeyframes, table_.MissingRanges(record.solver_id));
+  for (const TrajectoryRecord& record : receipt_.records()) {
+    add(record.name(), StreamKind::kKeyframes, receipt_.MissingRanges(record.solver_id));
   }
   for (auto& [key, window] : encounter_seqs_) {
     const auto missing = window.Missing();
@@ -158,12 +230,13 @@ std::vector<ResendRequest> MappingServer::BuildResendRequests() {
 
 void MappingServer::Flush() {
   std::vector<AdmittedKeyframe> admitted;
-  table_.FlushHeld(&admitted);
+  receipt_.FlushHeld(&admitted);
+  Enqueue(admitted);
+  Release(/*at_end=*/true);
   EncounterSourceOutput found;
-  AddKeyframes(admitted, &found);
   const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Flush(graph, &found);
-  Commit(found, !admitted.empty(), "flush");
+  Commit(found, false, "flush");
   // End of input: one batch step, so that the last map is the converged solution rather
   // than the incremental estimate (which relinearises only at batch steps).
   if (smoother_.stats().variables > 0) {
@@ -278,7 +351,7 @@ ServerStatus MappingServer::BuildStatus() const {
   status.keyframes = table_.num_keyframes();
   status.encounters = stats_.encounters_added;
   status.last_update_ms = stats_.last_update_ms;
-  status.bridged_gaps = table_.num_bridged_gaps();
+  status.bridged_gaps = receipt_.num_bridged_gaps();
   status.resend_requests = resend_requests_;
   status.rejections = rejects_.NonZero();
   return status;
@@ -287,18 +360,21 @@ ServerStatus MappingServer::BuildStatus() const {
 std::string MappingServer::StatusLine() const {
   size_t waiting_encounters = 0;
   for (const auto& source : sources_) waiting_encounters += source->pending();
-  char text[384];
+  char text[512];
   std::snprintf(text, sizeof(text),
                 "robots %d trajectories %zu anchored %d keyframes %lld encounters %lld "
                 "updates %lld last update %.2f ms waiting keyframes %zu encounters %zu "
-                "bridged gaps %lld encounters given up %lld resend requests %lld",
+                "bridged gaps %lld encounters given up %lld resend requests %lld "
+                "order: held %zu late %lld silences %lld",
                 table_.num_robots(), table_.records().size(), num_anchored(),
                 static_cast<long long>(table_.num_keyframes()),
                 static_cast<long long>(stats_.encounters_added),
-                static_cast<long long>(stats_.updates), stats_.last_update_ms, table_.num_held(),
-                waiting_encounters, static_cast<long long>(table_.num_bridged_gaps()),
+                static_cast<long long>(stats_.updates), stats_.last_update_ms, receipt_.num_held(),
+                waiting_encounters, static_cast<long long>(receipt_.num_bridged_gaps()),
                 static_cast<long long>(encounters_given_up_),
-                static_cast<long long>(resend_requests_));
+                static_cast<long long>(resend_requests_), order_.held(),
+                static_cast<long long>(order_.stats().late),
+                static_cast<long long>(order_.stats().silences));
   std::string line = std::string(text) + " rejected: " + rejects_.Summary();
   for (const auto& source : sources_) {
     const std::string stats = source->StatsLine();

@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "common/solver/smoother.h"
@@ -24,11 +25,13 @@
 #include "common/types/trajectory_name.h"
 #include "common/util/reject_counter.h"
 #include "common/util/status.h"
+#include "server/canonical_order.h"
 #include "server/delivery.h"
 #include "server/direct_encounters.h"
 #include "server/encounter_source.h"
 #include "server/loop_closures.h"
 #include "server/map_publisher.h"
+#include "server/match_pool.h"
 #include "server/scan_encounters.h"
 #include "server/trajectory_table.h"
 
@@ -58,16 +61,22 @@ struct MappingServerOptions {
   bool record_update_times = false;
   TrajectoryTableOptions table;
   DirectEncounterOptions direct;
-  // Scan matching on the keyframes' scans (keyframes without a scan are skipped). Off by
-  // default for now: the sources match on the server's thread (a daemon falls behind a fast
-  // replay), and what they accept depends on the order keyframes of different robots
-  // arrive in, so a lossy or restarted run does not reproduce the lossless map (the loss
-  // test measured a 26.8 m difference with both on). Both wait for worker threads and
-  // order-independent decisions (issue 11, items 5 and 6).
-  bool loop_closures = false;
+  // The reorder stage in front of the graph (CanonicalInputOrder): the graph is built in
+  // one canonical order of the inputs, whatever order the bus delivered them in.
+  CanonicalOrderOptions order;
+  // Scan matching on the keyframes' scans (keyframes without a scan are skipped). Their
+  // decisions depend on the graph's state when they look; the canonical order makes that
+  // state a function of the input set, so a lossy, restarted or offline run gives the
+  // same map.
+  bool loop_closures = true;
   LoopClosureOptions loop;
-  bool scan_encounters = false;
+  bool scan_encounters = true;
   ScanEncounterOptions scan;
+  // The sources' matching runs on this many worker threads (0: on the server's thread);
+  // each result is used once the canonical input reaches its keyframe's time plus the lag
+  // (data time), so the map does not depend on the worker count or thread timing.
+  int match_workers = 2;
+  MatchSchedule match_schedule{2.0};
   MapPublisherOptions publish;
   DeliveryOptions delivery;
 
@@ -75,9 +84,12 @@ struct MappingServerOptions {
     if (Status e = delivery.Validate(); !e.ok()) return e;
     if (Status e = smoother.Validate(); !e.ok()) return Status::Error("smoother: " + e.message());
     if (Status e = table.Validate(); !e.ok()) return e;
+    if (Status e = order.Validate(); !e.ok()) return e;
     if (Status e = direct.Validate(); !e.ok()) return e;
     if (Status e = loop.Validate(); !e.ok()) return e;
     if (Status e = scan.Validate(); !e.ok()) return e;
+    if (match_workers < 0 || match_workers > 64) return Status::Error("match_workers: 0 to 64");
+    if (!(match_schedule.lag_s >= 0)) return Status::Error("match lag must be >= 0");
     return publish.Validate();
   }
 };
@@ -109,8 +121,10 @@ class MappingServer {
   // Adds another encounter source (e.g. scan matching, later); called on every input.
   void AddEncounterSource(std::unique_ptr<EncounterSource> source);
 
-  // Each returns why the input is refused, if it is (already counted). Accepted inputs
-  // update the smoother before returning. Cost: one incremental update. A duplicate
+  // Each returns why the input is refused, if it is (already counted). An accepted input
+  // goes through the delivery table (sequence order per trajectory) and the canonical
+  // order stage; every input that stage releases then updates the smoother (one
+  // incremental update each) before this returns. A duplicate
   // (keyframe seq, or relayed encounter seq, seen before) is refused as
   // kDuplicateSequence and changes nothing.
   Status OnKeyframe(Keyframe keyframe);
@@ -149,13 +163,24 @@ class MappingServer {
   const std::vector<UpdateTiming>& update_times() const { return update_times_; }
   const Smoother& smoother() const { return smoother_; }
   Smoother& mutable_smoother() { return smoother_; }
+  // The graph's trajectories (keyframes released into the smoother).
   const TrajectoryTable& table() const { return table_; }
+  // The delivery table: what arrived, in sequence order per trajectory (acks, resends).
+  const TrajectoryTable& receipt() const { return receipt_; }
+  const CanonicalOrderStats& order_stats() const { return order_.stats(); }
   const RejectCounter& rejects() const { return rejects_; }
   const std::vector<EncounterLink>& encounter_links() const { return links_; }
   MapPublisher& publisher() { return publisher_; }
   int num_anchored() const;
 
  private:
+  // Moves keyframes the delivery table admitted into the canonical order stage.
+  void Enqueue(const std::vector<AdmittedKeyframe>& admitted);
+  // Applies what the canonical order stage releases at the current clock (everything when
+  // `at_end`), one input and one update at a time.
+  void Release(bool at_end);
+  void ApplyKeyframe(Keyframe keyframe);
+  void ApplyEncounter(const Encounter& encounter);
   // Counts (and records, if asked) one solver update.
   void CountUpdate(const UpdateResult& result);
   // Adds admitted keyframes to the smoother and tells the sources.
@@ -166,8 +191,17 @@ class MappingServer {
 
   MappingServerOptions options_;
   Smoother smoother_;
+  // Delivery: sequence order, gaps, acks and resend requests, in arrival order. Its
+  // keyframes keep no scan (the stage and the graph table hold them).
+  TrajectoryTable receipt_;
+  // Keyframes accepted by receipt_ and not yet admitted by it, by (robot, trajectory id,
+  // seq, time) (the time tells a restarted agent's reused id apart).
+  std::map<std::tuple<std::string, int64_t, int32_t, int64_t>, Keyframe> arrived_;
+  CanonicalInputOrder order_;
+  // The graph's trajectories: filled in canonical order (solver ids too).
   TrajectoryTable table_;
   MapPublisher publisher_;
+  std::unique_ptr<MatchPool> pool_;  // before the sources: it outlives their jobs
   std::vector<std::unique_ptr<EncounterSource>> sources_;
   std::vector<EncounterLink> links_;
   RejectCounter rejects_;
@@ -175,6 +209,7 @@ class MappingServer {
   MappingServerStats stats_;
   std::vector<UpdateTiming> update_times_;
   int64_t data_utime_ = 0;
+  int64_t released_utime_ = 0;  // the newest released input's time: the sources' "now"
   int64_t clock_utime_ = -1;
   ResendTracker resend_;
   int64_t resend_requests_ = 0;

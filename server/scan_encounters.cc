@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <limits>
+#include <memory>
 
 #include <Eigen/Eigenvalues>
 
@@ -75,6 +77,7 @@ void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSo
 
 void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
+  if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   JoinQualified(/*flush=*/true, graph, out);
   for (auto& [pair, kept] : kept_) {
     stats_.unconfirmed += static_cast<int64_t>(kept.size());
@@ -94,8 +97,10 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
       continue;
     }
     ExamineKeyframe(key, graph, out);
+    UseMatches(/*all=*/false, graph, out);
   }
   waiting_ = std::move(still_waiting);
+  UseMatches(/*all=*/false, graph, out);
 }
 
 void ScanEncounters::BuildSubmaps(const GraphView& graph) {
@@ -130,12 +135,13 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
 }
 
 void ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                    EncounterSourceOutput* out) {
+                                    EncounterSourceOutput* /*out*/) {
   const std::vector<Submap>& submaps = submaps_[other];
   if (submaps.empty()) return;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
-  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
-  if (query.empty()) return;
+  auto query =
+      std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
+  if (query->empty()) return;
   GlobalSearchOptions search;
   search.match = options_.match;
   search.match.min_score = options_.global_min_score;
@@ -146,31 +152,14 @@ void ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const Graph
     const Submap& submap = submaps[cursor % submaps.size()];
     ++cursor;
     if (!submap.reference) continue;
-    ++stats_.candidates;
-    const std::optional<MatchResult> match = GlobalSearch(*submap.reference, query, search);
-    if (!match) {
-      ++stats_.no_match;
-      continue;
-    }
-    if (match->overlap < options_.global_min_overlap) {
-      ++stats_.weak_match;
-      continue;
-    }
-    EncounterCandidate candidate;
-    candidate.a = submap.center;
-    candidate.b = key;
-    candidate.T_a_b = match->pose;
-    candidate.covariance =
-        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
-    candidate.utime = record->utimes[static_cast<size_t>(key.index)];
-    OfferCandidate(candidate, graph, out);
-    // Joined now (or waiting for the update that joins them): no further search.
-    if (!out->constraints.empty() && out->constraints.back().b == key) return;
+    std::shared_ptr<const ScanReference> reference = submap.reference;
+    Submit(key, submap.center, /*global=*/true, record->utimes[static_cast<size_t>(key.index)],
+           [reference, query, search] { return GlobalSearch(*reference, *query, search); });
   }
 }
 
 void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                EncounterSourceOutput* out) {
+                                EncounterSourceOutput* /*out*/) {
   if (options_.near_distance_m <= 0) return;
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
   if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
@@ -191,9 +180,9 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   const std::optional<PredictedRelativePose> predicted =
       PredictRelativePose(graph.covariances, nearest->center, key);
   if (!predicted) return;
-  ++stats_.candidates;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
-  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
+  auto query =
+      std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   LocalMatchOptions window;
   window.match = options_.match;
   window.linear_window_m =
@@ -202,25 +191,72 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   window.angular_window_rad =
       std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
                  options_.min_window_rad, options_.max_window_rad);
-  const std::optional<MatchResult> match =
-      MatchLocal(*nearest->reference, query, predicted->T_a_b, window);
-  if (!match) {
-    ++stats_.no_match;
-    return;
+  std::shared_ptr<const ScanReference> reference = nearest->reference;
+  const Pose2 guess = predicted->T_a_b;
+  Submit(
+      key, nearest->center, /*global=*/false, record->utimes[static_cast<size_t>(key.index)],
+      [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
+}
+
+void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, int64_t key_utime,
+                            MatchPool::Job job) {
+  PendingMatch pending;
+  pending.key = key;
+  pending.center = center;
+  pending.global = global;
+  pending.key_utime = key_utime;
+  pending.due_utime = pool_ ? schedule_.DueUtime(key_utime) : std::numeric_limits<int64_t>::min();
+  if (pool_) {
+    pending.result = pool_->Submit(std::move(job));
+  } else {
+    std::promise<std::optional<MatchResult>> done;
+    done.set_value(job());
+    pending.result = done.get_future().share();
   }
-  if (match->score < options_.near_min_score || match->overlap < options_.near_min_overlap) {
-    ++stats_.weak_match;
-    return;
-  }
-  EncounterCandidate candidate;
-  candidate.a = nearest->center;
-  candidate.b = key;
-  candidate.T_a_b = match->pose;
-  candidate.covariance =
-      WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
-  candidate.utime = record->utimes[static_cast<size_t>(key.index)];
-  if (GateAndEmit(candidate, graph, out)) {
-    near_quiet_until_[{key.trajectory, other}] = key.index + 1 + options_.near_cooldown_keyframes;
+  matches_.push_back(std::move(pending));
+}
+
+void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out) {
+  // A keyframe that joined two trajectories by one global match is not searched further
+  // against that trajectory (its other submaps' matches are dropped unused).
+  std::optional<std::pair<PoseKey, TrajectoryId>> joined;
+  while (!matches_.empty() && (all || matches_.front().due_utime <= now_utime_)) {
+    const PendingMatch pending = std::move(matches_.front());
+    matches_.pop_front();
+    const std::optional<MatchResult> match = pending.result.get();
+    if (pending.global && joined && joined->first == pending.key &&
+        joined->second == pending.center.trajectory) {
+      continue;
+    }
+    ++stats_.candidates;
+    if (!match) {
+      ++stats_.no_match;
+      continue;
+    }
+    const double min_score = pending.global ? 0.0 : options_.near_min_score;
+    const double min_overlap =
+        pending.global ? options_.global_min_overlap : options_.near_min_overlap;
+    if (match->score < min_score || match->overlap < min_overlap) {
+      ++stats_.weak_match;
+      continue;
+    }
+    EncounterCandidate candidate;
+    candidate.a = pending.center;
+    candidate.b = pending.key;
+    candidate.T_a_b = match->pose;
+    candidate.covariance =
+        WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
+    candidate.utime = pending.key_utime;
+    if (pending.global) {
+      OfferCandidate(candidate, graph, out);
+      // Joined now (or waiting for the update that joins them): no further search.
+      if (!out->constraints.empty() && out->constraints.back().b == pending.key) {
+        joined = std::make_pair(pending.key, pending.center.trajectory);
+      }
+    } else if (GateAndEmit(candidate, graph, out)) {
+      near_quiet_until_[{pending.key.trajectory, pending.center.trajectory}] =
+          pending.key.index + 1 + options_.near_cooldown_keyframes;
+    }
   }
 }
 

@@ -21,7 +21,9 @@
 //   submap centres is below near_distance_m (the thesis' 4 m), a window search around
 //   the prediction; accepted with overlap >= near_min_overlap (85 %) and a chi-square
 //   gate against the estimate and the joint covariance.
-// Matching runs on the caller's thread; results are deterministic.
+// The matches run on the MatchPool's workers (or on the caller's thread without a pool);
+// their results are used when the canonical input reaches the keyframe's time plus the
+// schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
 
 #include <cstdint>
 #include <deque>
@@ -37,6 +39,7 @@
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
 #include "server/encounter_source.h"
+#include "server/match_pool.h"
 
 namespace anchormap {
 
@@ -99,13 +102,16 @@ struct EncounterCandidate {
 
 class ScanEncounters : public EncounterSource {
  public:
-  explicit ScanEncounters(const ScanEncounterOptions& options = {}) : options_(options) {}
+  // Without a pool, matches run on the caller's thread and are used at once.
+  explicit ScanEncounters(const ScanEncounterOptions& options = {}, MatchPool* pool = nullptr,
+                          MatchSchedule schedule = {})
+      : options_(options), pool_(pool), schedule_(schedule) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
-  size_t pending() const override { return waiting_.size(); }
+  size_t pending() const override { return waiting_.size() + matches_.size(); }
   std::string StatsLine() const override { return stats_.Summary(name()); }
   const CandidateStats& stats() const { return stats_; }
 
@@ -128,6 +134,10 @@ class ScanEncounters : public EncounterSource {
                       EncounterSourceOutput* out);
   void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
                   EncounterSourceOutput* out);
+  // Hands a match of keyframe `key` against the submap around `center` to the pool.
+  void Submit(PoseKey key, PoseKey center, bool global, int64_t key_utime, MatchPool::Job job);
+  // Uses the matches due now (all when `all`), in the order they were made.
+  void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
   // Kept candidates of pairs that came into one frame: gated against the estimate.
   void ResolveKept(const GraphView& graph, EncounterSourceOutput* out);
   // Joins the qualified pairs whose hold ran out (all of them when `flush`).
@@ -140,7 +150,19 @@ class ScanEncounters : public EncounterSource {
   bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
                   const GraphView& graph) const;
 
+  struct PendingMatch {
+    int64_t due_utime = 0;
+    PoseKey key;     // the query keyframe
+    PoseKey center;  // the other trajectory's submap
+    bool global = false;
+    int64_t key_utime = 0;
+    std::shared_future<std::optional<MatchResult>> result;
+  };
+
   ScanEncounterOptions options_;
+  MatchPool* pool_;
+  MatchSchedule schedule_;
+  std::deque<PendingMatch> matches_;
   std::deque<PoseKey> waiting_;
   std::map<TrajectoryId, std::vector<Submap>> submaps_;
   std::map<Pair, size_t> global_cursor_;

@@ -125,15 +125,21 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
          &s.direct.inflation.theta_base_rad, "heading sigma added for clock offsets (rad)");
   l->Add("loop.enabled", "loop-closures", &s.loop_closures,
-         "find loop closures within a trajectory by scan matching (off by default: matches "
-         "on the server's thread, results depend on arrival order)");
+         "find loop closures within a trajectory by scan matching");
   l->Add("loop.max_distance_m", "loop-max-distance-m", &s.loop.max_distance_m,
          "a loop-closure candidate may lie this close to the keyframe (m)");
   l->Add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
          "a loop closure's match needs this fraction of points near the submap's walls");
   l->Add("scan.enabled", "scan-encounters", &s.scan_encounters,
-         "find encounters between trajectories by scan matching (off by default: matches on "
-         "the server's thread, results depend on arrival order)");
+         "find encounters between trajectories by scan matching");
+  l->Add("match.workers", "match-workers", &s.match_workers,
+         "worker threads of the scan-matching sources (0: the server's thread)");
+  l->Add("match.lag_s", "match-lag-s", &s.match_schedule.lag_s,
+         "a match is used once the inputs reach its keyframe's time plus this (data time, s)");
+  l->Add("order.patience_s", "order-patience-s", &s.order.patience_s,
+         "a trajectory silent this long stops holding the others' inputs (s)");
+  l->Add("order.settle_s", "order-settle-s", &s.order.settle_s,
+         "online, an input waits this long after its arrival before it is ordered (s)");
   l->Add("scan.near_distance_m", "scan-near-distance-m", &s.scan.near_distance_m,
          "joined trajectories: window search when predicted this close (m)");
   l->Add("scan.near_min_overlap", "scan-near-min-overlap", &s.scan.near_min_overlap,

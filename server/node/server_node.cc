@@ -78,8 +78,11 @@ bool ServerNode::Replay(const LogEvent& event) {
 
 void ServerNode::Tick(int64_t now_utime) {
   const int64_t updates = server_.update_count();
+  const int64_t released = server_.order_stats().released;
   server_.Tick(now_utime);
-  if (journal_ && server_.update_count() != updates) {
+  // A tick that bridged gaps or released inputs into the graph is replayed as a tick.
+  if (journal_ &&
+      (server_.update_count() != updates || server_.order_stats().released != released)) {
     const Status status = journal_(kJournalTick, now_utime, nullptr, 0);
     if (!status.ok()) server_.CountRejection(status, kJournalTick);
   }

@@ -54,8 +54,8 @@ class ServerNode {
   // clock before MappingServer sees it (refusals by the logic, such as duplicates, are
   // journaled too and refused again on replay). When `append` fails the input is refused
   // (kIoError) and not applied: unacknowledged, the agent resends it. A Tick that bridged
-  // gaps is appended as a kJournalTick event right after it (nothing is published in
-  // between).
+  // gaps or released inputs from the canonical order stage is appended as a kJournalTick
+  // event right after it (nothing is published in between).
   using JournalAppend = std::function<Status(const std::string& channel, int64_t clock_utime,
                                              const uint8_t* data, size_t size)>;
   static constexpr char kJournalTick[] = "ANCHORMAP_JOURNAL_TICK";

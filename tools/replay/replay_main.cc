@@ -179,6 +179,8 @@ int Main(int argc, char** argv) {
              "none; tools/bench/scale_figures.sh reads it)");
   loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
              "server: loop closures within a trajectory by scan matching");
+  loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
+             "server: worker threads of the scan-matching sources (0: its own thread)");
   loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
              "server: encounters between trajectories by scan matching");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
