@@ -30,6 +30,19 @@ void CanonicalInputOrder::AddEncounter(Encounter encounter, int64_t clock_utime)
                   encounter.seq,      encounter.observed,
                   arrivals_++};
   entry.arrival_clock = clock_utime;
+  if (encounter.seq >= 0) {
+    EncounterStream& stream =
+        encounter_streams_[{encounter.observer, encounter.observer_trajectory_id}];
+    if (encounter.seq >= stream.next_seq) {
+      if (stream.above.empty() && encounter.seq > stream.next_seq) stream.gap_since = clock_utime;
+      stream.above.emplace(encounter.seq, encounter.utime);
+      while (!stream.above.empty() && stream.above.begin()->first == stream.next_seq) {
+        stream.last_utime = std::max(stream.last_utime, stream.above.begin()->second);
+        stream.above.erase(stream.above.begin());
+        ++stream.next_seq;
+      }
+    }
+  }
   entry.input.is_keyframe = false;
   entry.input.encounter = std::move(encounter);
   const Key key = entry.key;
@@ -103,6 +116,13 @@ std::optional<OrderedInput> CanonicalInputOrder::Next(int64_t now_utime, bool se
       continue;
     }
     held_back = true;
+  }
+  for (const auto& [name, stream] : encounter_streams_) {
+    // A gap: the missing encounters come after last_utime.
+    if (!stream.above.empty() && t > stream.last_utime &&
+        static_cast<double>(now_utime - stream.gap_since) <= 1e6 * options_.patience_s) {
+      held_back = true;
+    }
   }
   if (held_back) return std::nullopt;
   return Take(head);

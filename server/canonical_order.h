@@ -15,6 +15,11 @@
 // - settle (online only): an input is released only settle_s after it arrived, so that a
 //   robot whose first keyframes were lost on the radio is known before the others' inputs
 //   of that time go out.
+// Relayed encounters have a sequence of their own per observer trajectory: while one of
+// those sequences has a gap, the missing encounters lie between the last contiguous one
+// and the next received one in time, so inputs after the last contiguous one's time wait
+// (for patience_s at most) for the resend. A lost encounter with no later one to reveal
+// it is only covered by the settle time.
 // An input that arrives after later inputs were released (a silent trajectory that speaks
 // again, an encounter resent late) is released at once and counted as late: from then on
 // the map may differ from one built from the same set in canonical order.
@@ -25,6 +30,7 @@
 #include <optional>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "common/solver/keys.h"
@@ -41,10 +47,16 @@ struct CanonicalOrderOptions {
   // Online: an input waits at least this long (wall time) after its arrival. A keyframe
   // every 0.5 m comes every 1-2 s on a real robot, 4x faster in the loss test's replay.
   double settle_s = 2.0;
+  // Inputs released into the graph per input or tick of the server (0: none there; the
+  // online server releases from its timer, within a wall-time budget: a backlog released
+  // from one message handler blocked its loop for 18 s in the loss test, and the resends it
+  // did not read meanwhile were given up). The order, hence the map, does not depend on it.
+  int release_per_call = 4;
 
   Status Validate() const {
     if (!(patience_s >= 0)) return Status::Error("order.patience_s must be >= 0");
     if (!(settle_s >= 0)) return Status::Error("order.settle_s must be >= 0");
+    if (release_per_call < 0) return Status::Error("order.release_per_call must be >= 0");
     return Status::Ok();
   }
 };
@@ -94,6 +106,13 @@ class CanonicalInputOrder {
     int64_t arrival_clock = 0;
     OrderedInput input;
   };
+  // A relayed-encounter sequence (observer, observer trajectory id).
+  struct EncounterStream {
+    int32_t next_seq = 0;              // every seq below arrived
+    int64_t last_utime = 0;            // time of seq next_seq - 1 (0 before any)
+    std::map<int32_t, int64_t> above;  // seqs beyond a gap, with their times
+    int64_t gap_since = 0;             // clock when the current gap opened
+  };
   struct Stream {
     std::deque<Entry> queue;
     bool started = false;
@@ -113,6 +132,7 @@ class CanonicalInputOrder {
   CanonicalOrderOptions options_;
   std::map<TrajectoryId, Stream> streams_;
   std::map<Key, Entry> encounters_;
+  std::map<std::pair<std::string, int64_t>, EncounterStream> encounter_streams_;
   int64_t arrivals_ = 0;
   std::optional<Key> last_released_;
   CanonicalOrderStats stats_;

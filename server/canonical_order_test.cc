@@ -87,6 +87,27 @@ TEST(CanonicalInputOrderTest, ASilentTrajectoryStopsHoldingAfterThePatience) {
   EXPECT_EQ(order.stats().late, 1);
 }
 
+TEST(CanonicalInputOrderTest, AGapInAnEncounterSequenceHoldsWhatComesAfterItsLastTime) {
+  CanonicalInputOrder order;
+  const TrajectoryId r1(0);
+  Encounter e = MakeEncounter("R1", "R2", 1'000'000);
+  e.observer_trajectory_id = 1;
+  e.seq = 0;
+  order.AddEncounter(e, 0);
+  e.seq = 2;  // seq 1 (between 1 s and 3 s) is missing
+  e.utime = 3'000'000;
+  order.AddEncounter(e, 0);
+  for (int32_t seq = 0; seq < 4; ++seq) {
+    order.AddKeyframe(r1, MakeKeyframe("R1", 1, seq, 1'000'000 * (seq + 1)), 0);
+  }
+  EXPECT_EQ(Drain(&order, 0), (Labels{"R1:0", "E:R1>R2"}));
+  e.seq = 1;
+  e.utime = 1'500'000;
+  order.AddEncounter(e, 0);
+  EXPECT_EQ(Drain(&order, 0), (Labels{"E:R1>R2", "R1:1", "R1:2", "E:R1>R2", "R1:3"}));
+  EXPECT_EQ(order.stats().late, 0);
+}
+
 TEST(CanonicalInputOrderTest, OnlineAnInputWaitsTheSettleTime) {
   CanonicalOrderOptions options;
   options.settle_s = 2.0;

@@ -65,7 +65,7 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
   }
   receipt_.Poll(clock_utime(), &admitted);
   Enqueue(admitted);
-  Release(/*at_end=*/false);
+  Release(/*at_end=*/false, options_.order.release_per_call);
   return Status::Ok();
 }
 
@@ -89,7 +89,7 @@ Status MappingServer::OnEncounter(const Encounter& encounter) {
     return refused;
   }
   order_.AddEncounter(encounter, clock_utime());
-  Release(/*at_end=*/false);
+  Release(/*at_end=*/false, options_.order.release_per_call);
   return Status::Ok();
 }
 
@@ -108,10 +108,13 @@ void MappingServer::Enqueue(const std::vector<AdmittedKeyframe>& admitted) {
   }
 }
 
-void MappingServer::Release(bool at_end) {
+int MappingServer::ReleaseDue(int max_inputs) { return Release(/*at_end=*/false, max_inputs); }
+
+int MappingServer::Release(bool at_end, int limit) {
   // Settling is for the bus (online: a wall clock is set); offline inputs are complete.
   const bool settle = clock_utime_ >= 0;
-  for (;;) {
+  int released = 0;
+  for (; at_end || released < limit; ++released) {
     std::vector<TrajectoryId> silenced;
     std::optional<OrderedInput> input =
         at_end ? order_.NextAtEnd() : order_.Next(clock_utime(), settle, &silenced);
@@ -121,7 +124,7 @@ void MappingServer::Release(bool at_end) {
                  std::to_string(options_.order.patience_s) +
                  " s: it no longer holds the other trajectories' inputs");
     }
-    if (!input) return;
+    if (!input) break;
     released_utime_ = std::max(released_utime_, input->utime());
     if (input->is_keyframe) {
       ApplyKeyframe(std::move(input->keyframe));
@@ -129,6 +132,7 @@ void MappingServer::Release(bool at_end) {
       ApplyEncounter(input->encounter);
     }
   }
+  return released;
 }
 
 void MappingServer::ApplyKeyframe(Keyframe keyframe) {
@@ -163,7 +167,7 @@ void MappingServer::Tick(int64_t now_utime) {
   std::vector<AdmittedKeyframe> admitted;
   receipt_.Poll(clock_utime(), &admitted);
   Enqueue(admitted);
-  Release(/*at_end=*/false);
+  Release(/*at_end=*/false, options_.order.release_per_call);
 }
 
 std::vector<DeliveryAck> MappingServer::BuildAcks() const {
@@ -232,7 +236,7 @@ void MappingServer::Flush() {
   std::vector<AdmittedKeyframe> admitted;
   receipt_.FlushHeld(&admitted);
   Enqueue(admitted);
-  Release(/*at_end=*/true);
+  Release(/*at_end=*/true, 0);
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Flush(graph, &found);

@@ -123,7 +123,8 @@ class MappingServer {
 
   // Each returns why the input is refused, if it is (already counted). An accepted input
   // goes through the delivery table (sequence order per trajectory) and the canonical
-  // order stage; every input that stage releases then updates the smoother (one
+  // order stage; the inputs that stage releases (at most order.release_per_call per
+  // call; ReleaseDue, Tick and Flush release the rest) then update the smoother (one
   // incremental update each) before this returns. A duplicate
   // (keyframe seq, or relayed encounter seq, seen before) is refused as
   // kDuplicateSequence and changes nothing.
@@ -135,8 +136,12 @@ class MappingServer {
   // deterministic).
   void SetClock(int64_t now_utime) { clock_utime_ = now_utime; }
   int64_t clock_utime() const { return clock_utime_ >= 0 ? clock_utime_ : data_utime_; }
-  // Sets the clock and bridges the keyframe gaps that have waited too long (last resort).
+  // Sets the clock, bridges the keyframe gaps that have waited too long (last resort) and
+  // releases up to order.release_per_call inputs.
   void Tick(int64_t now_utime);
+  // Releases up to `max_inputs` inputs that the canonical order allows at the clock into
+  // the graph (one update each); returns how many.
+  int ReleaseDue(int max_inputs);
   // One cumulative acknowledgement per known trajectory.
   std::vector<DeliveryAck> BuildAcks() const;
   // Requests for the missing keyframes and relayed encounters of every trajectory that is
@@ -176,9 +181,10 @@ class MappingServer {
  private:
   // Moves keyframes the delivery table admitted into the canonical order stage.
   void Enqueue(const std::vector<AdmittedKeyframe>& admitted);
-  // Applies what the canonical order stage releases at the current clock (everything when
-  // `at_end`), one input and one update at a time.
-  void Release(bool at_end);
+  // Applies what the canonical order stage releases at the current clock, at most `limit`
+  // inputs (everything waiting, whatever holds it, when `at_end`), one input and one
+  // update at a time; returns how many.
+  int Release(bool at_end, int limit);
   void ApplyKeyframe(Keyframe keyframe);
   void ApplyEncounter(const Encounter& encounter);
   // Counts (and records, if asked) one solver update.

@@ -138,6 +138,8 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "a match is used once the inputs reach its keyframe's time plus this (data time, s)");
   l->Add("order.patience_s", "order-patience-s", &s.order.patience_s,
          "a trajectory silent this long stops holding the others' inputs (s)");
+  l->Add("release_budget_s", "release-budget-s", &o->release_budget_s,
+         "online: wall time per 100 ms tick spent putting waiting inputs into the graph (s)");
   l->Add("order.settle_s", "order-settle-s", &s.order.settle_s,
          "online, an input waits this long after its arrival before it is ordered (s)");
   l->Add("scan.near_distance_m", "scan-near-distance-m", &s.scan.near_distance_m,
@@ -208,7 +210,11 @@ Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, Se
   return journal;
 }
 
-int RunOnline(const ServerOptions& options) {
+int RunOnline(const ServerOptions& given) {
+  // Message handlers only receive (delivery table, journal); the timer's ticks put inputs
+  // into the graph, within --release-budget-s each.
+  ServerOptions options = given;
+  options.server.order.release_per_call = 0;
   Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create(options.lcm_url);
   if (!created.ok()) {
     LogError(created.status().message());

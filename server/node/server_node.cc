@@ -65,6 +65,9 @@ void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_
 bool ServerNode::Replay(const LogEvent& event) {
   if (event.channel == kJournalTick) {
     server_.Tick(event.utime);
+    // What was due then (how much went in per tick does not change the map: the order does).
+    while (server_.ReleaseDue(64) > 0) {
+    }
     return true;
   }
   if (event.channel != options_.channels.keyframes &&
@@ -80,6 +83,11 @@ void ServerNode::Tick(int64_t now_utime) {
   const int64_t updates = server_.update_count();
   const int64_t released = server_.order_stats().released;
   server_.Tick(now_utime);
+  // Online the inputs go into the graph from here, within the release budget (the node's
+  // clock), one at a time.
+  const int64_t deadline = clock_() + static_cast<int64_t>(1e6 * options_.release_budget_s);
+  while (clock_() < deadline && server_.ReleaseDue(1) > 0) {
+  }
   // A tick that bridged gaps or released inputs into the graph is replayed as a tick.
   if (journal_ &&
       (server_.update_count() != updates || server_.order_stats().released != released)) {

@@ -38,6 +38,10 @@ struct ServerOptions {
   // for this long (s; 0 = only after updates), so one lost datagram does not leave
   // subscribers with a stale map.
   double map_republish_period_s = 5.0;
+  // Online: each 100 ms tick puts waiting inputs into the graph for at most this long (wall
+  // time); message handlers only receive, so the loop keeps reading resends and acks while
+  // the scan matching works through a backlog.
+  double release_budget_s = 0.08;
   // Online crash recovery: the write-ahead journal's directory (empty = none). At start the
   // journal found there is replayed (same graphs and estimate), then the server goes live.
   std::string journal_dir;
@@ -67,6 +71,7 @@ struct ServerOptions {
     if (!(status_period_s >= 0)) return Status::Error("status_period_s must be >= 0");
     if (!(ack_period_s > 0)) return Status::Error("ack_period_s must be > 0");
     if (!(map_republish_period_s >= 0)) return Status::Error("map_republish_period_s must be >= 0");
+    if (!(release_budget_s > 0)) return Status::Error("release_budget_s must be > 0");
     if (!journal_dir.empty() && !log_input.empty())
       return Status::Error("--journal is for the online server (not with --log)");
     if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
