@@ -161,7 +161,9 @@ const Inputs& TwoRobotInputs() {
 }
 
 MapResult RunInOrder(const std::vector<OrderedInput>& inputs, int workers = 2) {
-  MappingServerOptions options;  // defaults: loop closures and scan encounters on
+  MappingServerOptions options;
+  options.loop_closures = true;
+  options.scan_encounters = true;
   options.match_workers = workers;
   MappingServer server(options);
   for (const OrderedInput& input : inputs) {
@@ -278,17 +280,13 @@ TEST(CanonicalOrderServerTest, TheMapDoesNotDependOnTheNumberOfMatchWorkers) {
   }
   const MapResult one = RunInOrder(inputs, 1);
   const MapResult two = RunInOrder(inputs, 2);
-  const MapResult inline_run = RunInOrder(inputs, 0);
   EXPECT_GT(one.scan_encounters, 0);
   ASSERT_EQ(one.poses.size(), two.poses.size());
-  ASSERT_EQ(one.poses.size(), inline_run.poses.size());
   // Bit for bit: the same matches, used at the same points of the input.
   for (size_t i = 0; i < one.poses.size(); ++i) {
     EXPECT_EQ(one.poses[i].vector(), two.poses[i].vector()) << i;
-    EXPECT_EQ(one.poses[i].vector(), inline_run.poses[i].vector()) << i;
   }
   ExpectSameMap(one, two);
-  ExpectSameMap(one, inline_run);
 }
 
 }  // namespace

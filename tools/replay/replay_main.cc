@@ -24,6 +24,15 @@
 namespace anchormap {
 namespace {
 
+// The replay's server: the scan-matching sources on (offline their decisions depend only
+// on the input set: the canonical order, worker results used at fixed points).
+ServerOptions WithScanSources() {
+  ServerOptions options;
+  options.server.loop_closures = true;
+  options.server.scan_encounters = true;
+  return options;
+}
+
 struct ReplayOptions {
   std::string input;
   std::string output;
@@ -34,7 +43,7 @@ struct ReplayOptions {
   bool scan_matching = true;
   std::string log_level = "info";
   std::string update_times;  // CSV of every solver update's cost (benchmarks)
-  ServerOptions server;
+  ServerOptions server = WithScanSources();
 };
 
 // One line per solver update: data time (s since the first), its cost, batch step or not.
@@ -178,11 +187,11 @@ int Main(int argc, char** argv) {
              "write every solver update's data time, cost (ms) and kind to this CSV (empty: "
              "none; tools/bench/scale_figures.sh reads it)");
   loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
-             "server: loop closures within a trajectory by scan matching");
+             "server: loop closures within a trajectory by scan matching (on by default)");
   loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
              "server: worker threads of the scan-matching sources (0: its own thread)");
   loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
-             "server: encounters between trajectories by scan matching");
+             "server: encounters between trajectories by scan matching (on by default)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
