@@ -5,7 +5,9 @@
 // odometry frame); a trajectory's anchor appears at its first encounter (the smoother's
 // relative formulation, docs/METHOD.md section 4). Encounter sources are pluggable
 // (EncounterSource); the direct-encounter source is always present, loop closures and scan
-// encounters (scan matching) unless switched off. Tests drive this class
+// encounters (scan matching, on worker threads) when switched on. Inputs reach the graph
+// through the delivery table and the canonical order stage (CanonicalInputOrder), so the
+// graph is built in one order whatever order the bus delivered. Tests drive this class
 // directly; ServerNode connects it to bytes and server_main.cc to LCM.
 
 #include <array>
