@@ -39,22 +39,9 @@
 
 namespace anchormap {
 
-// The smoother's defaults, relinearising as soon as an estimate has moved 0.01 (m / rad)
-// from its linearisation point, and a batch step every 10 updates instead of 100: iSAM
-// relinearises only at batch steps, and the server publishes estimates and covariances
-// after every update. Measured on the demo's 3-robot, 180 s run (787 keyframes, 80
-// encounters; scripts/demo.sh, then anchormap-server --log run.lcmlog
-// --publish-period-s 0): pure iSAM (threshold 0) let estimates wander up to 1.97 m from
-// their linearisation point, chi2 rose to 135 where the optimum was 78, and R3's anchor
-// sigma read 2.8 m between batch steps against 3.9 m at convergence; with 0.01 the
-// published anchors equal the converged solution at every update sampled, for 104
-// instead of 79 batch steps (offline run 3.5 s either way).
-inline SmootherOptions DefaultServerSmootherOptions() {
-  SmootherOptions options;
-  options.batch_every_updates = 10;
-  options.relinearize_threshold = 0.01;
-  return options;
-}
+// The smoother's defaults: common/solver's ServerModeOptions() (relinearisation and
+// merges by partial steps, batch steps only on fill; why there).
+inline SmootherOptions DefaultServerSmootherOptions() { return ServerModeOptions(); }
 
 struct MappingServerOptions {
   SmootherOptions smoother = DefaultServerSmootherOptions();

@@ -105,7 +105,18 @@ void Smoother::Impl::MoveTrajectories(const std::vector<TrajectoryId>& trajector
   for (TrajectoryId t : trajectories) {
     if (options_.formulation == Formulation::kRelative) {
       const int var = index_.at(AnchorKey{t});
-      SetValue(var, Compose(T_new_old, EstimateOf(var)));
+      const Pose2 moved = Compose(T_new_old, EstimateOf(var));
+      const int position = vars_[var].position;
+      if (MergesByPartialStep() && position >= 0) {
+        // R stays as it is; the partial merge step relinearises this anchor at `moved`.
+        const Pose2& theta = vars_[var].linearization;
+        delta_[position] =
+            Eigen::Vector3d(moved.x() - theta.x(), moved.y() - theta.y(),
+                            std::remainder(moved.theta() - theta.theta(), 2.0 * M_PI));
+        merge_vars_.push_back(var);
+      } else {
+        SetValue(var, moved);
+      }
       continue;
     }
     for (int var = 0; var < static_cast<int>(vars_.size()); ++var) {
@@ -163,6 +174,7 @@ Status Smoother::Impl::AddEncounter(PoseKey a, PoseKey b, const Pose2& z,
     const AnchorGroups::Merge merge = groups_.MergeGroups(a.trajectory, b.trajectory);
     factors_[merge.absorbed_prior_id].active = false;
     merge_pending_ = true;
+    if (MergesByPartialStep()) merge_vars_.push_back(factors_[merge.absorbed_prior_id].vars[0]);
     if (options_.formulation != Formulation::kGlobal) {
       const bool a_absorbed = merge.absorbed_root == root_a;
       const Pose2 global_a = GlobalPose(a), global_b = GlobalPose(b);

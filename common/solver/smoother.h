@@ -51,6 +51,8 @@ struct SmootherStats {
   int64_t partial_relinearizations = 0;
   int64_t relinearized_variables = 0;  // summed over partial steps
   int64_t rows_reeliminated = 0;       // block rows of R re-eliminated, summed
+  int64_t partial_merges = 0;          // group merges done by a partial step (also counted
+                                       // in partial_relinearizations)
   double partial_seconds = 0.0;        // time spent in partial steps
   int64_t batch_iterations = 0;        // summed over batch steps
   int64_t iterations_to_convergence =

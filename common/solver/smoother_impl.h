@@ -163,12 +163,24 @@ class Smoother::Impl {
 
   std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
   void TakeOutOfPending(const std::vector<int64_t>& done);
-  void IncrementalStep(UpdateResult* result);
-  // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold and
-  // re-eliminates only the block rows that depend on them (them, the variables they share
-  // factors with, and their ancestors in the elimination tree), locally reordered. All or
-  // nothing: false (result->status) leaves the smoother as it was.
-  bool PartialRelinearization(UpdateResult* result);
+  // Givens updates of the pending measurements; `solve` false leaves delta as it was
+  // (a partial merge step solves after it).
+  void IncrementalStep(bool solve, UpdateResult* result);
+  // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold, and
+  // those at `forced` positions, and re-eliminates only the block rows that depend on them
+  // (them, the variables they share factors with, and their ancestors in the elimination
+  // tree), locally reordered; factors no longer active leave R on the way. `full_solve`
+  // back-substitutes all of R afterwards. All or nothing: false (result->status) leaves
+  // the smoother as it was. True without work when nothing drifted and nothing is forced.
+  bool PartialRelinearization(const std::vector<int>& forced, bool full_solve,
+                              UpdateResult* result);
+  // Two anchored groups joined (relative formulation, partial_merges): the new
+  // measurements by Givens updates, then a partial step over the moved anchors and the
+  // one whose gauge prior was dropped. Falls back to a batch step if that fails.
+  void PartialMergeStep(UpdateResult* result);
+  bool MergesByPartialStep() const {
+    return options_.partial_merges && options_.formulation == Formulation::kRelative;
+  }
   // Relinearises, reorders and refactors; iterates until the step is below `tolerance`
   // (or once unless `converge`); counts itself in stats_. All or nothing: on failure
   // (result->status) the smoother is as it was before the call.
@@ -231,11 +243,9 @@ class Smoother::Impl {
   static double MaxAbs(const std::vector<Eigen::Vector3d>& v);
   // How far a variable is from its linearisation point, for relinearize_threshold.
   static double Drift(const Eigen::Vector3d& d) { return d.cwiseAbs().maxCoeff(); }
-  double MaxDrift() const {
-    double m = 0.0;
-    for (const auto& d : delta_) m = std::max(m, Drift(d));
-    return m;
-  }
+  // Positions (ascending) of the variables whose delta exceeds relinearize_threshold,
+  // and the largest drift seen.
+  std::vector<int> DriftedPositions(double* max_drift) const;
   SparseR& MutableR() {
     if (r_.use_count() > 1) r_ = std::make_shared<SparseR>(*r_);  // a snapshot holds the old one
     return *r_;
@@ -266,6 +276,9 @@ class Smoother::Impl {
   std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
   std::vector<TrajectoryId> trajectory_order_;
   bool merge_pending_ = false;
+  // Variables a pending partial merge must relinearise: moved anchors, the anchor whose
+  // gauge prior was dropped.
+  std::vector<int> merge_vars_;
   double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
   int updates_since_drift_check_ = 0;

@@ -2,6 +2,14 @@
 
 namespace anchormap {
 
+SmootherOptions ServerModeOptions() {
+  SmootherOptions options;
+  options.batch_every_updates = 0;
+  options.relinearize_threshold = 0.01;
+  options.partial_merges = true;
+  return options;
+}
+
 const char* ToString(Formulation formulation) {
   switch (formulation) {
     case Formulation::kRelative:

@@ -66,7 +66,7 @@ void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
   pending_vars_.swap(vars);
 }
 
-void Smoother::Impl::IncrementalStep(UpdateResult* result) {
+void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   // grounded[v] == (v is in R), kept between updates so that an update costs what it
   // touches: only new and pending variables need a fresh look (a batch step clears it).
   std::vector<char>& grounded = grounded_;
@@ -110,6 +110,7 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
   R.Eliminate(std::move(new_rows), &touched);
   TakeOutOfPending(ready);
 
+  if (!solve) return;
   if (options_.backsubstitution_threshold == 0.0) {
     R.BackSubstitute(&delta_);
     result->rows_backsubstituted = R.size();
@@ -119,18 +120,16 @@ void Smoother::Impl::IncrementalStep(UpdateResult* result) {
   }
 }
 
-bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
+bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool full_solve,
+                                            UpdateResult* result) {
   const auto start = std::chrono::steady_clock::now();
   const int n = r_->size();
-  const double threshold = options_.relinearize_threshold;
   // 1. The drifted variables S (by position) and their new linearisation points.
   std::vector<char> drifted(n, 0), in_b(n, 0);
+  for (int p : forced) drifted[p] = 1;
   std::vector<int> drifted_positions;
   for (int p = 0; p < n; ++p) {
-    if (Drift(delta_[p]) > threshold) {
-      drifted[p] = 1;
-      drifted_positions.push_back(p);
-    }
+    if (drifted[p]) drifted_positions.push_back(p);
   }
   if (drifted_positions.empty()) return true;
   auto theta = [&](int var) {  // the new linearisation point
@@ -192,10 +191,13 @@ bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
     bool relinearize;
   };
   std::vector<LocalFactor> local_factors;
+  std::vector<int64_t> leaving;  // in R but no longer active (a merge's dropped gauge prior)
   for (int p : b_positions) {
     for (int64_t f : var_factors_[position_to_var_[p]]) {
-      if (!usable(f) || factor_stamp_[f] == stamp_) continue;
+      if (factor_stamp_[f] == stamp_) continue;
       factor_stamp_[f] = stamp_;
+      if (!factors_[f].active && factor_lin_[f].in_r) leaving.push_back(f);
+      if (!usable(f)) continue;
       bool touches_s = false;
       for (int j = 0; j < factors_[f].num_vars; ++j) {
         touches_s = touches_s || drifted[vars_[factors_[f].vars[j]].position];
@@ -326,6 +328,7 @@ bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
   for (const LocalFactor& lf : local_factors) {
     if (lf.relinearize) MarkInR(lf.id, relinearized_at[next_relinearized++]);
   }
+  for (int64_t f : leaving) factor_lin_[f].in_r = false;
   std::vector<Eigen::Vector3d> old_delta(delta_.begin() + p0, delta_.end());
   for (int p : drifted_positions) {
     Variable& v = vars_[position_to_var_[p]];
@@ -341,7 +344,7 @@ bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
     vars_[old_vars[k]].position = p;
     delta_[p] = old_delta[k];
   }
-  if (options_.backsubstitution_threshold == 0.0) {
+  if (full_solve || options_.backsubstitution_threshold == 0.0) {
     r_->BackSubstitute(&delta_);
     result->rows_backsubstituted += r_->size();
   } else {
@@ -357,6 +360,56 @@ bool Smoother::Impl::PartialRelinearization(UpdateResult* result) {
   stats_.partial_seconds += Seconds(start);
   result->relinearized = static_cast<int>(drifted_positions.size());
   return true;
+}
+
+std::vector<int> Smoother::Impl::DriftedPositions(double* max_drift) const {
+  std::vector<int> positions;
+  *max_drift = 0.0;
+  for (int p = 0; p < static_cast<int>(delta_.size()); ++p) {
+    const double drift = Drift(delta_[p]);
+    *max_drift = std::max(*max_drift, drift);
+    if (drift > options_.relinearize_threshold) positions.push_back(p);
+  }
+  return positions;
+}
+
+void Smoother::Impl::PartialMergeStep(UpdateResult* result) {
+  result->groups_merged = 1;
+  // Givens updates first, so that the encounter that joins the groups is in R before the
+  // absorbed group's gauge prior leaves it; no solve yet: delta holds the moved anchors.
+  IncrementalStep(/*solve=*/false, result);
+  std::vector<int> forced;
+  for (int var : merge_vars_) {
+    if (vars_[var].position >= 0) forced.push_back(vars_[var].position);
+  }
+  std::sort(forced.begin(), forced.end());
+  forced.erase(std::unique(forced.begin(), forced.end()), forced.end());
+  if (forced.empty()) {
+    r_->BackSubstitute(&delta_);
+    result->rows_backsubstituted += r_->size();
+    ++stats_.partial_merges;
+  } else if (PartialRelinearization(forced, /*full_solve=*/true, result)) {
+    ++stats_.partial_merges;
+  } else {
+    // The state is the Givens-updated one with the anchors moved: a batch step from it.
+    ++stats_.batch_steps_on_merge;
+    result->status = Status::Ok();
+    BatchStep(/*converge=*/true, options_.convergence_step, result);
+    if (!result->status.ok()) return;  // merge_pending_ stays: the next update retries
+  }
+  merge_vars_.clear();
+  merge_pending_ = false;
+  // A merge moves estimates by more than an ordinary update: relinearise what drifted
+  // now, so that the published estimate is near the optimum after this update too.
+  for (int k = 0; k < 3 && options_.relinearize_threshold > 0; ++k) {
+    double max_drift = 0.0;
+    const std::vector<int> drifted = DriftedPositions(&max_drift);
+    if (drifted.empty()) break;
+    if (!PartialRelinearization(drifted, /*full_solve=*/false, result)) {
+      result->status = Status::Ok();  // the state is valid without it; drift is re-checked
+      break;
+    }
+  }
 }
 
 bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
@@ -475,23 +528,32 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   ++updates_since_batch_;
   const StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
                                               r_->NonZeros(), nonzeros_after_batch_});
-  if (kind != StepKind::kIncremental) {
-    // 2a. A batch step: relinearise, reorder, refactor.
+  if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {
+    // 2a. Groups joined: a partial step over the anchors (relative formulation).
+    PartialMergeStep(&result);
+    stats_.incremental_seconds += Seconds(start);
+  } else if (kind != StepKind::kIncremental) {
+    // 2b. A batch step: relinearise, reorder, refactor.
     CountBatchStep(kind, &result);
     BatchStep(IteratesToConvergence(kind, options_),
               convergence_step > 0 ? convergence_step : options_.convergence_step, &result);
-    if (result.status.ok()) merge_pending_ = false;  // else the next update tries again
+    if (result.status.ok()) {
+      merge_pending_ = false;  // else the next update tries again
+      merge_vars_.clear();
+    }
   } else {
-    // 2b. Givens updates, then relinearisation where estimates drifted.
-    IncrementalStep(&result);
+    // 2c. Givens updates, then relinearisation where estimates drifted.
+    IncrementalStep(/*solve=*/true, &result);
     stats_.incremental_seconds += Seconds(start);
     if (result.status.ok() && DriftCheckDue(options_, ++updates_since_drift_check_)) {
       updates_since_drift_check_ = 0;
-      switch (OnDrift(options_, MaxDrift())) {
+      double max_drift = 0.0;
+      const std::vector<int> drifted = DriftedPositions(&max_drift);
+      switch (OnDrift(options_, max_drift)) {
         case DriftAction::kNone:
           break;
         case DriftAction::kPartialRelinearization:
-          PartialRelinearization(&result);
+          PartialRelinearization(drifted, /*full_solve=*/false, &result);
           break;
         case DriftAction::kBatchStep:
           ++stats_.batch_steps_on_drift;

@@ -25,13 +25,17 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --mode incremental|batch    incremental: add pose by pose, solve after every step
                               (default); batch: add everything, one batch solve
   --robots N                  cut the trajectory into N robots (default 1)
+  --server-mode               start from the mapping server's options (ServerModeOptions:
+                              relinearise at 0.01, partial merges, no clock batch steps);
+                              flags after it change them
+  --partial-merges true|false merge anchored groups by a partial step (relative formulation)
   --formulation F             relative | global | global-moved (default relative)
   --batch-every K             batch step every K updates (default 100, 0 = never)
   --method gn|dogleg          nonlinear method of batch steps (default gn)
   --threshold X               back-substitution threshold (default 0 = exact)
   --relinearize X             batch step when an estimate moved X from its linearisation
                               point (default 0 = off, pure iSAM)
- --relinearize-skip K        look at drift every K updates (default 1)
+  --relinearize-skip K        look at drift every K updates (default 1)
   --full-relinearization      on drift, run a full batch step (the old way) instead of the
                               partial relinearisation
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
@@ -94,6 +98,17 @@ Flags ParseFlags(int argc, char** argv) {
       if (!formulation)
         Fail("--formulation must be relative, global or global-moved, got '" + text + "'");
       flags.smoother.formulation = *formulation;
+    } else if (arg == "--server-mode") {
+      const SmootherOptions server = ServerModeOptions();
+      flags.smoother.batch_every_updates = server.batch_every_updates;
+      flags.smoother.relinearize_threshold = server.relinearize_threshold;
+      flags.smoother.partial_merges = server.partial_merges;
+      flags.smoother.batch_when_fill_grows = server.batch_when_fill_grows;
+      flags.smoother.relinearize_skip = server.relinearize_skip;
+    } else if (arg == "--partial-merges") {
+      const std::string text = value();
+      if (text != "true" && text != "false") Fail("--partial-merges must be true or false");
+      flags.smoother.partial_merges = text == "true";
     } else if (arg == "--batch-every") {
       flags.smoother.batch_every_updates = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--method") {
@@ -259,6 +274,7 @@ int Run(const Flags& flags) {
         "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
         "\"partial_relinearizations\": %lld, \"partial_s\": %.4f, "
         "\"relinearized_variables\": %lld, \"rows_reeliminated\": %lld, "
+        "\"partial_merges\": %lld, "
         "\"checked_steps\": %d, \"worst_step_chi2_excess\": %.3e, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
@@ -279,7 +295,8 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.givens_block_columns),
         static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
         static_cast<long long>(stats.relinearized_variables),
-        static_cast<long long>(stats.rows_reeliminated), checks, worst_excess, failures,
+        static_cast<long long>(stats.rows_reeliminated),
+        static_cast<long long>(stats.partial_merges), checks, worst_excess, failures,
         first_failure.c_str());
   } else {
     std::printf(
@@ -299,14 +316,15 @@ int Run(const Flags& flags) {
                 stats.incremental_seconds);
     std::printf(
         "batch steps %lld (clock %lld, fill %lld, merge %lld, drift %lld), iterations %lld, "
-        "iterations to 1e-4: %lld\n",
+        "iterations to 1e-4: %lld; partial merges %lld\n",
         static_cast<long long>(stats.batch_steps),
         static_cast<long long>(stats.batch_steps_on_clock),
         static_cast<long long>(stats.batch_steps_on_fill),
         static_cast<long long>(stats.batch_steps_on_merge),
         static_cast<long long>(stats.batch_steps_on_drift),
         static_cast<long long>(stats.batch_iterations),
-        static_cast<long long>(stats.iterations_to_convergence));
+        static_cast<long long>(stats.iterations_to_convergence),
+        static_cast<long long>(stats.partial_merges));
     std::printf(
         "chi2 %.4f, after a final batch step %.4f, batch optimum %.4f (relative "
         "difference %.2e); nnz/column of R %.2f\n",
