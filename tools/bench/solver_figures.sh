@@ -93,3 +93,21 @@ if [ -f "$DATA/M3500.g2o" ]; then
       "$(field "$j" worst_step_chi2_excess) | $(field "$j" chi2) |"
   done
 fi
+
+echo
+echo "The server's mode (--server-mode: relinearise at 0.01 by partial steps, merges by partial"
+echo "steps, no batch step on a clock) against the server's old policy (a batch step every 10"
+echo "updates), 1 and 4 robots; every 37th step checked (untimed):"
+echo
+echo "| graph | robots | policy | total s | batch steps | partial steps | partial merges | worst checked step chi2 excess | chi2 after a final batch step |"
+echo "|---|---|---|---|---|---|---|---|---|"
+if [ -f "$DATA/M3500.g2o" ]; then
+  for robots in 1 4; do
+    for policy in "--relinearize 0.01 --batch-every 10" "--server-mode"; do
+      j=$("$BENCH" "$DATA/M3500.g2o" --robots "$robots" $policy --check-every 37 --no-reference --json)
+      echo "| M3500 | $robots | $policy | $(field "$j" total_s) | $(field "$j" batch_steps) |" \
+        "$(field "$j" partial_relinearizations) | $(field "$j" partial_merges) |" \
+        "$(field "$j" worst_step_chi2_excess) | $(field "$j" chi2_after_final_batch) |"
+    done
+  done
+fi
