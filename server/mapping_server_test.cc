@@ -614,10 +614,11 @@ TEST_F(MappingServerTest, UpdateTimesAreRecordedOnlyWhenAsked) {
     }
   }
   EXPECT_NEAR(total_ms, recorded.stats().total_update_ms, 1e-9 * (1.0 + total_ms));
-  EXPECT_EQ(times.front().data_utime, 1'000'000);         // the first keyframe's time
-  EXPECT_EQ(times.back().data_utime, 11'000'000);         // the last input's, at Flush
-  EXPECT_TRUE(times.back().batch_step);                   // Flush ends with a batch step
-  EXPECT_GE(batch_steps, recorded.stats().updates / 10);  // at least every 10 updates
+  EXPECT_EQ(times.front().data_utime, 1'000'000);  // the first keyframe's time
+  EXPECT_EQ(times.back().data_utime, 11'000'000);  // the last input's, at Flush
+  EXPECT_TRUE(times.back().batch_step);            // Flush ends with a batch step
+  // The server's mode runs no batch step on a clock: the recorded flags are the smoother's.
+  EXPECT_EQ(batch_steps, recorded.smoother().stats().batch_steps);
 }
 
 }  // namespace
