@@ -53,8 +53,8 @@ struct ServerOptions {
   std::string key_id;
   // Hostile input: new robots and trajectories past these caps are refused (memory stays
   // bounded whatever is published), as are scans of more ranges than max_scan_ranges.
-  int max_robots = 64;
-  int max_trajectories = 256;
+  int max_robots = 256;  // the scale benchmark runs 100 robots
+  int max_trajectories = 1024;
   int max_scan_ranges = 8192;
   // Data times further than this ahead of the server's clock (wall time online, the log's
   // own time stamps offline) are refused, so that a message dated 2100 cannot move the
