@@ -67,9 +67,12 @@ struct MappingServerOptions {
   ScanEncounterOptions scan;
   // The sources' matching runs on this many worker threads (0: on the server's thread);
   // each result is used once the canonical input reaches its keyframe's time plus the lag
-  // (data time), so the map does not depend on the worker count or thread timing.
+  // (data time), so the map does not depend on the worker count or thread timing. Lag 0:
+  // a match is waited for at the next input, so the next candidates are gated against an
+  // estimate that has it (Intel, 1 robot: mean relation error 0.037 m at lag 0, 0.056 at
+  // 0.5 s, 0.083 at 2 s); a lag lets the workers run ahead at that price.
   int match_workers = 2;
-  MatchSchedule match_schedule{2.0};
+  MatchSchedule match_schedule{0.0};
   MapPublisherOptions publish;
   DeliveryOptions delivery;
 

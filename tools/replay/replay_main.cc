@@ -190,6 +190,9 @@ int Main(int argc, char** argv) {
              "server: loop closures within a trajectory by scan matching (on by default)");
   loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
              "server: worker threads of the scan-matching sources (0: its own thread)");
+  loader.Add("match.lag_s", "match-lag-s", &options.server.server.match_schedule.lag_s,
+             "server: a match is used once the inputs reach its keyframe's time plus this "
+             "(data time, s)");
   loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
              "server: encounters between trajectories by scan matching (on by default)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
