@@ -202,13 +202,7 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
     auto job = [submap, query, guess, window] {
       return MatchLocal(*submap, *query, guess, window);
     };
-    if (pool_) {
-      pending.result = pool_->Submit(std::move(job));
-    } else {
-      std::promise<std::optional<MatchResult>> done;
-      done.set_value(job());
-      pending.result = done.get_future().share();
-    }
+    pending.result = RunMatch(pool_, std::move(job));
     matches_.push_back(std::move(pending));
   }
 }

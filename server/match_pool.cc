@@ -47,4 +47,11 @@ void MatchPool::Work() {
   }
 }
 
+std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, MatchPool::Job job) {
+  if (pool) return pool->Submit(std::move(job));
+  std::promise<std::optional<MatchResult>> done;
+  done.set_value(job());
+  return done.get_future().share();
+}
+
 }  // namespace anchormap

@@ -52,4 +52,8 @@ class MatchPool {
   std::vector<std::thread> threads_;
 };
 
+// Runs `job` on `pool`, or at once on the caller's thread when there is no pool (the
+// sources' 0-worker mode): either way the caller gets a future of its result.
+std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, MatchPool::Job job);
+
 }  // namespace anchormap

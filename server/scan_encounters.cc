@@ -206,13 +206,7 @@ void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, int64_t ke
   pending.global = global;
   pending.key_utime = key_utime;
   pending.due_utime = pool_ ? schedule_.DueUtime(key_utime) : std::numeric_limits<int64_t>::min();
-  if (pool_) {
-    pending.result = pool_->Submit(std::move(job));
-  } else {
-    std::promise<std::optional<MatchResult>> done;
-    done.set_value(job());
-    pending.result = done.get_future().share();
-  }
+  pending.result = RunMatch(pool_, std::move(job));
   matches_.push_back(std::move(pending));
 }
 
