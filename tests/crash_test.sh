@@ -108,12 +108,7 @@ inside_namespace() {
 
 main() {
   require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps
-  command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
-    { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
-  if ! netns_available; then
-    log "SKIPPED: network namespaces are unavailable here (unshare -n refused); the crash test needs a private network for its multicast bus"
-    exit $SKIP
-  fi
+  require_player_and_netns "the crash test needs a private network for its multicast bus"
   make_work_dir
   local work=$WORK
   simulate $ROBOTS $DURATION_S

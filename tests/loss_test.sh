@@ -70,12 +70,7 @@ inside_namespace() {
 main() {
   require_tools anchormap-sim anchormap-agent anchormap-server anchormap-relay \
     anchormap-test-compare-maps
-  command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
-    { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
-  if ! netns_available; then
-    log "SKIPPED: network namespaces are unavailable here (unshare -n refused); the loss test needs a private network for its two multicast buses"
-    exit $SKIP
-  fi
+  require_player_and_netns "the loss test needs a private network for its two multicast buses"
   make_work_dir
   local work=$WORK
   simulate $ROBOTS $DURATION_S

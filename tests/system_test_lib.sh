@@ -34,6 +34,18 @@ netns_available() {
     >/dev/null 2>&1
 }
 
+# Exits with $SKIP, saying why, unless lcm-logplayer / lcm-logger and private network
+# namespaces are available; `what` names the test and why it needs its own network.
+require_player_and_netns() {
+  local what=$1
+  command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
+    { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
+  if ! netns_available; then
+    log "SKIPPED: network namespaces are unavailable here (unshare -n refused); $what"
+    exit $SKIP
+  fi
+}
+
 # True when every agent's last status line (WORK_DIR/agent_R*.log) shows an empty outbox:
 # everything it published was acknowledged by the server.
 outboxes_empty() {
