@@ -68,6 +68,8 @@ class DirectEncounters : public EncounterSource {
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
   size_t pending() const override { return pending_.size(); }
+  // Ties encounters by keyframe times only (the table), never by the estimate.
+  bool ReadsEstimate() const override { return false; }
 
  private:
   // Ties every waiting encounter whose keyframes are there; refuses those that waited too

@@ -72,6 +72,10 @@ class EncounterSource {
   virtual size_t pending() const { return 0; }
   // The source's own figures for the status line ("" for none).
   virtual std::string StatsLine() const { return ""; }
+  // True when the source's decisions depend on the estimate (a scan matcher gates its
+  // candidates on it). MappingServer defers solver updates during a journal replay only
+  // when no source does: otherwise the replayed decisions could differ from the live ones.
+  virtual bool ReadsEstimate() const { return true; }
 };
 
 }  // namespace anchormap

@@ -316,13 +316,61 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
             std::to_string(c.a.index) + "] -> " + b->robot + "[" + std::to_string(c.b.index) +
             "] (" + c.source + ")" + (first ? ", anchors created" : ""));
   }
-  if (!changed) return;
-  const UpdateResult result = smoother_.Update();
-  CountUpdate(result);
+  if (changed) Solve();
+}
+
+void MappingServer::Solve() {
+  if (!deferring_) {
+    const UpdateResult result = smoother_.Update();
+    CountUpdate(result);
+    if (!result.status.ok()) {
+      ++stats_.solver_problems;
+      solver_log_.Log(LogLevel::kWarning, "solver", "solver update: " + result.status.message());
+    }
+    return;
+  }
+  ++stats_.updates;
+  ++stats_.deferred_updates;
+  unsolved_ = true;
+  // Below 64 variables a batch step is as cheap as the updates it replaces.
+  const int64_t variables = smoother_.stats().variables;
+  if (variables >= 64 && variables >= 2 * variables_at_deferred_batch_) DeferredBatchStep();
+}
+
+UpdateResult MappingServer::DeferredBatchStep() {
+  UpdateResult result = smoother_.BatchOptimize();
+  variables_at_deferred_batch_ = smoother_.stats().variables;
+  unsolved_ = !result.status.ok();  // a failed step left everything pending: try again
+  stats_.last_update_ms = 1e3 * result.seconds;
+  stats_.total_update_ms += stats_.last_update_ms;
   if (!result.status.ok()) {
     ++stats_.solver_problems;
-    solver_log_.Log(LogLevel::kWarning, "solver", "solver update: " + result.status.message());
+    solver_log_.Log(LogLevel::kWarning, "solver",
+                    "deferred batch step: " + result.status.message());
   }
+  return result;
+}
+
+bool MappingServer::CanDeferUpdates() const {
+  return std::none_of(sources_.begin(), sources_.end(),
+                      [](const auto& source) { return source->ReadsEstimate(); });
+}
+
+bool MappingServer::BeginDeferredUpdates() {
+  if (!CanDeferUpdates()) return false;
+  deferring_ = true;
+  unsolved_ = false;
+  variables_at_deferred_batch_ = smoother_.stats().variables;
+  return true;
+}
+
+UpdateResult MappingServer::EndDeferredUpdates() {
+  UpdateResult result;
+  if (!deferring_) return result;
+  deferring_ = false;
+  // Nothing changed the graph since the last step: the estimate holds.
+  if (!unsolved_) return result;
+  return DeferredBatchStep();
 }
 
 int MappingServer::num_anchored() const {

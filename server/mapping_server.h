@@ -97,6 +97,8 @@ struct MappingServerStats {
   // Added constraints by ConstraintKind (direct, scan encounter, loop closure).
   std::array<int64_t, kNumConstraintKinds> added_by_kind{};
   int64_t updates = 0;
+  // Of those, updates a journal replay deferred (counted, solved by one batch step later).
+  int64_t deferred_updates = 0;
   int64_t solver_problems = 0;  // updates whose status was not ok
   double last_update_ms = 0.0;
   double total_update_ms = 0.0;
@@ -149,6 +151,23 @@ class MappingServer {
   // Counts a refusal that happened before the logic (e.g. in the codec).
   void CountRejection(const Status& refusal, const std::string& context);
 
+  // Journal replay (crash recovery, server/node): between Begin and End an input that
+  // changes the graph adds its variables and factors and counts its update, but the
+  // smoother is not solved; End solves once by a batch step. The graphs, tables and
+  // counters are the same as with every update run; the estimate is the converged one
+  // (what the live run's own next batch step would give), not the incremental one at the
+  // crash. A batch step also runs whenever the graph has doubled since the last one, so
+  // new poses start from a solved estimate, not from odometry alone, at most twice the
+  // cost of the last step. Only when no source reads the estimate (CanDeferUpdates): the
+  // scan-matching sources gate their candidates on it, so their replayed decisions would
+  // differ from the live ones; Begin then does nothing and every update runs.
+  bool CanDeferUpdates() const;
+  bool BeginDeferredUpdates();  // false when the updates cannot be deferred
+  // Ends the deferral: the batch step (not counted as an update: it stands for the
+  // deferred ones). Ok when nothing was deferred.
+  UpdateResult EndDeferredUpdates();
+  bool deferring_updates() const { return deferring_; }
+
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;
   AnchorCovariances BuildAnchorCovariances();
@@ -185,6 +204,11 @@ class MappingServer {
   void ApplyEncounter(const Encounter& encounter);
   // Counts (and records, if asked) one solver update.
   void CountUpdate(const UpdateResult& result);
+  // Solves after an input changed the graph: one update, or (deferring) a count and a batch
+  // step when the graph has doubled.
+  void Solve();
+  // A batch step during a deferral; its problems counted and logged like an update's.
+  UpdateResult DeferredBatchStep();
   // Adds admitted keyframes to the smoother and tells the sources.
   void AddKeyframes(const std::vector<AdmittedKeyframe>& admitted, EncounterSourceOutput* found);
   // Adds the sources' constraints, counts their refusals, updates the smoother if anything
@@ -221,6 +245,9 @@ class MappingServer {
   // table.max_hold_s the missing encounters are given up (counted, logged).
   std::map<TrajectoryName, int64_t> encounter_gap_since_;
   int64_t encounters_given_up_ = 0;
+  bool deferring_ = false;
+  int64_t variables_at_deferred_batch_ = 0;  // the graph's size at the last batch step
+  bool unsolved_ = false;                    // deferred updates since the last batch step
 };
 
 }  // namespace anchormap

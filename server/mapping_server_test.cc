@@ -583,6 +583,112 @@ TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncou
   EXPECT_EQ(server.table().num_bridged_gaps(), 0);
 }
 
+// The largest difference between two maps' global poses; they must hold the same
+// trajectories, keyframes and encounter links.
+double MaxPoseDifference(const MergedMap& a, const MergedMap& b) {
+  EXPECT_EQ(a.trajectories.size(), b.trajectories.size());
+  EXPECT_EQ(a.encounters.size(), b.encounters.size());
+  double largest = 0.0;
+  for (size_t t = 0; t < std::min(a.trajectories.size(), b.trajectories.size()); ++t) {
+    const MergedTrajectory& x = a.trajectories[t];
+    const MergedTrajectory& y = b.trajectories[t];
+    EXPECT_EQ(x.robot, y.robot);
+    EXPECT_EQ(x.anchored, y.anchored);
+    EXPECT_EQ(x.pose_utimes, y.pose_utimes);
+    if (x.poses.size() != y.poses.size()) return 1e300;
+    for (size_t i = 0; i < x.poses.size(); ++i) {
+      largest = std::max(largest, PoseError(x.poses[i], y.poses[i]).cwiseAbs().maxCoeff());
+    }
+  }
+  for (size_t i = 0; i < std::min(a.encounters.size(), b.encounters.size()); ++i) {
+    EXPECT_EQ(a.encounters[i].robot_a, b.encounters[i].robot_a);
+    EXPECT_EQ(a.encounters[i].index_a, b.encounters[i].index_a);
+    EXPECT_EQ(a.encounters[i].robot_b, b.encounters[i].robot_b);
+    EXPECT_EQ(a.encounters[i].index_b, b.encounters[i].index_b);
+  }
+  return largest;
+}
+
+// A restart's journal replay (server/node) defers the solver: the graphs it rebuilds are
+// the live run's, its estimate the converged one, and the run goes on to the same end.
+TEST_F(MappingServerTest, DeferredUpdatesRebuildTheSameGraphsWithTheConvergedEstimate) {
+  const Scenario scenario(
+      60.0, {{5.0, 0, 1}, {12.0, 1, 2}, {20.0, 2, 0}, {33.0, 0, 1}, {41.0, 1, 2}, {52.0, 0, 2}});
+  MappingServerOptions options = ExactTieOptions();
+  options.smoother.convergence_step = 1e-12;  // batch steps iterate to the minimum
+  MappingServer live(options);
+  MappingServer converged(options);  // the live inputs, then a batch step of its own
+  MappingServer restarted(options);
+  ASSERT_TRUE(restarted.CanDeferUpdates());
+  ASSERT_TRUE(restarted.BeginDeferredUpdates());
+  const size_t crash = scenario.inputs.size() * 2 / 3;  // after the encounter at 33 s
+  for (size_t i = 0; i < crash; ++i) {
+    ASSERT_TRUE(Feed(&live, scenario.inputs[i]));
+    ASSERT_TRUE(Feed(&converged, scenario.inputs[i]));
+    ASSERT_TRUE(Feed(&restarted, scenario.inputs[i]));
+  }
+  // Every update counted, none run: the smoother ran only its batch steps on doubling
+  // (64, 128, 256 variables: 3 for ~250 variables).
+  EXPECT_EQ(restarted.stats().updates, live.stats().updates);
+  EXPECT_EQ(restarted.stats().deferred_updates, live.stats().updates);
+  EXPECT_GT(live.stats().updates, 240);
+  const SmootherStats& deferred_solver = restarted.smoother().stats();
+  EXPECT_EQ(deferred_solver.updates, deferred_solver.batch_steps);
+  EXPECT_GE(deferred_solver.batch_steps, 2);
+  EXPECT_LE(deferred_solver.batch_steps, 3);
+  const UpdateResult closing = restarted.EndDeferredUpdates();
+  ASSERT_TRUE(closing.status.ok()) << closing.status.message();
+  EXPECT_TRUE(closing.batch_step);
+  EXPECT_FALSE(restarted.deferring_updates());
+  EXPECT_EQ(restarted.stats().updates, live.stats().updates);  // the step stands for them
+  EXPECT_EQ(restarted.stats().solver_problems, 0);
+
+  // The same graphs: trajectories, keyframes, links, factors.
+  EXPECT_EQ(restarted.table().num_keyframes(), live.table().num_keyframes());
+  EXPECT_EQ(restarted.smoother().stats().variables, live.smoother().stats().variables);
+  EXPECT_EQ(restarted.smoother().ActiveFactors().size(), live.smoother().ActiveFactors().size());
+  EXPECT_EQ(restarted.num_anchored(), 3);
+  // The estimate: the minimum the live run's own batch step reaches (to the step
+  // tolerance), and near the live incremental one (iSAM's linearisation error, mm).
+  converged.mutable_smoother().BatchOptimize();
+  EXPECT_LT(MaxPoseDifference(converged.BuildMergedMap(), restarted.BuildMergedMap()), 1e-9);
+  const double from_incremental =
+      MaxPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap());
+  EXPECT_LT(from_incremental, 0.05);
+
+  // Live again: every update runs, and the session ends where the uninterrupted one does.
+  const int64_t solver_updates = restarted.smoother().stats().updates;
+  const int64_t updates_at_crash = restarted.stats().updates;
+  for (size_t i = crash; i < scenario.inputs.size(); ++i) {
+    ASSERT_TRUE(Feed(&live, scenario.inputs[i]));
+    ASSERT_TRUE(Feed(&restarted, scenario.inputs[i]));
+  }
+  EXPECT_EQ(restarted.smoother().stats().updates - solver_updates,
+            restarted.stats().updates - updates_at_crash);
+  live.Flush();
+  restarted.Flush();
+  EXPECT_EQ(restarted.stats().updates, live.stats().updates);
+  EXPECT_EQ(restarted.stats().encounters_added, 6);
+  EXPECT_LT(MaxPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap()), 1e-9);
+}
+
+// The scan-matching sources gate candidates on the estimate: no deferral with them on.
+TEST_F(MappingServerTest, UpdatesAreNotDeferredWhenASourceReadsTheEstimate) {
+  MappingServerOptions options = ExactTieOptions();
+  options.loop_closures = true;
+  options.match_workers = 0;
+  MappingServer server(options);
+  EXPECT_FALSE(server.CanDeferUpdates());
+  EXPECT_FALSE(server.BeginDeferredUpdates());
+  EXPECT_FALSE(server.deferring_updates());
+  const Scenario scenario(3.0, {});
+  for (const auto& input : scenario.inputs) ASSERT_TRUE(Feed(&server, input));
+  EXPECT_EQ(server.stats().deferred_updates, 0);
+  EXPECT_EQ(server.smoother().stats().updates, server.stats().updates);
+  EXPECT_GT(server.stats().updates, 0);
+  EXPECT_TRUE(server.EndDeferredUpdates().status.ok());  // nothing to end
+}
+
 }  // namespace
 }  // namespace anchormap
 

@@ -90,6 +90,9 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("journal_dir", "journal", &o->journal_dir,
          "online: write-ahead journal directory; an existing journal there is replayed at start "
          "(crash recovery)");
+  l->Add("journal_defer_updates", "journal-defer-updates", &o->journal_defer_updates,
+         "a restart's journal replay defers solver updates to batch steps (same graphs, the "
+         "converged estimate; off by itself with scan-matching sources)");
   l->Add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
          "ask a trajectory for missing keyframes / encounters at most this often (s)");
   l->Add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
@@ -187,23 +190,29 @@ Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
 
 // Opens the journal in `dir`, replays what it holds through `node` (the same handlers, with
 // the clocks they saw live) and has the node journal every input from now on.
-Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, ServerNode* node) {
+Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, bool defer_updates,
+                                                      ServerNode* node) {
   std::vector<LogEvent> events;
   Result<std::unique_ptr<Journal>> journal = Journal::Open(dir, &events);
   if (!journal.ok()) return journal.status();
   const auto start = std::chrono::steady_clock::now();
   const std::clock_t cpu_start = std::clock();
-  int64_t replayed = 0;
-  for (const LogEvent& event : events) {
-    if (node->Replay(event)) ++replayed;
-  }
+  const ServerNode::JournalReplay replay = node->ReplayJournal(events, defer_updates);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   std::ostringstream line;
-  line << "journal " << (*journal)->path() << ": replayed " << replayed << " of " << events.size()
-       << " events (" << (*journal)->bytes() << " bytes) in " << seconds << " s (" << cpu_seconds
-       << " s CPU); resuming with " << node->server().StatusLine();
+  line << "journal " << (*journal)->path() << ": replayed " << replay.events << " of "
+       << events.size() << " events (" << (*journal)->bytes() << " bytes) in " << seconds << " s ("
+       << cpu_seconds << " s CPU, ";
+  if (replay.deferred) {
+    line << node->server().stats().deferred_updates << " solver updates deferred to batch steps, "
+         << "the last " << 1e3 * replay.batch_step.seconds << " ms";
+  } else {
+    line << "every solver update run"
+         << (defer_updates ? " (a scan-matching source reads the estimate)" : "");
+  }
+  line << "); resuming with " << node->server().StatusLine();
   LogInfo(line.str());
   Journal* appender = journal->get();
   node->SetJournal(
@@ -240,7 +249,8 @@ int RunOnline(const ServerOptions& given) {
   }
   std::unique_ptr<Journal> journal;
   if (!options.journal_dir.empty()) {
-    Result<std::unique_ptr<Journal>> opened = OpenAndReplayJournal(options.journal_dir, &node);
+    Result<std::unique_ptr<Journal>> opened =
+        OpenAndReplayJournal(options.journal_dir, options.journal_defer_updates, &node);
     if (!opened.ok()) {
       LogError(opened.status().message());
       return 1;

@@ -79,6 +79,17 @@ bool ServerNode::Replay(const LogEvent& event) {
   return true;
 }
 
+ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>& events,
+                                                    bool defer_updates) {
+  JournalReplay replay;
+  replay.deferred = defer_updates && server_.BeginDeferredUpdates();
+  for (const LogEvent& event : events) {
+    if (Replay(event)) ++replay.events;
+  }
+  if (replay.deferred) replay.batch_step = server_.EndDeferredUpdates();
+  return replay;
+}
+
 void ServerNode::Tick(int64_t now_utime) {
   const int64_t updates = server_.update_count();
   const int64_t released = server_.order_stats().released;

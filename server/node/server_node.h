@@ -64,6 +64,16 @@ class ServerNode {
   // time, the same handlers, nothing appended. Events of other channels are ignored
   // (returns false).
   bool Replay(const LogEvent& event);
+  // A restart's replay of the whole journal: Replay for each event, with the solver's
+  // updates deferred to batch steps (MappingServer::BeginDeferredUpdates: the same graphs,
+  // the converged estimate, a fraction of the CPU) when `defer_updates` and the server's
+  // sources allow it, else every update as it ran live.
+  struct JournalReplay {
+    int64_t events = 0;  // the node's events among those given
+    bool deferred = false;
+    UpdateResult batch_step;  // the closing batch step, when deferred
+  };
+  JournalReplay ReplayJournal(const std::vector<LogEvent>& events, bool defer_updates);
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
   void Tick(int64_t now_utime);
   // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor

@@ -195,6 +195,41 @@ TEST_F(ServerNodeJournalTest, ReplayingTheJournalRebuildsTheSameGraphsAndEstimat
     EXPECT_EQ(acks[i].keyframes_next, replayed_acks[i].keyframes_next);
     EXPECT_EQ(acks[i].encounters_next, replayed_acks[i].encounters_next);
   }
+  // A restart's replay with the solver's updates deferred to batch steps: the same graphs
+  // and tables, every event the node's, the update counter where the live one is.
+  ServerNode deferred(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  const ServerNode::JournalReplay replay = deferred.ReplayJournal(journal_, true);
+  EXPECT_TRUE(replay.deferred);
+  EXPECT_EQ(replay.events, static_cast<int64_t>(journal_.size()));
+  EXPECT_TRUE(replay.batch_step.status.ok());
+  EXPECT_TRUE(replay.batch_step.batch_step);
+  EXPECT_EQ(deferred.server().update_count(), node_.server().update_count());
+  EXPECT_EQ(deferred.server().stats().deferred_updates, node_.server().update_count());
+  EXPECT_EQ(deferred.server().table().num_bridged_gaps(), 1);
+  EXPECT_EQ(deferred.server().rejects().total(), node_.server().rejects().total());
+  // Straight, consistent keyframes and encounters: the incremental estimate is already the
+  // minimum, so the converged one equals it to rounding.
+  const MergedMap live_map = node_.server().BuildMergedMap();
+  const MergedMap deferred_map = deferred.server().BuildMergedMap();
+  ASSERT_EQ(live_map.trajectories.size(), deferred_map.trajectories.size());
+  EXPECT_EQ(live_map.encounters.size(), deferred_map.encounters.size());
+  for (size_t t = 0; t < live_map.trajectories.size(); ++t) {
+    const MergedTrajectory& x = live_map.trajectories[t];
+    const MergedTrajectory& y = deferred_map.trajectories[t];
+    EXPECT_EQ(x.anchored, y.anchored);
+    EXPECT_EQ(x.pose_utimes, y.pose_utimes);
+    ASSERT_EQ(x.poses.size(), y.poses.size());
+    for (size_t i = 0; i < x.poses.size(); ++i) {
+      EXPECT_NEAR(x.poses[i].x(), y.poses[i].x(), 1e-9) << x.robot << " pose " << i;
+      EXPECT_NEAR(x.poses[i].y(), y.poses[i].y(), 1e-9) << x.robot << " pose " << i;
+      EXPECT_NEAR(x.poses[i].theta(), y.poses[i].theta(), 1e-9) << x.robot << " pose " << i;
+    }
+  }
+  // With updates not deferred (the option off), ReplayJournal is the event-by-event replay.
+  ServerNode full(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  EXPECT_FALSE(full.ReplayJournal(journal_, false).deferred);
+  ExpectSameMap(live_map, full.server().BuildMergedMap());
+
   // Replay journals nothing, and other channels are not the journal's.
   LogEvent other;
   other.channel = "SOMEONE_ELSES_CHANNEL";

@@ -45,6 +45,10 @@ struct ServerOptions {
   // Online crash recovery: the write-ahead journal's directory (empty = none). At start the
   // journal found there is replayed (same graphs and estimate), then the server goes live.
   std::string journal_dir;
+  // The restart's replay defers the solver's updates to batch steps (ServerNode::
+  // ReplayJournal; automatically off when a scan-matching source is on). false: every
+  // update runs as it did live (slower; for comparison).
+  bool journal_defer_updates = true;
   std::string log_level = "info";
   // Authentication (common/bus/authenticator.h): with a key file, keyframes and encounters
   // must come in anchormap.signed_t envelopes under one of its keys, and what the server
