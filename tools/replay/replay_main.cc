@@ -43,6 +43,9 @@ struct ReplayOptions {
   bool scan_matching = true;
   std::string log_level = "info";
   std::string update_times;  // CSV of every solver update's cost (benchmarks)
+  // The agents' keyframes and encounters, as a logger on the bus would record them (the
+  // input of anchormap-server --log and tools/bench's journal replay benchmark).
+  std::string inputs_output;
   ServerOptions server = WithScanSources();
 };
 
@@ -96,6 +99,14 @@ int Run(const ReplayOptions& options) {
   Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
   if (!created.ok()) return LogError(created.status().message()), 1;
   std::unique_ptr<LcmLoop> loop = std::move(*created);
+  LcmLogWriter inputs_writer;
+  if (!options.inputs_output.empty()) {
+    if (Status s = inputs_writer.Open(options.inputs_output); !s.ok()) {
+      return LogError(s.message()), 1;
+    }
+  }
+  int64_t event_utime = 0;  // the input log's time of the event being replayed
+  int64_t inputs_write_failures = 0;
 
   auto publish = [&loop](const std::string& channel, const std::vector<uint8_t>& bytes) {
     (void)loop->Publish(channel, bytes);
@@ -129,7 +140,10 @@ int Run(const ReplayOptions& options) {
   server_pointer = &server;
   for (const std::string& channel :
        {options.server.channels.keyframes, options.server.channels.encounters}) {
-    (void)loop->Subscribe(channel, [&server](const std::string& c, const uint8_t* d, size_t n) {
+    (void)loop->Subscribe(channel, [&](const std::string& c, const uint8_t* d, size_t n) {
+      if (!options.inputs_output.empty() && !inputs_writer.WriteRaw(c, event_utime, d, n).ok()) {
+        ++inputs_write_failures;
+      }
       server.OnMessage(c, d, n);
       server.PublishDue(server.server().data_utime());
     });
@@ -137,12 +151,21 @@ int Run(const ReplayOptions& options) {
   int64_t events = 0;
   while (auto event = reader.Next()) {
     ++events;
+    event_utime = event->utime;
     if (!loop->Publish(event->channel, event->data).ok()) continue;
     loop->HandlePending();
   }
   server.server().Flush();
   server.PublishAll();
   writer.Close();
+  if (!options.inputs_output.empty()) {
+    inputs_writer.Close();
+    if (inputs_write_failures > 0) {
+      LogError(std::to_string(inputs_write_failures) + " writes to " + options.inputs_output +
+               " failed");
+      return 1;
+    }
+  }
   if (!options.update_times.empty()) {
     if (Status written = WriteUpdateTimes(server.server().update_times(), options.update_times);
         !written.ok()) {
@@ -186,6 +209,8 @@ int Main(int argc, char** argv) {
   loader.Add("update_times", "update-times", &options.update_times,
              "write every solver update's data time, cost (ms) and kind to this CSV (empty: "
              "none; tools/bench/scale_figures.sh reads it)");
+  loader.Add("inputs_output", "inputs-output", &options.inputs_output,
+             "also write the agents' keyframes and encounters to this LCM log (empty: none)");
   loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
              "server: loop closures within a trajectory by scan matching (on by default)");
   loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
