@@ -81,18 +81,8 @@ inside_namespace() {
   sleep "$PAUSE_AT_S"
   kill -STOP "$server"
   wait "$player" || { log "lcm-logplayer failed"; return 1; }
-  local status=0
-  for pid in "${agents[@]}"; do kill -INT "$pid"; done
-  sleep 1.5
-  kill -CONT "$server"
-  for pid in "${agents[@]}"; do
-    wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
-  done
-  sleep 1  # the last maps go out
-  kill -INT "$server"; wait "$server" || { log "the server did not exit cleanly"; status=1; }
-  sleep 0.5
-  kill -INT "$logger_agents" "$logger_out"; wait "$logger_agents" "$logger_out"
-  return $status
+  stop_run --after-agents "sleep 1.5; kill -CONT $server" --settle 1 "${agents[@]}" -- "$server" \
+    -- "$logger_agents" "$logger_out"
 }
 
 main() {
@@ -102,7 +92,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace start_agent log
+  export -f inside_namespace stop_run start_agent log
   export BIN URL ROBOTS DURATION_S SPEED KILL_AT_S PAUSE_AT_S CONVERGENCE TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

@@ -96,14 +96,7 @@ inside_namespace() {
   # The agents' status lines (every second) must postdate the last restart.
   sleep 1.5
   wait_for_outboxes "$work" $MAX_WAIT_S
-  local status=0
-  for pid in "${agents[@]}"; do
-    kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
-  done
-  kill -INT "$server"; wait "$server" || { log "the last server did not exit cleanly"; status=1; }
-  sleep 0.5
-  kill -INT "$logger_agents" "$logger_out"; wait "$logger_agents" "$logger_out"
-  return $status
+  stop_run "${agents[@]}" -- "$server" -- "$logger_agents" "$logger_out"
 }
 
 main() {
@@ -113,7 +106,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
+  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
     wait_until_listening log
   export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"

@@ -69,3 +69,41 @@ wait_for_outboxes() {
   done
   log "every agent's outbox empty ${waited} s after the replay"
 }
+
+# stop_run [--after-agents CMD] [--settle S] AGENT_PIDS... -- DAEMON_PIDS... -- LOGGER_PIDS...
+# The end of a run: every agent gets SIGINT (it stops taking input and waits for the
+# server's acknowledgements), CMD runs (e.g. a paused server resumed), and the agents are
+# waited for; S seconds later (default 0; the last maps go out) each daemon in turn
+# (relay, server: the server admits what waits, ends with a batch step and publishes the
+# final map) gets SIGINT and is waited for; 0.5 s later the loggers. Returns 1, saying
+# which, when an agent or daemon did not exit cleanly.
+stop_run() {
+  local after="" settle=0
+  while [ $# -gt 0 ]; do
+    case $1 in
+      --after-agents) after=$2; shift 2 ;;
+      --settle) settle=$2; shift 2 ;;
+      *) break ;;
+    esac
+  done
+  local agents=() daemons=() loggers=() pid status=0
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do agents+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do daemons+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  loggers=("$@")
+  for pid in "${agents[@]}"; do kill -INT "$pid"; done
+  [ -z "$after" ] || eval "$after"
+  for pid in "${agents[@]}"; do
+    wait "$pid" || { log "an agent (pid $pid) did not exit cleanly"; status=1; }
+  done
+  sleep "$settle"
+  for pid in "${daemons[@]}"; do
+    kill -INT "$pid"; wait "$pid" || { log "a daemon (pid $pid) did not exit cleanly"; status=1; }
+  done
+  sleep 0.5
+  if [ ${#loggers[@]} -gt 0 ]; then
+    kill -INT "${loggers[@]}"; wait "${loggers[@]}"
+  fi
+  return $status
+}
