@@ -82,6 +82,72 @@ TEST(ConvertMergedMapTest, GroupsFromEncounterLinksLargestFirst) {
   EXPECT_EQ(estimate.trajectories[2].group, 0);
 }
 
+// Trajectory ids are unique per robot only (two agents may draw one id): a link joins the
+// trajectories of the robots it names, never another robot's trajectory with that id.
+TEST(ConvertMergedMapTest, TwoRobotsWithOneTrajectoryIdAreKeptApart) {
+  merged_map_t map = MakeMap(3,
+                             {MakeTrajectory("R1", 7, true, {{{100, 0, 0, 0}}, {{200, 1, 0, 0}}}),
+                              MakeTrajectory("R2", 7, true, {{{100, 5, 0, 0}}}),
+                              MakeTrajectory("R3", 8, true, {{{100, 9, 0, 0}}})},
+                             {});
+  map.encounters.push_back({"R2", 7, 0, "R3", 8, 0, /*kind: direct*/ 0});
+  map.num_encounters = 1;
+  MapEstimate estimate;
+  ConvertMergedMap(map, &estimate);
+  ASSERT_EQ(estimate.trajectories.size(), 3u);
+  EXPECT_EQ(estimate.num_groups, 2);
+  // R1 alone; R2 and R3 joined by the link that names them.
+  EXPECT_NE(estimate.trajectories[0].group, estimate.trajectories[1].group);
+  EXPECT_EQ(estimate.trajectories[1].group, estimate.trajectories[2].group);
+  EXPECT_EQ(estimate.trajectories[0].robot, "R1");
+  EXPECT_EQ(estimate.trajectories[1].robot, "R2");
+  EXPECT_EQ(estimate.trajectories[1].trajectory_id, 7);
+  EXPECT_EQ(estimate.trajectories[1].poses.at(0).pose.x(), 5.0);
+}
+
+Authenticator TestAuthenticator(const std::string& sender) {
+  Result<Authenticator> authenticator = Authenticator::Create(
+      *ParseKeyRing("fleet " + std::string(64, 'a')), AuthenticatorOptions{"", sender});
+  EXPECT_TRUE(authenticator.ok());
+  return std::move(*authenticator);
+}
+
+// anchormap-eval --key-file: a signed log's maps are read out of their envelopes; a map
+// outside one (forged, or another server's) is refused and counted, not evaluated.
+TEST(ReadMapEstimateTest, WithAKeyOnlyTheServersSignedMapsAreRead) {
+  const std::string path = ScratchPath("am_eval_signed.lcmlog");
+  Authenticator server = TestAuthenticator("server");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(path).ok());
+    const merged_map_t signed_map =
+        MakeMap(5, {MakeTrajectory("R1", 1, false, {{{1, 2, 0, 0}}})}, {});
+    std::vector<uint8_t> bytes(static_cast<size_t>(signed_map.getEncodedSize()));
+    signed_map.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    const std::vector<uint8_t> sealed =
+        server.Seal("ANCHORMAP_MERGED_MAP", bytes.data(), bytes.size());
+    ASSERT_TRUE(writer.WriteRaw("ANCHORMAP_MERGED_MAP", 1, sealed.data(), sealed.size()).ok());
+    // A later, unsigned map: the newest in the log, but no one with the key sent it.
+    ASSERT_TRUE(writer
+                    .Write("ANCHORMAP_MERGED_MAP", 2,
+                           MakeMap(6, {MakeTrajectory("R1", 1, false, {{{1, 9, 0, 0}}})}, {}))
+                    .ok());
+  }
+  Authenticator checking = TestAuthenticator("eval");
+  MapEstimate estimate;
+  ASSERT_TRUE(ReadMapEstimate(path, "ANCHORMAP_MERGED_MAP", "R1", &estimate, &checking).ok());
+  EXPECT_EQ(estimate.update, 5);
+  EXPECT_EQ(estimate.unauthenticated, 1);
+  EXPECT_EQ(estimate.maps_seen, 2);
+  ASSERT_EQ(estimate.trajectories.size(), 1u);
+  EXPECT_EQ(estimate.trajectories[0].poses.at(0).pose.x(), 2.0);
+  // Without the key the envelope does not decode as a map: the unsigned one is used.
+  ASSERT_TRUE(ReadMapEstimate(path, "ANCHORMAP_MERGED_MAP", "R1", &estimate).ok());
+  EXPECT_EQ(estimate.update, 6);
+  EXPECT_EQ(estimate.undecodable, 1);
+  EXPECT_EQ(estimate.unauthenticated, 0);
+}
+
 TEST(ReadMapEstimateTest, UsesTheLastDecodableMapAndCountsJunk) {
   const std::string path = ScratchPath("am_eval_map.lcmlog");
   {

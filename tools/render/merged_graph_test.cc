@@ -46,6 +46,34 @@ TEST(MergedGraphTest, VerticesChainsAndEncounterEdges) {
   EXPECT_NEAR(back.vertices[5].pose.y(), 8.0, 1e-9);
 }
 
+// Trajectory ids are unique per robot only: two robots' trajectories with one id are two
+// chains, and a link names the robot's.
+TEST(MergedGraphTest, TwoRobotsWithOneTrajectoryIdAreTwoChains) {
+  MergedMap map;
+  for (const char* robot : {"R1", "R2"}) {
+    TrajectoryView trajectory;
+    trajectory.key = {robot, 7};
+    trajectory.anchored = true;
+    trajectory.utimes = {1, 2};
+    const double y = robot == std::string("R1") ? 0.0 : 5.0;
+    trajectory.poses = {Pose2(0, y, 0), Pose2(1, y, 0)};
+    map.trajectories.push_back(trajectory);
+  }
+  map.encounters.push_back({{"R2", 7}, 1, {"R1", 7}, 0});
+  int skipped = -1;
+  const PoseGraph graph = BuildMergedGraph(map, &skipped);
+  EXPECT_EQ(skipped, 0);
+  ASSERT_EQ(graph.vertices.size(), 4u);
+  ASSERT_EQ(graph.edges.size(), 3u);  // two chains + the encounter
+  const GraphEdge& encounter = graph.edges.back();
+  EXPECT_EQ(encounter.from, 3);  // R2's keyframe 1 (R2's chain starts at vertex 2)
+  EXPECT_EQ(encounter.to, 0);    // R1's keyframe 0
+  EXPECT_NEAR(encounter.measured_T_from_to.x(), -1.0, 1e-12);
+  EXPECT_NEAR(encounter.measured_T_from_to.y(), -5.0, 1e-12);
+  EXPECT_EQ(map.FindPose({"R2", 7}, 0)->y(), 5.0);
+  EXPECT_EQ(map.FindPose({"R1", 7}, 0)->y(), 0.0);
+}
+
 TEST(MergedGraphTest, UnknownLinksAreSkipped) {
   MergedMap map;
   TrajectoryView trajectory;
