@@ -29,8 +29,7 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
   l->Add("trajectory_id", "trajectory-id", &o->trajectory_id,
          "this session's trajectory id (0: 63 random bits from the OS, a new one per run; a "
          "reused id after a restart still gives a new trajectory on the server)");
-  l->Add("lcm_url", "lcm-url", &node->lcm_url,
-         "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  AddLcmUrlOption(l, &node->lcm_url);
   l->Add("max_range_m", "max-range-m", &o->max_range_m,
          "ranges at or beyond this are no-returns (planar_lidar_t carries no max range), m");
   l->Add("sensor.x_m", "sensor-x-m", &o->sensor_x_m,
@@ -181,18 +180,13 @@ int Main(int argc, char** argv) {
   if (options.key_file.empty()) {
     LogWarning("no --key-file: keyframes and encounters go out unauthenticated");
   } else {
-    Result<KeyRing> keys = LoadKeyFile(options.key_file);
-    if (!keys.ok()) {
-      LogError(keys.status().message());
-      return 1;
-    }
     AuthenticatorOptions auth;
     auth.signing_key_id = options.key_id;
     auth.sender = options.agent.robot;
     auth.first_counter = std::chrono::duration_cast<std::chrono::microseconds>(
                              std::chrono::system_clock::now().time_since_epoch())
                              .count();
-    Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+    Result<Authenticator> authenticator = LoadAuthenticator(options.key_file, auth);
     if (!authenticator.ok()) {
       LogError(authenticator.status().message());
       return 1;

@@ -11,6 +11,7 @@
 
 #include "anchormap/signed_t.hpp"
 #include "common/bus/codec_internal.h"
+#include "common/bus/lcm_log.h"
 #include "common/bus/wire_check.h"
 
 namespace anchormap {
@@ -113,6 +114,21 @@ Result<KeyRing> LoadKeyFile(const std::string& path) {
   Result<KeyRing> ring = ParseKeyRing(text.str());
   if (!ring.ok()) return Status::Error(ring.status().code(), path + ": " + ring.status().message());
   return ring;
+}
+
+Result<Authenticator> LoadAuthenticator(const std::string& key_file, AuthenticatorOptions options) {
+  Result<KeyRing> keys = LoadKeyFile(key_file);
+  if (!keys.ok()) return keys.status();
+  return Authenticator::Create(std::move(*keys), std::move(options));
+}
+
+Status OpenLoggedEvent(Authenticator* authenticator, LogEvent* event) {
+  if (!authenticator) return Status::Ok();
+  Result<std::vector<uint8_t>> payload =
+      authenticator->Open(event->channel, event->data.data(), event->data.size());
+  if (!payload.ok()) return payload.status();
+  event->data = std::move(*payload);
+  return Status::Ok();
 }
 
 Result<Authenticator> Authenticator::Create(KeyRing keys, AuthenticatorOptions options) {

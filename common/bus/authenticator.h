@@ -73,6 +73,21 @@ class Authenticator {
   std::map<std::pair<std::string, std::string>, Window> windows_;
 };
 
+// The --key-file help of the offline tools that read the server's outputs (eval, render).
+inline constexpr char kServerOutputKeyFileHelp[] =
+    "accept only the server's outputs signed with a key of this file (the server's --key-file; "
+    "empty: unsigned outputs)";
+
+// LoadKeyFile and Create in one step: what every main with --key-file does (the daemons
+// that sign, and the viewer and the offline tools, which only check).
+Result<Authenticator> LoadAuthenticator(const std::string& key_file, AuthenticatorOptions options);
+
+// Opens `event` in place when `authenticator` is set: its data becomes the envelope's
+// payload; the refusal (unsigned, bad tag, ...) otherwise. Without one the event stays as
+// it is. For the tools that read a logged bus.
+struct LogEvent;
+Status OpenLoggedEvent(Authenticator* authenticator, LogEvent* event);
+
 // The pre-flight size check of an anchormap.signed_t (for fuzzing and tests).
 Status CheckSignedWire(const void* data, size_t size);
 

@@ -15,8 +15,13 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "common/util/log.h"
+#include "common/util/options_loader.h"
 
 namespace anchormap {
+
+void AddLcmUrlOption(OptionsLoader* loader, std::string* lcm_url) {
+  loader->Add("lcm_url", "lcm-url", lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+}
 namespace asio = boost::asio;
 
 namespace {

@@ -25,6 +25,10 @@
 
 namespace anchormap {
 
+class OptionsLoader;
+// The --lcm-url option, registered alike by every daemon on the bus (agent, server, viewer).
+void AddLcmUrlOption(OptionsLoader* loader, std::string* lcm_url);
+
 struct LcmLoopStats {
   int64_t messages_handled = 0;
   int64_t wakeups = 0;

@@ -45,7 +45,7 @@ int64_t DrawInstanceId() {
 
 void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   MappingServerOptions& s = o->server;
-  l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  AddLcmUrlOption(l, &o->lcm_url);
   l->Add("log", "log", &o->log_input, "offline: read keyframes/encounters from this LCM log");
   l->Add("output", "output", &o->log_output, "offline: write the outputs to this LCM log");
   l->Add(
@@ -173,17 +173,14 @@ Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
         "publish keyframes and encounters");
     return Status::Ok();
   }
-  Result<KeyRing> keys = LoadKeyFile(options.key_file);
-  if (!keys.ok()) return keys.status();
   AuthenticatorOptions auth;
   auth.signing_key_id = options.key_id;
   auth.sender = "server";
   auth.first_counter = ServerNode::WallClock();
-  const size_t count = keys->keys.size();
-  Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+  Result<Authenticator> authenticator = LoadAuthenticator(options.key_file, auth);
   if (!authenticator.ok()) return authenticator.status();
-  LogInfo("authentication on: " + std::to_string(count) + " key(s) from " + options.key_file +
-          ", signing with '" + authenticator->signing_key_id() + "'");
+  LogInfo("authentication on: the keys of " + options.key_file + ", signing with '" +
+          authenticator->signing_key_id() + "'");
   node->RequireAuthentication(std::move(*authenticator));
   return Status::Ok();
 }

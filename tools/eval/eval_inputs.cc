@@ -107,7 +107,8 @@ void ConvertMergedMap(const merged_map_t& map, MapEstimate* estimate) {
 }
 
 Status ReadMapEstimate(const std::string& path, const std::string& channel,
-                       const std::string& tum_robot, MapEstimate* estimate) {
+                       const std::string& tum_robot, MapEstimate* estimate,
+                       Authenticator* authenticator) {
   *estimate = MapEstimate();
   if (!IsLcmLogFile(path)) {
     EstimatedTrajectory trajectory;
@@ -125,6 +126,10 @@ Status ReadMapEstimate(const std::string& path, const std::string& channel,
   while (auto event = reader.Next()) {
     if (event->channel != channel) continue;
     ++estimate->maps_seen;
+    if (!OpenLoggedEvent(authenticator, &*event).ok()) {
+      ++estimate->unauthenticated;
+      continue;
+    }
     if (auto map = DecodeAs<merged_map_t>(*event)) {
       last = std::move(map);
     } else {
@@ -133,12 +138,18 @@ Status ReadMapEstimate(const std::string& path, const std::string& channel,
   }
   if (!last) {
     return Status::Error(path + ": no decodable anchormap.merged_map_t on channel " + channel +
-                         " (" + std::to_string(estimate->maps_seen) + " messages)");
+                         " (" + std::to_string(estimate->maps_seen) + " messages" +
+                         (authenticator ? ", " + std::to_string(estimate->unauthenticated) +
+                                              " refused by the key check"
+                                        : std::string()) +
+                         ")");
   }
   const int64_t seen = estimate->maps_seen, undecodable = estimate->undecodable;
+  const int64_t unauthenticated = estimate->unauthenticated;
   ConvertMergedMap(*last, estimate);
   estimate->maps_seen = seen;
   estimate->undecodable = undecodable;
+  estimate->unauthenticated = unauthenticated;
   return Status::Ok();
 }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "anchormap/merged_map_t.hpp"
+#include "common/bus/authenticator.h"
 #include "common/types/stamped_pose2.h"
 #include "common/util/status.h"
 
@@ -30,9 +31,10 @@ struct EstimatedTrajectory {
 struct MapEstimate {
   int64_t update = -1;  // the merged map's update number (-1 for a TUM file)
   int64_t utime = 0;
-  int64_t maps_seen = 0;      // merged-map messages in the log (the last one is used)
-  int64_t undecodable = 0;    // messages on the map channel that did not decode
-  int64_t invalid_poses = 0;  // non-finite poses skipped
+  int64_t maps_seen = 0;        // merged-map messages in the log (the last one is used)
+  int64_t undecodable = 0;      // messages on the map channel that did not decode
+  int64_t unauthenticated = 0;  // with a key: messages whose envelope was refused
+  int64_t invalid_poses = 0;    // non-finite poses skipped
   int num_groups = 0;
   std::vector<EstimatedTrajectory> trajectories;
 };
@@ -45,9 +47,11 @@ void ConvertMergedMap(const merged_map_t& map, MapEstimate* estimate);
 
 // Reads the estimate from an LCM log (last message on `channel`) or, when `path` is not an
 // LCM log, from a TUM trajectory file as robot `tum_robot`. Fails when the log holds no
-// decodable merged map.
+// decodable merged map. With `authenticator` (the server's --key-file) only maps in a valid
+// envelope count (anchormap-server signs its outputs); the others are counted.
 Status ReadMapEstimate(const std::string& path, const std::string& channel,
-                       const std::string& tum_robot, MapEstimate* estimate);
+                       const std::string& tum_robot, MapEstimate* estimate,
+                       Authenticator* authenticator = nullptr);
 
 struct ReferenceSet {
   std::map<std::string, StampedTrajectory> by_robot;   // sorted by time

@@ -10,10 +10,12 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <string>
 
 #include <boost/program_options.hpp>
 
+#include "common/bus/authenticator.h"
 #include "common/bus/channels.h"
 #include "tools/eval/clock_shift.h"
 #include "tools/eval/eval_inputs.h"
@@ -46,7 +48,7 @@ int main(int argc, char** argv) {
   std::string map_channel = channels::kMergedMap;
   RelationsOptions relations_options;
   bool json = false;
-  std::string relation_errors_path, estimate_path;
+  std::string relation_errors_path, estimate_path, key_file;
   po::options_description visible("Options");
   visible.add_options()("help,h", "print this help and exit")(
       "map", po::value(&map_path), "the estimate: server output LCM log or TUM file (required)")(
@@ -60,7 +62,8 @@ int main(int argc, char** argv) {
           ->default_value(relations_options.max_time_gap_s, "0.05"),
       "an estimated pose and a reference pose or relation time match when this close in time")(
       "map-channel", po::value(&map_channel)->default_value(map_channel),
-      "channel of the merged map in the server's output log")(
+      "channel of the merged map in the server's output log")("key-file", po::value(&key_file),
+                                                              kServerOutputKeyFileHelp)(
       "odometry", po::value(&odometry_path),
       "relations: the raw log (<R>_ODOMETRY); poses at the relations' times are then the "
       "nearest keyframe plus the odometry motion since it, instead of keyframes only; its "
@@ -92,9 +95,23 @@ int main(int argc, char** argv) {
     return Fail("bad option: " + s.message(), 2);
   const std::string tum_robot = robot.empty() ? "R1" : robot;
 
+  std::optional<Authenticator> authenticator;
+  if (!key_file.empty()) {
+    AuthenticatorOptions checking;
+    checking.sender = "eval";  // (it never signs)
+    Result<Authenticator> loaded = LoadAuthenticator(key_file, checking);
+    if (!loaded.ok()) return Fail(loaded.status().message(), 1);
+    authenticator.emplace(std::move(*loaded));
+  }
   MapEstimate estimate;
-  if (Status s = ReadMapEstimate(map_path, map_channel, tum_robot, &estimate); !s.ok()) {
-    return Fail(s.message(), 1);
+  if (Status s = ReadMapEstimate(map_path, map_channel, tum_robot, &estimate,
+                                 authenticator ? &*authenticator : nullptr);
+      !s.ok()) {
+    return Fail(s.message() + (authenticator ? "" : " (a signed log needs --key-file)"), 1);
+  }
+  if (estimate.unauthenticated > 0) {
+    std::cerr << "anchormap-eval: warning: " << estimate.unauthenticated
+              << " merged maps refused by the key check (unsigned, unknown key or forged)\n";
   }
   if (estimate.undecodable > 0 || estimate.invalid_poses > 0) {
     std::cerr << "anchormap-eval: warning: " << estimate.undecodable

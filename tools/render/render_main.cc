@@ -4,11 +4,13 @@
 
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <string>
 
 #include <boost/program_options.hpp>
 
+#include "common/bus/authenticator.h"
 #include "tools/render/map_export.h"
 #include "tools/render/map_png.h"
 #include "tools/render/merged_graph.h"
@@ -73,6 +75,10 @@ void PrintSummary(const std::string& path, const ServerOutput& output,
   for (const AnchorSample& s : output.anchor_samples) anchors.insert(s.key);
   std::printf("  %lld anchor-covariance messages (%zu anchors)\n",
               static_cast<long long>(output.covariance_messages), anchors.size());
+  if (output.unauthenticated > 0) {
+    std::printf("  refused by the key check: %lld messages (unsigned, unknown key or forged)\n",
+                static_cast<long long>(output.unauthenticated));
+  }
   if (output.undecodable > 0 || output.dangling_links > 0) {
     std::printf(
         "  skipped: %lld undecodable or invalid messages, %lld links to unknown keyframes\n",
@@ -88,6 +94,7 @@ int main(int argc, char** argv) {
   MapPngOptions png_options;
   bool no_encounters = false;
   bool quiet = false;
+  std::string key_file;
   po::options_description options("anchormap-render: render the server's output log");
   // clang-format off
   options.add_options()
@@ -113,6 +120,7 @@ int main(int argc, char** argv) {
        "anchor covariance channel")
       ("status-channel", po::value(&channels.server_status)->default_value(channels.server_status),
        "server status channel")
+      ("key-file", po::value(&key_file), anchormap::kServerOutputKeyFileHelp)
       ("quiet,q", po::bool_switch(&quiet), "print only errors");
   // clang-format on
   po::variables_map vm;
@@ -144,8 +152,22 @@ int main(int argc, char** argv) {
   }
   png_options.draw_encounters = !no_encounters;
 
+  std::optional<anchormap::Authenticator> authenticator;
+  if (!key_file.empty()) {
+    anchormap::AuthenticatorOptions checking;
+    checking.sender = "render";  // (it never signs)
+    anchormap::Result<anchormap::Authenticator> loaded =
+        anchormap::LoadAuthenticator(key_file, checking);
+    if (!loaded.ok()) {
+      std::cerr << "anchormap-render: " << loaded.status().message() << "\n";
+      return 1;
+    }
+    authenticator.emplace(std::move(*loaded));
+  }
   ServerOutput output;
-  if (anchormap::Status status = ReadServerOutput(map_log, channels, &output); !status.ok()) {
+  if (anchormap::Status status =
+          ReadServerOutput(map_log, channels, &output, authenticator ? &*authenticator : nullptr);
+      !status.ok()) {
     std::cerr << "anchormap-render: " << status.message() << "\n";
     return 1;
   }

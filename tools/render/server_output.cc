@@ -110,8 +110,8 @@ size_t MergedMap::NumPoses() const {
   return n;
 }
 
-Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
-                        ServerOutput* output) {
+Status ReadServerOutput(const std::string& path, const ChannelNames& channels, ServerOutput* output,
+                        Authenticator* authenticator) {
   LcmLogReader reader;
   if (Status status = reader.Open(path); !status.ok()) return status;
   ServerOutput result;
@@ -127,6 +127,14 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
   int64_t run = -1;
   int64_t run_update = 0;
   while (std::optional<LogEvent> event = reader.Next()) {
+    const std::string& channel = event->channel;
+    const bool ours = channel == channels.merged_map || channel == channels.grid_tiles ||
+                      channel == channels.server_status || channel == channels.anchor_covariances;
+    if (!ours) continue;
+    if (!OpenLoggedEvent(authenticator, &*event).ok()) {
+      ++result.unauthenticated;
+      continue;
+    }
     if (event->channel == channels.merged_map) {
       const auto message = SafeDecode<anchormap::merged_map_t>(*event);
       std::optional<MergedMap> map = message ? FromMessage(*message) : std::nullopt;

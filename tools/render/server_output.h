@@ -10,6 +10,7 @@
 
 #include "common/types/constraint_kind.h"
 
+#include "common/bus/authenticator.h"
 #include "common/bus/channels.h"
 #include "common/geometry/pose2.h"
 #include "common/util/status.h"
@@ -94,12 +95,15 @@ struct ServerOutput {
   int64_t merged_maps = 0;                   // messages read per kind
   int64_t grid_tile_messages = 0;
   int64_t covariance_messages = 0;
-  int64_t undecodable = 0;     // messages on our channels that failed to decode or validate
-  int64_t dangling_links = 0;  // encounter links to unknown keyframes (last map)
+  int64_t undecodable = 0;      // messages on our channels that failed to decode or validate
+  int64_t unauthenticated = 0;  // with a key: messages on our channels whose envelope was refused
+  int64_t dangling_links = 0;   // encounter links to unknown keyframes (last map)
 };
 
-// Reads `path`; fails only when the file cannot be opened.
-Status ReadServerOutput(const std::string& path, const ChannelNames& channels,
-                        ServerOutput* output);
+// Reads `path`; fails only when the file cannot be opened. With `authenticator` (the
+// server's --key-file) only messages in a valid envelope are read (anchormap-server signs
+// its outputs); the others are counted.
+Status ReadServerOutput(const std::string& path, const ChannelNames& channels, ServerOutput* output,
+                        Authenticator* authenticator = nullptr);
 
 }  // namespace anchormap::render

@@ -53,6 +53,58 @@ TEST(ServerOutputTest, ReadsTheLastMapTheLastGridAndAllCovariances) {
   EXPECT_EQ(output.status->rejections[0].second, 2);
 }
 
+// anchormap-render --key-file: a signed log reads as the plain one; messages outside an
+// envelope (forged) or under another key are refused and counted.
+TEST(ServerOutputTest, WithAKeyOnlyTheServersSignedOutputsAreRead) {
+  const std::string key = "fleet " + std::string(64, 'b');
+  Authenticator server = *Authenticator::Create(*ParseKeyRing(key), {"", "server"});
+  Authenticator checking = *Authenticator::Create(*ParseKeyRing(key), {"", "render"});
+  const std::string path = ScratchPath("server_output_signed.lcmlog");
+  ASSERT_TRUE(testing::WriteTestServerLog(path, &server).ok());
+  ServerOutput output;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output, &checking).ok());
+  ASSERT_TRUE(output.map);
+  EXPECT_EQ(output.map->update, 9);
+  EXPECT_EQ(output.merged_maps, 2);
+  EXPECT_EQ(output.unauthenticated, 0);
+  EXPECT_EQ(output.undecodable, 0);
+  EXPECT_EQ(output.grid.size(), 4u);
+  EXPECT_EQ(output.anchor_samples.size(), 18u);
+  ASSERT_TRUE(output.status);
+  EXPECT_EQ(output.status->keyframes, 8);
+  // Another fleet's key: all 17 messages refused, nothing read.
+  Authenticator stranger =
+      *Authenticator::Create(*ParseKeyRing("other " + std::string(64, 'c')), {"", "render"});
+  ServerOutput refused;
+  ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &refused, &stranger).ok());
+  EXPECT_FALSE(refused.map);
+  EXPECT_EQ(refused.unauthenticated, 17);  // 2 maps, 5 tiles, 9 covariances, 1 status
+  // An unsigned (forged) map after a signed one: the signed one is the map.
+  const std::string mixed = ScratchPath("server_output_forged.lcmlog");
+  {
+    LcmLogWriter writer;
+    ASSERT_TRUE(writer.Open(mixed).ok());
+    const anchormap::merged_map_t map = testing::TestMergedMap(4);
+    std::vector<uint8_t> bytes(static_cast<size_t>(map.getEncodedSize()));
+    map.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    const std::vector<uint8_t> sealed =
+        server.Seal("ANCHORMAP_MERGED_MAP", bytes.data(), bytes.size());
+    ASSERT_TRUE(writer.WriteRaw("ANCHORMAP_MERGED_MAP", 1, sealed.data(), sealed.size()).ok());
+    ASSERT_TRUE(writer.Write("ANCHORMAP_MERGED_MAP", 2, testing::TestMergedMap(10)).ok());
+  }
+  ServerOutput forged;
+  ASSERT_TRUE(ReadServerOutput(mixed, ChannelNames{}, &forged, &checking).ok());
+  ASSERT_TRUE(forged.map);
+  EXPECT_EQ(forged.map->update, 4);
+  EXPECT_EQ(forged.unauthenticated, 1);
+  // Without the key the envelope does not decode as a map: the forged one is read.
+  ServerOutput keyless;
+  ASSERT_TRUE(ReadServerOutput(mixed, ChannelNames{}, &keyless).ok());
+  ASSERT_TRUE(keyless.map);
+  EXPECT_EQ(keyless.map->update, 10);
+  EXPECT_EQ(keyless.undecodable, 1);
+}
+
 TEST(ServerOutputTest, BadMessagesAreCountedNotFatal) {
   const std::string path = ScratchPath("server_output_bad.lcmlog");
   {

@@ -13,6 +13,7 @@
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
+#include "common/bus/authenticator.h"
 #include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
 #include "tools/render/colors.h"
@@ -120,12 +121,21 @@ inline anchormap::anchor_covariances_t TestCovariances(int64_t update, double r2
 
 // Writes a server output log: two merged maps (updates 4 and 9), a 2 x 2 tile grid of
 // update 9 covering [0, 10] x [0, 10], covariances for updates 1..9 in which R2's
-// sigma_xy shrinks from 2 m to 0.4 m, and a server status (2 duplicates rejected).
-inline Status WriteTestServerLog(const std::string& path) {
+// sigma_xy shrinks from 2 m to 0.4 m, and a server status (2 duplicates rejected). With
+// `sealer` every message goes in its envelope, as anchormap-server --key-file sends them.
+inline Status WriteTestServerLog(const std::string& path, Authenticator* sealer = nullptr) {
   LcmLogWriter writer;
   Status written = writer.Open(path);
   auto write = [&](const char* channel, int64_t utime, const auto& message) {
-    if (written.ok()) written = writer.Write(channel, utime, message);
+    if (!written.ok()) return;
+    if (!sealer) {
+      written = writer.Write(channel, utime, message);
+      return;
+    }
+    std::vector<uint8_t> bytes(static_cast<size_t>(message.getEncodedSize()));
+    message.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    const std::vector<uint8_t> sealed = sealer->Seal(channel, bytes.data(), bytes.size());
+    written = writer.WriteRaw(channel, utime, sealed.data(), sealed.size());
   };
   write(channels::kMergedMap, 1, TestMergedMap(4));
   write(channels::kGridTiles, 2, TestTile(4, 0, 0));

@@ -40,7 +40,7 @@ int64_t WallUtime() {
 }
 
 void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
-  l->Add("lcm_url", "lcm-url", &o->lcm_url, "LCM URL (empty: $LCM_DEFAULT_URL or LCM's default)");
+  AddLcmUrlOption(l, &o->lcm_url);
   l->Add("follow_log", "follow-log", &o->follow_log,
          "read the server's outputs from this LCM log file as it grows (e.g. lcm-logger's) "
          "instead of the bus");
@@ -80,15 +80,11 @@ Status SetUpAuthentication(const std::string& key_file, ViewerNode* node) {
         "network can publish a map this viewer draws");
     return Status::Ok();
   }
-  Result<KeyRing> keys = LoadKeyFile(key_file);
-  if (!keys.ok()) return keys.status();
   AuthenticatorOptions auth;
   auth.sender = "viewer";  // (it never signs)
-  const size_t count = keys->keys.size();
-  Result<Authenticator> authenticator = Authenticator::Create(std::move(*keys), auth);
+  Result<Authenticator> authenticator = LoadAuthenticator(key_file, auth);
   if (!authenticator.ok()) return authenticator.status();
-  LogInfo("authentication on: the server's outputs are checked against " + std::to_string(count) +
-          " key(s) from " + key_file);
+  LogInfo("authentication on: the server's outputs are checked against the keys of " + key_file);
   node->RequireAuthentication(std::move(*authenticator));
   return Status::Ok();
 }
