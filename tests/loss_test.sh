@@ -56,15 +56,7 @@ inside_namespace() {
   log "replaying $DURATION_S s of $ROBOTS robots at ${SPEED}x through a link that drops 30 %"
   LCM_DEFAULT_URL="$URL_A" lcm-logplayer --speed=$SPEED "$work/sim.lcmlog" || { log "lcm-logplayer failed"; return 1; }
   wait_for_outboxes "$work" $MAX_WAIT_S
-  local status=0
-  for pid in "${agents[@]}"; do
-    kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
-  done
-  kill -INT "$relay"; wait "$relay" || { log "the relay did not exit cleanly"; status=1; }
-  kill -INT "$server"; wait "$server" || { log "the server did not exit cleanly"; status=1; }
-  sleep 0.5
-  kill -INT "$logger_a" "$logger_b"; wait "$logger_a" "$logger_b"
-  return $status
+  stop_run "${agents[@]}" -- "$relay" "$server" -- "$logger_a" "$logger_b"
 }
 
 main() {
@@ -75,7 +67,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace outboxes_empty wait_for_outboxes log
+  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes log
   export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

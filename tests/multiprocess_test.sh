@@ -52,12 +52,7 @@ inside_namespace() {
   # the agents stay up, resending, until it holds everything.
   wait_for_outboxes "$work" $MAX_WAIT_S || status=1
   sleep 2  # rate-limited maps go out
-  for pid in "${pids[@]}"; do
-    kill -INT "$pid"; wait "$pid" || { log "an agent did not exit cleanly"; status=1; }
-  done
-  kill -INT "$server"; wait "$server" || { log "the server did not exit cleanly"; status=1; }
-  sleep 0.5
-  kill -INT "$logger"; wait "$logger"
+  stop_run "${pids[@]}" -- "$server" -- "$logger" || status=1
   return $status
 }
 
@@ -84,7 +79,7 @@ main() {
     exit $SKIP
   fi
 
-  export -f inside_namespace outboxes_empty wait_for_outboxes log
+  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes log
   export BIN URL ROBOTS DURATION_S SPEED TEST_NAME MAX_WAIT_S
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
