@@ -59,7 +59,7 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
       });
     }
   }
-  return FactorAssembled(n, start, std::move(blocks), std::move(gradient), rows, error);
+  return FactorBlocks(n, start, std::move(blocks), std::move(gradient), rows, error);
 }
 
 bool BatchFactorization::FactorNormalEquations(
@@ -73,30 +73,42 @@ bool BatchFactorization::FactorNormalEquations(
   for (auto& column : columns) {
     for (auto& entry : column) blocks.push_back(std::move(entry));
   }
-  return FactorAssembled(n, start, std::move(blocks), std::move(gradient), rows, error);
+  return FactorBlocks(n, start, std::move(blocks), std::move(gradient), rows, error);
 }
 
-bool BatchFactorization::FactorAssembled(int n, const std::vector<int>& start,
-                                         std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
-                                         std::vector<Eigen::Vector3d> gradient,
-                                         std::vector<RBlockRow>* rows, std::string* error) {
+bool BatchFactorization::FactorBlocks(int n, const std::vector<int>& start,
+                                      std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
+                                      std::vector<Eigen::Vector3d> gradient,
+                                      std::vector<RBlockRow>* rows, std::string* error) {
   cholmod_common* c = &cholmod_->common;
-  // Per column: sort by row and sum duplicates in place; `length[p]` blocks remain.
+  // Per column: sum duplicates in place (a slot per row), then sort the (small) list of
+  // rows, not the 80-byte entries; `column_rows[order[start[p] ..]]` gives column p's
+  // `length[p]` blocks in row order.
   std::vector<int> length(n);
+  std::vector<int> slot(n, -1);
+  std::vector<int> order(blocks.size());
   size_t nnz = 0;
   for (int p = 0; p < n; ++p) {
-    auto first = blocks.begin() + start[p], last = blocks.begin() + start[p + 1];
-    std::sort(first, last, [](const auto& x, const auto& y) { return x.first < y.first; });
-    int out = 0;
-    for (auto it = first; it != last; ++it) {
-      if (out > 0 && first[out - 1].first == it->first) {
-        first[out - 1].second += it->second;
+    const int first = start[p];
+    int out = first;
+    for (int e = start[p]; e < start[p + 1]; ++e) {
+      const int row = blocks[e].first;
+      if (slot[row] >= 0) {
+        blocks[slot[row]].second += blocks[e].second;
       } else {
-        first[out++] = *it;
+        slot[row] = out;
+        if (out != e) blocks[out] = blocks[e];
+        ++out;
       }
     }
-    length[p] = out;
-    nnz += 9 * static_cast<size_t>(out);
+    length[p] = out - first;
+    for (int e = first; e < out; ++e) {
+      slot[blocks[e].first] = -1;
+      order[e] = e;
+    }
+    std::sort(order.begin() + first, order.begin() + out,
+              [&](int x, int y) { return blocks[x].first < blocks[y].first; });
+    nnz += 9 * static_cast<size_t>(length[p]);
   }
 
   const size_t dim = 3 * static_cast<size_t>(n);
@@ -115,7 +127,7 @@ bool BatchFactorization::FactorAssembled(int n, const std::vector<int>& start,
     for (int cb = 0; cb < 3; ++cb) {
       Ap[3 * pb + cb] = static_cast<int>(k);
       for (int e = start[pb]; e < start[pb] + length[pb]; ++e) {
-        const auto& [pa, block] = blocks[e];
+        const auto& [pa, block] = blocks[order[e]];
         for (int ra = 0; ra < 3; ++ra) {
           if (pa == pb && ra > cb) break;
           Ai[k] = 3 * pa + ra;
@@ -163,12 +175,26 @@ bool BatchFactorization::FactorAssembled(int n, const std::vector<int>& start,
   const auto* Lx = static_cast<const double*>(L->x);
   const auto* Lnz = static_cast<const int*>(L->nz);
   const bool is_ll = L->is_ll;
-  std::vector<int> slot(n, -1);
+  std::vector<int> columns;
   for (int p = 0; p < n; ++p) {
     RBlockRow& row = (*rows)[p];
-    // Scalar column 3p of L: its diagonal, two entries within the block, and three per
-    // block below it (the pattern comes in 3x3 blocks): the block count of R's row p.
-    row.right.reserve(std::max(0, (Lnz[3 * p] - 3) / 3));
+    // The blocks right of the diagonal: the pattern of scalar column 3p below its own
+    // block (the pattern comes in 3x3 blocks), sorted as block columns.
+    columns.clear();
+    for (int e = Lp[3 * p] + 1; e < Lp[3 * p] + Lnz[3 * p]; ++e) {
+      const int q = Li[e] / 3;
+      if (q != p && slot[q] < 0) {
+        slot[q] = 0;
+        columns.push_back(q);
+      }
+    }
+    std::sort(columns.begin(), columns.end());
+    row.right.resize(columns.size());
+    for (size_t k = 0; k < columns.size(); ++k) {
+      slot[columns[k]] = static_cast<int>(k);
+      row.right[k].first = columns[k];
+      row.right[k].second.setZero();
+    }
     for (int rj = 0; rj < 3; ++rj) {
       const int j = 3 * p + rj;
       const double scale = is_ll ? 1.0 : std::sqrt(Lx[Lp[j]]);
@@ -181,16 +207,19 @@ bool BatchFactorization::FactorAssembled(int n, const std::vector<int>& start,
           row.diagonal(rj, i % 3) = value;
           continue;
         }
-        if (slot[q] < 0) {
+        if (slot[q] < 0) {  // not in column 3p's pattern (not expected): add it, sort later
           slot[q] = static_cast<int>(row.right.size());
           row.right.emplace_back(q, Eigen::Matrix3d::Zero());
         }
         row.right[slot[q]].second(rj, i % 3) = value;
       }
     }
+    const bool sorted = row.right.size() == columns.size();
     for (const auto& [q, block] : row.right) slot[q] = -1;
-    std::sort(row.right.begin(), row.right.end(),
-              [](const auto& x, const auto& y) { return x.first < y.first; });
+    if (!sorted) {
+      std::sort(row.right.begin(), row.right.end(),
+                [](const auto& x, const auto& y) { return x.first < y.first; });
+    }
   }
   cholmod_free_factor(&L, c);
   cholmod_free_sparse(&A, c);

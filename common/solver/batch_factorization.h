@@ -39,13 +39,15 @@ class BatchFactorization {
                              std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
                              std::string* error);
 
- private:
-  // Core of both: `blocks[start[q] .. start[q+1])` are column q's (row, block) entries.
-  bool FactorAssembled(int n, const std::vector<int>& start,
-                       std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
-                       std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
-                       std::string* error);
+  // The same from normal equations grouped by column (the core of both above):
+  // `blocks[start[q] .. start[q+1])` are column q's (p, H_pq) entries, p <= q, in any order
+  // (duplicates are summed).
+  bool FactorBlocks(int n, const std::vector<int>& start,
+                    std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
+                    std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
+                    std::string* error);
 
+ private:
   struct Cholmod;
   std::unique_ptr<Cholmod> cholmod_;
 };

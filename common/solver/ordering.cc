@@ -18,6 +18,17 @@ void FailNextOrderingsForTesting(int count) { orderings_to_fail = count; }
 Result<std::vector<int>> ComputeOrdering(int num_variables,
                                          const std::vector<std::vector<int>>& factor_variables,
                                          const std::vector<bool>& keep_last) {
+  std::vector<int> start(1, 0), variables;
+  for (const std::vector<int>& vars : factor_variables) {
+    variables.insert(variables.end(), vars.begin(), vars.end());
+    start.push_back(static_cast<int>(variables.size()));
+  }
+  return ComputeOrdering(num_variables, start, variables, keep_last);
+}
+
+Result<std::vector<int>> ComputeOrdering(int num_variables, const std::vector<int>& factor_start,
+                                         const std::vector<int>& variables,
+                                         const std::vector<bool>& keep_last) {
   if (orderings_to_fail > 0) {
     --orderings_to_fail;
     return Status::Error(ErrorCode::kNumericalFailure, "ccolamd failed (injected by a test)");
@@ -26,34 +37,39 @@ Result<std::vector<int>> ComputeOrdering(int num_variables,
   std::iota(order.begin(), order.end(), 0);
   if (num_variables <= 1) return order;
 
-  // CCOLAMD wants the factor x variable pattern in compressed-column form.
-  const int num_rows = static_cast<int>(factor_variables.size());
-  std::vector<std::vector<int>> rows_of_column(num_variables);
-  int nnz = 0;
-  for (int f = 0; f < num_rows; ++f) {
-    for (int v : factor_variables[f]) {
-      rows_of_column[v].push_back(f);
-      ++nnz;
+  // CCOLAMD wants the factor x variable pattern in compressed-column form: count, then
+  // fill in factor order (so each column's rows come sorted), then drop repeats (a
+  // variable listed twice by one factor).
+  const int num_rows = static_cast<int>(factor_start.size()) - 1;
+  std::vector<int> p(num_variables + 1, 0);
+  for (int v : variables) ++p[v + 1];
+  for (int v = 0; v < num_variables; ++v) p[v + 1] += p[v];
+  const int listed = p[num_variables];
+  const size_t alen = ccolamd_recommended(listed, num_rows, num_variables);
+  std::vector<int> A(std::max<size_t>(alen, static_cast<size_t>(listed)));
+  {
+    std::vector<int> next(p.begin(), p.end() - 1);
+    for (int f = 0; f < num_rows; ++f) {
+      for (int k = factor_start[f]; k < factor_start[f + 1]; ++k) A[next[variables[k]]++] = f;
     }
   }
-  const size_t alen = ccolamd_recommended(nnz, num_rows, num_variables);
-  std::vector<int> A(alen);
-  std::vector<int> p(num_variables + 1, 0);
-  for (int v = 0, k = 0; v < num_variables; ++v) {
-    std::sort(rows_of_column[v].begin(), rows_of_column[v].end());
-    rows_of_column[v].erase(std::unique(rows_of_column[v].begin(), rows_of_column[v].end()),
-                            rows_of_column[v].end());
-    for (int f : rows_of_column[v]) A[k++] = f;
-    p[v + 1] = k;
+  int nnz = 0;
+  for (int v = 0; v < num_variables; ++v) {
+    const int first = p[v], last = p[v + 1];
+    p[v] = nnz;
+    for (int k = first; k < last; ++k) {
+      if (k == first || A[k] != A[k - 1]) A[nnz++] = A[k];
+    }
   }
+  p[num_variables] = nnz;
   std::vector<int> constraint(num_variables);
   for (int v = 0; v < num_variables; ++v) constraint[v] = keep_last[v] ? 1 : 0;
 
   double knobs[CCOLAMD_KNOBS];
   int stats[CCOLAMD_STATS];
   ccolamd_set_defaults(knobs);
-  if (!ccolamd(num_rows, num_variables, static_cast<int>(alen), A.data(), p.data(), knobs, stats,
-               constraint.data())) {
+  if (!ccolamd(num_rows, num_variables, static_cast<int>(A.size()), A.data(), p.data(), knobs,
+               stats, constraint.data())) {
     return Status::Error(ErrorCode::kNumericalFailure,
                          "ccolamd failed with status " + std::to_string(stats[CCOLAMD_STATUS]));
   }

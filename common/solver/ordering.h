@@ -18,6 +18,13 @@ Result<std::vector<int>> ComputeOrdering(int num_variables,
                                          const std::vector<std::vector<int>>& factor_variables,
                                          const std::vector<bool>& keep_last);
 
+// The same with the factors' variables in one flat list: factor f touches
+// variables[factor_start[f] .. factor_start[f+1]) (factor_start has one entry more than
+// there are factors). Saves a vector per factor where orderings run often (partial steps).
+Result<std::vector<int>> ComputeOrdering(int num_variables, const std::vector<int>& factor_start,
+                                         const std::vector<int>& variables,
+                                         const std::vector<bool>& keep_last);
+
 // Test seam: the next `count` calls of ComputeOrdering fail as if CCOLAMD had, so that
 // tests can check what a failed batch step leaves behind. Not for production code.
 void FailNextOrderingsForTesting(int count);

@@ -229,26 +229,24 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   }
 
   // 4. Local ordering of B (CCOLAMD, the same constraints as a batch step).
-  std::vector<std::vector<int>> structure;
-  structure.reserve(local_factors.size() + boundary.size());
+  std::vector<int> structure_start(1, 0), structure;
+  structure_start.reserve(local_factors.size() + boundary.size() + 1);
   for (const LocalFactor& lf : local_factors) {
-    std::vector<int> vars;
     for (int j = 0; j < factors_[lf.id].num_vars; ++j) {
       const int p = vars_[factors_[lf.id].vars[j]].position;
-      if (in_b[p]) vars.push_back(local[p - p0]);
+      if (in_b[p]) structure.push_back(local[p - p0]);
     }
-    structure.push_back(std::move(vars));
+    structure_start.push_back(static_cast<int>(structure.size()));
   }
   for (int r : boundary) {
-    std::vector<int> vars;
     for (const auto& [q, block] : r_->row(r).right) {
-      if (q >= p0 && in_b[q]) vars.push_back(local[q - p0]);
+      if (q >= p0 && in_b[q]) structure.push_back(local[q - p0]);
     }
-    structure.push_back(std::move(vars));
+    structure_start.push_back(static_cast<int>(structure.size()));
   }
   std::vector<bool> keep_last(nb);
   for (int k = 0; k < nb; ++k) keep_last[k] = is_keep_last(position_to_var_[b_positions[k]]);
-  Result<std::vector<int>> ordering = ComputeOrdering(nb, structure, keep_last);
+  Result<std::vector<int>> ordering = ComputeOrdering(nb, structure_start, structure, keep_last);
   if (!ordering.ok()) {
     result->status = ordering.status();
     return false;
@@ -257,10 +255,17 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   for (int k = 0; k < nb; ++k) order_of[(*ordering)[k]] = k;
 
   // 5. Normal equations of B in the new order, minus the boundary rows' part; factor.
-  std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns(nb);
+  // Blocks are gathered in one flat list and grouped by column once (a vector per column
+  // cost more in allocations than the arithmetic).
+  struct Entry {
+    int row, column;
+    Eigen::Matrix3d block;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(4 * local_factors.size() + 8 * boundary.size());
   std::vector<Eigen::Vector3d> gradient(nb, Eigen::Vector3d::Zero());
   auto add_row_block = [&](int a, int b, const Eigen::Matrix3d& block) {  // H_ab, a <= b
-    columns[b].emplace_back(a, block);
+    entries.push_back({a, b, block});
   };
   std::vector<std::array<Pose2, kMaxFactorKeys>> relinearized_at;
   std::array<Pose2, kMaxFactorKeys> at;
@@ -309,9 +314,18 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
       }
     }
   }
+  std::vector<int> column_start(nb + 1, 0);
+  for (const Entry& entry : entries) ++column_start[entry.column + 1];
+  for (int q = 0; q < nb; ++q) column_start[q + 1] += column_start[q];
+  std::vector<std::pair<int, Eigen::Matrix3d>> blocks(entries.size());
+  {
+    std::vector<int> next(column_start.begin(), column_start.end() - 1);
+    for (const Entry& entry : entries) blocks[next[entry.column]++] = {entry.row, entry.block};
+  }
   std::vector<RBlockRow> rows;
   std::string error;
-  if (!batch_.FactorNormalEquations(std::move(columns), std::move(gradient), &rows, &error)) {
+  if (!batch_.FactorBlocks(nb, column_start, std::move(blocks), std::move(gradient), &rows,
+                           &error)) {
     result->status = Status::Error(ErrorCode::kNumericalFailure, error);
     return false;
   }
