@@ -8,8 +8,10 @@
 #
 #   tools/bench/solver_figures.sh [DATA_DIR]     (default ../shared/data or $ANCHORMAP_DATA_DIR)
 #
-# Further tables: broken odometry chains (--break-chain) and the server configuration
-# (--relinearize 0.01, partial vs --full-relinearization, --check-every 37).
+# Further tables: broken odometry chains (--break-chain), the server configuration
+# (--relinearize 0.01, partial vs --full-relinearization, --check-every 37), and CPU
+# seconds against Kaess's iSAM 1.7 (../shared/anchors/isam1.sh) in the same run, both
+# modes, medians of REPEAT interleaved runs (city10000 only with CITY=1: minutes per run).
 #
 # "total s" in the first table is the median of REPEAT runs (default 3; this machine kind
 # is noisy); the step times come from the last run, and the other columns are the same
@@ -108,6 +110,39 @@ if [ -f "$DATA/M3500.g2o" ]; then
       echo "| M3500 | $robots | $policy | $(field "$j" total_s) | $(field "$j" batch_steps) |" \
         "$(field "$j" partial_relinearizations) | $(field "$j" partial_merges) |" \
         "$(field "$j" worst_step_chi2_excess) | $(field "$j" chi2_after_final_batch) |"
+    done
+  done
+fi
+
+ISAM1=${ISAM1:-../shared/anchors/isam1.sh}
+if [ -x "$ISAM1" ] || [ -f "$ISAM1" ]; then
+  echo
+  echo "CPU seconds against iSAM 1.7 (\`$ISAM1\`, Gauss-Newton, batch step every 100), medians of"
+  echo "$REPEAT interleaved runs; ratio = ours / iSAM1 of the same runs:"
+  echo
+  echo "| graph | our mode | ours CPU s | iSAM1 CPU s | ratio | our chi2 at the end |"
+  echo "|---|---|---|---|---|---|"
+  median() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
+  graphs=(M3500)
+  [ "${CITY:-0}" = 1 ] && graphs+=(city10000)
+  for graph in "${graphs[@]}"; do
+    [ -f "$DATA/$graph.g2o" ] || continue
+    iron=() server=() isam=()
+    for ((k = 0; k < REPEAT; ++k)); do
+      j=$("$BENCH" "$DATA/$graph.g2o" --no-reference --json)
+      iron+=("$(field "$j" total_cpu_s)")
+      iron_chi2=$(field "$j" chi2)
+      j=$("$BENCH" "$DATA/$graph.g2o" --server-mode --no-reference --json)
+      server+=("$(field "$j" total_cpu_s)")
+      server_chi2=$(field "$j" chi2)
+      isam+=("$(field "$(bash "$ISAM1" "$DATA/$graph.g2o")" total_cpu_s)")
+    done
+    reference=$(median "${isam[@]}")
+    for mode in isam1 server; do
+      if [ "$mode" = isam1 ]; then ours=$(median "${iron[@]}") chi2=$iron_chi2 label="iSAM1's (default)"
+      else ours=$(median "${server[@]}") chi2=$server_chi2 label="--server-mode"; fi
+      ratio=$(awk -v a="$ours" -v b="$reference" 'BEGIN { printf "%.2f", a / b }')
+      echo "| $graph | $label | $ours | $reference | $ratio | $chi2 |"
     done
   done
 fi
