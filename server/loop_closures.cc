@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "common/scan_matching/point_cloud.h"
+#include "common/util/log.h"
 #include "server/keyframe_submap.h"
 #include "server/relative_pose.h"
 
@@ -32,6 +33,22 @@ Status LoopClosureOptions::Validate() const {
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
     return Status::Error("loop covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("loop.max_waiting must be >= 1");
+  if (!(wide_sigmas > 0) || !(wide_max_window_m > 0) || !(wide_max_window_rad > 0) ||
+      wide_max_window_rad > kPi || wide_max_window_m > 100.0) {
+    return Status::Error("loop wide window: sigmas > 0, 0 < max m <= 100, 0 < max rad <= pi");
+  }
+  if (!(drift_per_m >= 0) || !(drift_rad_per_m >= 0) || wide_quiet_keyframes < 0) {
+    return Status::Error("loop drift model: per m >= 0, rad per m >= 0, quiet >= 0");
+  }
+  if (wide_submap_half_width < 0 || wide_every_keyframes < 1 || wide_pair_min_gap < 1 ||
+      wide_pair_max_gap < wide_pair_min_gap || wide_max_kept < 1) {
+    return Status::Error(
+        "loop wide: submap half width >= 0, every >= 1, 1 <= pair min gap <= max gap, kept >= 1");
+  }
+  if (!(wide_min_score >= 0 && wide_min_score < 1) || !(wide_min_overlap >= 0) ||
+      !(wide_pair_chi2 > 0)) {
+    return Status::Error("loop wide: min score in [0, 1), min overlap >= 0, pair chi2 > 0");
+  }
   if (Status s = reference.Validate(); !s.ok()) return s;
   return match.Validate();
 }
@@ -68,7 +85,7 @@ void LoopClosures::Poll(int64_t now_utime, const GraphView& graph, EncounterSour
 
 void LoopClosures::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
-  UseMatches(now_utime_, /*all=*/true, out);
+  UseMatches(now_utime_, /*all=*/true, graph, out);
 }
 
 void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
@@ -81,13 +98,14 @@ void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
       continue;
     }
     ExamineKeyframe(key, graph);
-    UseMatches(now_utime_, /*all=*/false, out);
+    UseMatches(now_utime_, /*all=*/false, graph, out);
   }
   waiting_ = std::move(still_waiting);
-  UseMatches(now_utime_, /*all=*/false, out);
+  UseMatches(now_utime_, /*all=*/false, graph, out);
 }
 
-void LoopClosures::UseMatches(int64_t now_utime, bool all, EncounterSourceOutput* out) {
+void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& graph,
+                              EncounterSourceOutput* out) {
   while (!matches_.empty() && (all || matches_.front().due_utime <= now_utime)) {
     const PendingMatch pending = std::move(matches_.front());
     matches_.pop_front();
@@ -96,7 +114,9 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, EncounterSourceOutput
       ++stats_.no_match;
       continue;
     }
-    if (match->score < options_.min_score || match->overlap < options_.min_overlap) {
+    const double min_score = pending.wide ? options_.wide_min_score : options_.min_score;
+    const double min_overlap = pending.wide ? options_.wide_min_overlap : options_.min_overlap;
+    if (match->score < min_score || match->overlap < min_overlap) {
       ++stats_.weak_match;
       continue;
     }
@@ -107,17 +127,146 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, EncounterSourceOutput
       ++stats_.gate_rejected;
       continue;
     }
-    ++stats_.accepted;
-    EncounterConstraint constraint;
-    constraint.a = pending.candidate;
-    constraint.b = pending.key;
-    constraint.measured_T_a_b = match->pose;
-    constraint.covariance = covariance;
-    constraint.utime = pending.key_utime;
-    constraint.source = name();
-    constraint.kind = ConstraintKind::kLoopClosure;
-    out->constraints.push_back(constraint);
-    quiet_until_[pending.key.trajectory] = pending.key.index + 1 + options_.cooldown_keyframes;
+    if (pending.wide) {
+      if (const std::optional<Hypothesis> closure = RefineWide(pending, *match, graph)) {
+        OfferWide(*closure, graph, out);
+      }
+      continue;
+    }
+    Emit(Hypothesis{pending.candidate, pending.key, match->pose, covariance, pending.key_utime},
+         out);
+  }
+}
+
+std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMatch& pending,
+                                                                 const MatchResult& coarse,
+                                                                 const GraphView& graph) {
+  const TrajectoryRecord* record = graph.table.FindBySolverId(pending.key.trajectory);
+  if (record == nullptr || graph.covariances == nullptr) {
+    ++stats_.no_match;
+    return std::nullopt;
+  }
+  // The submap keyframe nearest to the query, far enough back to be a loop.
+  const Eigen::Vector2d at = coarse.pose.translation();
+  const std::pair<int32_t, Pose2>* nearest = nullptr;
+  for (const auto& entry : pending.submap_poses) {
+    if (entry.first > pending.key.index - options_.min_index_gap) continue;
+    if (nearest == nullptr ||
+        (entry.second.translation() - at).norm() < (nearest->second.translation() - at).norm()) {
+      nearest = &entry;
+    }
+  }
+  const PoseKey candidate{pending.key.trajectory, nearest ? nearest->first : 0};
+  std::unique_ptr<ScanReference> scan =
+      nearest
+          ? BuildKeyframeSubmap(*record, graph.smoother, candidate, options_.wide_refine_half_width,
+                                options_.max_range_m, options_.reference)
+          : nullptr;
+  const std::optional<PredictedRelativePose> predicted =
+      scan ? PredictRelativePose(graph.covariances, candidate, pending.key) : std::nullopt;
+  if (!predicted) {
+    ++stats_.no_match;
+    return std::nullopt;
+  }
+  LocalMatchOptions window;
+  window.match = options_.match;
+  window.linear_window_m = options_.min_window_m;
+  window.angular_window_rad = options_.min_window_rad;
+  std::optional<MatchResult> match =
+      MatchLocal(*scan, *pending.query, Between(nearest->second, coarse.pose), window);
+  if (!match) {
+    ++stats_.no_match;
+    return std::nullopt;
+  }
+  // Then against the keyframe's scan alone (exact where the submap is bent by drift between
+  // its keyframes), when that scan matches well enough on its own.
+  if (options_.wide_refine_half_width > 0) {
+    std::unique_ptr<ScanReference> alone = BuildKeyframeSubmap(
+        *record, graph.smoother, candidate, 0, options_.max_range_m, options_.reference);
+    LocalMatchOptions small = window;
+    small.linear_window_m = 0.5 * options_.min_window_m;
+    small.angular_window_rad = 0.5 * options_.min_window_rad;
+    const std::optional<MatchResult> exact =
+        alone ? MatchLocal(*alone, *pending.query, match->pose, small) : std::nullopt;
+    if (exact && exact->score >= options_.min_score && exact->overlap >= options_.min_overlap) {
+      match = exact;
+    }
+  }
+  if (match->score < options_.min_score || match->overlap < options_.min_overlap) {
+    ++stats_.weak_match;
+    return std::nullopt;
+  }
+  const Eigen::Matrix3d covariance =
+      WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
+  if (Mahalanobis2(predicted->T_a_b, match->pose,
+                   predicted->covariance + pending.drift + covariance) > options_.gate_chi2) {
+    ++stats_.gate_rejected;
+    return std::nullopt;
+  }
+  return Hypothesis{candidate, pending.key, match->pose, covariance, pending.key_utime};
+}
+
+void LoopClosures::Emit(const Hypothesis& closure, EncounterSourceOutput* out) {
+  ++stats_.accepted;
+  int32_t& last = last_closure_[closure.key.trajectory];
+  last = std::max(last, closure.key.index);
+  EncounterConstraint constraint;
+  constraint.a = closure.candidate;
+  constraint.b = closure.key;
+  constraint.measured_T_a_b = closure.measured;
+  constraint.covariance = closure.covariance;
+  constraint.utime = closure.key_utime;
+  constraint.source = name();
+  constraint.kind = ConstraintKind::kLoopClosure;
+  out->constraints.push_back(constraint);
+  int32_t& quiet = quiet_until_[closure.key.trajectory];
+  quiet = std::max(quiet, closure.key.index + 1 + options_.cooldown_keyframes);
+}
+
+void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
+                             EncounterSourceOutput* out) {
+  std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
+  // Hypotheses too old to pair with this one (or any later one) are given up.
+  while (!kept.empty() &&
+         hypothesis.key.index - kept.front().key.index > options_.wide_pair_max_gap) {
+    kept.pop_front();
+    --stats_.kept;
+    ++stats_.unconfirmed;
+  }
+  if (graph.covariances != nullptr) {
+    // The newest agreeing hypothesis: the two views of the loop's far end are different
+    // places (the query moved on), so an aliased spot cannot vouch for itself.
+    for (auto it = kept.rbegin(); it != kept.rend(); ++it) {
+      if (hypothesis.key.index - it->key.index < options_.wide_pair_min_gap) continue;
+      const std::optional<PredictedRelativePose> candidates =
+          PredictRelativePose(graph.covariances, it->candidate, hypothesis.candidate);
+      const std::optional<PredictedRelativePose> keys =
+          PredictRelativePose(graph.covariances, it->key, hypothesis.key);
+      if (!candidates || !keys) continue;
+      if (PairwiseInconsistency2(*candidates, it->measured, it->covariance, *keys,
+                                 hypothesis.measured,
+                                 hypothesis.covariance) > options_.wide_pair_chi2) {
+        continue;
+      }
+      const Hypothesis first = *it;
+      // Both enter; the others are dropped: the graph changes and they were made against
+      // the old estimate.
+      stats_.kept -= static_cast<int64_t>(kept.size());
+      kept.clear();
+      Emit(first, out);
+      Emit(hypothesis, out);
+      LogDebug("loop: wide closure pair " + Key(first.candidate).ToString() + "-" +
+               Key(first.key).ToString() + " and " + Key(hypothesis.candidate).ToString() + "-" +
+               Key(hypothesis.key).ToString());
+      return;
+    }
+  }
+  kept.push_back(hypothesis);
+  ++stats_.kept;
+  if (static_cast<int>(kept.size()) > options_.wide_max_kept) {
+    kept.pop_front();
+    --stats_.kept;
+    ++stats_.unconfirmed;
   }
 }
 
@@ -168,43 +317,154 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
     chosen.emplace_back(j, *predicted);
     if (static_cast<int>(chosen.size()) >= options_.max_candidates) break;
   }
-  if (chosen.empty()) return;
 
   // The jobs own what they read: the query's points, the submap (immutable once built).
   const auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   for (const auto& [j, predicted] : chosen) {
-    ++stats_.candidates;
+    Submit(PoseKey{key.trajectory, j}, key, predicted, Eigen::Matrix3d::Zero(), false, *record,
+           graph, query);
+  }
+  if (options_.wide_search) SubmitWide(key, graph, *record, query);
+}
+
+bool LoopClosures::NeedsWideWindow(const Eigen::Matrix3d& covariance) const {
+  return 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>()) > options_.max_window_m ||
+         3.0 * std::sqrt(std::max(0.0, covariance(2, 2))) > options_.max_window_rad;
+}
+
+void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const TrajectoryRecord& record,
+                              const std::shared_ptr<const PointCloud>& query) {
+  Smoother* smoother = graph.covariances;
+  int32_t& next = next_wide_[key.trajectory];
+  if (key.index < next) return;
+  // Closures found lately keep the estimate good enough for the local window.
+  if (const auto last = last_closure_.find(key.trajectory);
+      last != last_closure_.end() && key.index - last->second < options_.wide_quiet_keyframes) {
+    return;
+  }
+  const int last_candidate = key.index - options_.min_index_gap;
+  // The drift the estimate may not know of grows with the path driven from the candidate
+  // to the keyframe (the smoother's covariance trusts the scan-matched odometry too much:
+  // on ACES 1-sigma 0.5-1 m where the return was metres off).
+  std::vector<double> along(static_cast<size_t>(key.index) + 1, 0.0);
+  for (int i = key.index - 1; i >= 0; --i) {
+    const PoseKey a{key.trajectory, i}, b{key.trajectory, i + 1};
+    const double step =
+        smoother->HasPose(a) && smoother->HasPose(b)
+            ? (smoother->FramePose(a).translation() - smoother->FramePose(b).translation()).norm()
+            : 0.0;
+    along[static_cast<size_t>(i)] = along[static_cast<size_t>(i) + 1] + step;
+  }
+  auto drift = [&](int j) {
+    const double path = along[static_cast<size_t>(j)];
+    const double m = options_.drift_per_m * path, rad = options_.drift_rad_per_m * path;
+    return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
+  };
+  const Pose2 T_local_key = smoother->FramePose(key);
+  // The candidate the estimate and the drift make likeliest within reach (nearest on ties).
+  int best = -1;
+  double best_normalised = 0.0, best_distance = 0.0;
+  for (int j = 0; j <= last_candidate; ++j) {
     const PoseKey candidate{key.trajectory, j};
-    std::shared_ptr<const ScanReference> submap =
-        BuildKeyframeSubmap(*record, graph.smoother, candidate, options_.submap_half_width,
-                            options_.max_range_m, options_.reference);
-    if (!submap) {
-      ++stats_.no_match;
-      continue;
+    if (!smoother->HasPose(candidate)) continue;
+    // The drift alone chooses (the keyframe's marginal covariance is measured from the
+    // trajectory's start, not from the candidate); the joint one is added below.
+    const Eigen::Matrix3d covariance = drift(j);
+    if (!NeedsWideWindow(covariance)) continue;
+    const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
+    const double distance =
+        (smoother->FramePose(candidate).translation() - T_local_key.translation()).norm();
+    const double beyond = distance - options_.max_distance_m;
+    if (beyond > std::min(options_.wide_sigmas * sigma, options_.wide_max_window_m)) continue;
+    const double normalised = std::max(0.0, beyond) / sigma;
+    if (best < 0 || normalised < best_normalised ||
+        (normalised == best_normalised && distance < best_distance)) {
+      best = j;
+      best_normalised = normalised;
+      best_distance = distance;
     }
+  }
+  if (best < 0) return;
+  const PoseKey candidate{key.trajectory, best};
+  std::optional<PredictedRelativePose> predicted = PredictRelativePose(smoother, candidate, key);
+  if (!predicted) return;
+  const Eigen::Matrix3d extra = drift(best);
+  predicted->covariance += extra;
+  next = key.index + options_.wide_every_keyframes;
+  Submit(candidate, key, *predicted, extra, true, record, graph, query);
+}
+
+void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativePose& predicted,
+                          const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
+                          const GraphView& graph, const std::shared_ptr<const PointCloud>& query) {
+  ++stats_.candidates;
+  std::shared_ptr<const ScanReference> submap =
+      BuildKeyframeSubmap(record, graph.smoother, candidate,
+                          wide ? options_.wide_submap_half_width : options_.submap_half_width,
+                          options_.max_range_m, options_.reference);
+  if (!submap) {
+    ++stats_.no_match;
+    return;
+  }
+  const double sigma_xy = LargestSigma(predicted.covariance.topLeftCorner<2, 2>());
+  const double sigma_theta = std::sqrt(std::max(0.0, predicted.covariance(2, 2)));
+  PendingMatch pending;
+  pending.candidate = candidate;
+  pending.key = key;
+  pending.key_utime = record.utimes[static_cast<size_t>(key.index)];
+  pending.due_utime =
+      pool_ ? schedule_.DueUtime(pending.key_utime) : std::numeric_limits<int64_t>::min();
+  pending.predicted = predicted;
+  pending.wide = wide;
+  pending.drift = drift;
+  if (wide) {
+    pending.query = query;
+    const Pose2 T_local_candidate = graph.smoother.FramePose(candidate);
+    const int32_t first = std::max(0, candidate.index - options_.wide_submap_half_width);
+    const int32_t last =
+        std::min(record.num_keyframes() - 1, candidate.index + options_.wide_submap_half_width);
+    for (int32_t i = first; i <= last; ++i) {
+      const PoseKey key_i{candidate.trajectory, i};
+      if (!graph.smoother.HasPose(key_i)) continue;
+      pending.submap_poses.emplace_back(
+          i, Between(T_local_candidate, graph.smoother.FramePose(key_i)));
+    }
+  }
+  const Pose2 guess = predicted.T_a_b;
+  if (wide) {
+    ++wide_searches_;
+    // Branch and bound over the lattice around the prediction, as GlobalSearch does over a
+    // whole grid: a higher lattice bar (the acceptance bar) prunes more.
+    const double resolution = submap->geometry().resolution;
+    SearchWindow window;
+    window.center = guess;
+    window.angle_step_rad = AngleStepForRange(resolution, MaxPointRange(*query));
+    const double angular =
+        std::min(options_.wide_sigmas * sigma_theta, options_.wide_max_window_rad);
+    window.half_angles = static_cast<int>(std::ceil(angular / window.angle_step_rad));
+    const double linear = std::clamp(options_.wide_sigmas * sigma_xy, options_.max_window_m,
+                                     options_.wide_max_window_m);
+    window.half_cells_x = window.half_cells_y = static_cast<int>(std::ceil(linear / resolution));
+    MatchOptions match = options_.match;
+    match.min_score = std::max(match.min_score, options_.wide_min_score);
+    auto job = [submap, query, window, match] {
+      return SearchWindowAndFinish(*submap, *query, window, match);
+    };
+    pending.result = RunMatch(pool_, std::move(job));
+  } else {
     LocalMatchOptions window;
     window.match = options_.match;
-    const double sigma_xy = LargestSigma(predicted.covariance.topLeftCorner<2, 2>());
-    const double sigma_theta = std::sqrt(std::max(0.0, predicted.covariance(2, 2)));
     window.linear_window_m =
         std::clamp(3.0 * sigma_xy, options_.min_window_m, options_.max_window_m);
     window.angular_window_rad =
         std::clamp(3.0 * sigma_theta, options_.min_window_rad, options_.max_window_rad);
-    PendingMatch pending;
-    pending.candidate = candidate;
-    pending.key = key;
-    pending.key_utime = record->utimes[static_cast<size_t>(key.index)];
-    pending.due_utime =
-        pool_ ? schedule_.DueUtime(pending.key_utime) : std::numeric_limits<int64_t>::min();
-    pending.predicted = predicted;
-    const Pose2 guess = predicted.T_a_b;
     auto job = [submap, query, guess, window] {
       return MatchLocal(*submap, *query, guess, window);
     };
     pending.result = RunMatch(pool_, std::move(job));
-    matches_.push_back(std::move(pending));
   }
+  matches_.push_back(std::move(pending));
 }
 
 }  // namespace anchormap

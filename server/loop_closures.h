@@ -10,6 +10,14 @@
 //      covariance; a good match has score >= min_score and overlap >= min_overlap;
 //   3. a chi-square gate of the match against the prediction (both covariances) before it
 //      enters the graph as a between factor (kind kLoopClosure).
+// Across large drift (a long loop: 3 sigma of the prediction beyond the window bounds), the
+// local window cannot hold the true pose. Such a "wide" candidate is searched by branch and
+// bound over wide_sigmas of the prediction (capped) against a larger submap, at most one per
+// wide_every_keyframes keyframes of a trajectory; a wrong closure of that size would ruin the
+// map, so a wide match passes higher bars and is only kept as a hypothesis: it enters the
+// graph with a later wide match of the same trajectory, from a query at least
+// wide_pair_min_gap keyframes on, that agrees with it through the estimate (pairwise
+// consistency, PairwiseInconsistency2).
 // Step 2 runs on the MatchPool's workers (or on the caller's thread without a pool); step 3
 // and what follows from it happen when the canonical input reaches the keyframe's time plus
 // the schedule's lag (MatchSchedule), waiting for the match if needed: the results do not
@@ -19,9 +27,13 @@
 #include <deque>
 #include <future>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include "common/geometry/angle.h"
 #include "common/scan_matching/correlative_matcher.h"
 #include "common/scan_matching/scan_reference.h"
 #include "common/util/status.h"
@@ -29,6 +41,7 @@
 #include "server/encounter_source.h"
 #include "server/match_pool.h"
 #include "server/relative_pose.h"
+#include "server/trajectory_table.h"
 
 namespace anchormap {
 
@@ -55,6 +68,25 @@ struct LoopClosureOptions {
   double floor_sigma_m = 0.02;
   double floor_sigma_rad = 0.005;
   int max_waiting = 200;  // keyframes waiting to be solved; the oldest is dropped beyond
+  // Wide candidates (see the top of this file).
+  bool wide_search = true;
+  // Drift the estimate's covariance may not hold, per metre of path between the two ends
+  // (scan-matched odometry is overconfident): added to the wide search's prediction.
+  double drift_per_m = 0.03;
+  double drift_rad_per_m = 0.002;
+  int wide_quiet_keyframes = 20;  // no wide search this soon after an accepted closure
+  double wide_sigmas = 3.0;
+  double wide_max_window_m = 12.0;
+  double wide_max_window_rad = 0.8;
+  int wide_submap_half_width = 10;
+  int wide_refine_half_width = 2;  // the submap a wide match is refined against
+  int wide_every_keyframes = 4;
+  double wide_min_score = 0.6;
+  double wide_min_overlap = 0.8;
+  double wide_pair_chi2 = 11.34;  // 3 dof, 99 %
+  int wide_pair_min_gap = 4;      // keyframes between the two queries of a pair, at least...
+  int wide_pair_max_gap = 60;     // ... and at most (older hypotheses are given up)
+  int wide_max_kept = 8;          // hypotheses kept per trajectory
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
   MatchOptions match;
 
@@ -73,8 +105,11 @@ class LoopClosures : public EncounterSource {
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
   size_t pending() const override { return waiting_.size() + matches_.size(); }
-  std::string StatsLine() const override { return stats_.Summary(name()); }
+  std::string StatsLine() const override {
+    return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_);
+  }
   const CandidateStats& stats() const { return stats_; }
+  int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
 
  private:
   // Examines the waiting keyframes the smoother has solved.
@@ -82,7 +117,29 @@ class LoopClosures : public EncounterSource {
   // Chooses the keyframe's candidates and hands their matches to the pool.
   void ExamineKeyframe(PoseKey key, const GraphView& graph);
   // Uses the matches due at `now_utime` (all when `all`), in the order they were made.
-  void UseMatches(int64_t now_utime, bool all, EncounterSourceOutput* out);
+  void UseMatches(int64_t now_utime, bool all, const GraphView& graph, EncounterSourceOutput* out);
+  // Hands one candidate's match to the pool (wide: the branch-and-bound window search).
+  // `drift`: added to the prediction's covariance (wide searches, see SubmitWide).
+  void Submit(PoseKey candidate, PoseKey key, const PredictedRelativePose& predicted,
+              const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
+              const GraphView& graph, const std::shared_ptr<const PointCloud>& query);
+  // The keyframe's wide search, when it is due: against the candidate likeliest under the
+  // estimate with the drift model added, when that needs more than the local window.
+  void SubmitWide(PoseKey key, const GraphView& graph, const TrajectoryRecord& record,
+                  const std::shared_ptr<const PointCloud>& query);
+  bool NeedsWideWindow(const Eigen::Matrix3d& covariance) const;
+
+  // A wide match waiting for a consistent second.
+  struct Hypothesis {
+    PoseKey candidate;
+    PoseKey key;
+    Pose2 measured;
+    Eigen::Matrix3d covariance;
+    int64_t key_utime = 0;
+  };
+  // Keeps a wide match, or enters it with an earlier one it agrees with.
+  void OfferWide(const Hypothesis& hypothesis, const GraphView& graph, EncounterSourceOutput* out);
+  void Emit(const Hypothesis& closure, EncounterSourceOutput* out);
 
   // A match on its way: what its result is checked against.
   struct PendingMatch {
@@ -91,8 +148,18 @@ class LoopClosures : public EncounterSource {
     PoseKey key;
     int64_t key_utime = 0;
     PredictedRelativePose predicted;
+    bool wide = false;
+    Eigen::Matrix3d drift = Eigen::Matrix3d::Zero();  // added to every prediction's covariance
+    // Wide only: the query, and the submap's keyframes (index, pose in the candidate's frame).
+    std::shared_ptr<const PointCloud> query;
+    std::vector<std::pair<int32_t, Pose2>> submap_poses;
     std::shared_future<std::optional<MatchResult>> result;
   };
+  // A wide match (against a submap drawn at drifting estimates) made exact: the query
+  // matched locally against a small submap around the keyframe nearest to where it landed. nullopt
+  // (counted) when that match is weak or disagrees with the estimate.
+  std::optional<Hypothesis> RefineWide(const PendingMatch& pending, const MatchResult& coarse,
+                                       const GraphView& graph);
 
   LoopClosureOptions options_;
   MatchPool* pool_;
@@ -101,7 +168,11 @@ class LoopClosures : public EncounterSource {
   int64_t now_utime_ = 0;
   std::deque<PoseKey> waiting_;
   std::map<TrajectoryId, int32_t> quiet_until_;  // cooldown per trajectory
+  std::map<TrajectoryId, int32_t> next_wide_;    // rate limit of wide searches per trajectory
+  std::map<TrajectoryId, std::deque<Hypothesis>> kept_;
+  std::map<TrajectoryId, int32_t> last_closure_;  // index of the newest closure's keyframe
   CandidateStats stats_;
+  int64_t wide_searches_ = 0;
 };
 
 }  // namespace anchormap

@@ -5,6 +5,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "common/geometry/numeric_diff.h"
+
 namespace anchormap {
 
 bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b) {
@@ -51,6 +53,28 @@ double Mahalanobis2(const Pose2& predicted, const Pose2& measured,
     return std::numeric_limits<double>::infinity();
   }
   return error.dot(ldlt.solve(error));
+}
+
+double PairwiseInconsistency2(const PredictedRelativePose& a1_a2, const Pose2& c1,
+                              const Eigen::Matrix3d& c1_covariance,
+                              const PredictedRelativePose& b1_b2, const Pose2& c2,
+                              const Eigen::Matrix3d& c2_covariance) {
+  // c2 predicted from c1: T_a2_b2 = T_a2_a1 (+) T_a1_b1 (+) T_b1_b2.
+  auto predict = [](const Eigen::VectorXd& v) -> Eigen::Vector3d {
+    const Pose2 a1_a2 = Pose2(v[0], v[1], v[2]);
+    const Pose2 a1_b1 = Pose2(v[3], v[4], v[5]);
+    const Pose2 b1_b2 = Pose2(v[6], v[7], v[8]);
+    return Compose(a1_a2.Inverse(), Compose(a1_b1, b1_b2)).vector();
+  };
+  Eigen::VectorXd x(9);
+  x << a1_a2.T_a_b.vector(), c1.vector(), b1_b2.T_a_b.vector();
+  const Eigen::Matrix<double, 3, Eigen::Dynamic> J = NumericJacobian(predict, x);
+  Eigen::Matrix<double, 9, 9> blocks = Eigen::Matrix<double, 9, 9>::Zero();
+  blocks.block<3, 3>(0, 0) = a1_a2.covariance;
+  blocks.block<3, 3>(3, 3) = c1_covariance;
+  blocks.block<3, 3>(6, 6) = b1_b2.covariance;
+  const Eigen::Matrix3d covariance = J * blocks * J.transpose() + c2_covariance;
+  return Mahalanobis2(Pose2::FromVector(predict(x)), c2, covariance);
 }
 
 }  // namespace anchormap

@@ -32,6 +32,16 @@ bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);
 double Mahalanobis2(const Pose2& predicted, const Pose2& measured,
                     const Eigen::Matrix3d& covariance);
 
+// Pairwise consistency of two measurements of one pair of trajectories (Mangelson et al.
+// 2018): c1 = T_a1_b1 and c2 = T_a2_b2, where a1, a2 lie in one trajectory and b1, b2 in
+// another (or the same, for loop closures). c2 is predicted from c1 through the estimates
+// a1_a2 = T_a1_a2 and b1_b2 = T_b1_b2; the result is the squared Mahalanobis distance of c2
+// from that prediction, under every covariance involved (first order).
+double PairwiseInconsistency2(const PredictedRelativePose& a1_a2, const Pose2& c1,
+                              const Eigen::Matrix3d& c1_covariance,
+                              const PredictedRelativePose& b1_b2, const Pose2& c2,
+                              const Eigen::Matrix3d& c2_covariance);
+
 // A matcher's covariance with independent floors added (sigma_m on x and y, sigma_rad on
 // theta): scan matches are never trusted below the floors.
 inline Eigen::Matrix3d WithCovarianceFloor(Eigen::Matrix3d covariance, double sigma_m,

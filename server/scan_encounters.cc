@@ -8,7 +8,6 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "common/geometry/numeric_diff.h"
 #include "common/scan_matching/point_cloud.h"
 #include "server/keyframe_submap.h"
 #include "server/relative_pose.h"
@@ -308,22 +307,8 @@ bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCan
   const std::optional<PredictedRelativePose> in_b =
       PredictRelativePose(graph.covariances, c1.b, c2.b);
   if (!in_a || !in_b) return false;
-  // c2 predicted from c1: T_a2_b2 = T_a2_a1 (+) T_a1_b1 (+) T_b1_b2.
-  auto predict = [&](const Eigen::VectorXd& v) -> Eigen::Vector3d {
-    const Pose2 a1_a2 = Pose2(v[0], v[1], v[2]);
-    const Pose2 a1_b1 = Pose2(v[3], v[4], v[5]);
-    const Pose2 b1_b2 = Pose2(v[6], v[7], v[8]);
-    return Compose(a1_a2.Inverse(), Compose(a1_b1, b1_b2)).vector();
-  };
-  Eigen::VectorXd x(9);
-  x << in_a->T_a_b.vector(), c1.T_a_b.vector(), in_b->T_a_b.vector();
-  const Eigen::Matrix<double, 3, Eigen::Dynamic> J = NumericJacobian(predict, x);
-  Eigen::Matrix<double, 9, 9> blocks = Eigen::Matrix<double, 9, 9>::Zero();
-  blocks.block<3, 3>(0, 0) = in_a->covariance;
-  blocks.block<3, 3>(3, 3) = c1.covariance;
-  blocks.block<3, 3>(6, 6) = in_b->covariance;
-  const Eigen::Matrix3d covariance = J * blocks * J.transpose() + c2.covariance;
-  return Mahalanobis2(Pose2::FromVector(predict(x)), c2.T_a_b, covariance) <= options_.pcm_chi2;
+  return PairwiseInconsistency2(*in_a, c1.T_a_b, c1.covariance, *in_b, c2.T_a_b, c2.covariance) <=
+         options_.pcm_chi2;
 }
 
 void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {

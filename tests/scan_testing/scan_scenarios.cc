@@ -118,9 +118,9 @@ std::vector<Keyframe> DriveKeyframes(const SyntheticWorld& world, const std::vec
     k.utime = start_utime + static_cast<int64_t>(i) * 500'000;
     if (i > 0) {
       const Pose2 truth = Between(path[i - 1], path[i]);
-      k.T_previous_this = Pose2(truth.x() + noise.sigma_xy_m * normal(rng),
-                                truth.y() + noise.sigma_xy_m * normal(rng),
-                                truth.theta() + noise.sigma_theta_rad * normal(rng));
+      k.T_previous_this = Pose2(
+          truth.x() + noise.sigma_xy_m * normal(rng), truth.y() + noise.sigma_xy_m * normal(rng),
+          truth.theta() + noise.bias_theta_rad + noise.sigma_theta_rad * normal(rng));
       k.T_previous_this_covariance =
           Eigen::Vector3d(noise.sigma_xy_m * noise.sigma_xy_m, noise.sigma_xy_m * noise.sigma_xy_m,
                           noise.sigma_theta_rad * noise.sigma_theta_rad)

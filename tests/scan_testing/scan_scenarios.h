@@ -35,6 +35,9 @@ std::vector<Pose2> StraightPath(const Eigen::Vector2d& from, const Eigen::Vector
 struct OdometryNoise {
   double sigma_xy_m = 0.02;       // per step
   double sigma_theta_rad = 0.01;  // per step
+  // Added to every step's turn and not in the covariance (a miscalibrated odometry): drift
+  // the estimate does not know of, as scan-matched odometry on real logs has.
+  double bias_theta_rad = 0.0;
 };
 
 // The keyframes robot `robot` sends driving `path` (world poses), one per pose, 0.5 s
