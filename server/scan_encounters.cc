@@ -26,6 +26,8 @@ Status ScanEncounterOptions::Validate() const {
   if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
   if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
+  if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
+    return Status::Error("scan first-join sigmas must be > 0");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
   if (!(near_min_overlap >= 0 && near_min_overlap <= 1))
     return Status::Error("scan.near_min_overlap must be in [0, 1]");
@@ -267,7 +269,9 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   std::deque<Kept>& kept = kept_[pair];
   std::vector<bool> agrees(kept.size(), false);
   int consistent = 0;
-  for (size_t i = 0; i < kept.size(); ++i) {
+  const bool localised = Localised(candidate);
+  for (size_t i = 0; localised && i < kept.size(); ++i) {
+    if (!kept[i].localised) continue;
     // One place seen twice is no second opinion: the two must be apart in both
     // trajectories (a symmetric spot makes every match there agree).
     const EncounterCandidate& other = kept[i].candidate;
@@ -283,20 +287,28 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   // The strongest hypothesis this candidate disagrees with.
   int alternative = 0;
   for (size_t i = 0; i < kept.size(); ++i) {
-    if (!agrees[i]) alternative = std::max(alternative, 1 + kept[i].support);
+    if (!agrees[i] && kept[i].localised) {
+      alternative = std::max(alternative, 1 + kept[i].support);
+    }
   }
   const int support = 1 + consistent;
   if (consistent >= 1 && support >= options_.alternative_ratio * alternative) {
     // Qualified: joins after the hold, unless other evidence joins the pair first.
     qualified_since_.emplace(pair, now_utime_);
   }
-  kept.push_back({candidate, consistent});
+  kept.push_back({candidate, consistent, localised});
   ++stats_.kept;
   if (static_cast<int>(kept.size()) > options_.max_kept) {
     kept.pop_front();
     --stats_.kept;
     ++stats_.unconfirmed;
   }
+}
+
+bool ScanEncounters::Localised(const EncounterCandidate& candidate) const {
+  return LargestSigma(candidate.covariance.topLeftCorner<2, 2>()) <=
+             options_.first_join_max_sigma_m &&
+         std::sqrt(std::max(0.0, candidate.covariance(2, 2))) <= options_.first_join_max_sigma_rad;
 }
 
 bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
@@ -328,17 +340,42 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
     if (kept.empty()) continue;
     size_t best = 0;
     for (size_t i = 1; i < kept.size(); ++i) {
-      if (kept[i].support > kept[best].support) best = i;
+      if (kept[i].localised && (!kept[best].localised || kept[i].support > kept[best].support)) {
+        best = i;
+      }
     }
+    if (!kept[best].localised) continue;
+    // A candidate joins with the best one when it agrees with every candidate of the set
+    // so far (a clique, as in PCM), not only with the best: two that each agree with the
+    // best may still disagree with each other.
+    std::vector<size_t> set{best};
+    const auto apart = [&](const EncounterCandidate& c1, const EncounterCandidate& c2) {
+      return std::abs(c1.a.index - c2.a.index) >= options_.pcm_min_separation &&
+             std::abs(c1.b.index - c2.b.index) >= options_.pcm_min_separation;
+    };
+    for (size_t i = 0; i < kept.size(); ++i) {
+      if (i == best || !kept[i].localised) continue;
+      bool agrees = true;
+      for (const size_t j : set) {
+        const bool same_place = !apart(kept[i].candidate, kept[j].candidate);
+        // Two candidates at one place cannot confirm each other, but one may join the
+        // set when another member at another place confirms it.
+        if (same_place && j == best) {
+          agrees = false;
+          break;
+        }
+        if (!same_place && !Consistent(kept[i].candidate, kept[j].candidate, graph)) {
+          agrees = false;
+          break;
+        }
+      }
+      if (agrees) set.push_back(i);
+    }
+    std::vector<bool> in_set(kept.size(), false);
+    for (const size_t i : set) in_set[i] = true;
     std::deque<Kept> rest;
     for (size_t i = 0; i < kept.size(); ++i) {
-      const bool agrees =
-          i == best || (std::abs(kept[i].candidate.a.index - kept[best].candidate.a.index) >=
-                            options_.pcm_min_separation &&
-                        std::abs(kept[i].candidate.b.index - kept[best].candidate.b.index) >=
-                            options_.pcm_min_separation &&
-                        Consistent(kept[i].candidate, kept[best].candidate, graph));
-      if (agrees) {
+      if (in_set[i]) {
         Emit(kept[i].candidate, out);
         ++stats_.accepted;
         --stats_.kept;

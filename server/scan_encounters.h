@@ -10,7 +10,10 @@
 //   joins two groups only when two candidates of the same pair of trajectories at
 //   different places agree through each trajectory's own estimate (pairwise consistency,
 //   Mangelson et al., ICRA 2018: the loop candidate 1, odometry in one, candidate 2
-//   reversed, odometry in the other, is the identity within the chi-square gate). Lone
+//   reversed, odometry in the other, is the identity within the chi-square gate). Only
+//   matches localised in every direction take part (first_join_max_sigma_*: a corridor
+//   match is free along it and agrees with anything there), and the candidates that join
+//   agree pair by pair, not only with the best supported one. Lone
 //   candidates are kept (at most max_kept per pair); when the pair comes into one frame
 //   by other evidence (a direct encounter) they are gated against the estimate instead.
 //   A symmetric building makes whole sets of wrong candidates agree with each other (the
@@ -62,6 +65,15 @@ struct ScanEncounterOptions {
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
   double alternative_ratio = 2.0;
+  // A first encounter rests only on candidates the matcher localised in every direction
+  // (largest translational / heading sigma of its covariance at most these). Along a
+  // corridor a match is free: the matcher reports its window prior's sigma there (0.5 m,
+  // score_covariance.h), and two such matches agree on a wrong transform by sliding
+  // (Intel, 2 robots simultaneous: R1[65]-R2[195] and R1[75]-R2[225], each 0.5 m along
+  // its corridor, passed the pairwise test and joined the robots 0.56 rad off). They are
+  // kept all the same, and gated against the estimate once the pair is in one frame.
+  double first_join_max_sigma_m = 0.1;
+  double first_join_max_sigma_rad = 0.05;
   // A qualified first encounter waits this long (data time) before it joins: a direct,
   // identified encounter arriving meanwhile joins the pair instead and the kept candidates
   // are gated against it. Buildings with symmetric floors (the simulator's offices) make
@@ -169,7 +181,10 @@ class ScanEncounters : public EncounterSource {
   struct Kept {
     EncounterCandidate candidate;
     int support = 0;  // later candidates consistent with it (at other places)
+    // Localised in every direction: only these take part in a first join.
+    bool localised = true;
   };
+  bool Localised(const EncounterCandidate& candidate) const;
   std::map<Pair, std::deque<Kept>> kept_;
   std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
   int64_t now_utime_ = 0;

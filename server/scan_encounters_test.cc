@@ -9,6 +9,7 @@
 
 #include "server/mapping_server.h"
 #include "tests/scan_testing/scan_scenarios.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
@@ -178,6 +179,103 @@ TEST(ScanEncountersTest, SameInputSameMap) {
     EXPECT_EQ(first.final_poses[i].theta(), second.final_poses[i].theta()) << i;
   }
   EXPECT_EQ(first.scan.accepted, second.scan.accepted);
+}
+
+// The first-join rule on hand-made candidates. R1 and R2 drive along parallel tracks 3 m
+// apart (keyframe i of each at x = i m): R2[j] seen from R1[i] is (j - i, 3, 0).
+class FirstJoinTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    MappingServerOptions options;
+    options.loop_closures = false;
+    options.scan_encounters = false;
+    server_ = std::make_unique<MappingServer>(options);
+    for (int32_t seq = 0; seq < 40; ++seq) {
+      // No laser rays: the source searches nothing itself, it only judges the offers.
+      ASSERT_TRUE(server_->OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 0)).ok());
+      ASSERT_TRUE(server_->OnKeyframe(testing::StraightKeyframe("R2", 2, seq, 0)).ok());
+    }
+    server_->Flush();
+    ASSERT_FALSE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
+  }
+
+  // R2[j] seen from R1[i], off the truth by `slide_m` along the tracks, with standard
+  // deviations (along, across, heading).
+  static EncounterCandidate Candidate(int32_t i, int32_t j, double slide_m,
+                                      const Eigen::Vector3d& sigma) {
+    EncounterCandidate c;
+    c.a = {TrajectoryId(0), i};
+    c.b = {TrajectoryId(1), j};
+    c.T_a_b = Pose2(j - i + slide_m, 3.0, 0.0);
+    c.covariance = sigma.cwiseAbs2().asDiagonal();
+    c.utime = 1'000'000 + 1'000'000 * int64_t{j};
+    return c;
+  }
+
+  // What the source emits for the offers: at once (hold 0) and at the end of input.
+  std::vector<EncounterConstraint> Offer(const std::vector<EncounterCandidate>& candidates) {
+    ScanEncounterOptions options;
+    options.first_join_hold_s = 0.0;
+    ScanEncounters source(options);
+    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
+    EncounterSourceOutput out;
+    source.Poll(50'000'000, graph, &out);
+    for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
+    source.Poll(50'000'000, graph, &out);
+    source.Flush(graph, &out);
+    stats_ = source.stats();
+    return out.constraints;
+  }
+
+  std::unique_ptr<MappingServer> server_;
+  CandidateStats stats_;
+};
+
+const Eigen::Vector3d kLocalised(0.02, 0.02, 0.005);
+// What the matcher reports in a corridor: free along it (its window prior's 0.5 m).
+const Eigen::Vector3d kAlongCorridor(0.5, 0.02, 0.005);
+
+TEST_F(FirstJoinTest, TwoLocalisedCandidatesThatAgreeJoin) {
+  const std::vector<EncounterConstraint> joined =
+      Offer({Candidate(5, 5, 0.0, kLocalised), Candidate(25, 25, 0.0, kLocalised)});
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(stats_.accepted, 2);
+}
+
+TEST_F(FirstJoinTest, CorridorMatchesThatSlideTogetherDoNotJoin) {
+  // Both 2 m off along the tracks: they agree with each other (the pairwise test passes
+  // within their 0.5 m) on a wrong transform. Neither is evidence of where along the
+  // corridor the other robot is.
+  const std::vector<EncounterConstraint> joined =
+      Offer({Candidate(5, 5, 2.0, kAlongCorridor), Candidate(25, 25, 2.0, kAlongCorridor)});
+  EXPECT_TRUE(joined.empty());
+  EXPECT_EQ(stats_.accepted, 0);
+  EXPECT_EQ(stats_.unconfirmed, 2);
+}
+
+TEST_F(FirstJoinTest, CorridorMatchesNeitherConfirmNorOutvoteALocalisedOne) {
+  // One localised candidate and a corridor match that agrees with it: still one piece of
+  // evidence, no join; a second localised one then joins both localised ones.
+  EXPECT_TRUE(
+      Offer({Candidate(5, 5, 0.0, kLocalised), Candidate(25, 25, 0.0, kAlongCorridor)}).empty());
+  const std::vector<EncounterConstraint> joined =
+      Offer({Candidate(5, 5, 0.0, kLocalised), Candidate(15, 15, 0.6, kAlongCorridor),
+             Candidate(25, 25, 0.6, kAlongCorridor), Candidate(35, 35, 0.0, kLocalised)});
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(joined[0].a.index, 5);
+  EXPECT_EQ(joined[1].a.index, 35);
+}
+
+TEST_F(FirstJoinTest, TheJoiningSetAgreesPairwise) {
+  // B and C each agree with A (0.15 m off it), not with each other (0.3 m apart; over 15
+  // keyframes of odometry, 1 cm per metre, and the matches the pair's sigma is 6 cm): the
+  // join takes A and the first of them, not all three.
+  const std::vector<EncounterConstraint> joined =
+      Offer({Candidate(5, 5, 0.0, kLocalised), Candidate(20, 20, 0.15, kLocalised),
+             Candidate(35, 35, -0.15, kLocalised)});
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(joined[0].a.index, 5);
+  EXPECT_EQ(joined[1].a.index, 20);
 }
 
 }  // namespace
