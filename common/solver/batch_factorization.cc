@@ -62,20 +62,6 @@ bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& fact
   return FactorBlocks(n, start, std::move(blocks), std::move(gradient), rows, error);
 }
 
-bool BatchFactorization::FactorNormalEquations(
-    std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns,
-    std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows, std::string* error) {
-  const int n = static_cast<int>(columns.size());
-  std::vector<int> start(n + 1, 0);
-  for (int q = 0; q < n; ++q) start[q + 1] = start[q] + static_cast<int>(columns[q].size());
-  std::vector<std::pair<int, Eigen::Matrix3d>> blocks;
-  blocks.reserve(start[n]);
-  for (auto& column : columns) {
-    for (auto& entry : column) blocks.push_back(std::move(entry));
-  }
-  return FactorBlocks(n, start, std::move(blocks), std::move(gradient), rows, error);
-}
-
 bool BatchFactorization::FactorBlocks(int n, const std::vector<int>& start,
                                       std::vector<std::pair<int, Eigen::Matrix3d>> blocks,
                                       std::vector<Eigen::Vector3d> gradient,

@@ -33,13 +33,8 @@ class BatchFactorization {
   bool Factor(int num_positions, const std::vector<PositionedFactor>& factors,
               std::vector<RBlockRow>* rows, std::string* error);
 
-  // The same from normal equations given directly: `columns[q]` lists blocks (p, H_pq)
-  // with p <= q (the diagonal block in full; duplicates are summed), `gradient` is A^T b.
-  bool FactorNormalEquations(std::vector<std::vector<std::pair<int, Eigen::Matrix3d>>> columns,
-                             std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
-                             std::string* error);
-
-  // The same from normal equations grouped by column (the core of both above):
+  // The same from normal equations grouped by column (the core of Factor; the partial
+  // step gives its blocks directly):
   // `blocks[start[q] .. start[q+1])` are column q's (p, H_pq) entries, p <= q, in any order
   // (duplicates are summed).
   bool FactorBlocks(int n, const std::vector<int>& start,
