@@ -1,0 +1,130 @@
+#include "common/scan/keyframe_grid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include "common/geometry/angle.h"
+
+namespace anchormap {
+
+KeyframeGrid::KeyframeGrid(const OccupancyGridOptions& options, double move_tolerance_cells)
+    : options_(options), move_tolerance_m_(move_tolerance_cells * options.resolution_m) {}
+
+void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sign) {
+  const int64_t size = options_.tile_size_cells;
+  uint64_t last_key = 0;
+  Tile* tile = nullptr;
+  int64_t tile_x = 0, tile_y = 0;
+  for (const TracedCell& cell : tracer_.Trace(scan, T_map_body, options_)) {
+    const int64_t tx = FloorDiv(cell.x, size), ty = FloorDiv(cell.y, size);
+    const uint64_t key = TileKey(tx, ty);
+    if (tile == nullptr || key != last_key) {
+      tile = &tiles_[key];
+      if (tile->cells.empty()) tile->cells.resize(static_cast<size_t>(size * size));
+      changed_.insert(key);
+      last_key = key;
+      tile_x = tx;
+      tile_y = ty;
+    }
+    Counts& counts = tile->cells[static_cast<size_t>((cell.y - tile_y * size) * size +
+                                                     (cell.x - tile_x * size))];
+    (cell.hit ? counts.hits : counts.misses) += sign;
+  }
+}
+
+KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
+                                            const Pose2& T_map_body) {
+  const auto it = placed_pose_.find(key);
+  if (it == placed_pose_.end()) {
+    Trace(scan, T_map_body, +1);
+    placed_pose_.emplace(key, T_map_body);
+    reach_m_[key] = ScanReach(scan, options_) + scan.T_body_sensor.translation().norm();
+    return Placement::kInserted;
+  }
+  const Pose2& old = it->second;
+  const double moved = (T_map_body.translation() - old.translation()).norm() +
+                       std::abs(AngleDifference(T_map_body.theta(), old.theta())) * reach_m_[key];
+  if (!(moved > move_tolerance_m_)) return Placement::kUnchanged;
+  Trace(scan, old, -1);
+  Trace(scan, T_map_body, +1);
+  it->second = T_map_body;
+  return Placement::kMoved;
+}
+
+bool KeyframeGrid::Remove(uint64_t key, const LaserScan& scan) {
+  const auto it = placed_pose_.find(key);
+  if (it == placed_pose_.end()) return false;
+  Trace(scan, it->second, -1);
+  placed_pose_.erase(it);
+  reach_m_.erase(key);
+  return true;
+}
+
+std::optional<double> KeyframeGrid::LogOdds(const Counts& counts) const {
+  if (counts.hits == 0 && counts.misses == 0) return std::nullopt;
+  return std::clamp(counts.hits * options_.log_odds_hit + counts.misses * options_.log_odds_miss,
+                    options_.log_odds_min, options_.log_odds_max);
+}
+
+std::optional<double> KeyframeGrid::LogOdds(int64_t cell_x, int64_t cell_y) const {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t tile_x = FloorDiv(cell_x, size), tile_y = FloorDiv(cell_y, size);
+  const auto it = tiles_.find(TileKey(tile_x, tile_y));
+  if (it == tiles_.end()) return std::nullopt;
+  return LogOdds(
+      it->second
+          .cells[static_cast<size_t>((cell_y - tile_y * size) * size + (cell_x - tile_x * size))]);
+}
+
+int8_t KeyframeGrid::Occupancy(int64_t cell_x, int64_t cell_y) const {
+  const auto log_odds = LogOdds(cell_x, cell_y);
+  return log_odds ? OccupancyFromLogOdds(*log_odds) : int8_t{-1};
+}
+
+GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const {
+  GridTile t;
+  t.utime = utime;
+  t.update = update;
+  t.resolution_m = options_.resolution_m;
+  std::tie(t.tile_x, t.tile_y) = TileOfKey(key);
+  t.width = t.height = options_.tile_size_cells;
+  t.cells.reserve(tile.cells.size());
+  for (const Counts& counts : tile.cells) {
+    const auto log_odds = LogOdds(counts);
+    t.cells.push_back(log_odds ? OccupancyFromLogOdds(*log_odds) : int8_t{-1});
+  }
+  return t;
+}
+
+namespace {
+// (tile_y, tile_x) order, as OccupancyGrid::Tiles.
+bool RowMajor(uint64_t a, uint64_t b) {
+  const auto [ax, ay] = TileOfKey(a);
+  const auto [bx, by] = TileOfKey(b);
+  return std::make_pair(ay, ax) < std::make_pair(by, bx);
+}
+}  // namespace
+
+std::vector<GridTile> KeyframeGrid::Tiles(int64_t utime, int64_t update) const {
+  std::vector<uint64_t> keys;
+  keys.reserve(tiles_.size());
+  for (const auto& [key, tile] : tiles_) keys.push_back(key);
+  std::sort(keys.begin(), keys.end(), RowMajor);
+  std::vector<GridTile> out;
+  out.reserve(keys.size());
+  for (uint64_t key : keys) out.push_back(Export(key, tiles_.at(key), utime, update));
+  return out;
+}
+
+std::vector<GridTile> KeyframeGrid::TakeChangedTiles(int64_t utime, int64_t update) {
+  std::vector<uint64_t> keys(changed_.begin(), changed_.end());
+  changed_.clear();
+  std::sort(keys.begin(), keys.end(), RowMajor);
+  std::vector<GridTile> out;
+  out.reserve(keys.size());
+  for (uint64_t key : keys) out.push_back(Export(key, tiles_.at(key), utime, update));
+  return out;
+}
+
+}  // namespace anchormap

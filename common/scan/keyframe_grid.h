@@ -1,0 +1,83 @@
+#pragma once
+// The server's occupancy grid: made of keyframes' scans whose poses keep moving as the
+// solver refines them, and kept up to date by moving only the scans whose keyframe moved by
+// about a cell since it was traced, instead of being rebuilt from every keyframe.
+//
+// Each cell counts its hits and misses; its log-odds are the clamped sum
+// clamp(hits * log_odds_hit + misses * log_odds_miss) (the inverse sensor model of
+// OccupancyGrid, clamped once at the end instead of after each scan), so that a scan can be
+// taken out exactly (it is traced again at the pose it went in with) and the grid does not
+// depend on the order of the scans: after any sequence of moves it equals a grid built from
+// scratch at the poses the scans were last placed at.
+// The tiles changed since they were last taken are tracked, so that only they need to be
+// published.
+
+#include <cstdint>
+#include <optional>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/scan/grid_cells.h"
+#include "common/scan/scan_tracer.h"
+#include "common/types/laser_scan.h"
+#include "common/types/map_outputs.h"
+
+namespace anchormap {
+
+class KeyframeGrid {
+ public:
+  // A scan is traced again when its far beam ends moved more than this many cells (its
+  // translation plus its rotation times the scan's reach).
+  explicit KeyframeGrid(const OccupancyGridOptions& options = {},
+                        double move_tolerance_cells = 1.0);
+  const OccupancyGridOptions& options() const { return options_; }
+
+  enum class Placement { kUnchanged, kInserted, kMoved };
+  // Keyframe `key`'s scan at T_map_body: traced in when new, traced out at its old pose and
+  // in at the new one when it moved past the tolerance, else left where it is. `scan` must
+  // be the same scan at every call for one key (it is not stored).
+  Placement Place(uint64_t key, const LaserScan& scan, const Pose2& T_map_body);
+  // Takes keyframe `key` out (`scan`: the one it was placed with); false when not placed.
+  bool Remove(uint64_t key, const LaserScan& scan);
+  // The pose each placed keyframe was traced at.
+  const std::unordered_map<uint64_t, Pose2>& placed() const { return placed_pose_; }
+
+  // Log-odds of a cell; nullopt when no placed scan observes it.
+  std::optional<double> LogOdds(int64_t cell_x, int64_t cell_y) const;
+  int8_t Occupancy(int64_t cell_x, int64_t cell_y) const;
+
+  // Every tile that any scan ever reached, sorted by (tile_y, tile_x) (a tile whose scans
+  // all moved away stays, unknown, so that subscribers learn it emptied).
+  std::vector<GridTile> Tiles(int64_t utime, int64_t update) const;
+  // The tiles whose cells changed since the last call (or the last ForgetChanges), sorted.
+  std::vector<GridTile> TakeChangedTiles(int64_t utime, int64_t update);
+  void ForgetChanges() { changed_.clear(); }
+  size_t num_tiles() const { return tiles_.size(); }
+  size_t num_changed_tiles() const { return changed_.size(); }
+
+ private:
+  struct Counts {
+    int32_t hits = 0;
+    int32_t misses = 0;
+  };
+  struct Tile {
+    std::vector<Counts> cells;
+  };
+  // Adds (sign +1) or takes out (-1) the cells of `scan` at T_map_body.
+  void Trace(const LaserScan& scan, const Pose2& T_map_body, int sign);
+  std::optional<double> LogOdds(const Counts& counts) const;
+  GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
+
+  OccupancyGridOptions options_;
+  double move_tolerance_m_;
+  ScanTracer tracer_;
+  std::unordered_map<uint64_t, Tile> tiles_;
+  std::unordered_set<uint64_t> changed_;
+  std::unordered_map<uint64_t, Pose2> placed_pose_;
+  std::unordered_map<uint64_t, double> reach_m_;  // from the body origin, per placed key
+};
+
+}  // namespace anchormap

@@ -1,0 +1,179 @@
+#include "common/scan/keyframe_grid.h"
+
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/angle.h"
+#include "common/scan/occupancy_grid.h"
+
+namespace anchormap {
+namespace {
+
+// A scan from inside a 12 m x 8 m box centred on the origin, taken at T_map_body (the
+// sensor 0.2 m ahead of the body), with a few beams without return.
+LaserScan BoxScan(const Pose2& T_map_body, int beams) {
+  LaserScan scan;
+  scan.T_body_sensor = Pose2(0.2, 0.0, 0.0);
+  scan.rad0 = static_cast<float>(-kPi);
+  scan.radstep = static_cast<float>(2 * kPi / beams);
+  scan.max_range = 30.0f;
+  const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
+  for (int i = 0; i < beams; ++i) {
+    const double angle = T_map_sensor.theta() + scan.Angle(static_cast<size_t>(i));
+    const Eigen::Vector2d o = T_map_sensor.translation();
+    const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
+    double range = 1e9;
+    for (int axis = 0; axis < 2; ++axis) {
+      const double half = axis == 0 ? 6.0 : 4.0;
+      for (double wall : {-half, half}) {
+        if (std::abs(d[axis]) < 1e-12) continue;
+        const double t = (wall - o[axis]) / d[axis];
+        if (t > 0) range = std::min(range, t);
+      }
+    }
+    scan.ranges.push_back(i % 17 == 5 ? 40.0f : static_cast<float>(range));
+  }
+  return scan;
+}
+
+OccupancyGridOptions SmallOptions() {
+  OccupancyGridOptions options;
+  options.resolution_m = 0.1;
+  options.tile_size_cells = 16;
+  options.max_ray_length_m = 9.0;
+  return options;
+}
+
+// Every cell either grid holds, compared: same log-odds (sums of the same counts) or both
+// unknown.
+void ExpectSameCells(const KeyframeGrid& a, const KeyframeGrid& b) {
+  std::set<std::pair<int32_t, int32_t>> tiles;
+  for (const auto* grid : {&a, &b}) {
+    for (const GridTile& t : grid->Tiles(0, 0)) tiles.insert({t.tile_x, t.tile_y});
+  }
+  const int64_t size = a.options().tile_size_cells;
+  int64_t compared = 0, observed = 0;
+  for (const auto& [tx, ty] : tiles) {
+    for (int64_t y = ty * size; y < (ty + 1) * size; ++y) {
+      for (int64_t x = tx * size; x < (tx + 1) * size; ++x) {
+        const auto la = a.LogOdds(x, y), lb = b.LogOdds(x, y);
+        ASSERT_EQ(la.has_value(), lb.has_value()) << "cell " << x << " " << y;
+        if (la) {
+          EXPECT_NEAR(*la, *lb, 1e-9) << "cell " << x << " " << y;
+          ++observed;
+        }
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GT(observed, 1000);
+  EXPECT_GT(compared, observed);
+}
+
+TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
+  const OccupancyGridOptions options = SmallOptions();
+  const Pose2 pose(1.0, -0.5, 0.3);
+  const LaserScan scan = BoxScan(pose, 360);
+  OccupancyGrid reference(options);
+  reference.InsertScan(scan, pose);
+  KeyframeGrid grid(options);
+  EXPECT_EQ(grid.Place(7, scan, pose), KeyframeGrid::Placement::kInserted);
+  const std::vector<GridTile> expected = reference.Tiles(3, 4), actual = grid.Tiles(3, 4);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  }
+}
+
+// Random keyframes in the box, then rounds of random pose moves (small ones below the
+// tolerance, large ones past it) and removals: the grid equals one built from scratch at
+// the poses it holds, and those are within the tolerance of the true poses.
+TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
+  const OccupancyGridOptions options = SmallOptions();
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  std::normal_distribution<double> small(0.0, 0.01), large(0.0, 0.3);
+  KeyframeGrid grid(options);
+  std::map<uint64_t, Pose2> truth;
+  std::map<uint64_t, LaserScan> scans;
+  for (uint64_t key = 0; key < 40; ++key) {
+    const Pose2 pose(x(rng), y(rng), theta(rng));
+    scans[key] = BoxScan(pose, 180);
+    truth[key] = pose;
+    ASSERT_EQ(grid.Place(key, scans[key], pose), KeyframeGrid::Placement::kInserted);
+  }
+  int moved = 0, unchanged = 0;
+  for (int round = 0; round < 6; ++round) {
+    for (auto& [key, pose] : truth) {
+      const bool big = std::uniform_int_distribution<int>(0, 3)(rng) == 0;
+      auto& noise = big ? large : small;
+      pose = Pose2(pose.x() + noise(rng), pose.y() + noise(rng), pose.theta() + 0.1 * noise(rng));
+      const auto placement = grid.Place(key, scans[key], pose);
+      (placement == KeyframeGrid::Placement::kMoved ? moved : unchanged) += 1;
+    }
+    // Take one out.
+    const uint64_t key = truth.begin()->first + static_cast<uint64_t>(round);
+    if (truth.count(key)) {
+      EXPECT_TRUE(grid.Remove(key, scans[key]));
+      EXPECT_FALSE(grid.Remove(key, scans[key]));
+      truth.erase(key);
+    }
+  }
+  EXPECT_GT(moved, 30);
+  EXPECT_GT(unchanged, 30);
+  ASSERT_EQ(grid.placed().size(), truth.size());
+  KeyframeGrid scratch(options);
+  for (const auto& [key, pose] : grid.placed()) {
+    // The pose it holds is within about a cell of the truth at the far beam ends.
+    const Pose2& actual = truth.at(key);
+    const double reach = 9.0 + 0.2;
+    EXPECT_LE((pose.translation() - actual.translation()).norm() +
+                  std::abs(AngleDifference(pose.theta(), actual.theta())) * reach,
+              options.resolution_m + 1e-12);
+    scratch.Place(key, scans.at(key), pose);
+  }
+  ExpectSameCells(grid, scratch);
+}
+
+// A subscriber that holds the first full export and applies every batch of changed tiles
+// holds the full export at the end; untouched tiles are not re-sent.
+TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {
+  const OccupancyGridOptions options = SmallOptions();
+  KeyframeGrid grid(options);
+  std::vector<LaserScan> scans;
+  std::vector<Pose2> poses;
+  for (int i = 0; i < 6; ++i) {
+    poses.emplace_back(-4.0 + 1.5 * i, 0.0, 0.0);
+    scans.push_back(BoxScan(poses.back(), 180));
+    grid.Place(static_cast<uint64_t>(i), scans.back(), poses.back());
+  }
+  std::map<std::pair<int32_t, int32_t>, std::vector<int8_t>> subscriber;
+  for (const GridTile& t : grid.Tiles(0, 1)) subscriber[{t.tile_x, t.tile_y}] = t.cells;
+  grid.ForgetChanges();
+  EXPECT_TRUE(grid.TakeChangedTiles(0, 1).empty());
+  // A pose that moves less than a cell changes nothing.
+  EXPECT_EQ(grid.Place(0, scans[0], Compose(poses[0], Pose2(0.03, 0.0, 0.001))),
+            KeyframeGrid::Placement::kUnchanged);
+  EXPECT_TRUE(grid.TakeChangedTiles(0, 2).empty());
+  // A keyframe that moves 0.5 m changes the tiles its rays reach, not all of them.
+  EXPECT_EQ(grid.Place(5, scans[5], Compose(poses[5], Pose2(0.0, 0.5, 0.0))),
+            KeyframeGrid::Placement::kMoved);
+  const std::vector<GridTile> changed = grid.TakeChangedTiles(0, 3);
+  EXPECT_GT(changed.size(), 0u);
+  EXPECT_LT(changed.size(), grid.num_tiles());
+  for (const GridTile& t : changed) subscriber[{t.tile_x, t.tile_y}] = t.cells;
+  grid.Remove(2, scans[2]);
+  for (const GridTile& t : grid.TakeChangedTiles(0, 4)) subscriber[{t.tile_x, t.tile_y}] = t.cells;
+  const std::vector<GridTile> full = grid.Tiles(0, 4);
+  ASSERT_EQ(subscriber.size(), full.size());
+  for (const GridTile& t : full) EXPECT_EQ(subscriber.at({t.tile_x, t.tile_y}), t.cells);
+}
+
+}  // namespace
+}  // namespace anchormap
