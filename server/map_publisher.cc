@@ -1,6 +1,7 @@
 #include "server/map_publisher.h"
 
 #include <map>
+#include <unordered_set>
 
 namespace anchormap {
 
@@ -24,6 +25,15 @@ MergedMap MapPublisher::BuildMergedMap(const Smoother& smoother, const Trajector
   }
   map.encounters = links;
   return map;
+}
+
+MapChunker::Split MapPublisher::SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full) {
+  if (!last_map_full_utime_ ||
+      1e-6 * static_cast<double>(now_utime - *last_map_full_utime_) >= options_.map_full_period_s) {
+    full = true;
+  }
+  if (full) last_map_full_utime_ = now_utime;
+  return chunker_.Update(map, full);
 }
 
 AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
@@ -67,18 +77,65 @@ std::vector<TrajectoryId> MapPublisher::GridTrajectories(const Smoother& smoothe
   return members;
 }
 
-std::vector<GridTile> MapPublisher::BuildGridTiles(const Smoother& smoother,
-                                                   const TrajectoryTable& table, int64_t utime,
-                                                   int64_t update) const {
-  OccupancyGrid grid(options_.grid);
+namespace {
+// A keyframe's key in the grid: its solver trajectory and index.
+uint64_t GridKey(TrajectoryId trajectory, size_t index) {
+  return (static_cast<uint64_t>(trajectory.value()) << 32) | static_cast<uint64_t>(index);
+}
+}  // namespace
+
+MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
+                                                  const TrajectoryTable& table) {
+  GridChange change;
+  std::unordered_set<uint64_t> current;
   for (TrajectoryId id : GridTrajectories(smoother, table)) {
     const TrajectoryRecord* record = table.FindBySolverId(id);
     const std::vector<Pose2> poses = smoother.GlobalTrajectory(id);
     for (size_t i = 0; i < poses.size() && i < record->scans.size(); ++i) {
-      grid.InsertScan(record->scans[i], poses[i]);
+      const uint64_t key = GridKey(id, i);
+      current.insert(key);
+      switch (grid_.Place(key, record->scans[i], poses[i])) {
+        case KeyframeGrid::Placement::kInserted:
+          ++change.inserted;
+          break;
+        case KeyframeGrid::Placement::kMoved:
+          ++change.moved;
+          break;
+        case KeyframeGrid::Placement::kUnchanged:
+          break;
+      }
     }
   }
-  return grid.Tiles(utime, update);
+  // Keyframes of trajectories that left the grid's group (the largest group changed).
+  std::vector<uint64_t> gone;
+  for (const auto& [key, pose] : grid_.placed()) {
+    if (current.count(key) == 0) gone.push_back(key);
+  }
+  for (uint64_t key : gone) {
+    const TrajectoryRecord* record =
+        table.FindBySolverId(TrajectoryId(static_cast<int64_t>(key >> 32)));
+    const size_t index = key & 0xffffffffu;
+    if (record != nullptr && index < record->scans.size() &&
+        grid_.Remove(key, record->scans[index])) {
+      ++change.removed;
+    }
+  }
+  return change;
+}
+
+std::vector<GridTile> MapPublisher::BuildGridTiles(const Smoother& smoother,
+                                                   const TrajectoryTable& table, int64_t utime,
+                                                   int64_t update) {
+  UpdateGrid(smoother, table);
+  grid_.ForgetChanges();
+  return grid_.Tiles(utime, update);
+}
+
+std::vector<GridTile> MapPublisher::BuildChangedGridTiles(const Smoother& smoother,
+                                                          const TrajectoryTable& table,
+                                                          int64_t utime, int64_t update) {
+  UpdateGrid(smoother, table);
+  return grid_.TakeChangedTiles(utime, update);
 }
 
 bool MapPublisher::MapDue(int64_t now_utime, int64_t update) const {
@@ -96,6 +153,11 @@ bool MapPublisher::GridDue(int64_t now_utime, int64_t update) const {
   if (options_.grid_period_s <= 0 || update <= last_grid_update_) return false;
   return !last_grid_utime_ ||
          1e-6 * static_cast<double>(now_utime - *last_grid_utime_) >= options_.grid_period_s;
+}
+
+bool MapPublisher::GridFullDue(int64_t now_utime) const {
+  return !last_grid_full_utime_ || 1e-6 * static_cast<double>(now_utime - *last_grid_full_utime_) >=
+                                       options_.grid_full_period_s;
 }
 
 void MapPublisher::MarkGridPublished(int64_t now_utime, int64_t update) {

@@ -1,10 +1,12 @@
 #pragma once
 // Builds the server's outputs from the current estimate: the merged map (every trajectory,
 // anchored or not, its keyframe poses in the global frame), the anchors' marginal
-// covariances (from the smoother's R, docs/METHOD.md section 6) and the occupancy grid
-// (rebuilt from every keyframe's scan at its current pose, since poses move after every
-// update). It also decides when each output is due: the map and covariances after an
-// update, at most once per map_period_s; the grid at most once per grid_period_s.
+// covariances (from the smoother's R, docs/METHOD.md section 6) and the occupancy grid (a
+// KeyframeGrid kept across publications: at each one only the keyframes whose pose moved
+// by about a cell are traced again, and only the tiles that changed go out, all of them
+// every grid_full_period_s for subscribers that join late). It also decides when each
+// output is due: the map and covariances after an update, at most once per map_period_s;
+// the grid at most once per grid_period_s.
 // "now" is whatever clock the caller runs on (wall time online, data time offline).
 
 #include <cstdint>
@@ -12,10 +14,12 @@
 #include <string>
 #include <vector>
 
+#include "common/scan/keyframe_grid.h"
 #include "common/scan/occupancy_grid.h"
 #include "common/solver/smoother.h"
 #include "common/types/map_outputs.h"
 #include "common/util/status.h"
+#include "server/map_chunker.h"
 #include "server/trajectory_table.h"
 
 namespace anchormap {
@@ -24,33 +28,75 @@ struct MapPublisherOptions {
   // Merged map and anchor covariances: after an update, at most this often (0 = after
   // every update).
   double map_period_s = 0.5;
+  // The merged map goes out as a header and the chunks that changed (MapChunker); every
+  // chunk at most this often, for subscribers that joined late or lost a chunk.
+  double map_full_period_s = 10.0;
+  MapChunkerOptions chunks;
   // Occupancy grid: at most this often, when the map changed (0 = never).
   double grid_period_s = 5.0;
+  // Every tile of the grid at most this often (a subscriber that joined late, or lost a
+  // tile, has the whole grid within it); the grid publications in between carry only the
+  // changed tiles (0 = every grid publication carries every tile).
+  double grid_full_period_s = 60.0;
+  // A keyframe's scan is traced again when its far beam ends moved more than this many
+  // cells since it was traced.
+  double grid_move_tolerance_cells = 1.0;
   // The grid covers the largest group of trajectories that share a frame (anchored
   // together, or the largest single unanchored trajectory before any encounter).
   OccupancyGridOptions grid;
 
   Status Validate() const {
     if (!(map_period_s >= 0)) return Status::Error("publish.map_period_s must be >= 0");
+    if (!(map_full_period_s >= 0)) return Status::Error("publish.map_full_period_s must be >= 0");
+    if (chunks.chunk_poses < 1 || chunks.chunk_poses > 65536)
+      return Status::Error("publish.chunks.chunk_poses must be 1..65536");
+    if (!(chunks.tolerance_m >= 0) || !(chunks.tolerance_rad >= 0))
+      return Status::Error("publish.chunks tolerances must be >= 0");
     if (!(grid_period_s >= 0)) return Status::Error("publish.grid_period_s must be >= 0");
+    if (!(grid_full_period_s >= 0)) return Status::Error("publish.grid_full_period_s must be >= 0");
+    if (!(grid_move_tolerance_cells >= 0))
+      return Status::Error("publish.grid_move_tolerance_cells must be >= 0");
     return grid.Validate();
   }
 };
 
 class MapPublisher {
  public:
-  explicit MapPublisher(const MapPublisherOptions& options = {}) : options_(options) {}
+  explicit MapPublisher(const MapPublisherOptions& options = {})
+      : options_(options),
+        chunker_(options.chunks),
+        grid_(options.grid, options.grid_move_tolerance_cells) {}
   const MapPublisherOptions& options() const { return options_; }
 
   MergedMap BuildMergedMap(const Smoother& smoother, const TrajectoryTable& table,
                            const std::vector<EncounterLink>& links, int64_t utime,
                            int64_t update) const;
+  // `map` as chunks and a header for the bus: the chunks that changed since the last call,
+  // or every chunk when `full` or when map_full_period_s has passed since the last full one.
+  MapChunker::Split SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full = false);
   // Non-const smoother: covariance recovery memoises inside it.
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,
                                            int64_t utime, int64_t update) const;
-  // Cost: O(keyframes x beams x ray length), the heaviest output; hence its own period.
+  // The grid brought up to the current estimate (UpdateGrid), every tile of it. Cost: that
+  // of UpdateGrid plus O(tiles x cells).
   std::vector<GridTile> BuildGridTiles(const Smoother& smoother, const TrajectoryTable& table,
-                                       int64_t utime, int64_t update) const;
+                                       int64_t utime, int64_t update);
+  // The same, only the tiles that changed since the last BuildGridTiles or
+  // BuildChangedGridTiles.
+  std::vector<GridTile> BuildChangedGridTiles(const Smoother& smoother,
+                                              const TrajectoryTable& table, int64_t utime,
+                                              int64_t update);
+  // Moves the grid to the current estimate: keyframes of the grid's trajectories traced in
+  // when new, traced again where they moved past the tolerance, traced out when their
+  // trajectory left the grid. Cost: O(keyframes) pose comparisons plus O(beams x ray
+  // length) per traced scan, so it follows how much of the map moved, not its size.
+  struct GridChange {
+    int64_t inserted = 0;
+    int64_t moved = 0;
+    int64_t removed = 0;
+  };
+  GridChange UpdateGrid(const Smoother& smoother, const TrajectoryTable& table);
+  const KeyframeGrid& grid() const { return grid_; }
   // The solver trajectories whose keyframes make the grid (see MapPublisherOptions::grid).
   std::vector<TrajectoryId> GridTrajectories(const Smoother& smoother,
                                              const TrajectoryTable& table) const;
@@ -61,6 +107,9 @@ class MapPublisher {
   void MarkMapPublished(int64_t now_utime, int64_t update);
   bool GridDue(int64_t now_utime, int64_t update) const;
   void MarkGridPublished(int64_t now_utime, int64_t update);
+  // Whether the next grid publication should carry every tile (grid_full_period_s).
+  bool GridFullDue(int64_t now_utime) const;
+  void MarkGridFullPublished(int64_t now_utime) { last_grid_full_utime_ = now_utime; }
 
  private:
   MapPublisherOptions options_;
@@ -68,6 +117,10 @@ class MapPublisher {
   int64_t last_map_update_ = 0;
   std::optional<int64_t> last_grid_utime_;
   int64_t last_grid_update_ = 0;
+  std::optional<int64_t> last_grid_full_utime_;
+  std::optional<int64_t> last_map_full_utime_;
+  MapChunker chunker_;
+  KeyframeGrid grid_;
 };
 
 }  // namespace anchormap

@@ -136,6 +136,36 @@ TEST_F(MapPublisherTest, GridComesFromTheLargestGroupWithWallsWhereTheScansHit) 
   EXPECT_EQ(occupancy_at(-20.0, -20.0), -1);
 }
 
+// The grid is kept across publications: A alone first; the encounter brings B's keyframes
+// in (only the tiles they reach go out); nothing moved since: nothing goes out; and the
+// grid equals one built from scratch at the poses it holds, within a cell of the estimate.
+TEST_F(MapPublisherTest, GridIsUpdatedByWhatMovedAndSendsOnlyChangedTiles) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  options.grid.tile_size_cells = 16;
+  MapPublisher publisher(options);
+  const size_t tiles_of_a = publisher.BuildGridTiles(smoother_, table_, 1, 1).size();
+  EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).inserted, 0);
+  Encounter();
+  const std::vector<GridTile> changed = publisher.BuildChangedGridTiles(smoother_, table_, 2, 2);
+  EXPECT_GT(changed.size(), 0u);
+  EXPECT_EQ(publisher.grid().num_tiles(), tiles_of_a + changed.size());  // B's tiles are new
+  EXPECT_TRUE(publisher.BuildChangedGridTiles(smoother_, table_, 3, 3).empty());
+  KeyframeGrid scratch(options.grid);
+  for (const auto& [key, pose] : publisher.grid().placed()) {
+    const TrajectoryId id(static_cast<int64_t>(key >> 32));
+    const size_t index = key & 0xffffffffu;
+    const Pose2 estimate = smoother_.GlobalTrajectory(id)[index];
+    EXPECT_LE((estimate.translation() - pose.translation()).norm(), 0.1);
+    scratch.Place(key, table_.FindBySolverId(id)->scans[index], pose);
+  }
+  EXPECT_EQ(publisher.grid().placed().size(), 2u * kKeyframes);
+  const std::vector<GridTile> expected = scratch.Tiles(3, 3),
+                              actual = publisher.BuildGridTiles(smoother_, table_, 3, 3);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
+}
+
 TEST(MapPublisherRateTest, MapAfterEachNewUpdateAtMostOncePerPeriodGridOnItsOwnPeriod) {
   MapPublisherOptions options;
   options.map_period_s = 1.0;

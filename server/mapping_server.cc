@@ -389,8 +389,12 @@ AnchorCovariances MappingServer::BuildAnchorCovariances() {
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
-std::vector<GridTile> MappingServer::BuildGridTiles() const {
+std::vector<GridTile> MappingServer::BuildGridTiles() {
   return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates);
+}
+
+std::vector<GridTile> MappingServer::BuildChangedGridTiles() {
+  return publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 
 ServerStatus MappingServer::BuildStatus() const {

@@ -171,7 +171,9 @@ class MappingServer {
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;
   AnchorCovariances BuildAnchorCovariances();
-  std::vector<GridTile> BuildGridTiles() const;
+  // Every tile of the grid, or only the tiles changed since the last grid (MapPublisher).
+  std::vector<GridTile> BuildGridTiles();
+  std::vector<GridTile> BuildChangedGridTiles();
   ServerStatus BuildStatus() const;
   // One line: robots, trajectories, anchored, keyframes, encounters, updates, last update
   // time, waiting items, rejections by reason.

@@ -51,7 +51,7 @@ inside_namespace() {
   LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
     -f "$work/agents.lcmlog" >"$work/logger_agents.log" 2>&1 &
   local logger_agents=$!
-  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_MERGED_MAP|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
+  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
     -f "$work/out.lcmlog" >"$work/logger_out.log" 2>&1 &
   local logger_out=$!
   "$BIN/anchormap-server" --lcm-url "$URL" --status-period-s 1 --convergence-step $CONVERGENCE \

@@ -22,6 +22,7 @@
 #include "common/bus/lcm_log.h"
 #include "common/bus/lcm_loop.h"
 #include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/util/log.h"
 #include "server/node/server_node.h"
 #include "tests/testing/scratch.h"
@@ -183,13 +184,14 @@ class AgentServerTest : public ::testing::Test {
               .ok());
     }
     ASSERT_TRUE(loop_
-                    ->Subscribe("ANCHORMAP_MERGED_MAP|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_GRID_"
-                                "TILES|ANCHORMAP_SERVER_STATUS",
+                    ->Subscribe("ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_"
+                                "COVARIANCES|ANCHORMAP_GRID_TILES|ANCHORMAP_SERVER_STATUS",
                                 [this](const std::string& c, const uint8_t* d, size_t n) {
-                                  if (c == "ANCHORMAP_MERGED_MAP") {
-                                    auto map = DecodeMergedMap(d, n);
-                                    ASSERT_TRUE(map.ok()) << map.status().message();
-                                    outputs_.maps.push_back(*map);
+                                  if (assembler_.IsMapChannel(c)) {
+                                    bool completed = false;
+                                    const Status status = assembler_.Accept(c, d, n, &completed);
+                                    ASSERT_TRUE(status.ok()) << status.message();
+                                    if (completed) outputs_.maps.push_back(*assembler_.map());
                                   } else if (c == "ANCHORMAP_ANCHOR_COVARIANCES") {
                                     auto cov = DecodeAnchorCovariances(d, n);
                                     ASSERT_TRUE(cov.ok()) << cov.status().message();
@@ -221,6 +223,7 @@ class AgentServerTest : public ::testing::Test {
   std::unique_ptr<ServerNode> server_;
   LcmLogWriter* recorder_ = nullptr;
   Outputs outputs_;
+  MergedMapAssembler assembler_;  // the online map from its header and chunks
 };
 
 const std::vector<MiniSim::Meeting> kMeetings = {
@@ -381,13 +384,12 @@ TEST_F(AgentServerTest, OfflineServerOnARecordedLogIsDeterministicAndAgrees) {
 
   LcmLogReader reader;
   ASSERT_TRUE(reader.Open((dir / "out1.lcmlog").string()).ok());
-  std::optional<MergedMap> last;
+  MergedMapAssembler assembler;
   while (auto event = reader.Next()) {
-    if (event->channel != "ANCHORMAP_MERGED_MAP") continue;
-    auto map = DecodeMergedMap(event->data.data(), event->data.size());
-    ASSERT_TRUE(map.ok());
-    last = *map;
+    if (!assembler.IsMapChannel(event->channel)) continue;
+    ASSERT_TRUE(assembler.Accept(event->channel, event->data.data(), event->data.size()).ok());
   }
+  const std::optional<MergedMap>& last = assembler.map();
   ASSERT_TRUE(last);
   const MergedMap& online = outputs_.maps.back();
   ASSERT_EQ(last->trajectories.size(), online.trajectories.size());

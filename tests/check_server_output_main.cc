@@ -20,6 +20,7 @@
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/util/options_loader.h"
 
 namespace anchormap {
@@ -99,10 +100,16 @@ int Check(const Options& options) {
     std::fprintf(stderr, "%s\n", s.message().c_str());
     return 2;
   }
+  MergedMapAssembler assembler;
   while (auto event = out.Next()) {
-    if (event->channel == channels::kMergedMap) {
-      auto map = DecodeMergedMap(event->data.data(), event->data.size());
-      map.ok() ? maps.push_back(*map) : void(++undecodable);
+    if (assembler.IsMapChannel(event->channel)) {
+      bool completed = false;
+      if (!assembler.Accept(event->channel, event->data.data(), event->data.size(), &completed)
+               .ok()) {
+        ++undecodable;
+      } else if (completed) {
+        maps.push_back(*assembler.map());
+      }
     } else if (event->channel == channels::kAnchorCovariances) {
       auto c = DecodeAnchorCovariances(event->data.data(), event->data.size());
       c.ok() ? covariances.push_back(*c) : void(++undecodable);

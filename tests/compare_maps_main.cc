@@ -23,6 +23,7 @@
 
 #include "common/bus/lcm_log.h"
 #include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/util/options_loader.h"
 
 namespace anchormap {
@@ -41,10 +42,15 @@ std::optional<Last> ReadLast(const std::string& path) {
     return std::nullopt;
   }
   Last last;
+  MergedMapAssembler assembler;
   while (auto event = reader.Next()) {
-    if (event->channel == "ANCHORMAP_MERGED_MAP") {
-      auto map = DecodeMergedMap(event->data.data(), event->data.size());
-      if (map.ok()) last.map = *map;
+    if (assembler.IsMapChannel(event->channel)) {
+      bool completed = false;
+      if (assembler.Accept(event->channel, event->data.data(), event->data.size(), &completed)
+              .ok() &&
+          completed) {
+        last.map = *assembler.map();
+      }
     } else if (event->channel == "ANCHORMAP_SERVER_STATUS") {
       auto status = DecodeServerStatus(event->data.data(), event->data.size());
       if (status.ok()) {

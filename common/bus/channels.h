@@ -39,6 +39,12 @@ inline constexpr char kEncounters[] = "ANCHORMAP_ENCOUNTERS";  // encounter_t (t
 inline constexpr char kAcks[] = "ANCHORMAP_ACKS";                       // delivery_ack_t
 inline constexpr char kResendRequests[] = "ANCHORMAP_RESEND_REQUESTS";  // resend_request_t
 // Server -> users.
+// The merged map: its header (merged_map_header_t) after the chunks that changed
+// (merged_map_chunk_t); MergedMapAssembler puts them together.
+inline constexpr char kMapHeader[] = "ANCHORMAP_MAP_HEADER";  // merged_map_header_t
+inline constexpr char kMapChunks[] = "ANCHORMAP_MAP_CHUNKS";  // merged_map_chunk_t
+// The merged map as one message, which servers before the chunks published (read from
+// their logs).
 inline constexpr char kMergedMap[] = "ANCHORMAP_MERGED_MAP";  // merged_map_t
 inline constexpr char kAnchorCovariances[] =
     "ANCHORMAP_ANCHOR_COVARIANCES";                                 // anchor_covariances_t

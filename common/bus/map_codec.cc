@@ -2,6 +2,8 @@
 
 #include "anchormap/anchor_covariances_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
+#include "anchormap/merged_map_chunk_t.hpp"
+#include "anchormap/merged_map_header_t.hpp"
 #include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
 #include "common/bus/codec_internal.h"
@@ -77,6 +79,147 @@ Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
                               static_cast<ConstraintKind>(link.kind)});
   }
   return Success(std::move(map));
+}
+
+namespace {
+
+anchormap::encounter_link_t LinkToMessage(const EncounterLink& link) {
+  anchormap::encounter_link_t out;
+  out.robot_a = link.robot_a;
+  out.robot_b = link.robot_b;
+  out.trajectory_a = link.trajectory_a;
+  out.index_a = link.index_a;
+  out.trajectory_b = link.trajectory_b;
+  out.index_b = link.index_b;
+  out.kind = static_cast<int8_t>(link.kind);
+  return out;
+}
+
+Result<EncounterLink> LinkFromMessage(const anchormap::encounter_link_t& link) {
+  if (!IsValidConstraintKind(link.kind)) {
+    return Status::Error(ErrorCode::kInvalidValue,
+                         "encounter link kind " + std::to_string(link.kind) + " unknown");
+  }
+  return EncounterLink{link.robot_a,
+                       link.trajectory_a,
+                       link.index_a,
+                       link.robot_b,
+                       link.trajectory_b,
+                       link.index_b,
+                       static_cast<ConstraintKind>(link.kind)};
+}
+
+// Chunks a trajectory of `poses` poses has at `chunk_poses` a chunk.
+int64_t NumChunks(int64_t poses, int64_t chunk_poses) {
+  return chunk_poses > 0 ? (poses + chunk_poses - 1) / chunk_poses : 0;
+}
+
+}  // namespace
+
+std::vector<uint8_t> EncodeMergedMapHeader(const MergedMapHeader& header) {
+  anchormap::merged_map_header_t m;
+  m.utime = header.utime;
+  m.update = header.update;
+  m.chunk_poses = header.chunk_poses;
+  m.num_trajectories = static_cast<int32_t>(header.trajectories.size());
+  for (const MergedMapHeader::Trajectory& t : header.trajectories) {
+    m.robots.push_back(t.robot);
+    m.trajectory_ids.push_back(t.trajectory_id);
+    m.anchored.push_back(t.anchored);
+    m.anchors.push_back({t.T_global_local.x(), t.T_global_local.y(), t.T_global_local.theta()});
+    m.num_poses.push_back(t.num_poses);
+    m.chunk_versions.insert(m.chunk_versions.end(), t.chunk_versions.begin(),
+                            t.chunk_versions.end());
+  }
+  m.num_chunks = static_cast<int32_t>(m.chunk_versions.size());
+  m.num_encounters = header.num_encounters;
+  return Encode(m);
+}
+
+Result<MergedMapHeader> DecodeMergedMapHeader(const void* data, size_t size) {
+  anchormap::merged_map_header_t m;
+  if (Status p = SafeDecode(data, size, CheckMergedMapHeaderWire, &m); !p.ok()) return p;
+  if (m.chunk_poses <= 0) {
+    return Status::Error(ErrorCode::kInvalidValue, "chunk_poses must be > 0");
+  }
+  if (m.num_encounters < 0) {
+    return Status::Error(ErrorCode::kInvalidValue, "num_encounters must be >= 0");
+  }
+  MergedMapHeader header;
+  header.utime = m.utime;
+  header.update = m.update;
+  header.chunk_poses = m.chunk_poses;
+  header.num_encounters = m.num_encounters;
+  size_t next_chunk = 0;
+  for (int32_t i = 0; i < m.num_trajectories; ++i) {
+    MergedMapHeader::Trajectory t;
+    t.robot = m.robots[i];
+    t.trajectory_id = m.trajectory_ids[i];
+    t.anchored = m.anchored[i];
+    t.T_global_local = Pose2(m.anchors[i][0], m.anchors[i][1], m.anchors[i][2]);
+    t.num_poses = m.num_poses[i];
+    if (t.num_poses < 0 || !t.T_global_local.IsFinite()) {
+      return Status::Error(ErrorCode::kInvalidValue, "trajectory " + std::to_string(i) +
+                                                         ": negative pose count or anchor not "
+                                                         "finite");
+    }
+    const auto chunks = static_cast<size_t>(NumChunks(t.num_poses, m.chunk_poses));
+    if (chunks > m.chunk_versions.size() - next_chunk) {
+      return Status::Error(ErrorCode::kInvalidValue, "fewer chunk versions than poses need");
+    }
+    t.chunk_versions.assign(m.chunk_versions.begin() + static_cast<long>(next_chunk),
+                            m.chunk_versions.begin() + static_cast<long>(next_chunk + chunks));
+    next_chunk += chunks;
+    header.trajectories.push_back(std::move(t));
+  }
+  if (next_chunk != m.chunk_versions.size()) {
+    return Status::Error(ErrorCode::kInvalidValue, "more chunk versions than poses need");
+  }
+  return Success(std::move(header));
+}
+
+std::vector<uint8_t> EncodeMergedMapChunk(const MergedMapChunk& chunk) {
+  anchormap::merged_map_chunk_t m;
+  m.utime = chunk.utime;
+  m.version = chunk.version;
+  m.robot = chunk.robot;
+  m.trajectory_id = chunk.trajectory_id;
+  m.chunk_index = chunk.chunk_index;
+  m.num_poses = static_cast<int32_t>(chunk.local_poses.size());
+  m.pose_utimes = chunk.pose_utimes;
+  m.pose_utimes.resize(chunk.local_poses.size(), 0);
+  for (const Pose2& p : chunk.local_poses) m.local_poses.push_back({p.x(), p.y(), p.theta()});
+  m.num_encounters = static_cast<int32_t>(chunk.encounters.size());
+  for (const EncounterLink& link : chunk.encounters) m.encounters.push_back(LinkToMessage(link));
+  m.encounter_positions = chunk.encounter_positions;
+  m.encounter_positions.resize(chunk.encounters.size(), 0);
+  return Encode(m);
+}
+
+Result<MergedMapChunk> DecodeMergedMapChunk(const void* data, size_t size) {
+  anchormap::merged_map_chunk_t m;
+  if (Status p = SafeDecode(data, size, CheckMergedMapChunkWire, &m); !p.ok()) return p;
+  if (m.chunk_index < 0) {
+    return Status::Error(ErrorCode::kInvalidValue, "chunk_index must be >= 0");
+  }
+  MergedMapChunk chunk;
+  chunk.utime = m.utime;
+  chunk.version = m.version;
+  chunk.robot = m.robot;
+  chunk.trajectory_id = m.trajectory_id;
+  chunk.chunk_index = m.chunk_index;
+  chunk.pose_utimes = m.pose_utimes;
+  for (const auto& p : m.local_poses) chunk.local_poses.emplace_back(p[0], p[1], p[2]);
+  for (size_t i = 0; i < m.encounters.size(); ++i) {
+    Result<EncounterLink> link = LinkFromMessage(m.encounters[i]);
+    if (!link.ok()) return link.status();
+    if (m.encounter_positions[i] < 0) {
+      return Status::Error(ErrorCode::kInvalidValue, "encounter position must be >= 0");
+    }
+    chunk.encounters.push_back(*link);
+  }
+  chunk.encounter_positions = m.encounter_positions;
+  return Success(std::move(chunk));
 }
 
 std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors) {

@@ -1,7 +1,8 @@
 #pragma once
-// Wire bytes <-> the mapping server's output values (merged map, anchor covariances, grid
-// tiles, status), with the same pre-flight size checks as codec.h. The server encodes;
-// tests and tools (render, eval) decode.
+// Wire bytes <-> the mapping server's output values (merged map header and chunks, the
+// merged map as one message of servers before them, anchor covariances, grid tiles, status), with
+// the same pre-flight size checks as codec.h. The server encodes; tests and tools (render, eval)
+// decode.
 
 #include <cstddef>
 #include <cstdint>
@@ -14,6 +15,10 @@ namespace anchormap {
 
 std::vector<uint8_t> EncodeMergedMap(const MergedMap& map);
 Result<MergedMap> DecodeMergedMap(const void* data, size_t size);
+std::vector<uint8_t> EncodeMergedMapHeader(const MergedMapHeader& header);
+Result<MergedMapHeader> DecodeMergedMapHeader(const void* data, size_t size);
+std::vector<uint8_t> EncodeMergedMapChunk(const MergedMapChunk& chunk);
+Result<MergedMapChunk> DecodeMergedMapChunk(const void* data, size_t size);
 std::vector<uint8_t> EncodeAnchorCovariances(const AnchorCovariances& anchors);
 Result<AnchorCovariances> DecodeAnchorCovariances(const void* data, size_t size);
 std::vector<uint8_t> EncodeGridTile(const GridTile& tile);

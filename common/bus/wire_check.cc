@@ -4,6 +4,8 @@
 #include "anchormap/encounter_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/keyframe_t.hpp"
+#include "anchormap/merged_map_chunk_t.hpp"
+#include "anchormap/merged_map_header_t.hpp"
 #include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
 #include "bot_core/planar_lidar_t.hpp"
@@ -136,6 +138,19 @@ Status CheckEncounterWire(const void* data, size_t size) {
   return Status::Ok();
 }
 
+namespace {
+// The encounter links of a merged_map_t or merged_map_chunk_t.
+Status SkipEncounterLinks(WireCursor* c, int32_t encounters) {
+  for (int32_t e = 0; e < encounters; ++e) {
+    WIRE_TRY(c->SkipString("robot_a", CodecLimits::kMaxNameLength));
+    WIRE_TRY(c->SkipField(12, "trajectory_a/index_a"));
+    WIRE_TRY(c->SkipString("robot_b", CodecLimits::kMaxNameLength));
+    WIRE_TRY(c->SkipField(12 + 1, "trajectory_b/index_b/kind"));
+  }
+  return Status::Ok();
+}
+}  // namespace
+
 Status CheckMergedMapWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckFingerprint<anchormap::merged_map_t>(&c));
@@ -153,12 +168,41 @@ Status CheckMergedMapWire(const void* data, size_t size) {
   int32_t encounters = 0;
   // A link takes at least 2 * (4 + 1 + 8 + 4) + 1 bytes.
   WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 35, &encounters));
-  for (int32_t e = 0; e < encounters; ++e) {
-    WIRE_TRY(c.SkipString("robot_a", CodecLimits::kMaxNameLength));
-    WIRE_SKIP(c, 12, "trajectory_a/index_a");
-    WIRE_TRY(c.SkipString("robot_b", CodecLimits::kMaxNameLength));
-    WIRE_SKIP(c, 12 + 1, "trajectory_b/index_b/kind");
+  return SkipEncounterLinks(&c, encounters);
+}
+
+Status CheckMergedMapHeaderWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckFingerprint<anchormap::merged_map_header_t>(&c));
+  WIRE_SKIP(c, 16 + 4, "utime/update/chunk_poses");
+  int32_t trajectories = 0;
+  // A trajectory takes at least 5 (robot) + 8 + 1 + 24 + 4 bytes.
+  WIRE_TRY(c.ReadCount("num_trajectories", CodecLimits::kMaxTrajectories, 42, &trajectories));
+  for (int32_t t = 0; t < trajectories; ++t) {
+    WIRE_TRY(c.SkipString("robots", CodecLimits::kMaxNameLength));
   }
+  WIRE_SKIP(c, (8 + 1 + 24 + 4) * static_cast<size_t>(trajectories), "trajectory fields");
+  int32_t chunks = 0;
+  WIRE_TRY(c.ReadCount("num_chunks", CodecLimits::kMaxPosesPerTrajectory, 8, &chunks));
+  WIRE_SKIP(c, 8 * static_cast<size_t>(chunks), "chunk_versions");
+  WIRE_SKIP(c, 4, "num_encounters");
+  return Status::Ok();
+}
+
+Status CheckMergedMapChunkWire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckFingerprint<anchormap::merged_map_chunk_t>(&c));
+  WIRE_SKIP(c, 16, "utime/version");
+  WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
+  WIRE_SKIP(c, 8 + 4, "trajectory_id/chunk_index");
+  int32_t poses = 0;
+  WIRE_TRY(c.ReadCount("num_poses", CodecLimits::kMaxPosesPerTrajectory, 32, &poses));
+  WIRE_SKIP(c, 32 * static_cast<size_t>(poses), "poses");
+  int32_t encounters = 0;
+  // A link takes at least 2 * (4 + 1 + 8 + 4) + 1 bytes, and a position 4.
+  WIRE_TRY(c.ReadCount("num_encounters", CodecLimits::kMaxPosesPerTrajectory, 39, &encounters));
+  WIRE_TRY(SkipEncounterLinks(&c, encounters));
+  WIRE_SKIP(c, 4 * static_cast<size_t>(encounters), "encounter_positions");
   return Status::Ok();
 }
 

@@ -61,6 +61,8 @@ Status CheckPoseWire(const void* data, size_t size);
 Status CheckKeyframeWire(const void* data, size_t size);
 Status CheckEncounterWire(const void* data, size_t size);
 Status CheckMergedMapWire(const void* data, size_t size);
+Status CheckMergedMapHeaderWire(const void* data, size_t size);
+Status CheckMergedMapChunkWire(const void* data, size_t size);
 Status CheckAnchorCovariancesWire(const void* data, size_t size);
 Status CheckGridTileWire(const void* data, size_t size);
 Status CheckServerStatusWire(const void* data, size_t size);

@@ -46,6 +46,38 @@ struct MergedMap {
   std::vector<EncounterLink> encounters;
 };
 
+// The merged map on the bus: a header and chunks of bounded size (anchormap.
+// merged_map_header_t and merged_map_chunk_t say what each field means), so that one lost
+// datagram loses one chunk, and a map update sends only the chunks that changed.
+// server/map_chunker.h splits a MergedMap, common/bus/merged_map_assembler.h puts it back.
+struct MergedMapHeader {
+  struct Trajectory {
+    std::string robot;
+    int64_t trajectory_id = 0;
+    bool anchored = false;
+    Pose2 T_global_local;
+    int32_t num_poses = 0;
+    std::vector<int64_t> chunk_versions;  // ceil(num_poses / chunk_poses) of them
+  };
+  int64_t utime = 0;
+  int64_t update = 0;
+  int32_t chunk_poses = 0;
+  std::vector<Trajectory> trajectories;
+  int32_t num_encounters = 0;
+};
+
+struct MergedMapChunk {
+  int64_t utime = 0;
+  int64_t version = 0;
+  std::string robot;
+  int64_t trajectory_id = 0;
+  int32_t chunk_index = 0;
+  std::vector<int64_t> pose_utimes;
+  std::vector<Pose2> local_poses;  // in the trajectory's local frame
+  std::vector<EncounterLink> encounters;
+  std::vector<int32_t> encounter_positions;  // in the map's encounter list, one per encounter
+};
+
 struct AnchorCovariance {
   std::string robot;
   int64_t trajectory_id = 0;

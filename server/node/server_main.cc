@@ -53,6 +53,14 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
       "merged map + anchor covariances after an update, at most this often (s; 0 = every update)");
   l->Add("publish.grid_period_s", "grid-period-s", &s.publish.grid_period_s,
          "occupancy grid tiles at most this often (s; 0 = only at the end of an offline run)");
+  l->Add("publish.map_full_period_s", "map-full-period-s", &s.publish.map_full_period_s,
+         "every chunk of the merged map at most this often; the maps between carry the changed "
+         "chunks (s; 0 = every chunk each time)");
+  l->Add("publish.chunks.chunk_poses", "map-chunk-poses", &s.publish.chunks.chunk_poses,
+         "keyframes per chunk of the merged map");
+  l->Add("publish.grid_full_period_s", "grid-full-period-s", &s.publish.grid_full_period_s,
+         "every grid tile at most this often; the grids between carry the changed tiles (s; 0 = "
+         "every tile each time)");
   l->Add("status_period_s", "status-period-s", &o->status_period_s,
          "status line and status message period (s; 0 = off)");
   l->Add("queue_capacity", "queue-capacity", &o->queue_capacity,
@@ -72,8 +80,10 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "data times further ahead of the clock (wall time; offline: the log's) are refused (s)");
   l->Add("channels.keyframes", "keyframes-channel", &o->channels.keyframes, "keyframe_t input");
   l->Add("channels.encounters", "encounters-channel", &o->channels.encounters, "encounter_t input");
-  l->Add("channels.merged_map", "merged-map-channel", &o->channels.merged_map,
-         "merged_map_t output");
+  l->Add("channels.map_header", "map-header-channel", &o->channels.map_header,
+         "merged_map_header_t output (the merged map's header)");
+  l->Add("channels.map_chunks", "map-chunks-channel", &o->channels.map_chunks,
+         "merged_map_chunk_t output (the merged map's chunks)");
   l->Add("channels.anchor_covariances", "anchor-covariances-channel",
          &o->channels.anchor_covariances, "anchor_covariances_t output");
   l->Add("channels.grid_tiles", "grid-tiles-channel", &o->channels.grid_tiles,

@@ -187,15 +187,20 @@ void ServerNode::OnEncounter(const Encounter& encounter, const std::string& chan
   (void)server_.OnEncounter(encounter);
 }
 
-void ServerNode::PublishMap() {
-  publish_(options_.channels.merged_map, EncodeMergedMap(server_.BuildMergedMap()));
+void ServerNode::PublishMap(int64_t now_utime, bool full) {
+  const MapChunker::Split split =
+      server_.publisher().SplitMergedMap(server_.BuildMergedMap(), now_utime, full);
+  for (const MergedMapChunk& chunk : split.chunks) {
+    publish_(options_.channels.map_chunks, EncodeMergedMapChunk(chunk));
+  }
+  publish_(options_.channels.map_header, EncodeMergedMapHeader(split.header));
   publish_(options_.channels.anchor_covariances,
            EncodeAnchorCovariances(server_.BuildAnchorCovariances()));
   ++published_maps_;
 }
 
-void ServerNode::PublishGrid() {
-  for (const GridTile& tile : server_.BuildGridTiles()) {
+void ServerNode::PublishGrid(bool full) {
+  for (const GridTile& tile : full ? server_.BuildGridTiles() : server_.BuildChangedGridTiles()) {
     publish_(options_.channels.grid_tiles, EncodeGridTile(tile));
   }
   ++published_grids_;
@@ -205,13 +210,15 @@ void ServerNode::PublishDue(int64_t now_utime) {
   MapPublisher& publisher = server_.publisher();
   const int64_t update = server_.update_count();
   if (publisher.MapDue(now_utime, update)) {
-    PublishMap();
+    PublishMap(now_utime, /*full=*/false);
     publisher.MarkMapPublished(now_utime, update);
     last_map_utime_ = now_utime;
   }
   if (publisher.GridDue(now_utime, update)) {
-    PublishGrid();
+    const bool full = publisher.GridFullDue(now_utime);
+    PublishGrid(full);
     publisher.MarkGridPublished(now_utime, update);
+    if (full) publisher.MarkGridFullPublished(now_utime);
   }
 }
 
@@ -220,7 +227,7 @@ void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
   if (last_map_utime_ > 0 && static_cast<double>(now_utime - last_map_utime_) < 1e6 * period_s) {
     return;
   }
-  PublishMap();
+  PublishMap(now_utime, /*full=*/true);
   last_map_utime_ = now_utime;
 }
 
@@ -244,8 +251,8 @@ void ServerNode::PublishResendRequests() {
 }
 
 void ServerNode::PublishAll() {
-  PublishMap();
-  PublishGrid();
+  PublishMap(clock_(), /*full=*/true);
+  PublishGrid(/*full=*/true);
   PublishStatus();
 }
 

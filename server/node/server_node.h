@@ -77,8 +77,8 @@ class ServerNode {
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
   void Tick(int64_t now_utime);
   // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor
-  // covariances after an update (at most once per map period), the grid tiles at most once
-  // per grid period.
+  // covariances after an update (at most once per map period), the grid tiles that changed
+  // at most once per grid period (every tile once per full grid period).
   void PublishDue(int64_t now_utime);
   void PublishStatus();
   // Online: the merged map and anchor covariances again when none went out for
@@ -101,8 +101,11 @@ class ServerNode {
   int64_t published_grids() const { return published_grids_; }
 
  private:
-  void PublishMap();
-  void PublishGrid();
+  // The merged map's changed chunks (every chunk when `full`), its header, the anchor
+  // covariances; `now_utime` on the caller's clock (the full map's period).
+  void PublishMap(int64_t now_utime, bool full);
+  // Every tile (`full`), or the tiles changed since the last grid.
+  void PublishGrid(bool full);
   // Decodes and hands on a keyframe or encounter (`data` already out of its envelope);
   // `replaying`: from the journal (checked when it was journaled, not journaled again).
   void Dispatch(const std::string& channel, const uint8_t* data, size_t size, bool replaying);

@@ -9,6 +9,7 @@
 
 #include "common/bus/codec.h"
 #include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
@@ -48,10 +49,17 @@ TEST_F(ServerNodeTest, DecodedKeyframesAndEncountersReachTheMapThatIsPublished) 
   EXPECT_TRUE(Send(channels::kEncounters, EncodeEncounter(e)));
   node_.PublishAll();
 
-  ASSERT_EQ(published_[channels::kMergedMap].size(), 1u);
-  const auto& bytes = published_[channels::kMergedMap][0];
-  const Result<MergedMap> map = DecodeMergedMap(bytes.data(), bytes.size());
-  ASSERT_TRUE(map.ok()) << map.status().message();
+  // The map as a header and chunks (R1 and R2: one chunk each) that assemble to it.
+  ASSERT_EQ(published_[channels::kMapHeader].size(), 1u);
+  ASSERT_EQ(published_[channels::kMapChunks].size(), 2u);
+  MergedMapAssembler assembler;
+  for (const auto& channel : {channels::kMapChunks, channels::kMapHeader}) {
+    for (const auto& bytes : published_[channel]) {
+      ASSERT_TRUE(assembler.Accept(channel, bytes.data(), bytes.size()).ok());
+    }
+  }
+  const std::optional<MergedMap>& map = assembler.map();
+  ASSERT_TRUE(map);
   ASSERT_EQ(map->trajectories.size(), 2u);
   EXPECT_EQ(map->trajectories[1].robot, "R2");
   EXPECT_EQ(map->trajectories[1].poses.size(), 3u);
@@ -245,18 +253,20 @@ TEST_F(ServerNodeTest, StatusCarriesTheInstanceIdAndTheMapIsRepublishedWhenQuiet
   EXPECT_EQ(status->instance_id, 987654321);
 
   node_.RepublishMapDue(1'000'000, 5.0);  // nothing mapped yet: nothing to repeat
-  EXPECT_TRUE(published_[channels::kMergedMap].empty());
+  EXPECT_TRUE(published_[channels::kMapHeader].empty());
   Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 0)));
   node_.PublishDue(2'000'000);
-  ASSERT_EQ(published_[channels::kMergedMap].size(), 1u);
+  ASSERT_EQ(published_[channels::kMapHeader].size(), 1u);
+  EXPECT_EQ(published_[channels::kMapChunks].size(), 1u);
   node_.RepublishMapDue(6'000'000, 5.0);  // 4 s after the last one: not yet
-  EXPECT_EQ(published_[channels::kMergedMap].size(), 1u);
-  node_.RepublishMapDue(7'000'000, 5.0);
-  EXPECT_EQ(published_[channels::kMergedMap].size(), 2u);
+  EXPECT_EQ(published_[channels::kMapHeader].size(), 1u);
+  node_.RepublishMapDue(7'000'000, 5.0);  // the header and every chunk again
+  EXPECT_EQ(published_[channels::kMapHeader].size(), 2u);
+  EXPECT_EQ(published_[channels::kMapChunks].size(), 2u);
   EXPECT_EQ(published_[channels::kAnchorCovariances].size(), 2u);
-  EXPECT_EQ(published_[channels::kMergedMap][0], published_[channels::kMergedMap][1]);
+  EXPECT_EQ(published_[channels::kMapChunks][0], published_[channels::kMapChunks][1]);
   node_.RepublishMapDue(8'000'000, 5.0);
-  EXPECT_EQ(published_[channels::kMergedMap].size(), 2u);
+  EXPECT_EQ(published_[channels::kMapHeader].size(), 2u);
 }
 
 }  // namespace

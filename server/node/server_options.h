@@ -14,7 +14,8 @@ namespace anchormap {
 struct ServerChannels {
   std::string keyframes = channels::kKeyframes;
   std::string encounters = channels::kEncounters;
-  std::string merged_map = channels::kMergedMap;
+  std::string map_header = channels::kMapHeader;
+  std::string map_chunks = channels::kMapChunks;
   std::string anchor_covariances = channels::kAnchorCovariances;
   std::string grid_tiles = channels::kGridTiles;
   std::string status = channels::kServerStatus;
@@ -34,9 +35,9 @@ struct ServerOptions {
   int queue_capacity = 10000;
   // Online: cumulative acknowledgements of every trajectory this often (s).
   double ack_period_s = 0.5;
-  // Online: the merged map and anchor covariances are published again when none went out
-  // for this long (s; 0 = only after updates), so one lost datagram does not leave
-  // subscribers with a stale map.
+  // Online: the merged map (every chunk) and anchor covariances are published again when
+  // none went out for this long (s; 0 = only after updates), so one lost datagram does not
+  // leave subscribers with a stale map.
   double map_republish_period_s = 5.0;
   // Online: each 100 ms tick puts waiting inputs into the graph for at most this long (wall
   // time); message handlers only receive, so the loop keeps reading resends and acks while

@@ -4,6 +4,7 @@
 
 #include "common/bus/codec.h"
 #include "common/bus/map_codec.h"
+#include "server/map_chunker.h"
 
 namespace anchormap::fuzz {
 namespace {
@@ -90,6 +91,14 @@ std::map<std::string, std::vector<std::vector<uint8_t>>> SeedInputs() {
   map.encounters.push_back({"R1", 11, 0, "R2", 12, 0, ConstraintKind::kScanEncounter});
   map.encounters.push_back({"R1", 11, 0, "R1", 11, 1, ConstraintKind::kLoopClosure});
   seeds["merged_map"].push_back(EncodeMergedMap(map));
+  // The same map as the server sends it: chunks of 1 pose (R1's two poses in two chunks).
+  MapChunkerOptions chunking;
+  chunking.chunk_poses = 1;
+  const MapChunker::Split split = MapChunker(chunking).Update(map, /*full=*/true);
+  seeds["merged_map_header"].push_back(EncodeMergedMapHeader(split.header));
+  for (const MergedMapChunk& chunk : split.chunks) {
+    seeds["merged_map_chunk"].push_back(EncodeMergedMapChunk(chunk));
+  }
   AnchorCovariances anchors;
   anchors.utime = kEpoch;
   anchors.anchors.push_back({"R1", 11, Pose2(1, 2, 0.3), Eigen::Matrix3d::Identity() * 0.1});

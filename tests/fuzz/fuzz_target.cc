@@ -78,6 +78,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   RoundTrip<Encounter>(data, size, DecodeEncounter, EncodeEncounter);
 #elif defined(ANCHORMAP_FUZZ_merged_map)
   RoundTrip<MergedMap>(data, size, DecodeMergedMap, EncodeMergedMap);
+#elif defined(ANCHORMAP_FUZZ_merged_map_header)
+  RoundTrip<MergedMapHeader>(data, size, DecodeMergedMapHeader, EncodeMergedMapHeader);
+#elif defined(ANCHORMAP_FUZZ_merged_map_chunk)
+  RoundTrip<MergedMapChunk>(data, size, DecodeMergedMapChunk, EncodeMergedMapChunk);
 #elif defined(ANCHORMAP_FUZZ_anchor_covariances)
   RoundTrip<AnchorCovariances>(data, size, DecodeAnchorCovariances, EncodeAnchorCovariances);
 #elif defined(ANCHORMAP_FUZZ_grid_tile)

@@ -19,6 +19,7 @@
 
 #include "common/bus/lcm_log.h"
 #include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/io/graph_file.h"
 #include "common/util/options_loader.h"
 #include "tools/viewer/viewer_state.h"
@@ -30,7 +31,6 @@ using nlohmann::json;
 
 struct Options {
   std::string map_log;
-  std::string channel = "ANCHORMAP_MERGED_MAP";
   std::string state;
   std::string screenshot;
   std::string same_as;
@@ -75,12 +75,14 @@ int Fail(const std::string& message) {
 int Run(const Options& o) {
   LcmLogReader reader;
   if (Status s = reader.Open(o.map_log); !s.ok()) return Fail(s.message());
-  std::optional<MergedMap> last;
+  // The last complete merged map (header and chunks; one merged_map_t in older logs).
+  MergedMapAssembler assembler;
   while (auto event = reader.Next()) {
-    if (event->channel != o.channel) continue;
-    auto decoded = DecodeMergedMap(event->data.data(), event->data.size());
-    if (decoded.ok()) last = std::move(*decoded);
+    if (assembler.IsMapChannel(event->channel)) {
+      (void)assembler.Accept(event->channel, event->data.data(), event->data.size());
+    }
   }
+  const std::optional<MergedMap>& last = assembler.map();
   if (!last) return Fail("no merged map in " + o.map_log);
   if (o.print_last_update) {
     std::cout << last->update << "\n";

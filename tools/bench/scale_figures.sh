@@ -9,13 +9,17 @@
 #                                              (default: 100x180 20x1800, the issue's two)
 #
 # The simulator's seed is 2; files go to a temporary folder (ANCHORMAP_KEEP_TEST_DIR=1
-# keeps them). AGENT_SCAN_MATCHING=false replays with the agents' scan matching off (it
+# keeps them; SCALE_SIM_DIR=DIR takes DIR/sim-RUN.lcmlog from such a run instead of simulating
+# again). AGENT_SCAN_MATCHING=false replays with the agents' scan matching off (it
 # runs in the same process and, at 100 robots, costs more than the server); "solver s"
-# is the sum of the server's update times, whatever the agents do.
+# is the sum of the server's update times, whatever the agents do. After the table: the
+# bytes of the server's outputs per channel for each run (tools/bench/log_bytes.py).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 BIN=build/bin
-for tool in anchormap-sim anchormap-replay; do
+TOOLS=(anchormap-replay)
+[ -n "${SCALE_SIM_DIR:-}" ] || TOOLS+=(anchormap-sim)
+for tool in "${TOOLS[@]}"; do
   [ -x "$BIN/$tool" ] || { echo "scale_figures: build first (cmake --build build)" >&2; exit 1; }
 done
 RUNS=("$@")
@@ -27,7 +31,7 @@ else
   trap "rm -rf '$WORK'" EXIT
 fi
 PIN=()
-command -v taskset >/dev/null && PIN=(taskset -c 0)
+command -v taskset >/dev/null && PIN=(taskset -c "${SCALE_CPU:-0}")  # SCALE_CPU: the core (default 0)
 
 # "median p99 max" of the numbers on stdin (nearest rank).
 percentiles() {
@@ -43,8 +47,12 @@ for run in "${RUNS[@]}"; do
   robots=${run%x*}
   seconds=${run#*x}
   log="$WORK/sim-$run.lcmlog"
-  "$BIN/anchormap-sim" --robots "$robots" --seed 2 --duration-s "$seconds" --output "$log" \
-    >"$WORK/sim-$run.txt"
+  if [ -f "${SCALE_SIM_DIR:-/nonexistent}/sim-$run.lcmlog" ]; then
+    log="$SCALE_SIM_DIR/sim-$run.lcmlog"  # the same simulation, made by an earlier run
+  else
+    "$BIN/anchormap-sim" --robots "$robots" --seed 2 --duration-s "$seconds" --output "$log" \
+      >"$WORK/sim-$run.txt"
+  fi
   csv="$WORK/updates-$run.csv"
   /usr/bin/time -f "%e %U %S" -o "$WORK/time-$run.txt" "${PIN[@]}" "$BIN/anchormap-replay" \
     --log "$log" --output "$WORK/out-$run.lcmlog" --update-times "$csv" --log-level info \
@@ -68,4 +76,14 @@ for run in "${RUNS[@]}"; do
   done
   echo "| $robots | $seconds | ${AGENT_SCAN_MATCHING:-true} | $keyframes | $updates | $batch | $wall | $cpu | $factor |" \
     "$solver | $median | $p99 | $max | $sixths |"
+  if command -v python3 >/dev/null; then
+    python3 tools/bench/log_bytes.py "$WORK/out-$run.lcmlog" "$seconds" >"$WORK/bytes-$run.md"
+  fi
+done
+for run in "${RUNS[@]}"; do
+  [ -f "$WORK/bytes-$run.md" ] || continue
+  echo
+  echo "Server outputs of $run (bytes per channel, per data second):"
+  echo
+  cat "$WORK/bytes-$run.md"
 done

@@ -8,6 +8,8 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
+#include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/io/trajectory_file.h"
 
 namespace anchormap {
@@ -108,7 +110,8 @@ void ConvertMergedMap(const merged_map_t& map, MapEstimate* estimate) {
 
 Status ReadMapEstimate(const std::string& path, const std::string& channel,
                        const std::string& tum_robot, MapEstimate* estimate,
-                       Authenticator* authenticator) {
+                       Authenticator* authenticator, const std::string& header_channel,
+                       const std::string& chunks_channel) {
   *estimate = MapEstimate();
   if (!IsLcmLogFile(path)) {
     EstimatedTrajectory trajectory;
@@ -122,31 +125,34 @@ Status ReadMapEstimate(const std::string& path, const std::string& channel,
   }
   LcmLogReader reader;
   if (Status s = reader.Open(path); !s.ok()) return s;
-  std::optional<merged_map_t> last;
+  MergedMapAssembler assembler({header_channel, chunks_channel, channel});
   while (auto event = reader.Next()) {
-    if (event->channel != channel) continue;
+    if (!assembler.IsMapChannel(event->channel)) continue;
     ++estimate->maps_seen;
     if (!OpenLoggedEvent(authenticator, &*event).ok()) {
       ++estimate->unauthenticated;
       continue;
     }
-    if (auto map = DecodeAs<merged_map_t>(*event)) {
-      last = std::move(map);
-    } else {
+    if (!assembler.Accept(event->channel, event->data.data(), event->data.size()).ok()) {
       ++estimate->undecodable;
     }
   }
-  if (!last) {
-    return Status::Error(path + ": no decodable anchormap.merged_map_t on channel " + channel +
-                         " (" + std::to_string(estimate->maps_seen) + " messages" +
-                         (authenticator ? ", " + std::to_string(estimate->unauthenticated) +
-                                              " refused by the key check"
-                                        : std::string()) +
-                         ")");
+  if (!assembler.map()) {
+    return Status::Error(
+        path + ": no complete merged map on channel " + channel + " or " + header_channel + " + " +
+        chunks_channel + " (" + std::to_string(estimate->maps_seen) + " messages" +
+        (authenticator
+             ? ", " + std::to_string(estimate->unauthenticated) + " refused by the key check"
+             : std::string()) +
+        ")");
   }
   const int64_t seen = estimate->maps_seen, undecodable = estimate->undecodable;
   const int64_t unauthenticated = estimate->unauthenticated;
-  ConvertMergedMap(*last, estimate);
+  // The assembled map through the wire type, which ConvertMergedMap validates.
+  const std::vector<uint8_t> bytes = EncodeMergedMap(*assembler.map());
+  merged_map_t last;
+  last.decode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  ConvertMergedMap(last, estimate);
   estimate->maps_seen = seen;
   estimate->undecodable = undecodable;
   estimate->unauthenticated = unauthenticated;

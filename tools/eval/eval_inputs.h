@@ -1,5 +1,5 @@
 #pragma once
-// The inputs of anchormap-eval. The estimate: the LAST anchormap.merged_map_t of a server
+// The inputs of anchormap-eval. The estimate: the LAST complete merged map of a server
 // output log (keyframe times and global poses per trajectory), or a TUM trajectory file (one
 // trajectory). The references: every <ROBOT>_GROUND_TRUTH (simulator) or <ROBOT>_REFERENCE
 // (CARMEN importer) channel of a raw log, or a TUM trajectory file (one robot).
@@ -12,6 +12,7 @@
 
 #include "anchormap/merged_map_t.hpp"
 #include "common/bus/authenticator.h"
+#include "common/bus/channels.h"
 #include "common/types/stamped_pose2.h"
 #include "common/util/status.h"
 
@@ -45,13 +46,17 @@ bool IsLcmLogFile(const std::string& path);
 // Fills `estimate` from one merged map message (validating it; see MapEstimate).
 void ConvertMergedMap(const merged_map_t& map, MapEstimate* estimate);
 
-// Reads the estimate from an LCM log (last message on `channel`) or, when `path` is not an
-// LCM log, from a TUM trajectory file as robot `tum_robot`. Fails when the log holds no
-// decodable merged map. With `authenticator` (the server's --key-file) only maps in a valid
-// envelope count (anchormap-server signs its outputs); the others are counted.
+// Reads the estimate from an LCM log (the last complete merged map: MergedMapAssembler on
+// `header_channel` + `chunks_channel`, or a merged_map_t on `channel` in logs of servers
+// before the chunks) or, when `path` is not an LCM log, from a TUM trajectory file as robot
+// `tum_robot`. Fails when the log holds no complete merged map. With `authenticator` (the
+// server's --key-file) only messages in a valid envelope count (anchormap-server signs its
+// outputs); the others are counted.
 Status ReadMapEstimate(const std::string& path, const std::string& channel,
                        const std::string& tum_robot, MapEstimate* estimate,
-                       Authenticator* authenticator = nullptr);
+                       Authenticator* authenticator = nullptr,
+                       const std::string& header_channel = channels::kMapHeader,
+                       const std::string& chunks_channel = channels::kMapChunks);
 
 struct ReferenceSet {
   std::map<std::string, StampedTrajectory> by_robot;   // sorted by time

@@ -176,7 +176,9 @@ TEST(ReadMapEstimateTest, UsesTheLastDecodableMapAndCountsJunk) {
   EXPECT_EQ(estimate.undecodable, 1);
   EXPECT_EQ(estimate.trajectories.size(), 2u);
   EXPECT_EQ(ReadMapEstimate(path, "NOPE", "R1", &estimate).message(),
-            path + ": no decodable anchormap.merged_map_t on channel NOPE (0 messages)");
+            path +
+                ": no complete merged map on channel NOPE or ANCHORMAP_MAP_HEADER + "
+                "ANCHORMAP_MAP_CHUNKS (0 messages)");
   std::filesystem::remove(path);
 }
 

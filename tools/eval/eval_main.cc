@@ -32,7 +32,7 @@ const char* kUsage =
     "Usage: anchormap-eval --map OUT.lcmlog --truth SIM.lcmlog [--json]\n"
     "       anchormap-eval --relations FILE.relations --map OUT.lcmlog [--robot R1]\n"
     "                      [--odometry RAW.lcmlog] [--json]\n"
-    "The estimate is the last merged map (anchormap.merged_map_t) of a server output log, or a\n"
+    "The estimate is the last complete merged map of a server output log, or a\n"
     "TUM trajectory file. The reference is every <R>_GROUND_TRUTH or <R>_REFERENCE channel of a\n"
     "raw log (simulator, CARMEN importer), or a TUM trajectory file.\n";
 
@@ -46,6 +46,8 @@ int Fail(const std::string& message, int code) {
 int main(int argc, char** argv) {
   std::string map_path, truth_path, relations_path, robot, odometry_path;
   std::string map_channel = channels::kMergedMap;
+  std::string map_header_channel = channels::kMapHeader;
+  std::string map_chunks_channel = channels::kMapChunks;
   RelationsOptions relations_options;
   bool json = false;
   std::string relation_errors_path, estimate_path, key_file;
@@ -62,8 +64,12 @@ int main(int argc, char** argv) {
           ->default_value(relations_options.max_time_gap_s, "0.05"),
       "an estimated pose and a reference pose or relation time match when this close in time")(
       "map-channel", po::value(&map_channel)->default_value(map_channel),
-      "channel of the merged map in the server's output log")("key-file", po::value(&key_file),
-                                                              kServerOutputKeyFileHelp)(
+      "channel of the merged map in output logs of servers before the chunks")(
+      "map-header-channel", po::value(&map_header_channel)->default_value(map_header_channel),
+      "channel of the merged map's header in the server's output log")(
+      "map-chunks-channel", po::value(&map_chunks_channel)->default_value(map_chunks_channel),
+      "channel of the merged map's chunks in the server's output log")(
+      "key-file", po::value(&key_file), kServerOutputKeyFileHelp)(
       "odometry", po::value(&odometry_path),
       "relations: the raw log (<R>_ODOMETRY); poses at the relations' times are then the "
       "nearest keyframe plus the odometry motion since it, instead of keyframes only; its "
@@ -105,7 +111,8 @@ int main(int argc, char** argv) {
   }
   MapEstimate estimate;
   if (Status s = ReadMapEstimate(map_path, map_channel, tum_robot, &estimate,
-                                 authenticator ? &*authenticator : nullptr);
+                                 authenticator ? &*authenticator : nullptr, map_header_channel,
+                                 map_chunks_channel);
       !s.ok()) {
     return Fail(s.message() + (authenticator ? "" : " (a signed log needs --key-file)"), 1);
   }

@@ -111,8 +111,12 @@ int main(int argc, char** argv) {
        "map PNG scale (0: about 1400 px on the longer side)")
       ("no-encounters", po::bool_switch(&no_encounters), "do not draw encounter lines")
       ("title", po::value(&png_options.title)->default_value(png_options.title), "map PNG title")
+      ("map-header-channel", po::value(&channels.map_header)->default_value(channels.map_header),
+       "merged map header channel")
+      ("map-chunks-channel", po::value(&channels.map_chunks)->default_value(channels.map_chunks),
+       "merged map chunk channel")
       ("merged-map-channel", po::value(&channels.merged_map)->default_value(channels.merged_map),
-       "merged map channel")
+       "merged map channel (logs of servers before the chunks)")
       ("grid-channel", po::value(&channels.grid_tiles)->default_value(channels.grid_tiles),
        "grid tile channel")
       ("covariance-channel",

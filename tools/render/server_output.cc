@@ -12,48 +12,39 @@
 #pragma GCC diagnostic ignored "-Wrestrict"
 #include "anchormap/anchor_covariances_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
-#include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
 #include "common/bus/lcm_log.h"
+#include "common/bus/merged_map_assembler.h"
 
 namespace anchormap::render {
 namespace {
 
-bool Finite3(const double v[3]) {
-  return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
-}
-
-std::optional<MergedMap> FromMessage(const anchormap::merged_map_t& message) {
+// The assembled map as render's view; nullopt when a pose or anchor is not finite.
+std::optional<MergedMap> FromAssembled(const anchormap::MergedMap& assembled) {
   MergedMap map;
-  map.utime = message.utime;
-  map.update = message.update;
-  if (message.num_trajectories != static_cast<int>(message.trajectories.size()) ||
-      message.num_encounters != static_cast<int>(message.encounters.size())) {
-    return std::nullopt;
-  }
-  for (const anchormap::trajectory_t& t : message.trajectories) {
-    if (t.num_poses != static_cast<int>(t.poses.size()) || t.pose_utimes.size() != t.poses.size() ||
-        !Finite3(t.anchor)) {
+  map.utime = assembled.utime;
+  map.update = assembled.update;
+  for (const MergedTrajectory& t : assembled.trajectories) {
+    if (t.pose_utimes.size() != t.poses.size() || !t.T_global_local.IsFinite()) {
       return std::nullopt;
     }
     TrajectoryView view;
     view.key = {t.robot, t.trajectory_id};
     view.anchored = t.anchored;
-    view.T_global_local = Pose2(t.anchor[0], t.anchor[1], t.anchor[2]);
+    view.T_global_local = t.T_global_local;
     view.utimes = t.pose_utimes;
-    for (const auto& pose : t.poses) {
-      if (pose.size() != 3 || !Finite3(pose.data())) return std::nullopt;
-      view.poses.emplace_back(pose[0], pose[1], pose[2]);
+    for (const Pose2& pose : t.poses) {
+      if (!pose.IsFinite()) return std::nullopt;
+      view.poses.push_back(pose);
     }
     map.trajectories.push_back(std::move(view));
   }
-  for (const anchormap::encounter_link_t& link : message.encounters) {
-    if (!IsValidConstraintKind(link.kind)) return std::nullopt;
+  for (const anchormap::EncounterLink& link : assembled.encounters) {
     map.encounters.push_back({{link.robot_a, link.trajectory_a},
                               link.index_a,
                               {link.robot_b, link.trajectory_b},
                               link.index_b,
-                              static_cast<ConstraintKind>(link.kind)});
+                              link.kind});
   }
   return map;
 }
@@ -78,9 +69,6 @@ std::optional<GridTile> FromMessage(const anchormap::grid_tile_t& message) {
   }
   return tile;
 }
-
-// How many grid updates back a tile missing from the last one may come from.
-constexpr int64_t kMaxGridRunsBack = 5;
 
 // DecodeAs that also turns exceptions into "does not decode": lcm-gen's decoders resize
 // vectors to the counts in the message, so a corrupt negative count throws.
@@ -116,9 +104,8 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels, S
   if (Status status = reader.Open(path); !status.ok()) return status;
   ServerOutput result;
   // A grid update is a run of tiles with the same update number. The grid is the newest
-  // version of every tile seen in the last few runs: tiles of the last run, and tiles that
-  // run lacks (lost in transport, or a server stopped while publishing) from the runs
-  // before it. Older tiles are dropped: the map may have moved since.
+  // version of every tile: the server sends only the tiles that changed (a tile its map
+  // left, as unknown), and every tile at a slow period.
   struct KeptTile {
     GridTile tile;
     int64_t run = 0;
@@ -126,18 +113,25 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels, S
   std::map<std::pair<int, int>, KeptTile> newest_tiles;
   int64_t run = -1;
   int64_t run_update = 0;
+  MergedMapAssembler assembler({channels.map_header, channels.map_chunks, channels.merged_map});
   while (std::optional<LogEvent> event = reader.Next()) {
     const std::string& channel = event->channel;
-    const bool ours = channel == channels.merged_map || channel == channels.grid_tiles ||
+    const bool ours = assembler.IsMapChannel(channel) || channel == channels.grid_tiles ||
                       channel == channels.server_status || channel == channels.anchor_covariances;
     if (!ours) continue;
     if (!OpenLoggedEvent(authenticator, &*event).ok()) {
       ++result.unauthenticated;
       continue;
     }
-    if (event->channel == channels.merged_map) {
-      const auto message = SafeDecode<anchormap::merged_map_t>(*event);
-      std::optional<MergedMap> map = message ? FromMessage(*message) : std::nullopt;
+    if (assembler.IsMapChannel(event->channel)) {
+      bool completed = false;
+      if (!assembler.Accept(event->channel, event->data.data(), event->data.size(), &completed)
+               .ok()) {
+        ++result.undecodable;
+        continue;
+      }
+      if (!completed) continue;
+      std::optional<MergedMap> map = FromAssembled(*assembler.map());
       if (!map) {
         ++result.undecodable;
         continue;
@@ -198,7 +192,6 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels, S
   }
   result.grid_update = run_update;
   for (auto& [key, kept] : newest_tiles) {
-    if (run - kept.run > kMaxGridRunsBack) continue;
     if (kept.run != run) ++result.grid_tiles_from_earlier_updates;
     result.grid.push_back(std::move(kept.tile));
   }

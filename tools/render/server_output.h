@@ -1,6 +1,7 @@
 #pragma once
 // What anchormap-render needs from the server's output LCM log, as plain values: the last
-// merged map, the grid tiles of the last grid update, and every anchor-covariance message
+// complete merged map (MergedMapAssembler: header and chunks, or one merged_map_t in older
+// logs), the grid tiles of the last grid update, and every anchor-covariance message
 // (for the uncertainty plot). Messages that do not decode are counted, never fatal.
 
 #include <cstdint>
@@ -76,23 +77,25 @@ struct ServerStatus {
 };
 
 struct ChannelNames {
-  std::string merged_map = channels::kMergedMap;
+  std::string map_header = channels::kMapHeader;
+  std::string map_chunks = channels::kMapChunks;
+  std::string merged_map = channels::kMergedMap;  // logs of servers before the chunks
   std::string server_status = channels::kServerStatus;
   std::string grid_tiles = channels::kGridTiles;
   std::string anchor_covariances = channels::kAnchorCovariances;
 };
 
 struct ServerOutput {
-  std::optional<MergedMap> map;  // the last merged map in the log
-  // The grid: the newest version of every tile among the last grid updates (a grid update
-  // is a run of tiles with one update number). Tiles the last update lacks (lost on the
-  // bus, or the server stopped while publishing) come from up to 5 updates before.
+  std::optional<MergedMap> map;  // the last complete merged map in the log
+  // The grid: the newest version of every tile (a grid update is a run of tiles with one
+  // update number; the server sends the tiles that changed). In logs of servers before
+  // that, which sent every tile each time, a tile their grid left stays as it was last sent.
   std::vector<GridTile> grid;
   int64_t grid_tiles_from_earlier_updates = 0;
   int64_t grid_update = 0;                   // the last grid update's number
   std::vector<AnchorSample> anchor_samples;  // in log order
   std::optional<ServerStatus> status;        // the last status message
-  int64_t merged_maps = 0;                   // messages read per kind
+  int64_t merged_maps = 0;                   // complete merged maps, then messages per kind
   int64_t grid_tile_messages = 0;
   int64_t covariance_messages = 0;
   int64_t undecodable = 0;      // messages on our channels that failed to decode or validate

@@ -163,7 +163,8 @@ TEST(ServerOutputTest, TilesMissingFromTheLastUpdateComeFromRecentOnes) {
   EXPECT_EQ(output.grid[3].tile_x, 9);
 }
 
-TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
+// The server sends only the tiles that changed: a tile of an old update is still current.
+TEST(ServerOutputTest, TilesOfOldUpdatesAreKept) {
   const std::string path = ScratchPath("server_output_old.lcmlog");
   {
     LcmLogWriter writer;
@@ -176,9 +177,10 @@ TEST(ServerOutputTest, TilesOlderThanFiveUpdatesAreDropped) {
   }
   ServerOutput output;
   ASSERT_TRUE(ReadServerOutput(path, ChannelNames{}, &output).ok());
-  ASSERT_EQ(output.grid.size(), 1u);  // (9, 9) is 6 updates old
-  EXPECT_EQ(output.grid[0].update, 7);
-  EXPECT_EQ(output.grid_tiles_from_earlier_updates, 0);
+  ASSERT_EQ(output.grid.size(), 2u);
+  EXPECT_EQ(output.grid[0].update, 7);  // (0, 0)
+  EXPECT_EQ(output.grid[1].update, 1);  // (9, 9), 6 updates old
+  EXPECT_EQ(output.grid_tiles_from_earlier_updates, 1);
 }
 
 TEST(ServerOutputTest, MissingFileIsAnError) {

@@ -160,7 +160,8 @@ bool ViewerState::ApplyGridTile(const GridTile& tile, int64_t wall_utime) {
     grid_run_update_ = tile.update;
     ++grid_run_;
     for (auto it = tiles_.begin(); it != tiles_.end();) {
-      if (grid_run_ - it->second.run > options_.max_grid_runs_back && it->first != key) {
+      if (options_.max_grid_runs_back > 0 &&
+          grid_run_ - it->second.run > options_.max_grid_runs_back && it->first != key) {
         removed_tiles_.push_back(std::to_string(it->first.first) + "," +
                                  std::to_string(it->first.second));
         it = tiles_.erase(it);

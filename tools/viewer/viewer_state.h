@@ -35,8 +35,9 @@ struct ViewerStateOptions {
   int32_t max_tiles = 20000;           // tiles held; more are refused (bounded memory)
   int32_t max_tile_side_cells = 1024;  // a tile wider or taller than this is refused
   // A grid update is a run of tiles with one update number; a tile that none of the last
-  // this many runs refreshed is dropped (the grid moved on), as anchormap-render does.
-  int32_t max_grid_runs_back = 5;
+  // this many runs refreshed is dropped (0 = never). The server sends only the tiles that
+  // changed (a tile its map left, as unknown), so a tile it did not send is still current.
+  int32_t max_grid_runs_back = 0;
 };
 
 class ViewerState {

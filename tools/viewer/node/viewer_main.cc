@@ -63,8 +63,12 @@ void Register(OptionsLoader* l, ViewerOptions* o, int* max_queue_mb) {
   l->Add("key_file", "key-file", &o->key_file,
          "accept only the server's outputs signed with a key of this file (the server's "
          "--key-file; empty: unsigned outputs, with a warning)");
+  l->Add("channels.map_header", "map-header-channel", &o->channels.map_header,
+         "merged_map_header_t input");
+  l->Add("channels.map_chunks", "map-chunks-channel", &o->channels.map_chunks,
+         "merged_map_chunk_t input");
   l->Add("channels.merged_map", "merged-map-channel", &o->channels.merged_map,
-         "merged_map_t input");
+         "merged_map_t input (servers before the chunks)");
   l->Add("channels.grid_tiles", "grid-tiles-channel", &o->channels.grid_tiles, "grid_tile_t input");
   l->Add("channels.anchor_covariances", "anchor-covariances-channel",
          &o->channels.anchor_covariances, "anchor_covariances_t input");
@@ -131,8 +135,9 @@ int Run(const ViewerOptions& options) {
     });
   } else {
     for (const std::string& channel :
-         {options.channels.merged_map, options.channels.grid_tiles,
-          options.channels.anchor_covariances, options.channels.status}) {
+         {options.channels.map_header, options.channels.map_chunks, options.channels.merged_map,
+          options.channels.grid_tiles, options.channels.anchor_covariances,
+          options.channels.status}) {
       if (Status s = loop->Subscribe(channel, handler, options.queue_capacity); !s.ok()) {
         LogError(s.message());
         return 1;

@@ -19,7 +19,9 @@ const T* Accept(const Result<T>& decoded, const std::string& channel, RejectCoun
 }  // namespace
 
 ViewerNode::ViewerNode(ViewerChannels channels, ViewerState* state)
-    : channels_(std::move(channels)), state_(state) {}
+    : channels_(std::move(channels)),
+      state_(state),
+      assembler_({channels_.map_header, channels_.map_chunks, channels_.merged_map}) {}
 
 void ViewerNode::RequireAuthentication(Authenticator authenticator) {
   authenticator_.emplace(std::move(authenticator));
@@ -27,7 +29,7 @@ void ViewerNode::RequireAuthentication(Authenticator authenticator) {
 
 bool ViewerNode::OnMessage(const std::string& channel, const uint8_t* data, size_t size,
                            int64_t wall_utime) {
-  const bool known = channel == channels_.merged_map || channel == channels_.grid_tiles ||
+  const bool known = assembler_.IsMapChannel(channel) || channel == channels_.grid_tiles ||
                      channel == channels_.anchor_covariances || channel == channels_.status;
   if (!known) return false;
   ++messages_;
@@ -42,10 +44,13 @@ bool ViewerNode::OnMessage(const std::string& channel, const uint8_t* data, size
     data = opened.data();
     size = opened.size();
   }
-  if (channel == channels_.merged_map) {
-    const auto decoded = DecodeMergedMap(data, size);
-    const MergedMap* map = Accept(decoded, channel, &rejections_);
-    return map && state_->ApplyMergedMap(*map, wall_utime);
+  if (assembler_.IsMapChannel(channel)) {
+    bool completed = false;
+    if (Status status = assembler_.Accept(channel, data, size, &completed); !status.ok()) {
+      rejections_.Count(status, channel);
+      return false;
+    }
+    return !completed || state_->ApplyMergedMap(*assembler_.map(), wall_utime);
   }
   if (channel == channels_.grid_tiles) {
     const auto decoded = DecodeGridTile(data, size);

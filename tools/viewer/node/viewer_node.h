@@ -1,7 +1,8 @@
 #pragma once
 // The viewer's bridge from the bus to its state: decodes the server's outputs with the
-// codec (which validates them) and applies them to ViewerState; refusals are counted
-// like the daemons count them. The only part of the viewer that meets the codec.
+// codec (which validates them) and applies them to ViewerState, the merged map each time
+// MergedMapAssembler completes one from its header and chunks; refusals are counted like
+// the daemons count them. The only part of the viewer that meets the codec.
 
 #include <cstddef>
 #include <cstdint>
@@ -10,13 +11,16 @@
 
 #include "common/bus/authenticator.h"
 #include "common/bus/channels.h"
+#include "common/bus/merged_map_assembler.h"
 #include "common/util/reject_counter.h"
 #include "tools/viewer/viewer_state.h"
 
 namespace anchormap::viewer {
 
 struct ViewerChannels {
-  std::string merged_map = channels::kMergedMap;
+  std::string map_header = channels::kMapHeader;
+  std::string map_chunks = channels::kMapChunks;
+  std::string merged_map = channels::kMergedMap;  // servers before the chunks
   std::string grid_tiles = channels::kGridTiles;
   std::string anchor_covariances = channels::kAnchorCovariances;
   std::string status = channels::kServerStatus;
@@ -40,6 +44,7 @@ class ViewerNode {
   ViewerChannels channels_;
   ViewerState* state_;
   RejectCounter rejections_;
+  MergedMapAssembler assembler_;
   int64_t messages_ = 0;
   std::optional<Authenticator> authenticator_;
 };

@@ -1,0 +1,119 @@
+#include "server/map_chunker.h"
+
+#include <cmath>
+#include <utility>
+
+#include "common/geometry/angle.h"
+
+namespace anchormap {
+namespace {
+
+bool SameLink(const EncounterLink& a, const EncounterLink& b) {
+  return a.robot_a == b.robot_a && a.trajectory_a == b.trajectory_a && a.index_a == b.index_a &&
+         a.robot_b == b.robot_b && a.trajectory_b == b.trajectory_b && a.index_b == b.index_b &&
+         a.kind == b.kind;
+}
+
+}  // namespace
+
+bool MapChunker::Changed(const MergedMapChunk& sent, const MergedMapChunk& now) const {
+  if (sent.local_poses.size() != now.local_poses.size() || sent.pose_utimes != now.pose_utimes ||
+      sent.encounter_positions != now.encounter_positions) {
+    return true;
+  }
+  for (size_t i = 0; i < now.encounters.size(); ++i) {
+    if (!SameLink(sent.encounters[i], now.encounters[i])) return true;
+  }
+  for (size_t i = 0; i < now.local_poses.size(); ++i) {
+    const Pose2& a = sent.local_poses[i];
+    const Pose2& b = now.local_poses[i];
+    if (std::abs(a.x() - b.x()) > options_.tolerance_m ||
+        std::abs(a.y() - b.y()) > options_.tolerance_m ||
+        std::abs(AngleDifference(a.theta(), b.theta())) > options_.tolerance_rad) {
+      return true;
+    }
+  }
+  return false;
+}
+
+MapChunker::Split MapChunker::Update(const MergedMap& map, bool full) {
+  const int64_t size = options_.chunk_poses;
+  Split out;
+  out.header.utime = map.utime;
+  out.header.update = map.update;
+  out.header.chunk_poses = options_.chunk_poses;
+  // Every chunk's current content, poses first.
+  std::map<ChunkId, MergedMapChunk> now;
+  std::map<std::pair<std::string, int64_t>, const MergedTrajectory*> by_name;
+  for (const MergedTrajectory& t : map.trajectories) {
+    by_name[{t.robot, t.trajectory_id}] = &t;
+    const Pose2 T_local_global = t.T_global_local.Inverse();
+    const auto poses = static_cast<int64_t>(t.poses.size());
+    for (int64_t first = 0; first < poses; first += size) {
+      MergedMapChunk chunk;
+      chunk.utime = map.utime;
+      chunk.robot = t.robot;
+      chunk.trajectory_id = t.trajectory_id;
+      chunk.chunk_index = static_cast<int32_t>(first / size);
+      const int64_t end = std::min(poses, first + size);
+      for (int64_t i = first; i < end; ++i) {
+        chunk.local_poses.push_back(Compose(T_local_global, t.poses[static_cast<size_t>(i)]));
+        chunk.pose_utimes.push_back(i < static_cast<int64_t>(t.pose_utimes.size())
+                                        ? t.pose_utimes[static_cast<size_t>(i)]
+                                        : 0);
+      }
+      now.emplace(ChunkId{t.robot, t.trajectory_id, chunk.chunk_index}, std::move(chunk));
+    }
+  }
+  // Each encounter in the chunk of its second keyframe, else of its first; one that joins
+  // no keyframe of the map has no chunk and is left out (the header counts the others).
+  int32_t placed = 0;
+  for (size_t e = 0; e < map.encounters.size(); ++e) {
+    const EncounterLink& link = map.encounters[e];
+    for (const auto& [robot, trajectory, index] :
+         {std::tuple(link.robot_b, link.trajectory_b, link.index_b),
+          std::tuple(link.robot_a, link.trajectory_a, link.index_a)}) {
+      const auto it = by_name.find({robot, trajectory});
+      if (it == by_name.end() || index < 0 ||
+          index >= static_cast<int64_t>(it->second->poses.size())) {
+        continue;
+      }
+      MergedMapChunk& chunk =
+          now.at(ChunkId{robot, trajectory, static_cast<int32_t>(index / size)});
+      chunk.encounters.push_back(link);
+      chunk.encounter_positions.push_back(placed++);
+      break;
+    }
+  }
+  out.header.num_encounters = placed;
+  // Changed chunks get this update as their version; the others keep theirs.
+  for (auto& [id, chunk] : now) {
+    const auto sent = sent_.find(id);
+    if (!full && sent != sent_.end() && !Changed(sent->second, chunk)) {
+      chunk.version = sent->second.version;
+      continue;
+    }
+    chunk.version = map.update;
+    out.chunks.push_back(chunk);
+    sent_[id] = std::move(chunk);
+  }
+  // Chunks that no longer exist (a trajectory lost keyframes: a server restart) are forgotten.
+  for (auto it = sent_.begin(); it != sent_.end();) {
+    it = now.count(it->first) ? std::next(it) : sent_.erase(it);
+  }
+  for (const MergedTrajectory& t : map.trajectories) {
+    MergedMapHeader::Trajectory h;
+    h.robot = t.robot;
+    h.trajectory_id = t.trajectory_id;
+    h.anchored = t.anchored;
+    h.T_global_local = t.T_global_local;
+    h.num_poses = static_cast<int32_t>(t.poses.size());
+    for (int32_t k = 0; static_cast<int64_t>(k) * size < h.num_poses; ++k) {
+      h.chunk_versions.push_back(sent_.at(ChunkId{t.robot, t.trajectory_id, k}).version);
+    }
+    out.header.trajectories.push_back(std::move(h));
+  }
+  return out;
+}
+
+}  // namespace anchormap

@@ -1,0 +1,196 @@
+// The merged map on the bus, end to end: MapChunker (server) -> codec -> MergedMapAssembler
+// (every reader). The assembled map must be the server's map (poses within the chunker's
+// tolerance), a map update must send only the chunks that changed, and a lost chunk must
+// leave the previous complete map in place until the full map repairs it.
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/bus/map_codec.h"
+#include "common/bus/merged_map_assembler.h"
+#include "common/geometry/angle.h"
+#include "server/map_chunker.h"
+
+namespace anchormap {
+namespace {
+
+// Two trajectories of 600 and 100 keyframes (chunks of 256: 3 + 1), one unanchored one,
+// and encounters between them.
+MergedMap TestMap() {
+  MergedMap map;
+  map.utime = 1'000'000;
+  map.update = 1;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-50.0, 50.0);
+  const std::vector<std::tuple<std::string, int64_t, int, bool>> trajectories = {
+      {"R1", 11, 600, true}, {"R2", 12, 100, true}, {"R3", 13, 5, false}};
+  for (const auto& [robot, id, poses, anchored] : trajectories) {
+    MergedTrajectory t;
+    t.robot = robot;
+    t.trajectory_id = id;
+    t.anchored = anchored;
+    if (anchored) t.T_global_local = Pose2(u(rng), u(rng), 0.01 * u(rng));
+    for (int i = 0; i < poses; ++i) {
+      t.poses.emplace_back(u(rng), u(rng), 0.05 * u(rng));
+      t.pose_utimes.push_back(1000 * i);
+    }
+    map.trajectories.push_back(t);
+  }
+  map.encounters = {{"R1", 11, 300, "R2", 12, 40, ConstraintKind::kDirectEncounter},
+                    {"R2", 12, 99, "R1", 11, 599, ConstraintKind::kScanEncounter},
+                    {"R1", 11, 10, "R1", 11, 500, ConstraintKind::kLoopClosure},
+                    {"R1", 11, 2, "R2", 12, 3, ConstraintKind::kScanEncounter}};
+  return map;
+}
+
+// Sends a split through the codec into `assembler`, chunks first, skipping chunk `lose`.
+bool Deliver(const MapChunker::Split& split, MergedMapAssembler* assembler, int lose = -1) {
+  bool completed = false;
+  for (size_t i = 0; i < split.chunks.size(); ++i) {
+    if (static_cast<int>(i) == lose) continue;
+    const std::vector<uint8_t> bytes = EncodeMergedMapChunk(split.chunks[i]);
+    EXPECT_TRUE(assembler->Accept(channels::kMapChunks, bytes.data(), bytes.size()).ok());
+  }
+  const std::vector<uint8_t> bytes = EncodeMergedMapHeader(split.header);
+  EXPECT_TRUE(assembler->Accept(channels::kMapHeader, bytes.data(), bytes.size(), &completed).ok());
+  return completed;
+}
+
+// The largest pose difference between two maps of the same shape (inf when they differ).
+double MaxDifference(const MergedMap& a, const MergedMap& b) {
+  if (a.trajectories.size() != b.trajectories.size() || a.update != b.update) return INFINITY;
+  double worst = 0.0;
+  for (size_t t = 0; t < a.trajectories.size(); ++t) {
+    const MergedTrajectory &x = a.trajectories[t], &y = b.trajectories[t];
+    if (x.robot != y.robot || x.trajectory_id != y.trajectory_id || x.anchored != y.anchored ||
+        x.poses.size() != y.poses.size() || x.pose_utimes != y.pose_utimes) {
+      return INFINITY;
+    }
+    for (size_t i = 0; i < x.poses.size(); ++i) {
+      worst = std::max({worst, std::abs(x.poses[i].x() - y.poses[i].x()),
+                        std::abs(x.poses[i].y() - y.poses[i].y()),
+                        std::abs(AngleDifference(x.poses[i].theta(), y.poses[i].theta()))});
+    }
+  }
+  if (a.encounters.size() != b.encounters.size()) return INFINITY;
+  for (size_t e = 0; e < a.encounters.size(); ++e) {
+    const EncounterLink &x = a.encounters[e], &y = b.encounters[e];
+    if (x.robot_a != y.robot_a || x.index_a != y.index_a || x.robot_b != y.robot_b ||
+        x.index_b != y.index_b || x.kind != y.kind) {
+      return INFINITY;
+    }
+  }
+  return worst;
+}
+
+TEST(MergedMapChunksTest, AssembledMapIsTheServersMap) {
+  const MergedMap map = TestMap();
+  MapChunker chunker;
+  const MapChunker::Split split = chunker.Update(map, /*full=*/false);
+  EXPECT_EQ(split.chunks.size(), 3u + 1u + 1u);
+  size_t largest = 0;
+  for (const MergedMapChunk& chunk : split.chunks) {
+    largest = std::max(largest, EncodeMergedMapChunk(chunk).size());
+  }
+  EXPECT_LT(largest, 9000u);  // 256 poses x 32 bytes, plus names and links
+  EXPECT_EQ(split.header.num_encounters, 4);
+  MergedMapAssembler assembler;
+  EXPECT_TRUE(Deliver(split, &assembler));
+  ASSERT_TRUE(assembler.map());
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+  EXPECT_EQ(assembler.missing_chunks(), 0);
+}
+
+TEST(MergedMapChunksTest, AnUpdateSendsOnlyTheChunksThatChanged) {
+  MergedMap map = TestMap();
+  MapChunker chunker;
+  MergedMapAssembler assembler;
+  ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  // Update 2: R1's pose 300 (chunk 1) moves 2 mm, every pose moves 0.5 mm (under the
+  // tolerance), R2's anchor moves 1 m (its local poses do not), R3 gets a keyframe.
+  map.update = 2;
+  for (MergedTrajectory& t : map.trajectories) {
+    for (Pose2& p : t.poses) p = Pose2(p.x() + 0.0005, p.y(), p.theta());
+  }
+  Pose2& moved = map.trajectories[0].poses[300];
+  moved = Pose2(moved.x() + 0.002, moved.y(), moved.theta());
+  MergedTrajectory& r2 = map.trajectories[1];
+  const Pose2 shift(1.0, 0.0, 0.0);
+  r2.T_global_local = Compose(shift, r2.T_global_local);
+  for (Pose2& p : r2.poses) p = Compose(shift, p);
+  map.trajectories[2].poses.emplace_back(1.0, 2.0, 0.3);
+  map.trajectories[2].pose_utimes.push_back(9000);
+  const MapChunker::Split split = chunker.Update(map, false);
+  ASSERT_EQ(split.chunks.size(), 2u);
+  EXPECT_EQ(split.chunks[0].robot, "R1");
+  EXPECT_EQ(split.chunks[0].chunk_index, 1);
+  EXPECT_EQ(split.chunks[1].robot, "R3");
+  EXPECT_TRUE(Deliver(split, &assembler));
+  ASSERT_TRUE(assembler.map());
+  const double difference = MaxDifference(*assembler.map(), map);
+  EXPECT_GT(difference, 1e-4);          // the 0.5 mm moves did not travel...
+  EXPECT_LE(difference, 0.001 + 1e-9);  // ...and that is all that is missing
+  // The full map brings every chunk at its current content.
+  map.update = 3;
+  const MapChunker::Split full = chunker.Update(map, /*full=*/true);
+  EXPECT_EQ(full.chunks.size(), 5u);
+  EXPECT_TRUE(Deliver(full, &assembler));
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+}
+
+TEST(MergedMapChunksTest, ALostChunkKeepsThePreviousMapUntilTheFullMap) {
+  MergedMap map = TestMap();
+  MapChunker chunker;
+  MergedMapAssembler assembler;
+  ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  map.update = 2;
+  map.trajectories[0].poses.emplace_back(0.0, 0.0, 0.0);  // R1's chunk 2 changes
+  map.trajectories[0].pose_utimes.push_back(700'000);
+  EXPECT_FALSE(Deliver(chunker.Update(map, false), &assembler, /*lose=*/0));
+  EXPECT_EQ(assembler.missing_chunks(), 1);
+  ASSERT_TRUE(assembler.map());
+  EXPECT_EQ(assembler.map()->update, 1);  // the previous complete map
+  map.update = 3;
+  EXPECT_FALSE(Deliver(chunker.Update(map, false), &assembler));  // nothing changed: still missing
+  map.update = 4;
+  EXPECT_TRUE(Deliver(chunker.Update(map, /*full=*/true), &assembler));
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+}
+
+TEST(MergedMapChunksTest, ChunksAfterTheirHeaderAndOldSingleMessagesAssembleToo) {
+  const MergedMap map = TestMap();
+  const MapChunker::Split split = MapChunker().Update(map, false);
+  MergedMapAssembler assembler;
+  bool completed = false;
+  std::vector<uint8_t> bytes = EncodeMergedMapHeader(split.header);
+  ASSERT_TRUE(assembler.Accept(channels::kMapHeader, bytes.data(), bytes.size(), &completed).ok());
+  EXPECT_FALSE(completed);
+  EXPECT_EQ(assembler.missing_chunks(), 5);
+  for (size_t i = 0; i < split.chunks.size(); ++i) {
+    bytes = EncodeMergedMapChunk(split.chunks[i]);
+    ASSERT_TRUE(
+        assembler.Accept(channels::kMapChunks, bytes.data(), bytes.size(), &completed).ok());
+    EXPECT_EQ(completed, i + 1 == split.chunks.size());
+  }
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+  // A log of a server before the chunks: one merged_map_t.
+  MergedMapAssembler old;
+  bytes = EncodeMergedMap(map);
+  ASSERT_TRUE(old.Accept(channels::kMergedMap, bytes.data(), bytes.size(), &completed).ok());
+  EXPECT_TRUE(completed);
+  EXPECT_LT(MaxDifference(*old.map(), map), 1e-12);
+  // Garbage is refused and changes nothing.
+  const uint8_t garbage[] = {1, 2, 3, 4, 5, 6, 7, 8, 9};
+  EXPECT_FALSE(old.Accept(channels::kMapChunks, garbage, sizeof(garbage)).ok());
+  EXPECT_FALSE(old.Accept(channels::kMapHeader, garbage, sizeof(garbage)).ok());
+  EXPECT_EQ(old.map()->update, 1);
+}
+
+}  // namespace
+}  // namespace anchormap
