@@ -12,7 +12,9 @@
 # keeps them; SCALE_SIM_DIR=DIR takes DIR/sim-RUN.lcmlog from such a run instead of simulating
 # again). AGENT_SCAN_MATCHING=false replays with the agents' scan matching off (it
 # runs in the same process and, at 100 robots, costs more than the server); "solver s"
-# is the sum of the server's update times, whatever the agents do. After the table: the
+# is the sum of the server's update times, whatever the agents do. SERVER_SOURCES=false
+# turns the server's loop closures and scan encounters off (at 100 robots their global
+# searches of unjoined trajectories dominate the start of the run). After the table: the
 # bytes of the server's outputs per channel for each run (tools/bench/log_bytes.py).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -41,8 +43,8 @@ percentiles() {
     printf "%.2f %.2f %.2f\n", v[m], v[p], v[NR] }'
 }
 
-echo "| robots | data s | agents' scan matching | keyframes | updates | batch steps | replay wall s | CPU s | x real time (wall) | solver s | update median ms | p99 ms | max ms | p99 ms per sixth of the run |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| robots | data s | agents' scan matching | server sources | keyframes | updates | batch steps | replay wall s | CPU s | x real time (wall) | solver s | update median ms | p99 ms | max ms | p99 ms per sixth of the run |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for run in "${RUNS[@]}"; do
   robots=${run%x*}
   seconds=${run#*x}
@@ -57,6 +59,7 @@ for run in "${RUNS[@]}"; do
   /usr/bin/time -f "%e %U %S" -o "$WORK/time-$run.txt" "${PIN[@]}" "$BIN/anchormap-replay" \
     --log "$log" --output "$WORK/out-$run.lcmlog" --update-times "$csv" --log-level info \
     --scan-matching "${AGENT_SCAN_MATCHING:-true}" \
+    --loop-closures "${SERVER_SOURCES:-true}" --scan-encounters "${SERVER_SOURCES:-true}" \
     >"$WORK/replay-$run.txt" 2>&1 ||
     { echo "scale_figures: replay of $run failed" >&2; tail "$WORK/replay-$run.txt" >&2; exit 1; }
   read -r wall user sys <"$WORK/time-$run.txt"
@@ -74,7 +77,7 @@ for run in "${RUNS[@]}"; do
       percentiles | cut -d' ' -f2)
     sixths="$sixths${sixths:+ / }$part"
   done
-  echo "| $robots | $seconds | ${AGENT_SCAN_MATCHING:-true} | $keyframes | $updates | $batch | $wall | $cpu | $factor |" \
+  echo "| $robots | $seconds | ${AGENT_SCAN_MATCHING:-true} | ${SERVER_SOURCES:-true} | $keyframes | $updates | $batch | $wall | $cpu | $factor |" \
     "$solver | $median | $p99 | $max | $sixths |"
   if command -v python3 >/dev/null; then
     python3 tools/bench/log_bytes.py "$WORK/out-$run.lcmlog" "$seconds" >"$WORK/bytes-$run.md"
