@@ -6,23 +6,11 @@
 #include "common/geometry/angle.h"
 
 namespace anchormap {
-namespace {
-
-bool SameLink(const EncounterLink& a, const EncounterLink& b) {
-  return a.robot_a == b.robot_a && a.trajectory_a == b.trajectory_a && a.index_a == b.index_a &&
-         a.robot_b == b.robot_b && a.trajectory_b == b.trajectory_b && a.index_b == b.index_b &&
-         a.kind == b.kind;
-}
-
-}  // namespace
 
 bool MapChunker::Changed(const MergedMapChunk& sent, const MergedMapChunk& now) const {
   if (sent.local_poses.size() != now.local_poses.size() || sent.pose_utimes != now.pose_utimes ||
-      sent.encounter_positions != now.encounter_positions) {
+      sent.encounter_positions != now.encounter_positions || sent.encounters != now.encounters) {
     return true;
-  }
-  for (size_t i = 0; i < now.encounters.size(); ++i) {
-    if (!SameLink(sent.encounters[i], now.encounters[i])) return true;
   }
   for (size_t i = 0; i < now.local_poses.size(); ++i) {
     const Pose2& a = sent.local_poses[i];

@@ -37,6 +37,13 @@ struct EncounterLink {
   int64_t trajectory_b = 0;
   int32_t index_b = 0;
   ConstraintKind kind = ConstraintKind::kDirectEncounter;
+
+  bool operator==(const EncounterLink& o) const {
+    return robot_a == o.robot_a && trajectory_a == o.trajectory_a && index_a == o.index_a &&
+           robot_b == o.robot_b && trajectory_b == o.trajectory_b && index_b == o.index_b &&
+           kind == o.kind;
+  }
+  bool operator!=(const EncounterLink& o) const { return !(*this == o); }
 };
 
 struct MergedMap {

@@ -78,14 +78,7 @@ double MaxDifference(const MergedMap& a, const MergedMap& b) {
                         std::abs(AngleDifference(x.poses[i].theta(), y.poses[i].theta()))});
     }
   }
-  if (a.encounters.size() != b.encounters.size()) return INFINITY;
-  for (size_t e = 0; e < a.encounters.size(); ++e) {
-    const EncounterLink &x = a.encounters[e], &y = b.encounters[e];
-    if (x.robot_a != y.robot_a || x.index_a != y.index_a || x.robot_b != y.robot_b ||
-        x.index_b != y.index_b || x.kind != y.kind) {
-      return INFINITY;
-    }
-  }
+  if (a.encounters != b.encounters) return INFINITY;
   return worst;
 }
 
