@@ -98,6 +98,9 @@ class CanonicalInputOrder {
   size_t held() const;
   const CanonicalOrderStats& stats() const { return stats_; }
 
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
+
  private:
   // The canonical sort key: (utime, encounter?, robot, trajectory id, seq, observed, arrival).
   using Key = std::tuple<int64_t, int, std::string, int64_t, int32_t, std::string, int64_t>;

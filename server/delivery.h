@@ -42,6 +42,9 @@ class SeqWindow {
   // that was restarted); returns how many. Later arrivals of them are duplicates.
   int32_t GiveUpMissing();
 
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
+
  private:
   int32_t next_ = 0;
   std::set<int32_t> above_;
@@ -53,6 +56,9 @@ class ResendTracker {
   explicit ResendTracker(const DeliveryOptions& options = {}) : options_(options) {}
   // True (and remembered) when a request to this trajectory may go out at `now_utime`.
   bool Due(const TrajectoryName& trajectory, int64_t now_utime);
+
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
 
  private:
   DeliveryOptions options_;

@@ -71,6 +71,9 @@ class DirectEncounters : public EncounterSource {
   // Ties encounters by keyframe times only (the table), never by the estimate.
   bool ReadsEstimate() const override { return false; }
 
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
+
  private:
   // Ties every waiting encounter whose keyframes are there; refuses those that waited too
   // long (or all unresolved ones when `flush`).

@@ -275,9 +275,16 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
                               ? Compose(smoother_.LocalPose(*a.previous), a.T_previous_this)
                               : a.T_local_pose;
     Status status = smoother_.AddPose(a.key, initial);
+    if (status.ok())
+      graph_edits_.push_back(
+          {GraphEdit::Kind::kPose, a.key, a.key, initial, Eigen::Matrix3d::Identity()});
     if (status.ok() && a.previous) {
       status =
           smoother_.AddBetween(*a.previous, a.key, a.T_previous_this, a.T_previous_this_covariance);
+      if (status.ok()) {
+        graph_edits_.push_back({GraphEdit::Kind::kBetween, *a.previous, a.key, a.T_previous_this,
+                                a.T_previous_this_covariance});
+      }
     }
     if (!status.ok()) {
       // The codec validated the numbers, so this is an inconsistency worth seeing.
@@ -303,6 +310,8 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
       rejects_.Count(ErrorCode::kSolverRejected, "encounter", status.message());
       continue;
     }
+    graph_edits_.push_back({within ? GraphEdit::Kind::kBetween : GraphEdit::Kind::kEncounter, c.a,
+                            c.b, c.measured_T_a_b, c.covariance});
     changed = true;
     ++stats_.encounters_added;
     ++stats_.added_by_kind[static_cast<int>(c.kind)];
@@ -354,6 +363,11 @@ UpdateResult MappingServer::DeferredBatchStep() {
 bool MappingServer::CanDeferUpdates() const {
   return std::none_of(sources_.begin(), sources_.end(),
                       [](const auto& source) { return source->ReadsEstimate(); });
+}
+
+bool MappingServer::CanSnapshot() const {
+  return !deferring_ && sources_.size() == 1 &&
+         dynamic_cast<const DirectEncounters*>(sources_.front().get()) != nullptr;
 }
 
 bool MappingServer::BeginDeferredUpdates() {

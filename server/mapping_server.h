@@ -104,6 +104,18 @@ struct MappingServerStats {
   double total_update_ms = 0.0;
 };
 
+// One call that changed the smoother's graph. MappingServer keeps them in order, so that a
+// snapshot (server/snapshot_codec.h) can rebuild the same variables and factors (gauge
+// priors, anchors and group merges follow from the order) without the solver's internals.
+struct GraphEdit {
+  enum class Kind : uint8_t { kPose, kBetween, kEncounter };
+  Kind kind = Kind::kPose;
+  PoseKey a;  // kPose: the new pose
+  PoseKey b;
+  Pose2 measured;  // kPose: the initial guess
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+};
+
 // One solver update's cost, when MappingServerOptions::record_update_times is set.
 struct UpdateTiming {
   int64_t data_utime = 0;  // the newest input's time when the update ran
@@ -168,6 +180,12 @@ class MappingServer {
   UpdateResult EndDeferredUpdates();
   bool deferring_updates() const { return deferring_; }
 
+  // Periodic snapshots (server/snapshot_codec.h): only the direct-encounter source's state
+  // is serialised, so a server with a scan-matching source (or any added source) cannot
+  // be snapshot; nor while deferring.
+  bool CanSnapshot() const;
+  const std::vector<GraphEdit>& graph_edits() const { return graph_edits_; }
+
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;
   AnchorCovariances BuildAnchorCovariances();
@@ -194,6 +212,9 @@ class MappingServer {
   const std::vector<EncounterLink>& encounter_links() const { return links_; }
   MapPublisher& publisher() { return publisher_; }
   int num_anchored() const;
+
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
 
  private:
   // Moves keyframes the delivery table admitted into the canonical order stage.
@@ -232,6 +253,7 @@ class MappingServer {
   std::unique_ptr<MatchPool> pool_;  // before the sources: it outlives their jobs
   std::vector<std::unique_ptr<EncounterSource>> sources_;
   std::vector<EncounterLink> links_;
+  std::vector<GraphEdit> graph_edits_;  // every successful smoother Add*, in order
   RejectCounter rejects_;
   OncePerKindLog solver_log_;
   MappingServerStats stats_;

@@ -122,6 +122,9 @@ class TrajectoryTable {
   int64_t num_reused_ids() const { return num_reused_ids_; }
   size_t num_held() const;
 
+  // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
+  friend struct SnapshotAccess;
+
  private:
   struct Pending {
     int32_t next_seq = 0;

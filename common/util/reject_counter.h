@@ -30,6 +30,8 @@ class RejectCounter {
   // The same for a failed Status (its code and message).
   void Count(const Status& refusal, const std::string& context);
 
+  // Adds `n` to a reason's count without logging (a restored snapshot's counts).
+  void Restore(ErrorCode reason, int64_t n) { counts_[static_cast<int>(reason)] += n; }
   int64_t count(ErrorCode reason) const { return counts_[static_cast<int>(reason)]; }
   int64_t total() const;
   // Reasons with a non-zero count, in enum order: (name, count).

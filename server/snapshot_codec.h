@@ -1,0 +1,71 @@
+#pragma once
+// The server's state as bytes (issue 13: periodic snapshots keep restarts fast): the one
+// place that knows the snapshot format. A snapshot is taken between two journal events and
+// records which journal prefix it covers (JournalPosition); a restart restores the newest
+// valid one and replays only the journal's events after it (server/node/snapshot_store.h).
+//
+// What it holds: MappingServer's delivery table (sequence windows, held keyframes), the
+// keyframes waiting for it, the canonical order stage (its queues, watermarks, encounter
+// streams, the last released key), the graph's trajectory table (keyframes with scans),
+// the smoother's graph as the ordered list of its edits (GraphEdit: each pose with the
+// initial guess it was given live, each measurement), the encounter links, the relayed encounters'
+// windows, resend and gap clocks, the direct-encounter source's waiting encounters, the counters
+// (stats, refusals by reason); and the node's admitted robots and trajectories (its caps). Not
+// held: the smoother's estimate and factorisation (rebuilt by one batch step from the live initial
+// guesses, so the estimate after a restore is the converged one, as after a deferred
+// journal replay, not the incremental one the old server held), the
+// map publisher's state (the next map and grid go out whole, as after any restart), the
+// update timings and the once-per-kind log memories.
+//
+// Only a server whose only source is the direct-encounter one can be snapshot
+// (MappingServer::CanSnapshot): the scan-matching sources' state (submaps, kept
+// hypotheses, matches running on workers) is not serialised.
+//
+// Format: "AMSNAPSH", version (u32), payload size (u64), payload, FNV-1a 64 of everything
+// before it (u64); little-endian. A wrong magic, version, size or checksum, or a payload
+// that does not decode to the end, is refused with the reason (kDecodeFailed).
+
+#include <cstddef>
+#include <cstdint>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "common/types/trajectory_name.h"
+#include "common/util/status.h"
+#include "server/mapping_server.h"
+
+namespace anchormap {
+
+inline constexpr uint32_t kSnapshotVersion = 1;
+
+// The journal prefix a snapshot covers: its first `events` events, the last of which had
+// this time and channel (checked against the journal on restore).
+struct JournalPosition {
+  int64_t events = 0;
+  int64_t last_utime = 0;
+  std::string last_channel;
+};
+
+// The server node's own state (server/node/server_node.h: the caps' memory).
+struct SnapshotNodeState {
+  JournalPosition position;
+  std::set<std::string> robots;
+  std::set<TrajectoryName> trajectories;
+};
+
+class SnapshotCodec {
+ public:
+  // kInvalidArgument when !server.CanSnapshot().
+  static Result<std::vector<uint8_t>> Encode(const MappingServer& server,
+                                             const SnapshotNodeState& node);
+  // Checks the envelope (magic, version, size, checksum) and reads the journal position.
+  static Result<JournalPosition> ReadPosition(const uint8_t* data, size_t size);
+  // Restores into `server`, freshly constructed with the options of the server that wrote
+  // the snapshot (options are not stored; sources are checked) and given no input: ends
+  // with one batch step. On an error `server` is unusable (the caller discards it).
+  static Status Decode(const uint8_t* data, size_t size, MappingServer* server,
+                       SnapshotNodeState* node);
+};
+
+}  // namespace anchormap
