@@ -261,7 +261,8 @@ class SnapshotRefusalTest : public SnapshotCodecTest {
 
 TEST_F(SnapshotRefusalTest, AWholeSnapshotIsReadAndItsPositionFound) {
   EXPECT_EQ(Refusal(bytes_), "");
-  const Result<JournalPosition> position = SnapshotCodec::ReadPosition(bytes_.data(), bytes_.size());
+  const Result<JournalPosition> position =
+      SnapshotCodec::ReadPosition(bytes_.data(), bytes_.size());
   ASSERT_TRUE(position.ok());
   EXPECT_EQ(position->events, 42);
   EXPECT_EQ(position->last_utime, 123);

@@ -22,6 +22,7 @@
 #include "common/util/retain_freed_memory.h"
 #include "server/node/server_node.h"
 #include "server/node/server_options.h"
+#include "server/node/snapshot_store.h"
 
 namespace anchormap {
 namespace {
@@ -103,6 +104,12 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("journal_defer_updates", "journal-defer-updates", &o->journal_defer_updates,
          "a restart's journal replay defers solver updates to batch steps (same graphs, the "
          "converged estimate; off by itself with scan-matching sources)");
+  l->Add("snapshot_every_events", "snapshot-every-events", &o->snapshot_every_events,
+         "with --journal: write a snapshot of the server's state after this many journaled "
+         "events (0 = not by count); a restart replays only the journal after the newest");
+  l->Add("snapshot_every_s", "snapshot-every-s", &o->snapshot_every_s,
+         "with --journal: write a snapshot when this many seconds passed since the last and "
+         "events were journaled (0 = not by time)");
   l->Add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
          "ask a trajectory for missing keyframes / encounters at most this often (s)");
   l->Add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
@@ -195,23 +202,68 @@ Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
   return Status::Ok();
 }
 
-// Opens the journal in `dir`, replays what it holds through `node` (the same handlers, with
-// the clocks they saw live) and has the node journal every input from now on.
-Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, bool defer_updates,
-                                                      ServerNode* node) {
+// The online journal and its snapshots.
+struct JournalState {
+  std::unique_ptr<Journal> journal;
+  std::string dir;
+  JournalPosition last;          // the journal's length and its last event
+  int64_t snapshot_events = -1;  // journal events the newest snapshot covers (-1: none)
+  std::chrono::steady_clock::time_point snapshot_time = std::chrono::steady_clock::now();
+};
+
+// Restores the newest snapshot in `dir` that is valid and matches `events` (the journal);
+// returns the number of events it covers (0: none usable, replay everything). A refused
+// snapshot is logged with its reason and the next older one tried.
+int64_t RestoreNewestSnapshot(const std::string& dir, const std::vector<LogEvent>& events,
+                              ServerNode* node) {
+  const std::vector<std::string> files = ListSnapshotFiles(dir);
+  if (files.empty()) return 0;
+  if (!node->CanSnapshot()) {
+    LogWarning("journal " + dir + ": " + std::to_string(files.size()) +
+               " snapshots ignored (a scan-matching source is on: its state is not in them); "
+               "replaying the whole journal");
+    return 0;
+  }
+  for (const std::string& path : files) {
+    Result<std::vector<uint8_t>> bytes = ReadSnapshotFile(path);
+    const Result<int64_t> covered =
+        bytes.ok() ? node->RestoreSnapshot(*bytes, events) : Result<int64_t>(bytes.status());
+    if (covered.ok()) {
+      LogInfo("restored " + path + " (" + std::to_string(bytes->size()) + " bytes, " +
+              std::to_string(*covered) + " of " + std::to_string(events.size()) +
+              " journal events)");
+      return *covered;
+    }
+    LogWarning(path + " refused: " + covered.status().message() +
+               "; trying an older snapshot, else the whole journal");
+  }
+  return 0;
+}
+
+// Opens the journal in `dir`, restores the newest valid snapshot there, replays the journal
+// after it through `node` (the same handlers, with the clocks they saw live) and has the
+// node journal every input from now on.
+Result<std::unique_ptr<JournalState>> OpenAndReplayJournal(const std::string& dir,
+                                                           bool defer_updates, ServerNode* node) {
   std::vector<LogEvent> events;
   Result<std::unique_ptr<Journal>> journal = Journal::Open(dir, &events);
   if (!journal.ok()) return journal.status();
+  auto state = std::make_unique<JournalState>();
+  state->journal = std::move(*journal);
+  state->dir = dir;
   const auto start = std::chrono::steady_clock::now();
   const std::clock_t cpu_start = std::clock();
-  const ServerNode::JournalReplay replay = node->ReplayJournal(events, defer_updates);
+  const int64_t covered = RestoreNewestSnapshot(dir, events, node);
+  const ServerNode::JournalReplay replay =
+      node->ReplayJournal(events, defer_updates, static_cast<size_t>(covered));
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   std::ostringstream line;
-  line << "journal " << (*journal)->path() << ": replayed " << replay.events << " of "
-       << events.size() << " events (" << (*journal)->bytes() << " bytes) in " << seconds << " s ("
-       << cpu_seconds << " s CPU, ";
+  line << "journal " << state->journal->path() << ": " << (covered > 0 ? "snapshot + " : "")
+       << "replayed " << replay.events << " of " << events.size() << " events ("
+       << state->journal->bytes() << " bytes) in " << seconds << " s (" << cpu_seconds
+       << " s CPU, ";
   if (replay.deferred) {
     line << node->server().stats().deferred_updates << " solver updates deferred to batch steps, "
          << "the last " << 1e3 * replay.batch_step.seconds << " ms";
@@ -221,11 +273,48 @@ Result<std::unique_ptr<Journal>> OpenAndReplayJournal(const std::string& dir, bo
   }
   line << "); resuming with " << node->server().StatusLine();
   LogInfo(line.str());
-  Journal* appender = journal->get();
+  state->last.events = static_cast<int64_t>(events.size());
+  if (!events.empty()) {
+    state->last.last_utime = events.back().utime;
+    state->last.last_channel = events.back().channel;
+  }
+  state->snapshot_events = covered > 0 ? covered : -1;
+  JournalState* s = state.get();
   node->SetJournal(
-      [appender](const std::string& channel, int64_t clock_utime, const uint8_t* data,
-                 size_t size) { return appender->Append(channel, clock_utime, data, size); });
-  return journal;
+      [s](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
+        const Status status = s->journal->Append(channel, clock_utime, data, size);
+        if (status.ok()) s->last = {s->last.events + 1, clock_utime, channel};
+        return status;
+      });
+  return state;
+}
+
+// Writes a snapshot when one is due (ServerOptions::snapshot_every_*), between two events
+// (from the loop's timer: the state is the journal prefix's).
+void WriteSnapshotIfDue(const ServerOptions& options, ServerNode* node, JournalState* j) {
+  const int64_t fresh = j->last.events - std::max<int64_t>(j->snapshot_events, 0);
+  if (fresh <= 0 || !node->CanSnapshot()) return;
+  const auto now = std::chrono::steady_clock::now();
+  const double since = std::chrono::duration<double>(now - j->snapshot_time).count();
+  const bool by_count = options.snapshot_every_events > 0 && fresh >= options.snapshot_every_events;
+  const bool by_time = options.snapshot_every_s > 0 && since >= options.snapshot_every_s;
+  if (!by_count && !by_time) return;
+  j->snapshot_time = now;  // also after a failure: retried at the next period, not at once
+  const std::clock_t cpu_start = std::clock();
+  const Result<std::vector<uint8_t>> bytes = node->EncodeSnapshot(j->last);
+  const double encode_cpu = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
+  Status written =
+      bytes.ok() ? WriteSnapshotFile(j->dir, j->last.events, *bytes, /*keep=*/2) : bytes.status();
+  if (!written.ok()) {
+    LogWarning("snapshot not written: " + written.message());
+    return;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - now).count();
+  j->snapshot_events = j->last.events;
+  LogInfo("snapshot of " + std::to_string(j->last.events) + " journal events: " +
+          std::to_string(bytes->size()) + " bytes in " + std::to_string(1e3 * seconds) +
+          " ms (encoding " + std::to_string(1e3 * encode_cpu) + " ms CPU)");
 }
 
 int RunOnline(const ServerOptions& given) {
@@ -254,9 +343,9 @@ int RunOnline(const ServerOptions& given) {
     LogError(s.message());
     return 1;
   }
-  std::unique_ptr<Journal> journal;
+  std::unique_ptr<JournalState> journal;
   if (!options.journal_dir.empty()) {
-    Result<std::unique_ptr<Journal>> opened =
+    Result<std::unique_ptr<JournalState>> opened =
         OpenAndReplayJournal(options.journal_dir, options.journal_defer_updates, &node);
     if (!opened.ok()) {
       LogError(opened.status().message());
@@ -278,8 +367,9 @@ int RunOnline(const ServerOptions& given) {
   }
   // Updates that arrived within a map period of the last publication go out from here;
   // gaps that waited too long are bridged; missing keyframes / encounters are asked for.
-  loop->Every(std::chrono::milliseconds(100), [&node, &options] {
+  loop->Every(std::chrono::milliseconds(100), [&node, &options, &journal] {
     node.Tick(WallUtime());
+    if (journal) WriteSnapshotIfDue(options, &node, journal.get());
     node.PublishResendRequests();
     node.PublishDue(WallUtime());
     if (options.map_republish_period_s > 0) {
@@ -297,8 +387,9 @@ int RunOnline(const ServerOptions& given) {
                        std::to_string(s.max_burst) + " kernel drops " +
                        std::to_string(s.kernel_drops);
     if (journal) {
-      line += " | journal " + std::to_string(journal->events()) + " events " +
-              std::to_string(journal->bytes()) + " bytes";
+      line += " | journal " + std::to_string(journal->journal->events()) + " events " +
+              std::to_string(journal->journal->bytes()) + " bytes, snapshot at " +
+              std::to_string(std::max<int64_t>(journal->snapshot_events, 0));
     }
     return line;
   };

@@ -18,7 +18,7 @@ ServerNode::ServerNode(const ServerOptions& options, Publish publish, Clock cloc
     : options_(options),
       publish_(std::move(publish)),
       clock_(std::move(clock)),
-      server_(options.server) {}
+      server_(std::make_unique<MappingServer>(options.server)) {}
 
 void ServerNode::RequireAuthentication(Authenticator authenticator) {
   authenticator_.emplace(std::move(authenticator));
@@ -31,7 +31,7 @@ bool ServerNode::OnMessage(const std::string& channel, const uint8_t* data, size
   if (authenticator_) {
     Result<std::vector<uint8_t>> payload = authenticator_->Open(channel, data, size);
     if (!payload.ok()) {
-      server_.CountRejection(payload.status(), channel);
+      server_->CountRejection(payload.status(), channel);
       return true;
     }
     opened = std::move(*payload);
@@ -48,14 +48,14 @@ void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_
   if (channel == options_.channels.keyframes) {
     Result<Keyframe> keyframe = DecodeKeyframe(data, size);
     if (!keyframe.ok()) {
-      server_.CountRejection(keyframe.status(), channel);
+      server_->CountRejection(keyframe.status(), channel);
     } else {
       OnKeyframe(std::move(*keyframe), channel, data, size, replaying);
     }
   } else {
     const Result<Encounter> encounter = DecodeEncounter(data, size);
     if (!encounter.ok()) {
-      server_.CountRejection(encounter.status(), channel);
+      server_->CountRejection(encounter.status(), channel);
     } else {
       OnEncounter(*encounter, channel, data, size, replaying);
     }
@@ -64,9 +64,9 @@ void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_
 
 bool ServerNode::Replay(const LogEvent& event) {
   if (event.channel == kJournalTick) {
-    server_.Tick(event.utime);
+    server_->Tick(event.utime);
     // What was due then (how much went in per tick does not change the map: the order does).
-    while (server_.ReleaseDue(64) > 0) {
+    while (server_->ReleaseDue(64) > 0) {
     }
     return true;
   }
@@ -74,43 +74,79 @@ bool ServerNode::Replay(const LogEvent& event) {
       event.channel != options_.channels.encounters) {
     return false;
   }
-  server_.SetClock(event.utime);
+  server_->SetClock(event.utime);
   Dispatch(event.channel, event.data.data(), event.data.size(), /*replaying=*/true);
   return true;
 }
 
 ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>& events,
-                                                    bool defer_updates) {
+                                                    bool defer_updates, size_t first) {
   JournalReplay replay;
-  replay.deferred = defer_updates && server_.BeginDeferredUpdates();
-  for (const LogEvent& event : events) {
-    if (Replay(event)) ++replay.events;
+  replay.deferred = defer_updates && server_->BeginDeferredUpdates();
+  for (size_t i = first; i < events.size(); ++i) {
+    if (Replay(events[i])) ++replay.events;
   }
-  if (replay.deferred) replay.batch_step = server_.EndDeferredUpdates();
+  if (replay.deferred) replay.batch_step = server_->EndDeferredUpdates();
   return replay;
 }
 
+Result<std::vector<uint8_t>> ServerNode::EncodeSnapshot(const JournalPosition& position) const {
+  SnapshotNodeState node;
+  node.position = position;
+  node.robots = robots_;
+  node.trajectories = trajectories_;
+  return SnapshotCodec::Encode(*server_, node);
+}
+
+Result<int64_t> ServerNode::RestoreSnapshot(const std::vector<uint8_t>& bytes,
+                                            const std::vector<LogEvent>& journal) {
+  const Result<JournalPosition> position = SnapshotCodec::ReadPosition(bytes.data(), bytes.size());
+  if (!position.ok()) return position.status();
+  const int64_t covered = position->events;
+  if (covered > static_cast<int64_t>(journal.size())) {
+    return Status::Error(ErrorCode::kInvalidArgument, "snapshot covers " + std::to_string(covered) +
+                                                          " journal events, the journal holds " +
+                                                          std::to_string(journal.size()));
+  }
+  if (covered > 0 && (journal[covered - 1].utime != position->last_utime ||
+                      journal[covered - 1].channel != position->last_channel)) {
+    return Status::Error(ErrorCode::kInvalidArgument,
+                         "snapshot's last journal event (" + position->last_channel + " at " +
+                             std::to_string(position->last_utime) +
+                             ") is not the journal's event " + std::to_string(covered));
+  }
+  auto fresh = std::make_unique<MappingServer>(options_.server);
+  SnapshotNodeState node;
+  if (Status s = SnapshotCodec::Decode(bytes.data(), bytes.size(), fresh.get(), &node); !s.ok()) {
+    return s;
+  }
+  server_ = std::move(fresh);
+  robots_ = std::move(node.robots);
+  trajectories_ = std::move(node.trajectories);
+  return covered;
+}
+
 void ServerNode::Tick(int64_t now_utime) {
-  const int64_t updates = server_.update_count();
-  const int64_t released = server_.order_stats().released;
-  server_.Tick(now_utime);
+  const int64_t updates = server_->update_count();
+  const int64_t released = server_->order_stats().released;
+  server_->Tick(now_utime);
   // Online the inputs go into the graph from here, within the release budget (the node's
   // clock), one at a time.
   const int64_t deadline = clock_() + static_cast<int64_t>(1e6 * options_.release_budget_s);
-  while (clock_() < deadline && server_.ReleaseDue(1) > 0) {
+  while (clock_() < deadline && server_->ReleaseDue(1) > 0) {
   }
   // A tick that bridged gaps or released inputs into the graph is replayed as a tick.
   if (journal_ &&
-      (server_.update_count() != updates || server_.order_stats().released != released)) {
+      (server_->update_count() != updates || server_->order_stats().released != released)) {
     const Status status = journal_(kJournalTick, now_utime, nullptr, 0);
-    if (!status.ok()) server_.CountRejection(status, kJournalTick);
+    if (!status.ok()) server_->CountRejection(status, kJournalTick);
   }
 }
 
 bool ServerNode::Journaled(const std::string& channel, const uint8_t* data, size_t size) {
   if (!journal_) return true;
-  const Status status = journal_(channel, server_.clock_utime(), data, size);
-  if (!status.ok()) server_.CountRejection(status, channel);
+  const Status status = journal_(channel, server_->clock_utime(), data, size);
+  if (!status.ok()) server_->CountRejection(status, channel);
   return status.ok();
 }
 
@@ -160,13 +196,13 @@ void ServerNode::OnKeyframe(Keyframe keyframe, const std::string& channel, const
   // told they arrived.
   if (!replaying) {
     if (Status refused = CheckKeyframe(keyframe); !refused.ok()) {
-      server_.CountRejection(refused, channel);
+      server_->CountRejection(refused, channel);
       return;
     }
     if (!Journaled(channel, data, size)) return;
   }
   const TrajectoryName trajectory{keyframe.robot, keyframe.trajectory_id};
-  if (server_.OnKeyframe(std::move(keyframe)).ok()) {
+  if (server_->OnKeyframe(std::move(keyframe)).ok()) {
     robots_.insert(trajectory.robot);
     trajectories_.insert(trajectory);
   }
@@ -179,36 +215,36 @@ void ServerNode::OnEncounter(const Encounter& encounter, const std::string& chan
     if (refused.ok()) refused = CheckRobotCap(encounter.observer);
     if (refused.ok()) refused = CheckRobotCap(encounter.observed);
     if (!refused.ok()) {
-      server_.CountRejection(refused, channel);
+      server_->CountRejection(refused, channel);
       return;
     }
     if (!Journaled(channel, data, size)) return;
   }
-  (void)server_.OnEncounter(encounter);
+  (void)server_->OnEncounter(encounter);
 }
 
 void ServerNode::PublishMap(int64_t now_utime, bool full) {
   const MapChunker::Split split =
-      server_.publisher().SplitMergedMap(server_.BuildMergedMap(), now_utime, full);
+      server_->publisher().SplitMergedMap(server_->BuildMergedMap(), now_utime, full);
   for (const MergedMapChunk& chunk : split.chunks) {
     publish_(options_.channels.map_chunks, EncodeMergedMapChunk(chunk));
   }
   publish_(options_.channels.map_header, EncodeMergedMapHeader(split.header));
   publish_(options_.channels.anchor_covariances,
-           EncodeAnchorCovariances(server_.BuildAnchorCovariances()));
+           EncodeAnchorCovariances(server_->BuildAnchorCovariances()));
   ++published_maps_;
 }
 
 void ServerNode::PublishGrid(bool full) {
-  for (const GridTile& tile : full ? server_.BuildGridTiles() : server_.BuildChangedGridTiles()) {
+  for (const GridTile& tile : full ? server_->BuildGridTiles() : server_->BuildChangedGridTiles()) {
     publish_(options_.channels.grid_tiles, EncodeGridTile(tile));
   }
   ++published_grids_;
 }
 
 void ServerNode::PublishDue(int64_t now_utime) {
-  MapPublisher& publisher = server_.publisher();
-  const int64_t update = server_.update_count();
+  MapPublisher& publisher = server_->publisher();
+  const int64_t update = server_->update_count();
   if (publisher.MapDue(now_utime, update)) {
     PublishMap(now_utime, /*full=*/false);
     publisher.MarkMapPublished(now_utime, update);
@@ -223,7 +259,7 @@ void ServerNode::PublishDue(int64_t now_utime) {
 }
 
 void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
-  if (server_.update_count() == 0) return;  // nothing mapped yet
+  if (server_->update_count() == 0) return;  // nothing mapped yet
   if (last_map_utime_ > 0 && static_cast<double>(now_utime - last_map_utime_) < 1e6 * period_s) {
     return;
   }
@@ -232,20 +268,20 @@ void ServerNode::RepublishMapDue(int64_t now_utime, double period_s) {
 }
 
 void ServerNode::PublishStatus() {
-  ServerStatus status = server_.BuildStatus();
+  ServerStatus status = server_->BuildStatus();
   status.instance_id = instance_id_;
   status.kernel_drops = kernel_drops_;
   publish_(options_.channels.status, EncodeServerStatus(status));
 }
 
 void ServerNode::PublishAcks() {
-  for (const DeliveryAck& ack : server_.BuildAcks()) {
+  for (const DeliveryAck& ack : server_->BuildAcks()) {
     publish_(options_.channels.acks, EncodeDeliveryAck(ack));
   }
 }
 
 void ServerNode::PublishResendRequests() {
-  for (const ResendRequest& request : server_.BuildResendRequests()) {
+  for (const ResendRequest& request : server_->BuildResendRequests()) {
     publish_(options_.channels.resend_requests, EncodeResendRequest(request));
   }
 }

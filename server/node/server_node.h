@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -25,6 +26,7 @@
 
 #include "server/mapping_server.h"
 #include "server/node/server_options.h"
+#include "server/snapshot_codec.h"
 
 namespace anchormap {
 
@@ -73,7 +75,20 @@ class ServerNode {
     bool deferred = false;
     UpdateResult batch_step;  // the closing batch step, when deferred
   };
-  JournalReplay ReplayJournal(const std::vector<LogEvent>& events, bool defer_updates);
+  // From events[first] on (the events before it are covered by a restored snapshot).
+  JournalReplay ReplayJournal(const std::vector<LogEvent>& events, bool defer_updates,
+                              size_t first = 0);
+  // Periodic snapshots (server/snapshot_codec.h, snapshot_store.h): the node's and the
+  // logic's state after the journal prefix `position`. Only when the server can be
+  // snapshot (MappingServer::CanSnapshot: no scan-matching source).
+  bool CanSnapshot() const { return server_->CanSnapshot(); }
+  Result<std::vector<uint8_t>> EncodeSnapshot(const JournalPosition& position) const;
+  // Replaces the state by a snapshot's, after checking that `journal` holds the prefix it
+  // covers (same length at least, the same last event's time and channel); decoded into a
+  // fresh MappingServer, so a refused snapshot changes nothing. Returns the number of
+  // journal events it covers (replay the journal from there).
+  Result<int64_t> RestoreSnapshot(const std::vector<uint8_t>& bytes,
+                                  const std::vector<LogEvent>& journal);
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
   void Tick(int64_t now_utime);
   // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor
@@ -96,7 +111,7 @@ class ServerNode {
   void PublishAcks();
   void PublishResendRequests();
 
-  MappingServer& server() { return server_; }
+  MappingServer& server() { return *server_; }
   int64_t published_maps() const { return published_maps_; }
   int64_t published_grids() const { return published_grids_; }
 
@@ -127,7 +142,7 @@ class ServerNode {
   Clock clock_;
   std::optional<Authenticator> authenticator_;
   JournalAppend journal_;
-  MappingServer server_;
+  std::unique_ptr<MappingServer> server_;  // replaced whole by RestoreSnapshot
   std::set<std::string> robots_;           // admitted, at most options_.max_robots
   std::set<TrajectoryName> trajectories_;  // at most max_trajectories
   int64_t instance_id_ = 0;

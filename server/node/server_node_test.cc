@@ -231,6 +231,67 @@ TEST_F(ServerNodeJournalTest, ReplayingTheJournalRebuildsTheSameGraphsAndEstimat
   EXPECT_FALSE(restarted.Replay(other));
 }
 
+// A restart from a snapshot taken mid-session plus the journal's tail rebuilds what the
+// whole journal's replay does; a snapshot that does not match the journal is refused and
+// changes nothing.
+TEST_F(ServerNodeJournalTest, ASnapshotAndTheJournalsTailRebuildTheWholeReplay) {
+  for (int32_t seq : {0, 1, 2}) {
+    Receive(1.0 + seq, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq)));
+  }
+  for (int32_t seq : {0, 2, 3}) {  // seq 1 missing: 2 and 3 held at the snapshot
+    Receive(2.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq)));
+  }
+  node_.Tick(4'000'000);
+  ASSERT_GT(node_.server().receipt().num_held(), 0u);
+  const JournalPosition position{static_cast<int64_t>(journal_.size()), journal_.back().utime,
+                                 journal_.back().channel};
+  const Result<std::vector<uint8_t>> snapshot = node_.EncodeSnapshot(position);
+  ASSERT_TRUE(snapshot.ok()) << snapshot.status().message();
+  Receive(5.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, 1)));  // the resend
+  Receive(5.5, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, 2)));  // duplicate
+  Encounter e;
+  e.utime = 2'000'000;
+  e.observer = "R1";
+  e.observer_trajectory_id = 11;
+  e.observed = "R2";
+  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
+  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  Receive(6.0, channels::kEncounters, EncodeEncounter(e));
+  node_.Tick(20'000'000);
+
+  ServerNode whole(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  (void)whole.ReplayJournal(journal_, true);
+  ServerNode restarted(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  const Result<int64_t> covered = restarted.RestoreSnapshot(*snapshot, journal_);
+  ASSERT_TRUE(covered.ok()) << covered.status().message();
+  EXPECT_EQ(*covered, position.events);
+  const ServerNode::JournalReplay tail =
+      restarted.ReplayJournal(journal_, true, static_cast<size_t>(*covered));
+  EXPECT_EQ(tail.events, static_cast<int64_t>(journal_.size()) - position.events);
+  for (ServerNode* node : {&whole, &restarted}) {
+    EXPECT_EQ(node->server().update_count(), node_.server().update_count());
+    EXPECT_EQ(node->server().table().num_keyframes(), 7);
+    EXPECT_EQ(node->server().stats().encounters_added, 1);
+    EXPECT_EQ(node->server().rejects().count(ErrorCode::kDuplicateSequence), 1);
+    EXPECT_EQ(node->server().receipt().num_held(), 0u);
+  }
+  ExpectSameMap(whole.server().BuildMergedMap(), restarted.server().BuildMergedMap(), 1e-9);
+  ExpectSameMap(node_.server().BuildMergedMap(), restarted.server().BuildMergedMap(), 1e-9);
+
+  // Not this journal's prefix: a shorter journal, another last event.
+  ServerNode refused(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  const std::vector<LogEvent> shorter(journal_.begin(), journal_.begin() + position.events - 1);
+  EXPECT_FALSE(refused.RestoreSnapshot(*snapshot, shorter).ok());
+  std::vector<LogEvent> other = journal_;
+  other[position.events - 1].utime += 1;
+  EXPECT_FALSE(refused.RestoreSnapshot(*snapshot, other).ok());
+  std::vector<uint8_t> corrupt = *snapshot;
+  corrupt[corrupt.size() / 3] ^= 0x40;
+  EXPECT_FALSE(refused.RestoreSnapshot(corrupt, journal_).ok());
+  EXPECT_EQ(refused.server().table().num_keyframes(), 0);  // unchanged
+  EXPECT_EQ(refused.server().receipt().num_keyframes(), 0);
+}
+
 TEST_F(ServerNodeJournalTest, AnInputThatCannotBeJournaledIsRefusedNotApplied) {
   Receive(1.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 0)));
   fail_appends_ = true;

@@ -50,6 +50,13 @@ struct ServerOptions {
   // ReplayJournal; automatically off when a scan-matching source is on). false: every
   // update runs as it did live (slower; for comparison).
   bool journal_defer_updates = true;
+  // Periodic snapshots with --journal (server/node/snapshot_store.h): one is written when
+  // this many events were journaled since the last, or this many seconds passed and some
+  // were (0 switches a rule off; both 0: no snapshots). A restart restores the newest valid
+  // one and replays only the journal after it. Not with a scan-matching source (its state
+  // is not in a snapshot): then the whole journal is replayed.
+  int64_t snapshot_every_events = 5000;
+  double snapshot_every_s = 300.0;
   std::string log_level = "info";
   // Authentication (common/bus/authenticator.h): with a key file, keyframes and encounters
   // must come in anchormap.signed_t envelopes under one of its keys, and what the server
@@ -79,6 +86,8 @@ struct ServerOptions {
     if (!(release_budget_s > 0)) return Status::Error("release_budget_s must be > 0");
     if (!journal_dir.empty() && !log_input.empty())
       return Status::Error("--journal is for the online server (not with --log)");
+    if (snapshot_every_events < 0) return Status::Error("snapshot_every_events must be >= 0");
+    if (!(snapshot_every_s >= 0)) return Status::Error("snapshot_every_s must be >= 0");
     if (queue_capacity < 30) return Status::Error("queue_capacity must be >= 30");
     if (max_robots < 1) return Status::Error("max_robots must be >= 1");
     if (max_trajectories < 1) return Status::Error("max_trajectories must be >= 1");
