@@ -15,6 +15,9 @@
 # Assert: the same keyframes and encounters, none missing or doubled, poses within 1e-9
 # (both runs iterate their final batch step to a 1e-12 step), no gap bridged, KILLS + 1
 # server instance ids seen on the status channel.
+# Snapshots: every server writes one each second (and every 100 journal events), so most
+# restarts restore the newest snapshot and replay only the journal after it (some kills land
+# while one is being written); at least one restart must have used one.
 # Without network namespaces: exit 77 (ctest SKIP_RETURN_CODE) with a message.
 #
 # usage: crash_test.sh BUILD_DIR      (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
@@ -41,6 +44,7 @@ milliseconds_as_seconds() { printf '%d.%03d' $(($1 / 1000)) $(($1 % 1000)); }
 start_server() {
   local work=$1 run=$2
   "$BIN/anchormap-server" --lcm-url "$URL" --journal "$work/journal" --status-period-s 1 \
+    --snapshot-every-s 1 --snapshot-every-events 100 \
     --convergence-step $CONVERGENCE >"$work/server_$run.log" 2>&1 &
   server=$!
 }
@@ -118,6 +122,10 @@ main() {
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"
   done
   [ $status -eq 0 ] || { log "daemons failed (status $status)"; tail -20 "$work/server_$KILLS.log"; exit 1; }
+  local restored
+  restored=$(grep -l 'restored .*snapshot-' "$work"/server_*.log 2>/dev/null | wc -l)
+  log "$restored of $KILLS restarts restored a snapshot; $(cat "$work"/server_*.log | grep -c 'snapshot of ') snapshots written, $(cat "$work"/server_*.log | grep -c ' refused: ') refused"
+  [ "$restored" -ge 1 ] || { log "FAIL: no restart went through a snapshot"; exit 1; }
   log "journal: $(stat -c %s "$work/journal/journal.lcmlog") bytes"
 
   "$BIN/anchormap-server" --log "$work/agents.lcmlog" --output "$work/reference.lcmlog" \

@@ -254,6 +254,7 @@ Result<std::unique_ptr<JournalState>> OpenAndReplayJournal(const std::string& di
   const auto start = std::chrono::steady_clock::now();
   const std::clock_t cpu_start = std::clock();
   const int64_t covered = RestoreNewestSnapshot(dir, events, node);
+  const int64_t deferred_before = node->server().stats().deferred_updates;  // the snapshot's
   const ServerNode::JournalReplay replay =
       node->ReplayJournal(events, defer_updates, static_cast<size_t>(covered));
   const double seconds =
@@ -265,7 +266,8 @@ Result<std::unique_ptr<JournalState>> OpenAndReplayJournal(const std::string& di
        << state->journal->bytes() << " bytes) in " << seconds << " s (" << cpu_seconds
        << " s CPU, ";
   if (replay.deferred) {
-    line << node->server().stats().deferred_updates << " solver updates deferred to batch steps, "
+    line << node->server().stats().deferred_updates - deferred_before
+         << " solver updates deferred to batch steps, "
          << "the last " << 1e3 * replay.batch_step.seconds << " ms";
   } else {
     line << "every solver update run"
