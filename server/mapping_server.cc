@@ -371,6 +371,7 @@ bool MappingServer::CanSnapshot() const {
 }
 
 bool MappingServer::BeginDeferredUpdates() {
+  if (deferring_) return true;
   if (!CanDeferUpdates()) return false;
   deferring_ = true;
   unsolved_ = false;

@@ -174,7 +174,9 @@ class MappingServer {
   // scan-matching sources gate their candidates on it, so their replayed decisions would
   // differ from the live ones; Begin then does nothing and every update runs.
   bool CanDeferUpdates() const;
-  bool BeginDeferredUpdates();  // false when the updates cannot be deferred
+  // False when the updates cannot be deferred; true (nothing changed) when already deferring
+  // (e.g. a server restored from a snapshot: server/snapshot_codec.h).
+  bool BeginDeferredUpdates();
   // Ends the deferral: the batch step (not counted as an update: it stands for the
   // deferred ones). Ok when nothing was deferred.
   UpdateResult EndDeferredUpdates();

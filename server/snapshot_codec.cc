@@ -339,8 +339,6 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   }
   w.Size(st.added_by_kind.size());
   for (int64_t v : st.added_by_kind) w.I64(v);
-  w.F64(st.last_update_ms);
-  w.F64(st.total_update_ms);
   for (int64_t v : {s.data_utime_, s.released_utime_, s.clock_utime_, s.resend_requests_,
                     s.encounters_given_up_}) {
     w.I64(v);
@@ -426,8 +424,6 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   }
   if (r.Count() != st.added_by_kind.size()) return Corrupt("constraint kinds");
   for (int64_t& v : st.added_by_kind) v = r.I64();
-  st.last_update_ms = r.F64();
-  st.total_update_ms = r.F64();
   for (int64_t* v : {&s->data_utime_, &s->released_utime_, &s->clock_utime_, &s->resend_requests_,
                      &s->encounters_given_up_}) {
     *v = r.I64();
@@ -506,11 +502,11 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   direct.now_utime_ = r.I64();
   if (r.failed()) return Corrupt("payload ends early");
   if (!r.at_end()) return Corrupt("bytes after the last section");
-  if (s->smoother_.stats().variables > 0) {
-    const UpdateResult step = s->smoother_.BatchOptimize();
-    if (!step.status.ok())
-      return Status::Error(step.status.code(), "snapshot's batch step: " + step.status.message());
-  }
+  // Unsolved, deferring: the journal's tail is replayed deferred and one batch step then
+  // solves everything (EndDeferredUpdates), rather than one step here and one after it.
+  s->deferring_ = true;
+  s->unsolved_ = s->smoother_.stats().variables > 0;
+  s->variables_at_deferred_batch_ = s->smoother_.stats().variables;
   return Status::Ok();
 }
 

@@ -12,10 +12,10 @@
 // windows, resend and gap clocks, the direct-encounter source's waiting encounters, the counters
 // (stats, refusals by reason); and the node's admitted robots and trajectories (its caps). Not
 // held: the smoother's estimate and factorisation (rebuilt by one batch step from the live initial
-// guesses, so the estimate after a restore is the converged one, as after a deferred
-// journal replay, not the incremental one the old server held), the
-// map publisher's state (the next map and grid go out whole, as after any restart), the
-// update timings and the once-per-kind log memories.
+// guesses, after the journal's tail, so the estimate after a restore is the converged one, as after
+// a deferred journal replay, not the incremental one the old server held), the map publisher's
+// state (the next map and grid go out whole, as after any restart), the update timings (this
+// process's last and total update ms) and the once-per-kind log memories.
 //
 // Only a server whose only source is the direct-encounter one can be snapshot
 // (MappingServer::CanSnapshot): the scan-matching sources' state (submaps, kept
@@ -62,8 +62,10 @@ class SnapshotCodec {
   // Checks the envelope (magic, version, size, checksum) and reads the journal position.
   static Result<JournalPosition> ReadPosition(const uint8_t* data, size_t size);
   // Restores into `server`, freshly constructed with the options of the server that wrote
-  // the snapshot (options are not stored; sources are checked) and given no input: ends
-  // with one batch step. On an error `server` is unusable (the caller discards it).
+  // the snapshot (options are not stored; sources are checked) and given no input. The
+  // server is left deferring its updates (MappingServer::BeginDeferredUpdates) with its
+  // graph not yet solved: the caller replays the journal's tail, then EndDeferredUpdates()
+  // solves once by a batch step. On an error `server` is unusable (the caller discards it).
   static Status Decode(const uint8_t* data, size_t size, MappingServer* server,
                        SnapshotNodeState* node);
 };

@@ -212,6 +212,12 @@ TEST_F(SnapshotCodecTest, RestoredServerEndsWithTheUninterruptedMap) {
     SnapshotNodeState read;
     const Status decoded = SnapshotCodec::Decode(bytes->data(), bytes->size(), &restored, &read);
     ASSERT_TRUE(decoded.ok()) << decoded.message();
+    // Left deferring, unsolved: one batch step solves it (after a journal's tail, online).
+    EXPECT_TRUE(restored.deferring_updates());
+    EXPECT_FALSE(restored.CanSnapshot());
+    const UpdateResult solved = restored.EndDeferredUpdates();
+    ASSERT_TRUE(solved.status.ok()) << solved.status.message();
+    EXPECT_TRUE(solved.batch_step);
     EXPECT_EQ(read.position.events, node.position.events);
     EXPECT_EQ(read.position.last_utime, node.position.last_utime);
     EXPECT_EQ(read.position.last_channel, "ticks");

@@ -82,6 +82,11 @@ bool ServerNode::Replay(const LogEvent& event) {
 ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>& events,
                                                     bool defer_updates, size_t first) {
   JournalReplay replay;
+  // A restored snapshot left the server deferring, its graph unsolved: solved at the end of
+  // a deferred replay, or now when every update is to run.
+  if (!defer_updates && server_->deferring_updates()) {
+    replay.batch_step = server_->EndDeferredUpdates();
+  }
   replay.deferred = defer_updates && server_->BeginDeferredUpdates();
   for (size_t i = first; i < events.size(); ++i) {
     if (Replay(events[i])) ++replay.events;

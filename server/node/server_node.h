@@ -86,7 +86,8 @@ class ServerNode {
   // Replaces the state by a snapshot's, after checking that `journal` holds the prefix it
   // covers (same length at least, the same last event's time and channel); decoded into a
   // fresh MappingServer, so a refused snapshot changes nothing. Returns the number of
-  // journal events it covers (replay the journal from there).
+  // journal events it covers. The server is then deferring its updates, its graph not yet
+  // solved: ReplayJournal from there must follow (it ends with the batch step).
   Result<int64_t> RestoreSnapshot(const std::vector<uint8_t>& bytes,
                                   const std::vector<LogEvent>& journal);
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
