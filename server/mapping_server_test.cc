@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "common/util/log.h"
+#include "tests/testing/map_difference.h"
 
 namespace anchormap {
 namespace {
@@ -583,32 +584,6 @@ TEST_F(MappingServerTest, RestartedAgentGetsANewTrajectoryAnchoredAtItsNextEncou
   EXPECT_EQ(server.table().num_bridged_gaps(), 0);
 }
 
-// The largest difference between two maps' global poses; they must hold the same
-// trajectories, keyframes and encounter links.
-double MaxPoseDifference(const MergedMap& a, const MergedMap& b) {
-  EXPECT_EQ(a.trajectories.size(), b.trajectories.size());
-  EXPECT_EQ(a.encounters.size(), b.encounters.size());
-  double largest = 0.0;
-  for (size_t t = 0; t < std::min(a.trajectories.size(), b.trajectories.size()); ++t) {
-    const MergedTrajectory& x = a.trajectories[t];
-    const MergedTrajectory& y = b.trajectories[t];
-    EXPECT_EQ(x.robot, y.robot);
-    EXPECT_EQ(x.anchored, y.anchored);
-    EXPECT_EQ(x.pose_utimes, y.pose_utimes);
-    if (x.poses.size() != y.poses.size()) return 1e300;
-    for (size_t i = 0; i < x.poses.size(); ++i) {
-      largest = std::max(largest, PoseError(x.poses[i], y.poses[i]).cwiseAbs().maxCoeff());
-    }
-  }
-  for (size_t i = 0; i < std::min(a.encounters.size(), b.encounters.size()); ++i) {
-    EXPECT_EQ(a.encounters[i].robot_a, b.encounters[i].robot_a);
-    EXPECT_EQ(a.encounters[i].index_a, b.encounters[i].index_a);
-    EXPECT_EQ(a.encounters[i].robot_b, b.encounters[i].robot_b);
-    EXPECT_EQ(a.encounters[i].index_b, b.encounters[i].index_b);
-  }
-  return largest;
-}
-
 // A restart's journal replay (server/node) defers the solver: the graphs it rebuilds are
 // the live run's, its estimate the converged one, and the run goes on to the same end.
 TEST_F(MappingServerTest, DeferredUpdatesRebuildTheSameGraphsWithTheConvergedEstimate) {
@@ -651,9 +626,10 @@ TEST_F(MappingServerTest, DeferredUpdatesRebuildTheSameGraphsWithTheConvergedEst
   // The estimate: the minimum the live run's own batch step reaches (to the step
   // tolerance), and near the live incremental one (iSAM's linearisation error, mm).
   converged.mutable_smoother().BatchOptimize();
-  EXPECT_LT(MaxPoseDifference(converged.BuildMergedMap(), restarted.BuildMergedMap()), 1e-9);
+  EXPECT_LT(testing::LargestPoseDifference(converged.BuildMergedMap(), restarted.BuildMergedMap()),
+            1e-9);
   const double from_incremental =
-      MaxPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap());
+      testing::LargestPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap());
   EXPECT_LT(from_incremental, 0.05);
 
   // Live again: every update runs, and the session ends where the uninterrupted one does.
@@ -669,7 +645,8 @@ TEST_F(MappingServerTest, DeferredUpdatesRebuildTheSameGraphsWithTheConvergedEst
   restarted.Flush();
   EXPECT_EQ(restarted.stats().updates, live.stats().updates);
   EXPECT_EQ(restarted.stats().encounters_added, 6);
-  EXPECT_LT(MaxPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap()), 1e-9);
+  EXPECT_LT(testing::LargestPoseDifference(live.BuildMergedMap(), restarted.BuildMergedMap()),
+            1e-9);
 }
 
 // The scan-matching sources gate candidates on the estimate: no deferral with them on.

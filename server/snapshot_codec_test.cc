@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "common/util/log.h"
+#include "tests/testing/map_difference.h"
 
 namespace anchormap {
 namespace {
@@ -119,23 +120,6 @@ MappingServerOptions Options() {
   return options;
 }
 
-double MaxPoseDifference(const MergedMap& a, const MergedMap& b) {
-  EXPECT_EQ(a.trajectories.size(), b.trajectories.size());
-  double largest = 0.0;
-  for (size_t t = 0; t < std::min(a.trajectories.size(), b.trajectories.size()); ++t) {
-    const MergedTrajectory& x = a.trajectories[t];
-    const MergedTrajectory& y = b.trajectories[t];
-    EXPECT_EQ(x.robot, y.robot);
-    EXPECT_EQ(x.anchored, y.anchored);
-    EXPECT_EQ(x.pose_utimes, y.pose_utimes);
-    if (x.poses.size() != y.poses.size()) return 1e300;
-    for (size_t i = 0; i < x.poses.size(); ++i) {
-      largest = std::max(largest, PoseError(x.poses[i], y.poses[i]).cwiseAbs().maxCoeff());
-    }
-  }
-  return largest;
-}
-
 // Everything but the estimate: tables, delivery, order stage, links, counters.
 void ExpectSameState(const MappingServer& a, const MappingServer& b) {
   // Every counter, waiting item and refusal (the last update's time aside).
@@ -236,7 +220,8 @@ TEST_F(SnapshotCodecTest, RestoredServerEndsWithTheUninterruptedMap) {
     first.Flush();
     restored.Flush();
     ExpectSameState(live, restored);
-    EXPECT_LT(MaxPoseDifference(live.BuildMergedMap(), restored.BuildMergedMap()), 1e-9);
+    EXPECT_LT(testing::LargestPoseDifference(live.BuildMergedMap(), restored.BuildMergedMap()),
+              1e-9);
   }
 }
 

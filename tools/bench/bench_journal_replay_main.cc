@@ -32,6 +32,7 @@
 #include "common/util/options_loader.h"
 #include "server/node/server_node.h"
 #include "server/node/snapshot_store.h"
+#include "tests/testing/map_difference.h"
 
 namespace anchormap {
 namespace {
@@ -63,22 +64,6 @@ ServerOptions OnlineServerOptions(const BenchOptions& bench) {
 }
 
 void IgnoreOutputs(const std::string&, const std::vector<uint8_t>&) {}
-
-// The largest difference between two maps' poses (infinite when their shapes differ).
-double MaxPoseDifference(const MergedMap& a, const MergedMap& b) {
-  if (a.trajectories.size() != b.trajectories.size() || a.encounters.size() != b.encounters.size())
-    return 1e300;
-  double largest = 0.0;
-  for (size_t t = 0; t < a.trajectories.size(); ++t) {
-    const auto& x = a.trajectories[t].poses;
-    const auto& y = b.trajectories[t].poses;
-    if (x.size() != y.size()) return 1e300;
-    for (size_t i = 0; i < x.size(); ++i) {
-      largest = std::max(largest, PoseError(x[i], y[i]).cwiseAbs().maxCoeff());
-    }
-  }
-  return largest;
-}
 
 struct ReplayFigures {
   double cpu_s = 0.0;
@@ -174,7 +159,8 @@ int Run(const BenchOptions& bench) {
     figures.cpu_s = CpuSeconds() - start;
     figures.batch_step_ms = 1e3 * result.batch_step.seconds;
     restarted.server().Flush();
-    figures.final_difference = MaxPoseDifference(live_map, restarted.server().BuildMergedMap());
+    figures.final_difference =
+        testing::LargestPoseDifference(live_map, restarted.server().BuildMergedMap());
     return figures;
   };
   // A restart through the newest snapshot: restore, then the journal's tail, deferred.
@@ -198,7 +184,8 @@ int Run(const BenchOptions& bench) {
     figures.cpu_s = CpuSeconds() - start;
     figures.batch_step_ms = 1e3 * result.batch_step.seconds;
     restarted.server().Flush();
-    figures.final_difference = MaxPoseDifference(live_map, restarted.server().BuildMergedMap());
+    figures.final_difference =
+        testing::LargestPoseDifference(live_map, restarted.server().BuildMergedMap());
     return figures;
   };
   // Reading the journal back from its file (a restart's first step, whatever the snapshot).
