@@ -9,6 +9,7 @@
 #include <chrono>
 #include <csignal>
 #include <ctime>
+#include <future>
 #include <iostream>
 #include <random>
 #include <sstream>
@@ -209,7 +210,31 @@ struct JournalState {
   JournalPosition last;          // the journal's length and its last event
   int64_t snapshot_events = -1;  // journal events the newest snapshot covers (-1: none)
   std::chrono::steady_clock::time_point snapshot_time = std::chrono::steady_clock::now();
+  // The snapshot file being written off the loop (its write + fsync can take longer than
+  // the encoding on a busy disk); at most one at a time. Its destructor waits for it.
+  struct Written {
+    Status status;
+    double seconds = 0.0;
+  };
+  std::future<Written> writing;
+  std::string writing_what;  // for the log line once written
 };
+
+// Logs the snapshot written off the loop once it is done (`wait`: also if it is not yet);
+// true when none is in flight any more.
+bool CollectSnapshotWrite(JournalState* j, bool wait) {
+  if (!j->writing.valid()) return true;
+  if (!wait && j->writing.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+    return false;
+  }
+  const JournalState::Written written = j->writing.get();
+  if (written.status.ok()) {
+    LogInfo(j->writing_what + ", written in " + std::to_string(1e3 * written.seconds) + " ms");
+  } else {
+    LogWarning("snapshot not written: " + written.status.message());
+  }
+  return true;
+}
 
 // Restores the newest snapshot in `dir` that is valid and matches `events` (the journal);
 // returns the number of events it covers (0: none usable, replay everything). A refused
@@ -294,6 +319,7 @@ Result<std::unique_ptr<JournalState>> OpenAndReplayJournal(const std::string& di
 // Writes a snapshot when one is due (ServerOptions::snapshot_every_*), between two events
 // (from the loop's timer: the state is the journal prefix's).
 void WriteSnapshotIfDue(const ServerOptions& options, ServerNode* node, JournalState* j) {
+  if (!CollectSnapshotWrite(j, /*wait=*/false)) return;  // the previous one is still going
   const int64_t fresh = j->last.events - std::max<int64_t>(j->snapshot_events, 0);
   if (fresh <= 0 || !node->CanSnapshot()) return;
   const auto now = std::chrono::steady_clock::now();
@@ -302,21 +328,28 @@ void WriteSnapshotIfDue(const ServerOptions& options, ServerNode* node, JournalS
   const bool by_time = options.snapshot_every_s > 0 && since >= options.snapshot_every_s;
   if (!by_count && !by_time) return;
   j->snapshot_time = now;  // also after a failure: retried at the next period, not at once
+  // Encoded here, between two events (the state is the journal prefix's); written off the
+  // loop. A write that fails leaves the previous snapshots (and the journal) in place.
   const std::clock_t cpu_start = std::clock();
-  const Result<std::vector<uint8_t>> bytes = node->EncodeSnapshot(j->last);
+  Result<std::vector<uint8_t>> bytes = node->EncodeSnapshot(j->last);
   const double encode_cpu = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
-  Status written =
-      bytes.ok() ? WriteSnapshotFile(j->dir, j->last.events, *bytes, /*keep=*/2) : bytes.status();
-  if (!written.ok()) {
-    LogWarning("snapshot not written: " + written.message());
+  if (!bytes.ok()) {
+    LogWarning("snapshot not written: " + bytes.status().message());
     return;
   }
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - now).count();
   j->snapshot_events = j->last.events;
-  LogInfo("snapshot of " + std::to_string(j->last.events) + " journal events: " +
-          std::to_string(bytes->size()) + " bytes in " + std::to_string(1e3 * seconds) +
-          " ms (encoding " + std::to_string(1e3 * encode_cpu) + " ms CPU)");
+  j->writing_what = "snapshot of " + std::to_string(j->last.events) +
+                    " journal events: " + std::to_string(bytes->size()) + " bytes, encoded in " +
+                    std::to_string(1e3 * encode_cpu) + " ms CPU on the loop";
+  j->writing = std::async(
+      std::launch::async, [dir = j->dir, events = j->last.events, data = std::move(*bytes)] {
+        const auto start = std::chrono::steady_clock::now();
+        JournalState::Written written;
+        written.status = WriteSnapshotFile(dir, events, data, /*keep=*/2);
+        written.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return written;
+      });
 }
 
 int RunOnline(const ServerOptions& given) {
@@ -416,6 +449,7 @@ int RunOnline(const ServerOptions& given) {
   // A restarted server says so at once (its new instance id), with what the journal gave it.
   node.PublishStatus();
   loop->Run();
+  if (journal) CollectSnapshotWrite(journal.get(), /*wait=*/true);
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
   node.server().Flush();
