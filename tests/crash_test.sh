@@ -17,7 +17,9 @@
 # server instance ids seen on the status channel.
 # Snapshots: every server writes one each second (and every 100 journal events), so most
 # restarts restore the newest snapshot and replay only the journal after it (some kills land
-# while one is being written); at least one restart must have used one.
+# while one is being written); at least one restart must have used one. Before restart 5
+# the newest snapshot is cut short: that restart must refuse it and use the one before it
+# (or the whole journal).
 # Without network namespaces: exit 77 (ctest SKIP_RETURN_CODE) with a message.
 #
 # usage: crash_test.sh BUILD_DIR      (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
@@ -93,6 +95,14 @@ inside_namespace() {
     run=$((run + 1))
     log "kill $run after ${life_ms} ms of life ($((SECONDS - started)) s into the replay), ${down_ms} ms down"
     sleep "$(milliseconds_as_seconds $down_ms)"
+    if [ $run -eq 5 ]; then
+      local newest
+      newest=$(ls "$work"/journal/snapshot-*.bin 2>/dev/null | tail -1)
+      if [ -n "$newest" ]; then
+        truncate -s 100 "$newest" && echo "$newest" >"$work/cut_snapshot"
+        log "cut $(basename "$newest") short before restart $run"
+      fi
+    fi
     start_server "$work" $run
   done
   wait "$player" || { log "lcm-logplayer failed"; return 1; }
@@ -126,6 +136,11 @@ main() {
   restored=$(grep -l 'restored .*snapshot-' "$work"/server_*.log 2>/dev/null | wc -l)
   log "$restored of $KILLS restarts restored a snapshot; $(cat "$work"/server_*.log | grep -c 'snapshot of ') snapshots written, $(cat "$work"/server_*.log | grep -c ' refused: ') refused"
   [ "$restored" -ge 1 ] || { log "FAIL: no restart went through a snapshot"; exit 1; }
+  if [ -f "$work/cut_snapshot" ]; then
+    grep -q "$(basename "$(cat "$work/cut_snapshot")") refused: snapshot refused: truncated" "$work/server_5.log" ||
+      { log "FAIL: restart 5 did not refuse the snapshot cut short"; exit 1; }
+    log "restart 5 refused the snapshot cut short: $(grep -h 'journal .*replayed' "$work/server_5.log" | sed 's/.*journal [^ ]*: //; s/ (.*//')"
+  fi
   log "journal: $(stat -c %s "$work/journal/journal.lcmlog") bytes"
 
   "$BIN/anchormap-server" --log "$work/agents.lcmlog" --output "$work/reference.lcmlog" \
