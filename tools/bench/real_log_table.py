@@ -184,6 +184,9 @@ def row(r):
         joins = "0"
     else:
         joins = f"{j['count']}, {j['mean_m']:.4f} (median {j['median_m']:.4f})"
+    across = r["skipped"]["across_frames"]
+    if j is not None and across > 0:  # never joined: eval could not score these
+        joins += f"; {across} across frames, not scored"
     loop, scan = r["loop"] or {}, r["scan"] or {}
     lc = f"{loop.get('accepted', '?')} / {loop.get('rejected', '?')}"
     se = f"{scan.get('accepted', '?')} / {scan.get('rejected', '?')}" if r["robots"] > 1 else "-"
