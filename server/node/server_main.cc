@@ -9,7 +9,6 @@
 #include <chrono>
 #include <csignal>
 #include <ctime>
-#include <future>
 #include <iostream>
 #include <random>
 #include <sstream>
@@ -21,9 +20,9 @@
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
+#include "server/node/server_journal.h"
 #include "server/node/server_node.h"
 #include "server/node/server_options.h"
-#include "server/node/snapshot_store.h"
 
 namespace anchormap {
 namespace {
@@ -203,155 +202,6 @@ Status SetUpAuthentication(const ServerOptions& options, ServerNode* node) {
   return Status::Ok();
 }
 
-// The online journal and its snapshots.
-struct JournalState {
-  std::unique_ptr<Journal> journal;
-  std::string dir;
-  JournalPosition last;          // the journal's length and its last event
-  int64_t snapshot_events = -1;  // journal events the newest snapshot covers (-1: none)
-  std::chrono::steady_clock::time_point snapshot_time = std::chrono::steady_clock::now();
-  // The snapshot file being written off the loop (its write + fsync can take longer than
-  // the encoding on a busy disk); at most one at a time. Its destructor waits for it.
-  struct Written {
-    Status status;
-    double seconds = 0.0;
-  };
-  std::future<Written> writing;
-  std::string writing_what;  // for the log line once written
-};
-
-// Logs the snapshot written off the loop once it is done (`wait`: also if it is not yet);
-// true when none is in flight any more.
-bool CollectSnapshotWrite(JournalState* j, bool wait) {
-  if (!j->writing.valid()) return true;
-  if (!wait && j->writing.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
-    return false;
-  }
-  const JournalState::Written written = j->writing.get();
-  if (written.status.ok()) {
-    LogInfo(j->writing_what + ", written in " + std::to_string(1e3 * written.seconds) + " ms");
-  } else {
-    LogWarning("snapshot not written: " + written.status.message());
-  }
-  return true;
-}
-
-// Restores the newest snapshot in `dir` that is valid and matches `events` (the journal);
-// returns the number of events it covers (0: none usable, replay everything). A refused
-// snapshot is logged with its reason and the next older one tried.
-int64_t RestoreNewestSnapshot(const std::string& dir, const std::vector<LogEvent>& events,
-                              ServerNode* node) {
-  const std::vector<std::string> files = ListSnapshotFiles(dir);
-  if (files.empty()) return 0;
-  if (!node->CanSnapshot()) {
-    LogWarning("journal " + dir + ": " + std::to_string(files.size()) +
-               " snapshots ignored (a scan-matching source is on: its state is not in them); "
-               "replaying the whole journal");
-    return 0;
-  }
-  for (const std::string& path : files) {
-    Result<std::vector<uint8_t>> bytes = ReadSnapshotFile(path);
-    const Result<int64_t> covered =
-        bytes.ok() ? node->RestoreSnapshot(*bytes, events) : Result<int64_t>(bytes.status());
-    if (covered.ok()) {
-      LogInfo("restored " + path + " (" + std::to_string(bytes->size()) + " bytes, " +
-              std::to_string(*covered) + " of " + std::to_string(events.size()) +
-              " journal events)");
-      return *covered;
-    }
-    LogWarning(path + " refused: " + covered.status().message() +
-               "; trying an older snapshot, else the whole journal");
-  }
-  return 0;
-}
-
-// Opens the journal in `dir`, restores the newest valid snapshot there, replays the journal
-// after it through `node` (the same handlers, with the clocks they saw live) and has the
-// node journal every input from now on.
-Result<std::unique_ptr<JournalState>> OpenAndReplayJournal(const std::string& dir,
-                                                           bool defer_updates, ServerNode* node) {
-  std::vector<LogEvent> events;
-  Result<std::unique_ptr<Journal>> journal = Journal::Open(dir, &events);
-  if (!journal.ok()) return journal.status();
-  auto state = std::make_unique<JournalState>();
-  state->journal = std::move(*journal);
-  state->dir = dir;
-  const auto start = std::chrono::steady_clock::now();
-  const std::clock_t cpu_start = std::clock();
-  const int64_t covered = RestoreNewestSnapshot(dir, events, node);
-  const int64_t deferred_before = node->server().stats().deferred_updates;  // the snapshot's
-  const ServerNode::JournalReplay replay =
-      node->ReplayJournal(events, defer_updates, static_cast<size_t>(covered));
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const double cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
-  std::ostringstream line;
-  line << "journal " << state->journal->path() << ": " << (covered > 0 ? "snapshot + " : "")
-       << "replayed " << replay.events << " of " << events.size() << " events ("
-       << state->journal->bytes() << " bytes) in " << seconds << " s (" << cpu_seconds
-       << " s CPU, ";
-  if (replay.deferred) {
-    line << node->server().stats().deferred_updates - deferred_before
-         << " solver updates deferred to batch steps, "
-         << "the last " << 1e3 * replay.batch_step.seconds << " ms";
-  } else {
-    line << "every solver update run"
-         << (defer_updates ? " (a scan-matching source reads the estimate)" : "");
-  }
-  line << "); resuming with " << node->server().StatusLine();
-  LogInfo(line.str());
-  state->last.events = static_cast<int64_t>(events.size());
-  if (!events.empty()) {
-    state->last.last_utime = events.back().utime;
-    state->last.last_channel = events.back().channel;
-  }
-  state->snapshot_events = covered > 0 ? covered : -1;
-  JournalState* s = state.get();
-  node->SetJournal(
-      [s](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
-        const Status status = s->journal->Append(channel, clock_utime, data, size);
-        if (status.ok()) s->last = {s->last.events + 1, clock_utime, channel};
-        return status;
-      });
-  return state;
-}
-
-// Writes a snapshot when one is due (ServerOptions::snapshot_every_*), between two events
-// (from the loop's timer: the state is the journal prefix's).
-void WriteSnapshotIfDue(const ServerOptions& options, ServerNode* node, JournalState* j) {
-  if (!CollectSnapshotWrite(j, /*wait=*/false)) return;  // the previous one is still going
-  const int64_t fresh = j->last.events - std::max<int64_t>(j->snapshot_events, 0);
-  if (fresh <= 0 || !node->CanSnapshot()) return;
-  const auto now = std::chrono::steady_clock::now();
-  const double since = std::chrono::duration<double>(now - j->snapshot_time).count();
-  const bool by_count = options.snapshot_every_events > 0 && fresh >= options.snapshot_every_events;
-  const bool by_time = options.snapshot_every_s > 0 && since >= options.snapshot_every_s;
-  if (!by_count && !by_time) return;
-  j->snapshot_time = now;  // also after a failure: retried at the next period, not at once
-  // Encoded here, between two events (the state is the journal prefix's); written off the
-  // loop. A write that fails leaves the previous snapshots (and the journal) in place.
-  const std::clock_t cpu_start = std::clock();
-  Result<std::vector<uint8_t>> bytes = node->EncodeSnapshot(j->last);
-  const double encode_cpu = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
-  if (!bytes.ok()) {
-    LogWarning("snapshot not written: " + bytes.status().message());
-    return;
-  }
-  j->snapshot_events = j->last.events;
-  j->writing_what = "snapshot of " + std::to_string(j->last.events) +
-                    " journal events: " + std::to_string(bytes->size()) + " bytes, encoded in " +
-                    std::to_string(1e3 * encode_cpu) + " ms CPU on the loop";
-  j->writing = std::async(
-      std::launch::async, [dir = j->dir, events = j->last.events, data = std::move(*bytes)] {
-        const auto start = std::chrono::steady_clock::now();
-        JournalState::Written written;
-        written.status = WriteSnapshotFile(dir, events, data, /*keep=*/2);
-        written.seconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        return written;
-      });
-}
-
 int RunOnline(const ServerOptions& given) {
   // Message handlers only receive (delivery table, journal); the timer's ticks put inputs
   // into the graph, within --release-budget-s each.
@@ -378,10 +228,10 @@ int RunOnline(const ServerOptions& given) {
     LogError(s.message());
     return 1;
   }
-  std::unique_ptr<JournalState> journal;
+  std::unique_ptr<ServerJournal> journal;
   if (!options.journal_dir.empty()) {
-    Result<std::unique_ptr<JournalState>> opened =
-        OpenAndReplayJournal(options.journal_dir, options.journal_defer_updates, &node);
+    Result<std::unique_ptr<ServerJournal>> opened =
+        ServerJournal::OpenAndReplay(options.journal_dir, options.journal_defer_updates, &node);
     if (!opened.ok()) {
       LogError(opened.status().message());
       return 1;
@@ -410,7 +260,7 @@ int RunOnline(const ServerOptions& given) {
   // gaps that waited too long are bridged; missing keyframes / encounters are asked for.
   loop->Every(std::chrono::milliseconds(100), [&node, &options, &journal] {
     node.Tick(WallUtime());
-    if (journal) WriteSnapshotIfDue(options, &node, journal.get());
+    if (journal) journal->SnapshotIfDue(options, &node);
     node.PublishResendRequests();
     node.PublishDue(WallUtime());
     if (options.map_republish_period_s > 0) {
@@ -428,9 +278,7 @@ int RunOnline(const ServerOptions& given) {
                        std::to_string(s.max_burst) + " kernel drops " +
                        std::to_string(s.kernel_drops);
     if (journal) {
-      line += " | journal " + std::to_string(journal->journal->events()) + " events " +
-              std::to_string(journal->journal->bytes()) + " bytes, snapshot at " +
-              std::to_string(std::max<int64_t>(journal->snapshot_events, 0));
+      line += " | " + journal->StatusText();
     }
     return line;
   };
@@ -449,7 +297,7 @@ int RunOnline(const ServerOptions& given) {
   // A restarted server says so at once (its new instance id), with what the journal gave it.
   node.PublishStatus();
   loop->Run();
-  if (journal) CollectSnapshotWrite(journal.get(), /*wait=*/true);
+  if (journal) journal->WaitForSnapshotWrite();
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
   node.server().Flush();
