@@ -25,8 +25,12 @@
 namespace anchormap {
 
 struct GlobalSearchBudgetOptions {
-  // Submaps searched per second of data, over the whole team.
-  double searches_per_s = 8.0;
+  // Submaps searched per second of data, over the whole team. A search of a simulated
+  // office submap costs tens of ms: 4 per second keep the whole team's first-join work
+  // under a tenth of a core, and a team of up to about five robots (each keyframe of three
+  // unjoined robots: 2 groups x 2 submaps every 5th keyframe, ~2.3 searches/s) never
+  // waits, so two- and three-robot runs search as before the budget.
+  double searches_per_s = 4.0;
   // Most tokens saved up (also the start): a burst of joins at the start of a small run.
   double burst = 40.0;
 
