@@ -129,12 +129,26 @@ void ScanEncounters::BuildSubmaps(const GraphView& graph) {
           options_.submap_half_width + static_cast<int>(submaps.size()) * options_.submap_stride;
       const PoseKey last{record.solver_id, center + options_.submap_half_width};
       if (last.index >= record.num_keyframes() || !graph.covariances->HasCovariance(last)) break;
-      std::shared_ptr<const ScanReference> reference =
-          BuildKeyframeSubmap(record, graph.smoother, PoseKey{record.solver_id, center},
-                              options_.submap_half_width, options_.max_range_m, options_.reference);
-      submaps.push_back({PoseKey{record.solver_id, center}, std::move(reference)});
+      Submap submap;
+      submap.center = PoseKey{record.solver_id, center};
+      submap.drawing = DrawKeyframeSubmap(record, graph.smoother, submap.center,
+                                          options_.submap_half_width, options_.max_range_m);
+      submaps.push_back(std::move(submap));
     }
   }
+}
+
+std::shared_ptr<const ScanReference> ScanEncounters::Reference(Submap* submap,
+                                                               const GraphView& graph) const {
+  if (!submap->built) {
+    submap->built = true;
+    const TrajectoryRecord* record = graph.table.FindBySolverId(submap->center.trajectory);
+    if (record != nullptr) {
+      submap->reference =
+          BuildKeyframeSubmap(*record, submap->drawing, options_.max_range_m, options_.reference);
+    }
+  }
+  return submap->reference;
 }
 
 void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
@@ -206,7 +220,7 @@ std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const Graph
 }
 
 int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph) {
-  const std::vector<Submap>& submaps = submaps_[other];
+  std::vector<Submap>& submaps = submaps_[other];
   if (submaps.empty()) return 0;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return 0;
@@ -221,10 +235,10 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
       std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
   int submitted = 0;
   for (size_t t = 0; t < tries; ++t) {
-    const Submap& submap = submaps[cursor % submaps.size()];
+    Submap& submap = submaps[cursor % submaps.size()];
     ++cursor;
-    if (!submap.reference) continue;
-    std::shared_ptr<const ScanReference> reference = submap.reference;
+    std::shared_ptr<const ScanReference> reference = Reference(&submap, graph);
+    if (!reference) continue;
     Submit(key, submap.center, /*global=*/true, record->utimes[static_cast<size_t>(key.index)],
            [reference, query, search] { return GlobalSearch(*reference, *query, search); });
     ++submitted;
@@ -238,12 +252,12 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   if (options_.near_distance_m <= 0) return;
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
   if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
-  const std::vector<Submap>& submaps = submaps_[other];
+  std::vector<Submap>& submaps = submaps_[other];
   const Pose2 global_key = graph.smoother.GlobalPose(key);
-  const Submap* nearest = nullptr;
+  Submap* nearest = nullptr;
   double nearest_distance = std::numeric_limits<double>::infinity();
-  for (const Submap& submap : submaps) {
-    if (!submap.reference) continue;
+  for (Submap& submap : submaps) {
+    if (submap.drawing.num_points == 0) continue;
     const double distance =
         (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
     if (distance < nearest_distance) {
@@ -266,7 +280,8 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   window.angular_window_rad =
       std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
                  options_.min_window_rad, options_.max_window_rad);
-  std::shared_ptr<const ScanReference> reference = nearest->reference;
+  std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
+  if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
   Submit(
       key, nearest->center, /*global=*/false, record->utimes[static_cast<size_t>(key.index)],

@@ -45,6 +45,7 @@
 #include "server/candidate_stats.h"
 #include "server/encounter_source.h"
 #include "server/global_search_queue.h"
+#include "server/keyframe_submap.h"
 #include "server/match_pool.h"
 
 namespace anchormap {
@@ -143,10 +144,15 @@ class ScanEncounters : public EncounterSource {
                       EncounterSourceOutput* out);
 
  private:
+  // Drawn when its keyframes are solved, built when a search first uses it (the same bits
+  // as building it at once: most submaps of a large team are never searched).
   struct Submap {
     PoseKey center;
-    std::shared_ptr<const ScanReference> reference;
+    SubmapDrawing drawing;
+    bool built = false;
+    std::shared_ptr<const ScanReference> reference;  // once built; null when empty
   };
+  std::shared_ptr<const ScanReference> Reference(Submap* submap, const GraphView& graph) const;
   using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
