@@ -12,7 +12,7 @@
 //   it: it sees as much of the place), and the waiting trajectory searched least so far is
 //   served first; ScanEncounters picks its targets among the other groups, the pairs of
 //   trajectories searched least first.
-// Small teams never run out of tokens (two or three robots search as before the budget).
+// Two robots never run out of tokens (they search as before the budget).
 
 #include <cstdint>
 #include <map>
@@ -26,11 +26,12 @@ namespace anchormap {
 
 struct GlobalSearchBudgetOptions {
   // Submaps searched per second of data, over the whole team. A search of a simulated
-  // office submap costs tens of ms: 4 per second keep the whole team's first-join work
-  // under a tenth of a core, and a team of up to about five robots (each keyframe of three
-  // unjoined robots: 2 groups x 2 submaps every 5th keyframe, ~2.3 searches/s) never
-  // waits, so two- and three-robot runs search as before the budget.
-  double searches_per_s = 4.0;
+  // office submap costs ~150 ms of CPU (30 robots x 60 s: 256 searches at 4/s against 91 at
+  // 1/s cost 24.5 s more): 1 per second keeps the whole team's first-join work near a
+  // seventh of a core. Two robots ask less (Intel split in two: 0.18/s) and search as
+  // before the budget; three unjoined simulated robots ask ~2.3/s and wait once the burst
+  // is spent.
+  double searches_per_s = 1.0;
   // Most tokens saved up (also the start): a burst of joins at the start of a small run.
   double burst = 40.0;
 
