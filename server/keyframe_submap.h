@@ -5,6 +5,7 @@
 // keyframe against such a submap rather than against one scan: more walls, fewer aliases.
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "common/scan_matching/point_cloud.h"
@@ -17,6 +18,26 @@ namespace anchormap {
 
 // The points of keyframe `index` of `record` in its body frame, cut at max_range_m.
 PointCloud KeyframePoints(const TrajectoryRecord& record, int index, double max_range_m);
+
+// A submap as drawn: where its keyframes were, in the frame of the center keyframe, at the
+// estimates of the time. Cheap to keep; the reference (grids and pyramid, the costly part)
+// can be built from it later, with the same bits as at drawing time, and only for the
+// submaps a search uses (at 100 robots most are never searched).
+struct SubmapDrawing {
+  PoseKey center;
+  std::vector<std::pair<int, Pose2>> T_center_keyframes;  // (keyframe index, pose)
+  size_t num_points = 0;                                  // 0: the reference would be empty
+};
+
+// The drawing of the submap around `center` (which the smoother must hold); keyframes the
+// smoother does not hold yet are left out.
+SubmapDrawing DrawKeyframeSubmap(const TrajectoryRecord& record, const Smoother& smoother,
+                                 PoseKey center, int half_width, double max_range_m);
+
+// The reference of a drawing of `record`'s keyframes; nullptr when it holds no point.
+std::unique_ptr<ScanReference> BuildKeyframeSubmap(const TrajectoryRecord& record,
+                                                   const SubmapDrawing& drawing, double max_range_m,
+                                                   const ScanReferenceOptions& options);
 
 // The submap around `center` (which the smoother must hold); keyframes the smoother does
 // not hold yet are left out. nullptr when it holds no point.

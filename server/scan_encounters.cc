@@ -21,6 +21,16 @@ Status ScanEncounterOptions::Validate() const {
   if (global_every < 1) return Status::Error("scan.global_every must be >= 1");
   if (max_global_per_keyframe < 0)
     return Status::Error("scan.max_global_per_keyframe must be >= 0");
+  if (max_global_groups_per_keyframe < 0)
+    return Status::Error("scan.max_global_groups_per_keyframe must be >= 0");
+  if (Status s = global_budget.Validate(); !s.ok()) return s;
+  // A keyframe's searches must fit in the bucket, or it would wait for ever.
+  if (global_budget.burst < static_cast<double>(max_global_per_keyframe) *
+                                static_cast<double>(max_global_groups_per_keyframe)) {
+    return Status::Error(
+        "scan.global_burst must be >= scan.max_global_per_keyframe x "
+        "scan.max_global_groups_per_keyframe");
+  }
   if (!(pcm_chi2 > 0) || !(gate_chi2 > 0)) return Status::Error("scan chi2 gates must be > 0");
   if (!(alternative_ratio >= 1)) return Status::Error("scan.alternative_ratio must be >= 1");
   if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
@@ -70,8 +80,14 @@ void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
   while (static_cast<int>(waiting_.size()) > options_.max_waiting) waiting_.pop_front();
 }
 
+std::string ScanEncounters::StatsLine() const {
+  return stats_.Summary(name()) + " global_searches " + std::to_string(global_queue_.searches()) +
+         " global_replaced " + std::to_string(global_queue_.dropped());
+}
+
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
   now_utime_ = std::max(now_utime_, now_utime);
+  global_queue_.Advance(now_utime_);
   Examine(graph, out);
   JoinQualified(/*flush=*/false, graph, out);
 }
@@ -101,6 +117,7 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
     UseMatches(/*all=*/false, graph, out);
   }
   waiting_ = std::move(still_waiting);
+  ServeGlobalQueue(graph);  // tokens accrued since the last keyframe
   UseMatches(/*all=*/false, graph, out);
 }
 
@@ -112,12 +129,26 @@ void ScanEncounters::BuildSubmaps(const GraphView& graph) {
           options_.submap_half_width + static_cast<int>(submaps.size()) * options_.submap_stride;
       const PoseKey last{record.solver_id, center + options_.submap_half_width};
       if (last.index >= record.num_keyframes() || !graph.covariances->HasCovariance(last)) break;
-      std::shared_ptr<const ScanReference> reference =
-          BuildKeyframeSubmap(record, graph.smoother, PoseKey{record.solver_id, center},
-                              options_.submap_half_width, options_.max_range_m, options_.reference);
-      submaps.push_back({PoseKey{record.solver_id, center}, std::move(reference)});
+      Submap submap;
+      submap.center = PoseKey{record.solver_id, center};
+      submap.drawing = DrawKeyframeSubmap(record, graph.smoother, submap.center,
+                                          options_.submap_half_width, options_.max_range_m);
+      submaps.push_back(std::move(submap));
     }
   }
+}
+
+std::shared_ptr<const ScanReference> ScanEncounters::Reference(Submap* submap,
+                                                               const GraphView& graph) const {
+  if (!submap->built) {
+    submap->built = true;
+    const TrajectoryRecord* record = graph.table.FindBySolverId(submap->center.trajectory);
+    if (record != nullptr) {
+      submap->reference =
+          BuildKeyframeSubmap(*record, submap->drawing, options_.max_range_m, options_.reference);
+    }
+  }
+  return submap->reference;
 }
 
 void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
@@ -125,38 +156,95 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return;
   if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return;
+  bool unjoined = false;
   for (const TrajectoryRecord& other : graph.table.records()) {
     if (other.solver_id == key.trajectory) continue;
     if (InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
       SearchNear(key, other.solver_id, graph, out);
-    } else if (key.index % options_.global_every == 0) {
-      SearchGlobally(key, other.solver_id, graph, out);
+    } else {
+      unjoined = true;
     }
+  }
+  if (unjoined && key.index % options_.global_every == 0) {
+    global_queue_.Enqueue(key);
+    ServeGlobalQueue(graph);
   }
 }
 
-void ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                    EncounterSourceOutput* /*out*/) {
-  const std::vector<Submap>& submaps = submaps_[other];
-  if (submaps.empty()) return;
+void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
+  const int most_per_target = std::max(0, options_.max_global_per_keyframe);
+  for (std::optional<PoseKey> key = global_queue_.Next(); key; key = global_queue_.Next()) {
+    const std::vector<TrajectoryId> targets = GlobalTargets(*key, graph);
+    int cost = 0;
+    for (const TrajectoryId other : targets) {
+      cost +=
+          static_cast<int>(std::min(submaps_[other].size(), static_cast<size_t>(most_per_target)));
+    }
+    // Waits for tokens (every keyframe's cost is at most the burst, so it will be served
+    // unless a newer keyframe of its trajectory replaces it).
+    if (cost > 0 && !global_queue_.CanAfford(cost)) return;
+    int spent = 0;
+    for (const TrajectoryId other : targets) spent += SearchGlobally(*key, other, graph);
+    global_queue_.Served(*key, spent);
+  }
+}
+
+std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const GraphView& graph) const {
+  // A trajectory's group: its root once anchored, else itself (its own frame).
+  const auto group_of = [&](TrajectoryId id) {
+    return std::make_pair(graph.smoother.IsAnchored(id),
+                          graph.smoother.IsAnchored(id) ? graph.smoother.GroupRoot(id) : id);
+  };
+  // Per other group, the trajectory whose pair with key's was searched least (then the
+  // smaller id); then the groups whose best pair was searched least.
+  std::map<std::pair<bool, TrajectoryId>, std::pair<int64_t, TrajectoryId>> best;
+  for (const TrajectoryRecord& other : graph.table.records()) {
+    const TrajectoryId id = other.solver_id;
+    if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
+    const auto submaps = submaps_.find(id);
+    if (submaps == submaps_.end() || submaps->second.empty()) continue;
+    const std::pair<int64_t, TrajectoryId> rank{global_queue_.PairSearches(key.trajectory, id), id};
+    const auto [it, inserted] = best.emplace(group_of(id), rank);
+    if (!inserted && rank < it->second) it->second = rank;
+  }
+  std::vector<std::pair<int64_t, TrajectoryId>> ranked;
+  for (const auto& [group, rank] : best) ranked.push_back(rank);
+  std::sort(ranked.begin(), ranked.end());
+  const size_t take = std::min(
+      ranked.size(), static_cast<size_t>(std::max(0, options_.max_global_groups_per_keyframe)));
+  std::vector<TrajectoryId> targets;
+  for (size_t i = 0; i < take; ++i) targets.push_back(ranked[i].second);
+  // Searched in id order, as before the budget (the order the matches are used in).
+  std::sort(targets.begin(), targets.end());
+  return targets;
+}
+
+int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph) {
+  std::vector<Submap>& submaps = submaps_[other];
+  if (submaps.empty()) return 0;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  if (record == nullptr || key.index >= record->num_keyframes()) return 0;
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
-  if (query->empty()) return;
+  if (query->empty()) return 0;
   GlobalSearchOptions search;
   search.match = options_.match;
   search.match.min_score = options_.global_min_score;
   size_t& cursor = global_cursor_[{key.trajectory, other}];
   const size_t tries =
       std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
+  int submitted = 0;
   for (size_t t = 0; t < tries; ++t) {
-    const Submap& submap = submaps[cursor % submaps.size()];
+    Submap& submap = submaps[cursor % submaps.size()];
     ++cursor;
-    if (!submap.reference) continue;
-    std::shared_ptr<const ScanReference> reference = submap.reference;
+    std::shared_ptr<const ScanReference> reference = Reference(&submap, graph);
+    if (!reference) continue;
     Submit(key, submap.center, /*global=*/true, record->utimes[static_cast<size_t>(key.index)],
            [reference, query, search] { return GlobalSearch(*reference, *query, search); });
+    ++submitted;
   }
+  global_queue_.CountPair(key.trajectory, other, submitted);
+  return submitted;
 }
 
 void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
@@ -164,12 +252,12 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   if (options_.near_distance_m <= 0) return;
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
   if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
-  const std::vector<Submap>& submaps = submaps_[other];
+  std::vector<Submap>& submaps = submaps_[other];
   const Pose2 global_key = graph.smoother.GlobalPose(key);
-  const Submap* nearest = nullptr;
+  Submap* nearest = nullptr;
   double nearest_distance = std::numeric_limits<double>::infinity();
-  for (const Submap& submap : submaps) {
-    if (!submap.reference) continue;
+  for (Submap& submap : submaps) {
+    if (submap.drawing.num_points == 0) continue;
     const double distance =
         (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
     if (distance < nearest_distance) {
@@ -192,7 +280,8 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   window.angular_window_rad =
       std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
                  options_.min_window_rad, options_.max_window_rad);
-  std::shared_ptr<const ScanReference> reference = nearest->reference;
+  std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
+  if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
   Submit(
       key, nearest->center, /*global=*/false, record->utimes[static_cast<size_t>(key.index)],

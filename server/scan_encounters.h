@@ -5,7 +5,9 @@
 // the estimates of the time). A keyframe is examined once the smoother has solved it:
 // - against a trajectory not in its anchored group (no prior): every global_every-th
 //   keyframe is searched globally (GlobalSearch, every heading, the submap's whole grid)
-//   in up to max_global_per_keyframe of the other's submaps, taken in turn. A match with
+//   in up to max_global_per_keyframe of the other's submaps, taken in turn, against at
+//   most max_global_groups_per_keyframe other groups and within a team-wide budget per
+//   second of data (GlobalSearchQueue: the cost does not grow with the team). A match with
 //   enough score and overlap is a candidate, not yet a constraint: a first encounter
 //   joins two groups only when two candidates of the same pair of trajectories at
 //   different places agree through each trajectory's own estimate (pairwise consistency,
@@ -42,6 +44,8 @@
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
 #include "server/encounter_source.h"
+#include "server/global_search_queue.h"
+#include "server/keyframe_submap.h"
 #include "server/match_pool.h"
 
 namespace anchormap {
@@ -52,9 +56,13 @@ struct ScanEncounterOptions {
   double max_range_m = 15.0;
   // Unjoined trajectories: global search.
   // The global search is the costly part (the server matches on its event loop): every
-  // 5th keyframe, 2 submaps (the multiprocess test's server fell behind real time with 3, 4).
+  // 5th keyframe, 2 submaps of each target (the multiprocess test's server fell behind
+  // real time with 3, 4), in at most 2 other groups per keyframe (one trajectory of each:
+  // a join with any of them joins the group), within the team-wide budget.
   int global_every = 5;
-  int max_global_per_keyframe = 2;
+  int max_global_per_keyframe = 2;  // submaps of one target trajectory, taken in turn
+  int max_global_groups_per_keyframe = 2;
+  GlobalSearchBudgetOptions global_budget;
   double global_min_score = 0.55;
   double global_min_overlap = 0.7;
   double pcm_chi2 = 11.34;  // 3 dof, 99 %
@@ -117,15 +125,18 @@ class ScanEncounters : public EncounterSource {
   // Without a pool, matches run on the caller's thread and are used at once.
   explicit ScanEncounters(const ScanEncounterOptions& options = {}, MatchPool* pool = nullptr,
                           MatchSchedule schedule = {})
-      : options_(options), pool_(pool), schedule_(schedule) {}
+      : options_(options), pool_(pool), schedule_(schedule), global_queue_(options.global_budget) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
-  size_t pending() const override { return waiting_.size() + matches_.size(); }
-  std::string StatsLine() const override { return stats_.Summary(name()); }
+  size_t pending() const override {
+    return waiting_.size() + matches_.size() + global_queue_.waiting();
+  }
+  std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
+  const GlobalSearchQueue& global_searches() const { return global_queue_; }
 
   // A candidate from outside the matcher (tests inject false ones): it takes the same
   // path as a matched one (pairwise consistency when unjoined, the gate when joined).
@@ -133,17 +144,27 @@ class ScanEncounters : public EncounterSource {
                       EncounterSourceOutput* out);
 
  private:
+  // Drawn when its keyframes are solved, built when a search first uses it (the same bits
+  // as building it at once: most submaps of a large team are never searched).
   struct Submap {
     PoseKey center;
-    std::shared_ptr<const ScanReference> reference;
+    SubmapDrawing drawing;
+    bool built = false;
+    std::shared_ptr<const ScanReference> reference;  // once built; null when empty
   };
+  std::shared_ptr<const ScanReference> Reference(Submap* submap, const GraphView& graph) const;
   using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   void BuildSubmaps(const GraphView& graph);
   void ExamineKeyframe(PoseKey key, const GraphView& graph, EncounterSourceOutput* out);
-  void SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph,
-                      EncounterSourceOutput* out);
+  // Serves the keyframes waiting for a global search while the budget lasts.
+  void ServeGlobalQueue(const GraphView& graph);
+  // The trajectories `key` is searched against: one of each other group (the pair
+  // searched least so far), at most max_global_groups_per_keyframe groups.
+  std::vector<TrajectoryId> GlobalTargets(PoseKey key, const GraphView& graph) const;
+  // Submits the searches of `key` against `other`'s submaps; returns how many.
+  int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
   void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
                   EncounterSourceOutput* out);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
@@ -178,6 +199,7 @@ class ScanEncounters : public EncounterSource {
   std::deque<PoseKey> waiting_;
   std::map<TrajectoryId, std::vector<Submap>> submaps_;
   std::map<Pair, size_t> global_cursor_;
+  GlobalSearchQueue global_queue_;
   struct Kept {
     EncounterCandidate candidate;
     int support = 0;  // later candidates consistent with it (at other places)

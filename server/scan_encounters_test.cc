@@ -1,8 +1,11 @@
 #include "server/scan_encounters.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -276,6 +279,73 @@ TEST_F(FirstJoinTest, TheJoiningSetAgreesPairwise) {
   ASSERT_EQ(joined.size(), 2u);
   EXPECT_EQ(joined[0].a.index, 5);
   EXPECT_EQ(joined[1].a.index, 20);
+}
+
+// Eight robots that never meet, keyframes 1 s apart: how many global searches they cost.
+struct BudgetRun {
+  int64_t searches = 0;
+  int64_t fewest_by_one = 0;  // searches of the trajectory searched least
+  int64_t most_by_one = 0;
+  double data_s = 0.0;
+};
+
+BudgetRun RunBudget(const GlobalSearchBudgetOptions& budget) {
+  constexpr int kRobots = 8;
+  constexpr int kKeyframes = 40;
+  MappingServerOptions options;
+  options.loop_closures = false;
+  options.scan_encounters = false;
+  MappingServer server(options);
+  ScanEncounterOptions scan_options;
+  scan_options.global_budget = budget;
+  auto scan = std::make_unique<ScanEncounters>(scan_options);
+  ScanEncounters* source = scan.get();
+  server.AddEncounterSource(std::move(scan));
+  for (int32_t seq = 0; seq < kKeyframes; ++seq) {
+    for (int r = 0; r < kRobots; ++r) {
+      EXPECT_TRUE(
+          server.OnKeyframe(testing::StraightKeyframe("R" + std::to_string(r), r + 1, seq, 40))
+              .ok());
+    }
+  }
+  server.Flush();
+  BudgetRun run;
+  const GlobalSearchQueue& queue = source->global_searches();
+  run.searches = queue.searches();
+  run.fewest_by_one = queue.Searched(TrajectoryId(0));
+  for (int r = 0; r < kRobots; ++r) {
+    run.fewest_by_one = std::min(run.fewest_by_one, queue.Searched(TrajectoryId(r)));
+    run.most_by_one = std::max(run.most_by_one, queue.Searched(TrajectoryId(r)));
+  }
+  run.data_s = kKeyframes - 1;
+  return run;
+}
+
+TEST(ScanEncountersTest, GlobalSearchesStayWithinTheTeamBudget) {
+  GlobalSearchBudgetOptions unbounded;
+  unbounded.searches_per_s = 1e6;
+  unbounded.burst = 1e6;
+  const BudgetRun free_run = RunBudget(unbounded);
+  GlobalSearchBudgetOptions budget;
+  budget.searches_per_s = 1.0;
+  budget.burst = 4.0;
+  const BudgetRun bounded = RunBudget(budget);
+  std::printf("global searches: unbounded %lld, budget %lld (%lld..%lld per robot)\n",
+              static_cast<long long>(free_run.searches), static_cast<long long>(bounded.searches),
+              static_cast<long long>(bounded.fewest_by_one),
+              static_cast<long long>(bounded.most_by_one));
+  // Per keyframe at most 2 groups x 2 submaps, whatever the team: 8 robots, every 5th of 40
+  // keyframes, and no submap before keyframe 10.
+  EXPECT_LE(free_run.searches, 8 * 8 * 4);
+  EXPECT_GT(free_run.searches, 3 * bounded.searches);
+  // The bucket's bound: the burst plus the rate over the data.
+  EXPECT_LE(static_cast<double>(bounded.searches),
+            budget.burst + budget.searches_per_s * bounded.data_s);
+  EXPECT_GE(static_cast<double>(bounded.searches),
+            budget.searches_per_s * bounded.data_s - 2 * budget.burst);
+  // Fair: every robot is served, none more than one keyframe's searches ahead.
+  EXPECT_GE(bounded.fewest_by_one, 1);
+  EXPECT_LE(bounded.most_by_one - bounded.fewest_by_one, 4);
 }
 
 }  // namespace

@@ -172,7 +172,15 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "unjoined trajectories: every N-th keyframe is searched globally");
   l->Add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
          &s.scan.max_global_per_keyframe,
-         "unjoined trajectories: submaps searched per keyframe (taken in turn)");
+         "unjoined trajectories: submaps of each target searched per keyframe (taken in turn)");
+  l->Add("scan.max_global_groups_per_keyframe", "scan-max-global-groups-per-keyframe",
+         &s.scan.max_global_groups_per_keyframe,
+         "unjoined trajectories: other groups searched per keyframe (those searched least)");
+  l->Add("scan.global_searches_per_s", "scan-global-searches-per-s",
+         &s.scan.global_budget.searches_per_s,
+         "unjoined trajectories: global searches (submaps) per second of data, whole team");
+  l->Add("scan.global_burst", "scan-global-burst", &s.scan.global_budget.burst,
+         "unjoined trajectories: most global searches saved up");
   l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
          "cells per tile side");

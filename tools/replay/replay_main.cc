@@ -220,6 +220,9 @@ int Main(int argc, char** argv) {
              "(data time, s)");
   loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
              "server: encounters between trajectories by scan matching (on by default)");
+  loader.Add("scan.global_searches_per_s", "scan-global-searches-per-s",
+             &options.server.server.scan.global_budget.searches_per_s,
+             "server: first-join (global) searches per second of data, whole team");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
