@@ -3,10 +3,11 @@
 #   0. Every C++ file is clang-formatted.
 #   1. Release build with warnings as errors, then ctest.
 #   2. ASan + UBSan build of the same tests, then ctest.
-#   3. Fuzz pass: clang build with -fsanitize=fuzzer,address,undefined (build-fuzz/), each
-#      libFuzzer target of tests/fuzz run once for ANCHORMAP_FUZZ_SECONDS (default 20) from
-#      its seed corpus in tests/fuzz/corpus/ (new inputs go to build-fuzz/corpus/, not the
-#      repository); skipped with a message when clang++ or libFuzzer is missing.
+#   3. Fuzz pass: clang build with -fsanitize=fuzzer,address,undefined (build-fuzz/, the
+#      fuzz targets only), each libFuzzer target of tests/fuzz run once for
+#      ANCHORMAP_FUZZ_SECONDS (default 20) from its seed corpus in tests/fuzz/corpus/ (new
+#      inputs go to build-fuzz/corpus/, not the repository); skipped with a message when
+#      clang++ or libFuzzer is missing.
 # Set ANCHORMAP_SKIP_SANITIZE=1 to run only the first pass while iterating locally, and
 # ANCHORMAP_SKIP_FUZZ=1 to leave out the fuzz pass.
 set -euo pipefail
@@ -60,8 +61,8 @@ fuzz_pass() {
   fi
   rm -rf "$probe"
   echo "== Fuzz pass: clang, -fsanitize=fuzzer,address,undefined, ${seconds} s per target"
-  CC=clang CXX=clang++ cmake -S . -B build-fuzz -DANCHORMAP_WERROR=ON -DANCHORMAP_FUZZ=ON \
-    -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+  CC=clang CXX=clang++ cmake -S . -B build-fuzz -DANCHORMAP_WERROR=ON -DANCHORMAP_SANITIZE=ON \
+    -DANCHORMAP_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
   cmake --build build-fuzz -j "$jobs" --target anchormap_fuzz
   # Targets are single-threaded: run as many at once as there are cores.
   mkdir -p build-fuzz/artifacts

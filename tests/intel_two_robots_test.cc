@@ -66,7 +66,7 @@ void CopyPrefix(const std::string& in_path, const std::string& out_path, double 
 }
 
 TEST(IntelTwoRobotsTest, SimultaneousRobotsJoinRightFirstTime) {
-#ifdef __SANITIZE_ADDRESS__
+#ifdef ANCHORMAP_SANITIZED
   // As the long system tests: the sanitizer pass tests the parts; 650 s of laser log there
   // would take many minutes.
   GTEST_SKIP() << "not run under the sanitizers (a replay of 650 s of laser data)";

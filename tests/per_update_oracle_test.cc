@@ -157,6 +157,8 @@ int64_t RunPerUpdateOracle(const SmootherOptions& options, double chi2_tolerance
       EXPECT_LE(excess, chi2_tolerance) << "step " << k;
     }
     EXPECT_GT(replay.num_encounters(), 0);
+    // Every batch step an update reports is one the counters record (none failed here).
+    EXPECT_EQ(batch_steps, smoother.stats().batch_steps);
     // factors_added counts each measurement once, when it first enters R (batch steps
     // included): every active factor, and at most every factor ever added (a gauge prior
     // dropped at a merge before it entered R never does).

@@ -6,10 +6,12 @@
 
 // GCC 12 warns inside lcm_coretypes.h when it inlines the int8 array decode of
 // grid_tile_t (bounds it cannot prove: -Wstringop-overflow, -Wrestrict); the generated
-// decode checks every size against the buffer.
+// decode checks every size against the buffer. (Clang has neither warning.)
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wstringop-overflow"
 #pragma GCC diagnostic ignored "-Wrestrict"
+#endif
 #include "anchormap/anchor_covariances_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/server_status_t.hpp"
@@ -209,4 +211,6 @@ Status ReadServerOutput(const std::string& path, const ChannelNames& channels, S
 
 }  // namespace anchormap::render
 
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
+#endif

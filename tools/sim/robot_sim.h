@@ -43,7 +43,6 @@ class SimRobot {
 
   int index_;
   std::string name_;
-  int home_region_ = 0;
   MotionOptions motion_;
   Rng route_rng_;
   RouteFollower follower_;
