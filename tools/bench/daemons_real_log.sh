@@ -77,10 +77,13 @@ inside_namespace() {
   /usr/bin/time -o "$work/server.time" -f '%U %S %e' "$BIN/anchormap-server" --lcm-url "$URL" \
     --loop-closures true --scan-encounters true --status-period-s 2 >"$work/server.log" 2>&1 &
   local server=$!
-  local agents=() r
+  # Trajectory ids 1, 2, ... in robot order, as anchormap-replay gives them: the maps can
+  # then be compared pose by pose (the id also breaks ties in the server's canonical order).
+  local agents=() r id=0
   for r in $robots; do
+    id=$((id + 1))
     /usr/bin/time -o "$work/agent_$r.time" -f '%U %S %e' "$BIN/anchormap-agent" --robot "$r" \
-      --lcm-url "$URL" --status-period-s 2 >"$work/agent_$r.log" 2>&1 &
+      --trajectory-id $id --lcm-url "$URL" --status-period-s 2 >"$work/agent_$r.log" 2>&1 &
     agents+=($!)
   done
   sleep 1
@@ -201,6 +204,8 @@ main() {
   echo "player: ${played} s for ${duration} s of data ($(awk -v d="$duration" -v p="$played" \
     'BEGIN { printf "%.2f", d / p }')x); server done ${total} s after the start ($(awk -v d="$duration" \
     -v p="$total" 'BEGIN { printf "%.2f", d / p }')x real time)"
+  echo "server's canonical order stage held at most $(grep -oE 'order: held [0-9]+' "$WORK/server.log" |
+    awk '$3 > m { m = $3 } END { print m + 0 }') inputs (status lines every 2 s)"
   echo "server when the player ended: $(sed -nE 's/.*(keyframes [0-9]+ encounters [0-9]+) .*(waiting keyframes [0-9]+).*(order: held [0-9]+).*/\1, \2, \3/p' \
     "$WORK/server_at_player_end.txt")"
   local r
@@ -208,6 +213,9 @@ main() {
     echo "agent $r: cpu $(cpu_of "$WORK/agent_$r.time") s; $(grep 'final:' "$WORK/agent_$r.log" | tail -1 |
       sed -nE 's/.*(odometry [0-9]+ scans [0-9]+ keyframes [0-9]+).*(resent [0-9+]+).*(scan matching: matched [0-9/]+ odometry [0-9]+).*(cpu [0-9.]+ ms\/scan).*(rejected: [^|]*).*(lcm max burst [0-9]+).*/\1, \2, \3, \4, \5, \6/p')"
   done
+  local cpu_all
+  cpu_all=$(cat "$WORK"/agent_*.time "$WORK/server.time" | awk '{ s += $1 + $2 } END { printf "%.1f", s }')
+  echo "cpu of all daemons ${cpu_all} s: $(awk -v d="$duration" -v c="$cpu_all" 'BEGIN { printf "%.1f", d / c }')x real time on CPU"
   echo "server: cpu $(cpu_of "$WORK/server.time") s; $(grep 'final:' "$WORK/server.log" | tail -1 |
     sed -nE 's/.*(anchored [0-9]+ keyframes [0-9]+ encounters [0-9]+).*(bridged gaps [0-9]+).*(order: held [0-9]+ late [0-9]+ silences [0-9]+) (rejected: [^;]*).*(kernel drops [0-9-]+).*/\1, \2, \3, \4, \5/p')"
   echo "server sources: $(source_counts "$WORK/server.log")"
@@ -229,6 +237,13 @@ main() {
       { log "anchormap-server --log failed"; tail -5 "$WORK/server_offline.log"; exit 1; }
     echo "server --log: cpu $(cpu_of "$WORK/server_offline.time") s; $(source_counts "$WORK/server_offline.log")"
     evaluate server_offline "$WORK/server_offline.lcmlog" || exit 1
+    if [ -x "$BIN/anchormap-test-compare-maps" ]; then
+      echo "== the daemons' final map against the offline ones (\"doubled\": encounters between one keyframe pair, in both)"
+      "$BIN/anchormap-test-compare-maps" --map "$WORK/out.lcmlog" --reference "$WORK/replay.lcmlog" \
+        --tolerance 1e-6 | grep -E 'keyframes .*reference' | sed 's/^/against replay: /'
+      "$BIN/anchormap-test-compare-maps" --map "$WORK/out.lcmlog" --reference "$WORK/server_offline.lcmlog" \
+        --tolerance 1e-6 | grep -E 'keyframes .*reference' | sed 's/^/against server --log: /'
+    fi
   fi
 }
 
