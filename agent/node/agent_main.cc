@@ -225,8 +225,12 @@ int Main(int argc, char** argv) {
   loop->Run();
   stopping = true;
   WaitForAcknowledgements(options.exit_ack_wait_s, loop.get(), node);
+  // Kernel drops: sensor messages lost before the agent read them (its socket's receive
+  // buffer was full), as the server reports its own.
+  bus->RefreshKernelDrops();
   LogInfo("final: " + node.StatusLine() + " | lcm max burst " +
-          std::to_string(bus->stats().max_burst));
+          std::to_string(bus->stats().max_burst) + " kernel drops " +
+          std::to_string(bus->stats().kernel_drops));
   return 0;
 }
 

@@ -211,7 +211,7 @@ main() {
   local r
   for r in $robots; do
     echo "agent $r: cpu $(cpu_of "$WORK/agent_$r.time") s; $(grep 'final:' "$WORK/agent_$r.log" | tail -1 |
-      sed -nE 's/.*(odometry [0-9]+ scans [0-9]+ keyframes [0-9]+).*(resent [0-9+]+).*(scan matching: matched [0-9/]+ odometry [0-9]+).*(cpu [0-9.]+ ms\/scan).*(rejected: [^|]*).*(lcm max burst [0-9]+).*/\1, \2, \3, \4, \5, \6/p')"
+      sed -nE 's/.*(odometry [0-9]+ scans [0-9]+ keyframes [0-9]+).*(resent [0-9+]+).*(scan matching: matched [0-9/]+ odometry [0-9]+).*(cpu [0-9.]+ ms\/scan).*(rejected: [^|]*).*(lcm max burst [0-9]+( kernel drops [0-9-]+)?).*/\1, \2, \3, \4, \5, \6/p')"
   done
   local cpu_all
   cpu_all=$(cat "$WORK"/agent_*.time "$WORK/server.time" | awk '{ s += $1 + $2 } END { printf "%.1f", s }')
