@@ -227,7 +227,7 @@ main() {
       --output "$WORK/replay.lcmlog" --inputs-output "$WORK/replay_inputs.lcmlog" >"$WORK/replay.log" 2>&1 ||
       { log "anchormap-replay failed"; tail -5 "$WORK/replay.log"; exit 1; }
     echo "replay: cpu $(cpu_of "$WORK/replay.time") s; $(grep 'server:' "$WORK/replay.log" | tail -1 |
-      sed -nE 's/.*(keyframes [0-9]+ encounters [0-9]+).*/\1/p'); $(grep 'server:' "$WORK/replay.log" |
+      sed -nE 's/.*(anchored [0-9]+ keyframes [0-9]+ encounters [0-9]+).*/\1/p'); $(grep 'server:' "$WORK/replay.log" |
       tail -1 | grep -oE '(loop|scan): candidates [0-9]+ accepted [0-9]+' | tr '\n' ';')"
     evaluate replay "$WORK/replay.lcmlog" || exit 1
     echo "== offline: anchormap-server --log on the daemons' recorded keyframes (sources on)"
