@@ -60,7 +60,8 @@ struct MappingServerOptions {
   // anchormap-server, because on this 2-core machine under load the live system tests
   // did not pass with them on (the scan encounters cost ~20 s CPU per 60 s of the 3-robot
   // test; a server that long behind gave up resends; the loss test still differed by one
-  // encounter in 118, 7.6e-7 m, cause not found): docs/ARCHITECTURE.md.
+  // encounter in 118, 7.6e-7 m: likely the offline reference's order, see
+  // docs/ARCHITECTURE.md "Canonical input order", Defaults).
   bool loop_closures = false;
   LoopClosureOptions loop;
   bool scan_encounters = false;
