@@ -25,6 +25,7 @@ usage() {
   exit 2
 }
 [ $# -ge 2 ] || usage
+[ -f "$1" ] && [ -f "$2" ] || { echo "daemons_real_log: no such file: $1 or $2" >&2; exit 2; }
 LOG=$(realpath "$1")
 RELATIONS=$(realpath "$2")
 shift 2
