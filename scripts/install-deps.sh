@@ -18,6 +18,7 @@ PACKAGES=(
   libcairo2-dev fonts-dejavu-core                           # map and plot drawing (anchormap-render)
   iproute2 util-linux                                       # ip / unshare for the network-namespace tests
   clang libclang-rt-dev                                     # the fuzz pass: libFuzzer with ASan + UBSan
+  time                                                      # GNU time: CPU of each process in tools/bench scripts
 )
 
 missing=()
