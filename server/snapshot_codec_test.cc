@@ -56,8 +56,12 @@ std::vector<Delivery> LossyMission(double duration_s, uint32_t seed) {
       if (s > 0) {
         const Pose2 delta(0.5, 0.0, 0.1 * normal(rng));
         truth[r] = Compose(truth[r], delta);
-        k.T_previous_this = Pose2(delta.x() + 0.02 * normal(rng), delta.y() + 0.02 * normal(rng),
-                                  delta.theta() + 0.01 * normal(rng));
+        // One draw per statement (a call's argument order is unspecified; gcc's order kept).
+        const double theta_noise = normal(rng);
+        const double y_noise = normal(rng);
+        const double x_noise = normal(rng);
+        k.T_previous_this = Pose2(delta.x() + 0.02 * x_noise, delta.y() + 0.02 * y_noise,
+                                  delta.theta() + 0.01 * theta_noise);
         k.T_previous_this_covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
         odometry[r] = Compose(odometry[r], k.T_previous_this);
       }
@@ -79,8 +83,11 @@ std::vector<Delivery> LossyMission(double duration_s, uint32_t seed) {
       e.observer_trajectory_id = 77 + observer;
       e.observed = names[observed];
       const Pose2 seen = Between(truth[observer], truth[observed]);
-      e.T_observer_observed = Pose2(seen.x() + 0.05 * normal(rng), seen.y() + 0.05 * normal(rng),
-                                    seen.theta() + 0.02 * normal(rng));
+      const double theta_noise = normal(rng);
+      const double y_noise = normal(rng);
+      const double x_noise = normal(rng);
+      e.T_observer_observed = Pose2(seen.x() + 0.05 * x_noise, seen.y() + 0.05 * y_noise,
+                                    seen.theta() + 0.02 * theta_noise);
       e.covariance = Eigen::Vector3d(2.5e-3, 2.5e-3, 4e-4).asDiagonal();
       e.seq = encounter_seq[observer]++;
       deliver(d, utime);
