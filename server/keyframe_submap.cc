@@ -19,7 +19,7 @@ SubmapDrawing DrawKeyframeSubmap(const TrajectoryRecord& record, const Smoother&
     const PoseKey key{center.trajectory, i};
     if (!smoother.HasPose(key)) continue;
     drawing.T_center_keyframes.emplace_back(i, Between(T_local_center, smoother.FramePose(key)));
-    drawing.num_points += KeyframePoints(record, i, max_range_m).size();
+    drawing.num_points += CountScanPoints(record.scans[static_cast<size_t>(i)], max_range_m);
   }
   return drawing;
 }

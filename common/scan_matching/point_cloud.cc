@@ -5,17 +5,29 @@
 
 namespace anchormap {
 
+namespace {
+// The beams both functions below keep: returns no farther than max_range_m (<= 0: all).
+bool KeepsBeam(const LaserScan& scan, size_t i, double max_range_m) {
+  return scan.IsReturn(i) && !(max_range_m > 0.0 && scan.ranges[i] > max_range_m);
+}
+}  // namespace
+
 PointCloud ScanToPointCloud(const LaserScan& scan, double max_range_m) {
   PointCloud cloud;
   cloud.reserve(scan.ranges.size());
   for (size_t i = 0; i < scan.ranges.size(); ++i) {
-    if (!scan.IsReturn(i)) continue;
+    if (!KeepsBeam(scan, i, max_range_m)) continue;
     const double r = scan.ranges[i];
-    if (max_range_m > 0.0 && r > max_range_m) continue;
     const double a = scan.Angle(i);
     cloud.push_back(scan.T_body_sensor.TransformPoint({r * std::cos(a), r * std::sin(a)}));
   }
   return cloud;
+}
+
+size_t CountScanPoints(const LaserScan& scan, double max_range_m) {
+  size_t count = 0;
+  for (size_t i = 0; i < scan.ranges.size(); ++i) count += KeepsBeam(scan, i, max_range_m);
+  return count;
 }
 
 PointCloud TransformPointCloud(const PointCloud& cloud_b, const Pose2& T_a_b) {

@@ -17,6 +17,8 @@ using PointCloud = std::vector<Eigen::Vector2d>;
 // Body-frame end points of the scan's returns no farther than `max_range_m` from the sensor
 // (<= 0: every return).
 PointCloud ScanToPointCloud(const LaserScan& scan, double max_range_m = 0.0);
+// How many points ScanToPointCloud(scan, max_range_m) gives, without making them.
+size_t CountScanPoints(const LaserScan& scan, double max_range_m = 0.0);
 
 // Every point mapped by T_a_b (points given in frame b, result in frame a).
 PointCloud TransformPointCloud(const PointCloud& cloud_b, const Pose2& T_a_b);

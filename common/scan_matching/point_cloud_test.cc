@@ -37,6 +37,8 @@ TEST(PointCloudTest, MaxRangeFilterTransformAndRange) {
   scan.ranges = {1.0f, 5.0f, 20.0f};
   EXPECT_EQ(ScanToPointCloud(scan, 10.0).size(), 2u);
   EXPECT_EQ(ScanToPointCloud(scan).size(), 3u);
+  EXPECT_EQ(CountScanPoints(scan, 10.0), 2u);
+  EXPECT_EQ(CountScanPoints(scan), 3u);
   const PointCloud moved = TransformPointCloud({{1.0, 0.0}}, Pose2(1.0, 2.0, kPi / 2));
   EXPECT_NEAR(moved[0].x(), 1.0, 1e-12);
   EXPECT_NEAR(moved[0].y(), 3.0, 1e-12);
