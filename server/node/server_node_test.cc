@@ -19,6 +19,18 @@ Keyframe MakeKeyframe(const std::string& robot, int64_t trajectory, int32_t seq)
   return testing::StraightKeyframe(robot, trajectory, seq, /*num_rays=*/3);
 }
 
+// R1 (trajectory 11) sees R2 3 m to its left at t = 2 s.
+Encounter R1SeesR2() {
+  Encounter e;
+  e.utime = 2'000'000;
+  e.observer = "R1";
+  e.observer_trajectory_id = 11;
+  e.observed = "R2";
+  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
+  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  return e;
+}
+
 class ServerNodeTest : public ::testing::Test {
  protected:
   ServerNodeTest()
@@ -39,13 +51,7 @@ TEST_F(ServerNodeTest, DecodedKeyframesAndEncountersReachTheMapThatIsPublished) 
     EXPECT_TRUE(Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq))));
     EXPECT_TRUE(Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq))));
   }
-  Encounter e;
-  e.utime = 2'000'000;
-  e.observer = "R1";
-  e.observer_trajectory_id = 11;
-  e.observed = "R2";
-  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
-  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  Encounter e = R1SeesR2();
   EXPECT_TRUE(Send(channels::kEncounters, EncodeEncounter(e)));
   node_.PublishAll();
 
@@ -166,13 +172,7 @@ TEST_F(ServerNodeJournalTest, ReplayingTheJournalRebuildsTheSameGraphsAndEstimat
   ASSERT_EQ(journal_.size(), before_bridge + 1);
   EXPECT_EQ(journal_.back().channel, ServerNode::kJournalTick);
   EXPECT_EQ(node_.server().receipt().num_bridged_gaps(), 1);
-  Encounter e;
-  e.utime = 2'000'000;
-  e.observer = "R1";
-  e.observer_trajectory_id = 11;
-  e.observed = "R2";
-  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
-  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  Encounter e = R1SeesR2();
   Receive(19.0, channels::kEncounters, EncodeEncounter(e));
   e.observed = "R3";
   e.utime = 3'000'000;
@@ -249,13 +249,7 @@ TEST_F(ServerNodeJournalTest, ASnapshotAndTheJournalsTailRebuildTheWholeReplay) 
   ASSERT_TRUE(snapshot.ok()) << snapshot.status().message();
   Receive(5.0, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, 1)));  // the resend
   Receive(5.5, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, 2)));  // duplicate
-  Encounter e;
-  e.utime = 2'000'000;
-  e.observer = "R1";
-  e.observer_trajectory_id = 11;
-  e.observed = "R2";
-  e.T_observer_observed = Pose2(0.0, 3.0, 0.0);
-  e.covariance = Eigen::Vector3d(1e-2, 1e-2, 1e-3).asDiagonal();
+  Encounter e = R1SeesR2();
   Receive(6.0, channels::kEncounters, EncodeEncounter(e));
   node_.Tick(20'000'000);
 
