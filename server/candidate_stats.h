@@ -17,17 +17,19 @@ struct CandidateStats {
   int64_t gate_rejected = 0;  // disagreed with the estimate beyond the chi-square gate
   int64_t kept = 0;           // first-encounter candidates waiting for a consistent second
   int64_t unconfirmed = 0;    // given up at the end of input (no consistent second)
+  int64_t repeated = 0;       // the pair this source had already joined: not entered twice
 
   int64_t rejected() const { return no_match + weak_match + gate_rejected + unconfirmed; }
   std::string Summary(const std::string& name) const {
     char text[256];
     std::snprintf(text, sizeof(text),
                   "%s: candidates %lld accepted %lld no_match %lld weak %lld gate %lld kept %lld "
-                  "unconfirmed %lld",
+                  "unconfirmed %lld repeated %lld",
                   name.c_str(), static_cast<long long>(candidates),
                   static_cast<long long>(accepted), static_cast<long long>(no_match),
                   static_cast<long long>(weak_match), static_cast<long long>(gate_rejected),
-                  static_cast<long long>(kept), static_cast<long long>(unconfirmed));
+                  static_cast<long long>(kept), static_cast<long long>(unconfirmed),
+                  static_cast<long long>(repeated));
     return text;
   }
 };

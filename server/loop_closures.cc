@@ -207,6 +207,12 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
 }
 
 void LoopClosures::Emit(const Hypothesis& closure, EncounterSourceOutput* out) {
+  if (!entered_[closure.key.trajectory]
+           .emplace(closure.candidate.index, closure.key.index)
+           .second) {
+    ++stats_.repeated;
+    return;
+  }
   ++stats_.accepted;
   int32_t& last = last_closure_[closure.key.trajectory];
   last = std::max(last, closure.key.index);

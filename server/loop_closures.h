@@ -29,6 +29,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -171,6 +172,9 @@ class LoopClosures : public EncounterSource {
   std::map<TrajectoryId, int32_t> next_wide_;    // rate limit of wide searches per trajectory
   std::map<TrajectoryId, std::deque<Hypothesis>> kept_;
   std::map<TrajectoryId, int32_t> last_closure_;  // index of the newest closure's keyframe
+  // The (candidate, key) index pairs entered, per trajectory: a local match and a confirmed
+  // wide one can name the same pair, and one place seen once must count once.
+  std::map<TrajectoryId, std::set<std::pair<int32_t, int32_t>>> entered_;
   CandidateStats stats_;
   int64_t wide_searches_ = 0;
 };
