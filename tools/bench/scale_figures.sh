@@ -2,8 +2,9 @@
 # Prints the server's scale figures (issue 12) as markdown: simulated teams replayed through
 # agents + server in one process (anchormap-replay, pinned to one core), the replay's speed
 # against real time, and the cost of every solver update (median, p99, max), overall and per
-# sixth of the run, so that growth with the map shows. Run on a quiet machine after a
-# Release build:
+# sixth of the run and per slice of data time (SCALE_SLICE_S, default 300 s: median, p99 and
+# the replay's speed per slice), so that growth with the map shows, and the process's maximum
+# RSS. Run on a quiet machine after a Release build:
 #
 #   tools/bench/scale_figures.sh [RUNS...]     RUN = ROBOTSxSECONDS
 #                                              (default: 100x180 20x1800, the issue's two)
@@ -43,8 +44,27 @@ percentiles() {
     printf "%.2f %.2f %.2f\n", v[m], v[p], v[NR] }'
 }
 
-echo "| robots | data s | agents' scan matching | server sources | keyframes | updates | batch steps | replay wall s | CPU s | x real time (wall) | x real time (CPU) | solver s | update median ms | p99 ms | max ms | p99 ms per sixth of the run |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+# The update times per slice of data time (default 300 s): "start-end s | updates | median |
+# p99 | x real time (CPU) over the slice" rows, from the CSV's data_s, update_ms, cpu_s.
+slices() {
+  awk -F, -v w="${SCALE_SLICE_S:-300}" 'NR > 1 {
+      k = int($1 / w); n[k]++; v[k, n[k]] = $2; if (!(k in c0)) c0[k] = $4; c1[k] = $4
+      if (k > last) last = k }
+    END {
+      for (k = 0; k <= last; k++) {
+        if (n[k] == 0) continue
+        m = n[k]; for (i = 1; i <= m; i++) a[i] = v[k, i]
+        # insertion sort is enough for a few thousand values per slice
+        for (i = 2; i <= m; i++) { x = a[i]; j = i - 1; while (j > 0 && a[j] > x) { a[j + 1] = a[j]; j-- } a[j + 1] = x }
+        med = a[int((m + 1) / 2)]; p = int(0.99 * m + 0.999999); if (p < 1) p = 1
+        start = k > 0 && ((k - 1) in c1) ? c1[k - 1] : c0[k]
+        cpu = c1[k] - start; speed = cpu > 0 ? sprintf("%.2f", w / cpu) : "-"
+        printf "| %d-%d | %d | %.2f | %.2f | %s |\n", k * w, (k + 1) * w, m, med, a[p], speed }
+    }' "$1"
+}
+
+echo "| robots | data s | agents' scan matching | server sources | keyframes | updates | batch steps | replay wall s | CPU s | max RSS MB | x real time (wall) | x real time (CPU) | solver s | update median ms | p99 ms | max ms | p99 ms per sixth of the run |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for run in "${RUNS[@]}"; do
   robots=${run%x*}
   seconds=${run#*x}
@@ -56,13 +76,14 @@ for run in "${RUNS[@]}"; do
       >"$WORK/sim-$run.txt"
   fi
   csv="$WORK/updates-$run.csv"
-  /usr/bin/time -f "%e %U %S" -o "$WORK/time-$run.txt" "${PIN[@]}" "$BIN/anchormap-replay" \
+  /usr/bin/time -f "%e %U %S %M" -o "$WORK/time-$run.txt" "${PIN[@]}" "$BIN/anchormap-replay" \
     --log "$log" --output "$WORK/out-$run.lcmlog" --update-times "$csv" --log-level info \
     --scan-matching "${AGENT_SCAN_MATCHING:-true}" \
     --loop-closures "${SERVER_SOURCES:-true}" --scan-encounters "${SERVER_SOURCES:-true}" \
     >"$WORK/replay-$run.txt" 2>&1 ||
     { echo "scale_figures: replay of $run failed" >&2; tail "$WORK/replay-$run.txt" >&2; exit 1; }
-  read -r wall user sys <"$WORK/time-$run.txt"
+  read -r wall user sys rss_kb <"$WORK/time-$run.txt"
+  rss_mb=$((rss_kb / 1024))
   cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.1f", u + s }')
   factor=$(awk -v d="$seconds" -v w="$wall" 'BEGIN { printf "%.2f", d / w }')
   # On a loaded machine the wall time says little: data seconds per CPU second (one core).
@@ -79,7 +100,7 @@ for run in "${RUNS[@]}"; do
       percentiles | cut -d' ' -f2)
     sixths="$sixths${sixths:+ / }$part"
   done
-  echo "| $robots | $seconds | ${AGENT_SCAN_MATCHING:-true} | ${SERVER_SOURCES:-true} | $keyframes | $updates | $batch | $wall | $cpu | $factor | $cpu_factor |" \
+  echo "| $robots | $seconds | ${AGENT_SCAN_MATCHING:-true} | ${SERVER_SOURCES:-true} | $keyframes | $updates | $batch | $wall | $cpu | $rss_mb | $factor | $cpu_factor |" \
     "$solver | $median | $p99 | $max | $sixths |"
   if command -v python3 >/dev/null; then
     python3 tools/bench/log_bytes.py "$WORK/out-$run.lcmlog" "$seconds" >"$WORK/bytes-$run.md"
@@ -89,6 +110,15 @@ echo
 for run in "${RUNS[@]}"; do
   # The scan sources' own figures (loop closures, scan encounters: global searches run).
   echo "Server sources of $run: $(grep -o 'loop: .*' "$WORK/replay-$run.txt" | tail -1)"
+done
+for run in "${RUNS[@]}"; do
+  # Flat or not as the map grows: the update times and the replay's speed per slice.
+  echo
+  echo "Update times of $run per ${SCALE_SLICE_S:-300} s of data:"
+  echo
+  echo "| data s | updates | median ms | p99 ms | x real time (CPU) |"
+  echo "|---|---|---|---|---|"
+  slices "$WORK/updates-$run.csv"
 done
 for run in "${RUNS[@]}"; do
   [ -f "$WORK/bytes-$run.md" ] || continue
