@@ -266,6 +266,12 @@ int Main(int argc, char** argv) {
   loader.Add("scan.global_searches_per_s", "scan-global-searches-per-s",
              &options.server.server.scan.global_budget.searches_per_s,
              "server: first-join (global) searches per second of data, whole team");
+  loader.Add("loop.submap_cache_mb", "loop-submap-cache-mb",
+             &options.server.server.loop.submap_cache.budget_mb,
+             "server: memory kept for built loop-candidate submaps (MB, estimated)");
+  loader.Add("scan.submap_cache_mb", "scan-submap-cache-mb",
+             &options.server.server.scan.submap_cache.budget_mb,
+             "server: memory kept for built scan-encounter submaps (MB, estimated)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
