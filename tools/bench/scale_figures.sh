@@ -13,8 +13,9 @@
 # keeps them; SCALE_SIM_DIR=DIR takes DIR/sim-RUN.lcmlog from such a run instead of simulating
 # again). AGENT_SCAN_MATCHING=false replays with the agents' scan matching off (it
 # runs in the same process and, at 100 robots, costs more than the server); "solver s"
-# is the sum of the server's update times, whatever the agents do. SERVER_SOURCES=false
-# turns the server's loop closures and scan encounters off (at 100 robots their global
+# is the sum of the server's update times, whatever the agents do. Update times are the
+# server thread's CPU time per update (wall time when the replay predates that column).
+# SERVER_SOURCES=false turns the server's loop closures and scan encounters off (at 100 robots their global
 # searches of unjoined trajectories dominate the start of the run). After the table: the
 # bytes of the server's outputs per channel for each run (tools/bench/log_bytes.py).
 set -euo pipefail
@@ -44,11 +45,15 @@ percentiles() {
     printf "%.2f %.2f %.2f\n", v[m], v[p], v[NR] }'
 }
 
+# The CSV column of an update's cost: the server thread's CPU ms (5) when the replay wrote
+# it, else the wall ms (2), which on a loaded machine also counts the waits for a core.
+update_column() { head -n 1 "$1" | grep -q update_cpu_ms && echo 5 || echo 2; }
+
 # The update times per slice of data time (default 300 s): "start-end s | updates | median |
 # p99 | x real time (CPU) over the slice" rows, from the CSV's data_s, update_ms, cpu_s.
 slices() {
-  awk -F, -v w="${SCALE_SLICE_S:-300}" 'NR > 1 {
-      k = int($1 / w); n[k]++; v[k, n[k]] = $2; if (!(k in c0)) c0[k] = $4; c1[k] = $4
+  awk -F, -v w="${SCALE_SLICE_S:-300}" -v UPDATE_COLUMN="$(update_column "$1")" 'NR > 1 {
+      k = int($1 / w); n[k]++; v[k, n[k]] = $UPDATE_COLUMN; if (!(k in c0)) c0[k] = $4; c1[k] = $4
       if (k > last) last = k }
     END {
       for (k = 0; k <= last; k++) {
@@ -92,11 +97,12 @@ for run in "${RUNS[@]}"; do
     grep -o '[0-9]*' || echo "?")
   updates=$(($(wc -l <"$csv") - 1))
   batch=$(awk -F, 'NR > 1 && $3 == 1' "$csv" | wc -l)
-  read -r median p99 max < <(awk -F, 'NR > 1 { print $2 }' "$csv" | percentiles)
-  solver=$(awk -F, 'NR > 1 { s += $2 } END { printf "%.1f", s / 1000 }' "$csv")
+  col=$(update_column "$csv")
+  read -r median p99 max < <(awk -F, -v c="$col" 'NR > 1 { print $c }' "$csv" | percentiles)
+  solver=$(awk -F, -v c="$col" 'NR > 1 { s += $c } END { printf "%.1f", s / 1000 }' "$csv")
   sixths=""
   for k in 0 1 2 3 4 5; do
-    part=$(awk -F, -v k=$k -v d="$seconds" 'NR > 1 && int(6 * $1 / d) == k { print $2 }' "$csv" |
+    part=$(awk -F, -v k=$k -v d="$seconds" -v c="$col" 'NR > 1 && int(6 * $1 / d) == k { print $c }' "$csv" |
       percentiles | cut -d' ' -f2)
     sixths="$sixths${sixths:+ / }$part"
   done

@@ -52,16 +52,18 @@ struct ReplayOptions {
   ServerOptions server = WithScanSources();
 };
 
-// One line per solver update: data time (s since the first), its cost, batch step or not,
-// and the process's CPU seconds when the line was written. Written as the replay goes (every
-// few thousand events), so that a long benchmark stopped early still leaves its curve.
+// One line per solver update: data time (s since the first), its cost (wall ms), batch step
+// or not, the process's CPU seconds when the line was written, and the update's CPU ms (the
+// server thread's: on a loaded machine the wall time also counts waiting for a core). Written as
+// the replay goes (every few thousand events), so that a long benchmark stopped early still leaves
+// its curve.
 class UpdateTimesWriter {
  public:
   Status Open(const std::string& path) {
     path_ = path;
     out_.open(path);
     if (!out_) return Status::Error(ErrorCode::kIoError, "cannot write " + path);
-    out_ << "data_s,update_ms,batch_step,cpu_s\n";
+    out_ << "data_s,update_ms,batch_step,cpu_s,update_cpu_ms\n";
     return Flush();
   }
   // Writes the updates after those already written.
@@ -71,7 +73,7 @@ class UpdateTimesWriter {
     for (; written_ < times.size(); ++written_) {
       const UpdateTiming& t = times[written_];
       out_ << 1e-6 * static_cast<double>(t.data_utime - start_) << ',' << t.ms << ','
-           << (t.batch_step ? 1 : 0) << ',' << cpu << '\n';
+           << (t.batch_step ? 1 : 0) << ',' << cpu << ',' << t.cpu_ms << '\n';
     }
     return Flush();
   }
