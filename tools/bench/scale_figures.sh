@@ -54,6 +54,7 @@ update_column() { head -n 1 "$1" | grep -q update_cpu_ms && echo 5 || echo 2; }
 slices() {
   awk -F, -v w="${SCALE_SLICE_S:-300}" -v UPDATE_COLUMN="$(update_column "$1")" 'NR > 1 {
       k = int($1 / w); n[k]++; v[k, n[k]] = $UPDATE_COLUMN; if (!(k in c0)) c0[k] = $4; c1[k] = $4
+      d1[k] = $1
       if (k > last) last = k }
     END {
       for (k = 0; k <= last; k++) {
@@ -63,7 +64,9 @@ slices() {
         for (i = 2; i <= m; i++) { x = a[i]; j = i - 1; while (j > 0 && a[j] > x) { a[j + 1] = a[j]; j-- } a[j + 1] = x }
         med = a[int((m + 1) / 2)]; p = int(0.99 * m + 0.999999); if (p < 1) p = 1
         start = k > 0 && ((k - 1) in c1) ? c1[k - 1] : c0[k]
-        cpu = c1[k] - start; speed = cpu > 0 ? sprintf("%.2f", w / cpu) : "-"
+        # the last slice may be partial: its data span ends at its last update
+        span = k < last ? w : d1[k] - k * w
+        cpu = c1[k] - start; speed = cpu > 0 ? sprintf("%.2f", span / cpu) : "-"
         printf "| %d-%d | %d | %.2f | %.2f | %s |\n", k * w, (k + 1) * w, m, med, a[p], speed }
     }' "$1"
 }
