@@ -50,6 +50,7 @@ Status LoopClosureOptions::Validate() const {
     return Status::Error("loop wide: min score in [0, 1), min overlap >= 0, pair chi2 > 0");
   }
   if (Status s = reference.Validate(); !s.ok()) return s;
+  if (Status s = submap_cache.Validate(); !s.ok()) return s;
   return match.Validate();
 }
 
@@ -138,6 +139,14 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
   }
 }
 
+std::shared_ptr<const ScanReference> LoopClosures::Reference(const TrajectoryRecord& record,
+                                                             const GraphView& graph, PoseKey center,
+                                                             int half_width) {
+  return references_.Get(
+      record, DrawKeyframeSubmap(record, graph.smoother, center, half_width, options_.max_range_m),
+      half_width);
+}
+
 std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMatch& pending,
                                                                  const MatchResult& coarse,
                                                                  const GraphView& graph) {
@@ -157,11 +166,8 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
     }
   }
   const PoseKey candidate{pending.key.trajectory, nearest ? nearest->first : 0};
-  std::unique_ptr<ScanReference> scan =
-      nearest
-          ? BuildKeyframeSubmap(*record, graph.smoother, candidate, options_.wide_refine_half_width,
-                                options_.max_range_m, options_.reference)
-          : nullptr;
+  const std::shared_ptr<const ScanReference> scan =
+      nearest ? Reference(*record, graph, candidate, options_.wide_refine_half_width) : nullptr;
   const std::optional<PredictedRelativePose> predicted =
       scan ? PredictRelativePose(graph.covariances, candidate, pending.key) : std::nullopt;
   if (!predicted) {
@@ -181,8 +187,7 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
   // Then against the keyframe's scan alone (exact where the submap is bent by drift between
   // its keyframes), when that scan matches well enough on its own.
   if (options_.wide_refine_half_width > 0) {
-    std::unique_ptr<ScanReference> alone = BuildKeyframeSubmap(
-        *record, graph.smoother, candidate, 0, options_.max_range_m, options_.reference);
+    const std::shared_ptr<const ScanReference> alone = Reference(*record, graph, candidate, 0);
     LocalMatchOptions small = window;
     small.linear_window_m = 0.5 * options_.min_window_m;
     small.angular_window_rad = 0.5 * options_.min_window_rad;
@@ -405,10 +410,9 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
                           const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
                           const GraphView& graph, const std::shared_ptr<const PointCloud>& query) {
   ++stats_.candidates;
-  std::shared_ptr<const ScanReference> submap =
-      BuildKeyframeSubmap(record, graph.smoother, candidate,
-                          wide ? options_.wide_submap_half_width : options_.submap_half_width,
-                          options_.max_range_m, options_.reference);
+  const std::shared_ptr<const ScanReference> submap =
+      Reference(record, graph, candidate,
+                wide ? options_.wide_submap_half_width : options_.submap_half_width);
   if (!submap) {
     ++stats_.no_match;
     return;

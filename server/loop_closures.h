@@ -42,6 +42,7 @@
 #include "server/encounter_source.h"
 #include "server/match_pool.h"
 #include "server/relative_pose.h"
+#include "server/submap_cache.h"
 #include "server/trajectory_table.h"
 
 namespace anchormap {
@@ -89,6 +90,9 @@ struct LoopClosureOptions {
   int wide_pair_max_gap = 60;     // ... and at most (older hypotheses are given up)
   int wide_max_kept = 8;          // hypotheses kept per trajectory
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
+  // The candidates' submaps, kept for the next keyframes (which mostly have the same
+  // candidates) under a memory budget.
+  SubmapCacheOptions submap_cache;
   MatchOptions match;
 
   Status Validate() const;
@@ -99,7 +103,10 @@ class LoopClosures : public EncounterSource {
   // Without a pool, matches run on the caller's thread and are used at once (lag 0).
   explicit LoopClosures(const LoopClosureOptions& options = {}, MatchPool* pool = nullptr,
                         MatchSchedule schedule = {})
-      : options_(options), pool_(pool), schedule_(schedule) {}
+      : options_(options),
+        pool_(pool),
+        schedule_(schedule),
+        references_(options.submap_cache, options.max_range_m, options.reference) {}
 
   std::string name() const override { return "loop"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -107,12 +114,17 @@ class LoopClosures : public EncounterSource {
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
   size_t pending() const override { return waiting_.size() + matches_.size(); }
   std::string StatsLine() const override {
-    return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_);
+    return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_) + " " +
+           references_.stats().Summary(name());
   }
   const CandidateStats& stats() const { return stats_; }
   int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
 
  private:
+  // The reference of the submap around `center` drawn at the current estimates (cached).
+  std::shared_ptr<const ScanReference> Reference(const TrajectoryRecord& record,
+                                                 const GraphView& graph, PoseKey center,
+                                                 int half_width);
   // Examines the waiting keyframes the smoother has solved.
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   // Chooses the keyframe's candidates and hands their matches to the pool.
@@ -177,6 +189,7 @@ class LoopClosures : public EncounterSource {
   std::map<TrajectoryId, std::set<std::pair<int32_t, int32_t>>> entered_;
   CandidateStats stats_;
   int64_t wide_searches_ = 0;
+  SubmapCache references_;
 };
 
 }  // namespace anchormap

@@ -122,6 +122,7 @@ struct UpdateTiming {
   int64_t data_utime = 0;  // the newest input's time when the update ran
   double ms = 0.0;         // the smoother's own wall time for the update
   bool batch_step = false;
+  double cpu_ms = 0.0;  // the server thread's CPU time for the update
 };
 
 class MappingServer {
@@ -229,7 +230,7 @@ class MappingServer {
   void ApplyKeyframe(Keyframe keyframe);
   void ApplyEncounter(const Encounter& encounter);
   // Counts (and records, if asked) one solver update.
-  void CountUpdate(const UpdateResult& result);
+  void CountUpdate(const UpdateResult& result, double cpu_seconds);
   // Solves after an input changed the graph: one update, or (deferring) a count and a batch
   // step when the graph has doubled.
   void Solve();

@@ -43,6 +43,8 @@ Status ScanEncounterOptions::Validate() const {
     return Status::Error("scan.near_min_overlap must be in [0, 1]");
   if (near_cooldown_keyframes < 0)
     return Status::Error("scan.near_cooldown_keyframes must be >= 0");
+  if (!(near_index_refresh_s >= 0) || !(near_index_slack_m >= 0))
+    return Status::Error("scan.near_index_refresh_s and near_index_slack_m must be >= 0");
   if (!(min_window_m > 0) || !(max_window_m >= min_window_m))
     return Status::Error("scan window: 0 < min_window_m <= max_window_m");
   if (!(min_window_rad > 0) || !(max_window_rad >= min_window_rad))
@@ -51,6 +53,7 @@ Status ScanEncounterOptions::Validate() const {
     return Status::Error("scan covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
   if (Status s = reference.Validate(); !s.ok()) return s;
+  if (Status s = submap_cache.Validate(); !s.ok()) return s;
   return match.Validate();
 }
 
@@ -82,7 +85,8 @@ void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
 
 std::string ScanEncounters::StatsLine() const {
   return stats_.Summary(name()) + " global_searches " + std::to_string(global_queue_.searches()) +
-         " global_replaced " + std::to_string(global_queue_.dropped());
+         " global_replaced " + std::to_string(global_queue_.dropped()) + " " +
+         references_.stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -138,17 +142,11 @@ void ScanEncounters::BuildSubmaps(const GraphView& graph) {
   }
 }
 
-std::shared_ptr<const ScanReference> ScanEncounters::Reference(Submap* submap,
-                                                               const GraphView& graph) const {
-  if (!submap->built) {
-    submap->built = true;
-    const TrajectoryRecord* record = graph.table.FindBySolverId(submap->center.trajectory);
-    if (record != nullptr) {
-      submap->reference =
-          BuildKeyframeSubmap(*record, submap->drawing, options_.max_range_m, options_.reference);
-    }
-  }
-  return submap->reference;
+std::shared_ptr<const ScanReference> ScanEncounters::Reference(const Submap& submap,
+                                                               const GraphView& graph) {
+  const TrajectoryRecord* record = graph.table.FindBySolverId(submap.center.trajectory);
+  if (record == nullptr) return nullptr;
+  return references_.Get(*record, submap.drawing, options_.submap_half_width);
 }
 
 void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
@@ -237,7 +235,7 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   for (size_t t = 0; t < tries; ++t) {
     Submap& submap = submaps[cursor % submaps.size()];
     ++cursor;
-    std::shared_ptr<const ScanReference> reference = Reference(&submap, graph);
+    std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
     if (!reference) continue;
     Submit(key, submap.center, /*global=*/true, record->utimes[static_cast<size_t>(key.index)],
            [reference, query, search] { return GlobalSearch(*reference, *query, search); });
@@ -253,10 +251,20 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
   if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
   std::vector<Submap>& submaps = submaps_[other];
+  if (submaps.empty()) return;
   const Pose2 global_key = graph.smoother.GlobalPose(key);
+  // The keyframe in the other's frame (one rigid motion: the distances are the same).
+  const PoseKey reference_center = submaps.front().center;
+  const Pose2 T_frame_key = Compose(Compose(graph.smoother.FramePose(reference_center),
+                                            graph.smoother.GlobalPose(reference_center).Inverse()),
+                                    global_key);
+  const std::vector<int32_t> near =
+      NearIndex(other, graph)
+          .Near(T_frame_key.translation(), options_.near_distance_m + options_.near_index_slack_m);
   Submap* nearest = nullptr;
   double nearest_distance = std::numeric_limits<double>::infinity();
-  for (Submap& submap : submaps) {
+  for (const int32_t item : near) {
+    Submap& submap = submaps[static_cast<size_t>(item)];
     if (submap.drawing.num_points == 0) continue;
     const double distance =
         (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
@@ -280,12 +288,33 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   window.angular_window_rad =
       std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
                  options_.min_window_rad, options_.max_window_rad);
-  std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
+  std::shared_ptr<const ScanReference> reference = Reference(*nearest, graph);
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
   Submit(
       key, nearest->center, /*global=*/false, record->utimes[static_cast<size_t>(key.index)],
       [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
+}
+
+const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphView& graph) {
+  const std::vector<Submap>& submaps = submaps_[other];
+  SubmapIndex& entry = near_index_[other];
+  const SmootherStats& stats = graph.smoother.stats();
+  const int64_t merges = stats.batch_steps_on_merge + stats.partial_merges;
+  const bool due =
+      entry.merges != merges || 1e-6 * static_cast<double>(now_utime_ - entry.refreshed_utime) >=
+                                    options_.near_index_refresh_s;
+  if (due) {
+    entry.index.Clear();
+    entry.indexed = 0;
+    entry.refreshed_utime = now_utime_;
+    entry.merges = merges;
+  }
+  for (; entry.indexed < submaps.size(); ++entry.indexed) {
+    entry.index.Add(static_cast<int32_t>(entry.indexed),
+                    graph.smoother.FramePose(submaps[entry.indexed].center).translation());
+  }
+  return entry.index;
 }
 
 void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, int64_t key_utime,

@@ -47,6 +47,8 @@
 #include "server/global_search_queue.h"
 #include "server/keyframe_submap.h"
 #include "server/match_pool.h"
+#include "server/position_index.h"
+#include "server/submap_cache.h"
 
 namespace anchormap {
 
@@ -92,6 +94,12 @@ struct ScanEncounterOptions {
   double near_min_overlap = 0.85;
   double near_min_score = 0.5;
   int near_cooldown_keyframes = 3;
+  // The nearest submap is looked up in a grid of each trajectory's submap centres (in its
+  // own frame), not among all of them: the positions are refreshed every
+  // near_index_refresh_s of data time and at every group merge, and a submap that moved
+  // less than near_index_slack_m since is found as before.
+  double near_index_refresh_s = 1.0;
+  double near_index_slack_m = 1.0;
   double gate_chi2 = 11.34;  // 3 dof, 99 %
   double min_window_m = 0.4;
   double max_window_m = 2.0;
@@ -102,6 +110,9 @@ struct ScanEncounterOptions {
   double floor_sigma_rad = 0.005;
   int max_waiting = 200;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 7};
+  // The submaps' references built for searches, kept under a memory budget (a submap's
+  // drawing never changes: a reference built again has the same bits).
+  SubmapCacheOptions submap_cache;
   MatchOptions match;
 
   Status Validate() const;
@@ -125,7 +136,11 @@ class ScanEncounters : public EncounterSource {
   // Without a pool, matches run on the caller's thread and are used at once.
   explicit ScanEncounters(const ScanEncounterOptions& options = {}, MatchPool* pool = nullptr,
                           MatchSchedule schedule = {})
-      : options_(options), pool_(pool), schedule_(schedule), global_queue_(options.global_budget) {}
+      : options_(options),
+        pool_(pool),
+        schedule_(schedule),
+        global_queue_(options.global_budget),
+        references_(options.submap_cache, options.max_range_m, options.reference) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -144,15 +159,13 @@ class ScanEncounters : public EncounterSource {
                       EncounterSourceOutput* out);
 
  private:
-  // Drawn when its keyframes are solved, built when a search first uses it (the same bits
-  // as building it at once: most submaps of a large team are never searched).
+  // Drawn when its keyframes are solved, built when a search uses it (references_: the
+  // same bits as building it at once; most submaps of a large team are never searched).
   struct Submap {
     PoseKey center;
     SubmapDrawing drawing;
-    bool built = false;
-    std::shared_ptr<const ScanReference> reference;  // once built; null when empty
   };
-  std::shared_ptr<const ScanReference> Reference(Submap* submap, const GraphView& graph) const;
+  std::shared_ptr<const ScanReference> Reference(const Submap& submap, const GraphView& graph);
   using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
@@ -200,6 +213,7 @@ class ScanEncounters : public EncounterSource {
   std::map<TrajectoryId, std::vector<Submap>> submaps_;
   std::map<Pair, size_t> global_cursor_;
   GlobalSearchQueue global_queue_;
+  SubmapCache references_;
   struct Kept {
     EncounterCandidate candidate;
     int support = 0;  // later candidates consistent with it (at other places)
@@ -211,6 +225,16 @@ class ScanEncounters : public EncounterSource {
   std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
   int64_t now_utime_ = 0;
   std::map<Pair, int32_t> near_quiet_until_;  // keyed (examined trajectory, other)
+  // Per trajectory, its submaps' centres in its frame (items: positions in submaps_).
+  struct SubmapIndex {
+    PositionIndex index{4.0};
+    size_t indexed = 0;  // submaps in the index
+    int64_t refreshed_utime = 0;
+    int64_t merges = -1;  // the smoother's merge count at the refresh
+  };
+  // The index of `other`'s submaps, refreshed when due.
+  const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
+  std::map<TrajectoryId, SubmapIndex> near_index_;
   CandidateStats stats_;
 };
 

@@ -151,6 +151,9 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "a loop-closure candidate may lie this close to the keyframe (m)");
   l->Add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
          "a loop closure's match needs this fraction of points near the submap's walls");
+  l->Add("loop.submap_cache_mb", "loop-submap-cache-mb", &s.loop.submap_cache.budget_mb,
+         "loop closures: memory kept for built candidate submaps, least recently used dropped "
+         "beyond (MB, estimated)");
   l->Add("scan.enabled", "scan-encounters", &s.scan_encounters,
          "find encounters between trajectories by scan matching (off by default online: see "
          "docs/ARCHITECTURE.md, canonical input order)");
@@ -181,6 +184,9 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "unjoined trajectories: global searches (submaps) per second of data, whole team");
   l->Add("scan.global_burst", "scan-global-burst", &s.scan.global_budget.burst,
          "unjoined trajectories: most global searches saved up");
+  l->Add("scan.submap_cache_mb", "scan-submap-cache-mb", &s.scan.submap_cache.budget_mb,
+         "scan encounters: memory kept for built submaps, least recently used dropped beyond "
+         "(MB, estimated)");
   l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
          "cells per tile side");

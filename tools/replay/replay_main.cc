@@ -12,6 +12,9 @@
 #include <set>
 #include <sstream>
 
+#include <sys/resource.h>
+#include <sys/time.h>
+
 #include "agent/node/agent_node.h"
 #include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
@@ -49,19 +52,51 @@ struct ReplayOptions {
   ServerOptions server = WithScanSources();
 };
 
-// One line per solver update: data time (s since the first), its cost, batch step or not.
-Status WriteUpdateTimes(const std::vector<UpdateTiming>& times, const std::string& path) {
-  std::ofstream out(path);
-  if (!out) return Status::Error(ErrorCode::kIoError, "cannot write " + path);
-  out << "data_s,update_ms,batch_step\n";
-  const int64_t start = times.empty() ? 0 : times.front().data_utime;
-  for (const UpdateTiming& t : times) {
-    out << 1e-6 * static_cast<double>(t.data_utime - start) << ',' << t.ms << ','
-        << (t.batch_step ? 1 : 0) << '\n';
+// One line per solver update: data time (s since the first), its cost (wall ms), batch step
+// or not, the process's CPU seconds when the line was written, and the update's CPU ms (the
+// server thread's: on a loaded machine the wall time also counts waiting for a core). Written as
+// the replay goes (every few thousand events), so that a long benchmark stopped early still leaves
+// its curve.
+class UpdateTimesWriter {
+ public:
+  Status Open(const std::string& path) {
+    path_ = path;
+    out_.open(path);
+    if (!out_) return Status::Error(ErrorCode::kIoError, "cannot write " + path);
+    out_ << "data_s,update_ms,batch_step,cpu_s,update_cpu_ms\n";
+    return Flush();
   }
-  out.close();
-  return out ? Status::Ok() : Status::Error(ErrorCode::kIoError, "cannot write " + path);
-}
+  // Writes the updates after those already written.
+  Status Append(const std::vector<UpdateTiming>& times) {
+    if (written_ == 0 && !times.empty()) start_ = times.front().data_utime;
+    const double cpu = ProcessCpuSeconds();
+    for (; written_ < times.size(); ++written_) {
+      const UpdateTiming& t = times[written_];
+      out_ << 1e-6 * static_cast<double>(t.data_utime - start_) << ',' << t.ms << ','
+           << (t.batch_step ? 1 : 0) << ',' << cpu << ',' << t.cpu_ms << '\n';
+    }
+    return Flush();
+  }
+
+ private:
+  static double ProcessCpuSeconds() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    const auto seconds = [](const timeval& t) {
+      return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+    };
+    return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+  }
+  Status Flush() {
+    out_.flush();
+    return out_ ? Status::Ok() : Status::Error(ErrorCode::kIoError, "cannot write " + path_);
+  }
+
+  std::string path_;
+  std::ofstream out_;
+  size_t written_ = 0;
+  int64_t start_ = 0;
+};
 
 std::set<std::string> RobotsInLog(const std::string& path) {
   std::set<std::string> robots;
@@ -148,12 +183,22 @@ int Run(const ReplayOptions& options) {
       server.PublishDue(server.server().data_utime());
     });
   }
+  UpdateTimesWriter update_times;
+  if (!options.update_times.empty()) {
+    if (Status s = update_times.Open(options.update_times); !s.ok()) {
+      return LogError(s.message()), 1;
+    }
+  }
+  constexpr int64_t kUpdateTimesEveryEvents = 5000;
   int64_t events = 0;
   while (auto event = reader.Next()) {
     ++events;
     event_utime = event->utime;
     if (!loop->Publish(event->channel, event->data).ok()) continue;
     loop->HandlePending();
+    if (!options.update_times.empty() && events % kUpdateTimesEveryEvents == 0) {
+      (void)update_times.Append(server.server().update_times());  // checked at the end
+    }
   }
   server.server().Flush();
   server.PublishAll();
@@ -167,8 +212,7 @@ int Run(const ReplayOptions& options) {
     }
   }
   if (!options.update_times.empty()) {
-    if (Status written = WriteUpdateTimes(server.server().update_times(), options.update_times);
-        !written.ok()) {
+    if (Status written = update_times.Append(server.server().update_times()); !written.ok()) {
       LogError(written.message());
       return 1;
     }
@@ -207,8 +251,9 @@ int Main(int argc, char** argv) {
              "server: batch step when an estimate drifted this far from its linearisation point "
              "(m / rad; 0 = off)");
   loader.Add("update_times", "update-times", &options.update_times,
-             "write every solver update's data time, cost (ms) and kind to this CSV (empty: "
-             "none; tools/bench/scale_figures.sh reads it)");
+             "write every solver update's data time, cost (ms), kind and the process's CPU "
+             "seconds to this CSV, as the replay goes (empty: none; "
+             "tools/bench/scale_figures.sh reads it)");
   loader.Add("inputs_output", "inputs-output", &options.inputs_output,
              "also write the agents' keyframes and encounters to this LCM log (empty: none)");
   loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
@@ -223,6 +268,12 @@ int Main(int argc, char** argv) {
   loader.Add("scan.global_searches_per_s", "scan-global-searches-per-s",
              &options.server.server.scan.global_budget.searches_per_s,
              "server: first-join (global) searches per second of data, whole team");
+  loader.Add("loop.submap_cache_mb", "loop-submap-cache-mb",
+             &options.server.server.loop.submap_cache.budget_mb,
+             "server: memory kept for built loop-candidate submaps (MB, estimated)");
+  loader.Add("scan.submap_cache_mb", "scan-submap-cache-mb",
+             &options.server.server.scan.submap_cache.budget_mb,
+             "server: memory kept for built scan-encounter submaps (MB, estimated)");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
