@@ -66,7 +66,7 @@ struct SmootherOptions {
   // predicted chi2 decrease g^T (R^T R)^-1 g is below this fraction of chi2, at most
   // correction_iterations steps. The correction is kept apart from R and d.
   double correction_tolerance = 0.0;
-  int correction_iterations = 3;
+  int correction_iterations = 5;
   // With correction_tolerance: look at drift (relinearize_threshold) only after an update
   // whose correction did not converge within correction_iterations (R too stale to
   // serve as the preconditioner), instead of after every update.

@@ -42,7 +42,7 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --correct TOL               after every update, move the estimate toward the nonlinear
                               optimum (R as preconditioner) until the predicted chi2
                               decrease is below TOL x chi2 (default 0 = off)
-  --correct-iterations K      at most K correction steps per update (default 3)
+  --correct-iterations K      at most K correction steps per update (default 5)
   --relinearize-on-stall      look at drift only when the correction did not converge
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
