@@ -17,6 +17,7 @@ namespace anchormap {
 int Smoother::Impl::AddVariable(const Key& key, const Pose2& initial) {
   const int var = static_cast<int>(vars_.size());
   vars_.push_back({key, initial, -1});
+  correction_.push_back(Eigen::Vector3d::Zero());
   var_factors_.emplace_back();
   index_.emplace(key, var);
   pending_vars_.push_back(var);
@@ -43,6 +44,7 @@ void Smoother::Impl::SetValue(int var, const Pose2& value) {
   // Only used right before a batch step, which relinearises everything.
   vars_[var].linearization = value;
   if (vars_[var].position >= 0) delta_[vars_[var].position].setZero();
+  correction_[var].setZero();
 }
 
 Status Smoother::Impl::CheckMeasurement(const Pose2& z, const Eigen::Matrix3d& covariance) const {
@@ -113,6 +115,7 @@ void Smoother::Impl::MoveTrajectories(const std::vector<TrajectoryId>& trajector
         delta_[position] =
             Eigen::Vector3d(moved.x() - theta.x(), moved.y() - theta.y(),
                             std::remainder(moved.theta() - theta.theta(), 2.0 * M_PI));
+        correction_[var].setZero();
         merge_vars_.push_back(var);
       } else {
         SetValue(var, moved);

@@ -60,6 +60,12 @@ struct SmootherStats {
   int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations
   int64_t givens_block_columns = 0;  // block columns they spanned (the elimination work)
   int64_t rows_backsubstituted = 0;
+  // correction_tolerance: correction steps taken, updates whose correction did not
+  // converge, and the time spent (gradient evaluations and triangular solves).
+  int64_t correction_steps = 0;
+  int64_t correction_stalls = 0;
+  int64_t correction_skips = 0;  // updates whose new factors agreed with the estimate
+  double correction_seconds = 0.0;
   int64_t variables = 0;
   int64_t factors = 0;
   int64_t nnz_r = 0;                 // scalar non-zeros of R (upper triangle)

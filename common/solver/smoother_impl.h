@@ -139,8 +139,10 @@ class Smoother::Impl {
  private:
   Pose2 EstimateOf(int var) const {
     const Variable& v = vars_[var];
-    return v.position < 0 ? v.linearization : Retract(v.linearization, delta_[v.position]);
+    return v.position < 0 ? v.linearization : Retract(v.linearization, OffsetOf(var));
   }
+  // Estimate minus linearisation point of a variable in R: delta plus the correction.
+  Eigen::Vector3d OffsetOf(int var) const { return delta_[vars_[var].position] + correction_[var]; }
   // The variable of `key`; an unknown key is a caller's bug (HasVariable tells).
   int VarOf(const Key& key) const {
     auto it = index_.find(key);
@@ -178,6 +180,14 @@ class Smoother::Impl {
   // measurements by Givens updates, then a partial step over the moved anchors and the
   // one whose gauge prior was dropped. Falls back to a batch step if that fails.
   void PartialMergeStep(UpdateResult* result);
+  // correction_tolerance: moves the estimate toward the nonlinear optimum with R as the
+  // preconditioner; false if it did not converge in correction_iterations steps.
+  bool CorrectEstimate();
+  // The drift check: a partial step (or a batch step) on the variables whose estimate
+  // moved more than relinearize_threshold from their linearisation point; false if none.
+  bool RelinearizeDrifted(UpdateResult* result);
+  // After a correction that stalled: relinearise and correct again, up to three times.
+  void RelinearizeUntilCorrected(UpdateResult* result);
   bool MergesByPartialStep() const {
     return options_.partial_merges && options_.formulation == Formulation::kRelative;
   }
@@ -195,6 +205,7 @@ class Smoother::Impl {
     std::vector<char> grounded;
     std::vector<int> position_to_var;
     std::vector<Eigen::Vector3d> delta;
+    std::vector<Eigen::Vector3d> correction;
     std::shared_ptr<SparseR> r;
     int updates_since_batch;
     int64_t nonzeros_after_batch;
@@ -207,6 +218,7 @@ class Smoother::Impl {
             grounded_,
             position_to_var_,
             delta_,
+            correction_,
             r_,
             updates_since_batch_,
             nonzeros_after_batch_};
@@ -219,6 +231,7 @@ class Smoother::Impl {
     grounded_ = std::move(s.grounded);
     position_to_var_ = std::move(s.position_to_var);
     delta_ = std::move(s.delta);
+    correction_ = std::move(s.correction);
     r_ = std::move(s.r);
     updates_since_batch_ = s.updates_since_batch;
     nonzeros_after_batch_ = s.nonzeros_after_batch;
@@ -269,6 +282,12 @@ class Smoother::Impl {
   std::vector<char> grounded_;  // IncrementalStep's view of which variables are in R
   std::vector<int> position_to_var_;
   std::vector<Eigen::Vector3d> delta_;  // by position
+  // By variable: the estimate is linearization + delta + correction (correction_tolerance;
+  // zero otherwise and for variables not in R).
+  std::vector<Eigen::Vector3d> correction_;
+  bool correction_converged_ = false;  // the last CorrectEstimate() converged
+  double last_chi2_ = 0.0;             // chi2 at its last gradient evaluation
+  double innovation_ = 0.0;            // new factors' chi2 at entry since then
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
   BatchFactorization batch_;

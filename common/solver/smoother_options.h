@@ -59,6 +59,19 @@ struct SmootherOptions {
   // Drift is looked at every this many updates (iSAM2's relinearizeSkip); 1 = every update.
   int relinearize_skip = 1;
 
+  // Nonlinear correction of the estimate after every incremental update (0 = off): the
+  // estimate is moved toward the optimum of the nonlinear problem by steps
+  // h = -(R^T R)^-1 g, g the gradient of chi2 at the estimate (every factor in R at its
+  // current values), R (linearised at older points) as the preconditioner, until the
+  // predicted chi2 decrease g^T (R^T R)^-1 g is below this fraction of chi2, at most
+  // correction_iterations steps. The correction is kept apart from R and d.
+  double correction_tolerance = 0.0;
+  int correction_iterations = 5;
+  // With correction_tolerance: look at drift (relinearize_threshold) only after an update
+  // whose correction did not converge within correction_iterations (R too stale to
+  // serve as the preconditioner), instead of after every update.
+  bool relinearize_when_correction_stalls = false;
+
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
   // are relinearised where the encounter puts them; only the rows of R that depend on
@@ -96,6 +109,8 @@ struct SmootherOptions {
     if (relinearize_skip < 1) return Status::Error("relinearize_skip must be >= 1");
     if (backsubstitution_threshold < 0)
       return Status::Error("backsubstitution_threshold must be >= 0");
+    if (!(correction_tolerance >= 0)) return Status::Error("correction_tolerance must be >= 0");
+    if (correction_iterations < 1) return Status::Error("correction_iterations must be >= 1");
     if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");
     if (max_batch_iterations < 1) return Status::Error("max_batch_iterations must be >= 1");
     if (!(dogleg_initial_radius > 0)) return Status::Error("dogleg_initial_radius must be > 0");

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -77,6 +78,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
 
   SparseR& R = MutableR();
+  const int first_new = R.size();
   int appended = 0;
   for (int v : pending_vars_) {
     if (!grounded[v]) continue;
@@ -102,7 +104,22 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     for (int j = 0; j < f.num_vars; ++j) {
       const int position = vars_[f.vars[j]].position;
       rows.blocks.emplace_back(position, lin.jacobians[j]);
-      rows.rhs += lin.jacobians[j] * delta_[position];
+      rows.rhs += lin.jacobians[j] * OffsetOf(f.vars[j]);
+    }
+    if (options_.correction_tolerance > 0) {
+      innovation_ += lin.whitened_error.squaredNorm();
+      // A variable this factor determines is placed by R relative to its neighbours'
+      // uncorrected estimates: give it their correction, so that its estimate is where
+      // this factor puts it relative to their corrected ones.
+      for (int j = 0; j < f.num_vars; ++j) {
+        const int var = f.vars[j];
+        if (vars_[var].position < first_new || !correction_[var].isZero(0.0)) continue;
+        Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
+        for (int k = 0; k < f.num_vars; ++k) {
+          if (k != j) pushed.noalias() += lin.jacobians[k] * correction_[f.vars[k]];
+        }
+        if (!pushed.isZero(0.0)) correction_[var] = -lin.jacobians[j].partialPivLu().solve(pushed);
+      }
     }
     new_rows.push_back(std::move(rows));
   }
@@ -117,6 +134,16 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   } else {
     result->rows_backsubstituted =
         R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
+  }
+  if (options_.correction_tolerance > 0) {
+    // The new factors at the new estimate: with a zero error at entry R's solution of the
+    // old variables is unchanged, so these tell whether the gradient changed (a new
+    // variable placed by one factor may disagree with its others).
+    for (int64_t id : ready) {
+      const FactorRecord& f = factors_[id];
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      innovation_ += FactorChi2(f.factor, values.data());
+    }
   }
 }
 
@@ -134,7 +161,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   if (drifted_positions.empty()) return true;
   auto theta = [&](int var) {  // the new linearisation point
     const Variable& v = vars_[var];
-    return drifted[v.position] ? Retract(v.linearization, delta_[v.position]) : v.linearization;
+    return drifted[v.position] ? Retract(v.linearization, OffsetOf(var)) : v.linearization;
   };
   auto usable = [&](int64_t f) { return factors_[f].active && factor_lin_[f].in_r; };
   // 2. Affected: S, every variable that shares a factor with S (those factors are
@@ -223,7 +250,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   for (int r : boundary) {
     Eigen::Vector3d d = r_->row(r).rhs;
     for (const auto& [q, block] : r_->row(r).right) {
-      if (drifted[q]) d.noalias() -= block * delta_[q];
+      if (drifted[q]) d.noalias() -= block * OffsetOf(position_to_var_[q]);
     }
     boundary_rhs.emplace_back(r, d);
   }
@@ -346,7 +373,13 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   std::vector<Eigen::Vector3d> old_delta(delta_.begin() + p0, delta_.end());
   for (int p : drifted_positions) {
     Variable& v = vars_[position_to_var_[p]];
-    v.linearization = Retract(v.linearization, delta_[p]);
+    v.linearization = Retract(v.linearization, OffsetOf(position_to_var_[p]));
+    correction_[position_to_var_[p]].setZero();
+  }
+  // The corrections compensated the old rows' linearisation error, which this step has
+  // (in part) removed: start the next correction from R's solution.
+  for (Eigen::Vector3d& c : correction_) c.setZero();
+  for (int p : drifted_positions) {
     old_delta[p - p0] = Eigen::Vector3d::Zero();
     delta_[p].setZero();
   }
@@ -368,6 +401,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
     result->rows_backsubstituted +=
         MutableR().BackSubstitutePartial(dirty, options_.backsubstitution_threshold, &delta_);
   }
+  correction_converged_ = false;
   ++stats_.partial_relinearizations;
   stats_.relinearized_variables += static_cast<int64_t>(drifted_positions.size());
   stats_.rows_reeliminated += nb;
@@ -380,7 +414,7 @@ std::vector<int> Smoother::Impl::DriftedPositions(double* max_drift) const {
   std::vector<int> positions;
   *max_drift = 0.0;
   for (int p = 0; p < static_cast<int>(delta_.size()); ++p) {
-    const double drift = Drift(delta_[p]);
+    const double drift = Drift(delta_[p] + correction_[position_to_var_[p]]);
     *max_drift = std::max(*max_drift, drift);
     if (drift > options_.relinearize_threshold) positions.push_back(p);
   }
@@ -389,6 +423,7 @@ std::vector<int> Smoother::Impl::DriftedPositions(double* max_drift) const {
 
 void Smoother::Impl::PartialMergeStep(UpdateResult* result) {
   result->groups_merged = 1;
+  correction_converged_ = false;  // anchors moved: the gradient changed
   // Givens updates first, so that the encounter that joins the groups is in R before the
   // absorbed group's gauge prior leaves it; no solve yet: delta holds the moved anchors.
   IncrementalStep(/*solve=*/false, result);
@@ -424,6 +459,71 @@ void Smoother::Impl::PartialMergeStep(UpdateResult* result) {
       break;
     }
   }
+}
+
+bool Smoother::Impl::CorrectEstimate() {
+  // Converged last time and the new factors agree with the estimate: the gradient is
+  // unchanged (new rows only add information), nothing to do.
+  if (correction_converged_ &&
+      innovation_ <= options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
+    ++stats_.correction_skips;
+    return true;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int n = r_->size();
+  const SparseR& R = *r_;
+  std::vector<Eigen::Vector3d> g(n), step(n);
+  std::array<Pose2, kMaxFactorKeys> values;
+  double previous_chi2 = std::numeric_limits<double>::infinity();
+  bool converged = false;
+  for (int it = 0;; ++it) {
+    // Gradient of chi2 / 2 at the estimate, over the factors in R.
+    std::fill(g.begin(), g.end(), Eigen::Vector3d::Zero());
+    double chi2 = 0.0;
+    for (size_t id = 0; id < factors_.size(); ++id) {
+      const FactorRecord& f = factors_[id];
+      if (!f.active || !factor_lin_[id].in_r) continue;
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      const LinearizedFactor lin = Linearize(f.factor, values.data());
+      chi2 += lin.whitened_error.squaredNorm();
+      for (int j = 0; j < f.num_vars; ++j) {
+        g[vars_[f.vars[j]].position].noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
+      }
+    }
+    if (chi2 > previous_chi2) {  // R is too stale to be a preconditioner here: undo
+      for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] += step[p];
+      break;
+    }
+    previous_chi2 = chi2;
+    // y = R^-T g; the predicted decrease of chi2 by the step -(R^T R)^-1 g is |y|^2.
+    double decrease = 0.0;
+    for (int p = 0; p < n; ++p) {
+      const RBlockRow& row = R.row(p);
+      g[p] = row.diagonal.transpose().triangularView<Eigen::Lower>().solve(g[p]);
+      for (const auto& [q, block] : row.right) g[q].noalias() -= block.transpose() * g[p];
+      decrease += g[p].squaredNorm();
+    }
+    last_chi2_ = chi2;
+    if (decrease <= options_.correction_tolerance * std::max(chi2, 1e-12)) {
+      converged = true;
+      break;
+    }
+    if (it == options_.correction_iterations) break;
+    // step = R^-1 y; the estimate moves by -step.
+    for (int p = n - 1; p >= 0; --p) {
+      const RBlockRow& row = R.row(p);
+      Eigen::Vector3d v = g[p];
+      for (const auto& [q, block] : row.right) v.noalias() -= block * step[q];
+      step[p] = row.diagonal.triangularView<Eigen::Upper>().solve(v);
+      correction_[position_to_var_[p]] -= step[p];
+    }
+    ++stats_.correction_steps;
+  }
+  if (!converged) ++stats_.correction_stalls;
+  correction_converged_ = converged;
+  innovation_ = 0.0;
+  stats_.correction_seconds += Seconds(start);
+  return converged;
 }
 
 bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
@@ -465,8 +565,11 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   };
   result->batch_step = true;
   // Relinearise everything at the current estimate.
-  for (Variable& v : vars_) {
-    if (v.position >= 0) v.linearization = Retract(v.linearization, delta_[v.position]);
+  for (size_t var = 0; var < vars_.size(); ++var) {
+    Variable& v = vars_[var];
+    if (v.position >= 0)
+      v.linearization = Retract(v.linearization, OffsetOf(static_cast<int>(var)));
+    correction_[var].setZero();
   }
   // Start from scratch: every active factor is pending, grounding starts at the priors.
   for (FactorLinearization& lin : factor_lin_) lin.in_r = false;
@@ -525,6 +628,7 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   if (!result->status.ok()) return fail(result->status);
   nonzeros_after_batch_ = r_->NonZeros();
   updates_since_batch_ = 0;
+  correction_converged_ = false;
   stats_.batch_seconds += Seconds(start);
   ++stats_.batch_steps;
   stats_.batch_iterations += result->iterations - iterations_before;
@@ -545,6 +649,10 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {
     // 2a. Groups joined: a partial step over the anchors (relative formulation).
     PartialMergeStep(&result);
+    if (result.status.ok() && options_.correction_tolerance > 0 && !CorrectEstimate() &&
+        options_.relinearize_when_correction_stalls) {
+      RelinearizeUntilCorrected(&result);
+    }
     stats_.incremental_seconds += Seconds(start);
   } else if (kind != StepKind::kIncremental) {
     // 2b. A batch step: relinearise, reorder, refactor.
@@ -559,21 +667,22 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
     // 2c. Givens updates, then relinearisation where estimates drifted.
     IncrementalStep(/*solve=*/true, &result);
     stats_.incremental_seconds += Seconds(start);
-    if (result.status.ok() && DriftCheckDue(options_, ++updates_since_drift_check_)) {
-      updates_since_drift_check_ = 0;
-      double max_drift = 0.0;
-      const std::vector<int> drifted = DriftedPositions(&max_drift);
-      switch (OnDrift(options_, max_drift)) {
-        case DriftAction::kNone:
-          break;
-        case DriftAction::kPartialRelinearization:
-          PartialRelinearization(drifted, /*full_solve=*/false, &result);
-          break;
-        case DriftAction::kBatchStep:
-          ++stats_.batch_steps_on_drift;
-          BatchStep(options_.converge_periodic_batches, options_.convergence_step, &result);
-          break;
+    if (nonzeros_after_batch_ == 0 && options_.relinearize_when_correction_stalls) {
+      // Few partial steps reorder R in this mode: batch on fill from the first update on
+      // (4x growth: a number of batch steps that grows with the log of the map's size).
+      nonzeros_after_batch_ = r_->NonZeros();
+    }
+    const bool correcting = options_.correction_tolerance > 0 && result.status.ok();
+    const bool on_stall = correcting && options_.relinearize_when_correction_stalls;
+    const bool check_due = DriftCheckDue(options_, ++updates_since_drift_check_);
+    if (on_stall) {
+      if (!CorrectEstimate()) RelinearizeUntilCorrected(&result);
+    } else {
+      if (result.status.ok() && check_due) {
+        updates_since_drift_check_ = 0;
+        RelinearizeDrifted(&result);
       }
+      if (correcting && result.status.ok()) CorrectEstimate();
     }
   }
   // 3. What is left waiting, and the counters.
@@ -590,6 +699,33 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   stats_.givens_block_columns = r_->eliminated_block_columns();
   result.seconds = Seconds(start);
   return result;
+}
+
+void Smoother::Impl::RelinearizeUntilCorrected(UpdateResult* result) {
+  // R was too stale to converge: relinearise what drifted and correct again (a fresher R
+  // is a better preconditioner), at most three times, as after a merge.
+  for (int k = 0; k < 3 && result->status.ok(); ++k) {
+    if (!RelinearizeDrifted(result) || !result->status.ok()) return;
+    if (CorrectEstimate()) return;
+  }
+}
+
+bool Smoother::Impl::RelinearizeDrifted(UpdateResult* result) {
+  double max_drift = 0.0;
+  const std::vector<int> drifted = DriftedPositions(&max_drift);
+  if (drifted.empty()) return false;
+  switch (OnDrift(options_, max_drift)) {
+    case DriftAction::kNone:
+      break;
+    case DriftAction::kPartialRelinearization:
+      PartialRelinearization(drifted, /*full_solve=*/false, result);
+      break;
+    case DriftAction::kBatchStep:
+      ++stats_.batch_steps_on_drift;
+      BatchStep(options_.converge_periodic_batches, options_.convergence_step, result);
+      break;
+  }
+  return true;
 }
 
 void Smoother::Impl::CountBatchStep(StepKind kind, UpdateResult* result) {

@@ -39,6 +39,11 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --relinearize-skip K        look at drift every K updates (default 1)
   --full-relinearization      on drift, run a full batch step (the old way) instead of the
                               partial relinearisation
+  --correct TOL               after every update, move the estimate toward the nonlinear
+                              optimum (R as preconditioner) until the predicted chi2
+                              decrease is below TOL x chi2 (default 0 = off)
+  --correct-iterations K      at most K correction steps per update (default 5)
+  --relinearize-on-stall      look at drift only when the correction did not converge
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
                               chi2 excess of the step's estimate over it (0 = off)
@@ -125,6 +130,12 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
     } else if (arg == "--relinearize-skip") {
       flags.smoother.relinearize_skip = static_cast<int>(ParseNumber(arg, value()));
+    } else if (arg == "--correct") {
+      flags.smoother.correction_tolerance = ParseNumber(arg, value());
+    } else if (arg == "--correct-iterations") {
+      flags.smoother.correction_iterations = static_cast<int>(ParseNumber(arg, value()));
+    } else if (arg == "--relinearize-on-stall") {
+      flags.smoother.relinearize_when_correction_stalls = true;
     } else if (arg == "--full-relinearization") {
       flags.smoother.partial_relinearization = false;
     } else if (arg == "--check-every") {
@@ -284,7 +295,8 @@ int Run(const Flags& flags) {
         "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
         "\"partial_relinearizations\": %lld, \"partial_s\": %.4f, "
         "\"relinearized_variables\": %lld, \"rows_reeliminated\": %lld, "
-        "\"partial_merges\": %lld, "
+        "\"partial_merges\": %lld, \"correction_steps\": %lld, "
+        "\"correction_stalls\": %lld, \"correction_skips\": %lld, \"correction_s\": %.4f, "
         "\"checked_steps\": %d, \"worst_step_chi2_excess\": %.3e, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
@@ -306,8 +318,11 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
         static_cast<long long>(stats.relinearized_variables),
         static_cast<long long>(stats.rows_reeliminated),
-        static_cast<long long>(stats.partial_merges), checks, worst_excess, failures,
-        first_failure.c_str());
+        static_cast<long long>(stats.partial_merges),
+        static_cast<long long>(stats.correction_steps),
+        static_cast<long long>(stats.correction_stalls),
+        static_cast<long long>(stats.correction_skips), stats.correction_seconds, checks,
+        worst_excess, failures, first_failure.c_str());
   } else {
     std::printf(
         "graph %s: %d poses, %d edges (%d encounters), %d robot(s), %d trajectories (%d broken "
@@ -346,6 +361,12 @@ int Run(const Flags& flags) {
           static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
           static_cast<double>(stats.relinearized_variables) / stats.partial_relinearizations,
           static_cast<double>(stats.rows_reeliminated) / stats.partial_relinearizations);
+    }
+    if (flags.smoother.correction_tolerance > 0) {
+      std::printf("correction: %lld steps, %lld updates not converged, %lld skipped (%.3f s)\n",
+                  static_cast<long long>(stats.correction_steps),
+                  static_cast<long long>(stats.correction_stalls),
+                  static_cast<long long>(stats.correction_skips), stats.correction_seconds);
     }
     if (checks > 0) {
       std::printf(
