@@ -215,6 +215,9 @@ class MappingServer {
   const RejectCounter& rejects() const { return rejects_; }
   const std::vector<EncounterLink>& encounter_links() const { return links_; }
   MapPublisher& publisher() { return publisher_; }
+  // The scan-matching sources' workers; their results are journaled and reused on a
+  // restart through it (MatchPool::SetRecorder, Preload).
+  MatchPool& match_pool() { return *pool_; }
   int num_anchored() const;
 
   // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.
