@@ -47,6 +47,13 @@ struct CanonicalOrderOptions {
   // Online: an input waits at least this long (wall time) after its arrival. A keyframe
   // every 0.5 m comes every 1-2 s on a real robot, 4x faster in the loss test's replay.
   double settle_s = 2.0;
+  // Offline (no clock set: data time), settle too: an input waits until inputs settle_s
+  // newer have arrived (or the end). For a recording of a bus (anchormap-server --log on
+  // what lcm-logger heard), whose first inputs need not come in canonical order: without
+  // it the first keyframe to arrive goes out before the others' of that time are known,
+  // takes solver id 0 and a first join found by scan matching is oriented the other way
+  // than the live server's (daemon-intel.md: the loss test's "1 missing + 1 extra" link).
+  bool settle_offline = false;
   // Inputs released into the graph per input or tick of the server (0: none there; the
   // online server releases from its timer, within a wall-time budget: a backlog released
   // from one message handler blocked its loop for 18 s in the loss test, and the resends it

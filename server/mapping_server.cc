@@ -124,8 +124,9 @@ void MappingServer::Enqueue(const std::vector<AdmittedKeyframe>& admitted) {
 int MappingServer::ReleaseDue(int max_inputs) { return Release(/*at_end=*/false, max_inputs); }
 
 int MappingServer::Release(bool at_end, int limit) {
-  // Settling is for the bus (online: a wall clock is set); offline inputs are complete.
-  const bool settle = clock_utime_ >= 0;
+  // Settling is for the bus (online: a wall clock is set); offline inputs are complete,
+  // unless they are a bus recording (settle_offline: in data time).
+  const bool settle = clock_utime_ >= 0 || options_.order.settle_offline;
   int released = 0;
   for (; at_end || released < limit; ++released) {
     std::vector<TrajectoryId> silenced;
