@@ -135,6 +135,7 @@ ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>&
   if (replay.deferred) replay.batch_step = server_->EndDeferredUpdates();
   replay.matches_reused = pool.stats().reused - before.reused;
   replay.matches_run = pool.stats().submitted - before.submitted - replay.matches_reused;
+  replay.matches_mismatched = pool.stats().mismatched - before.mismatched;
   return replay;
 }
 

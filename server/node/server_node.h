@@ -83,7 +83,10 @@ class ServerNode {
     bool deferred = false;
     int64_t matches_journaled = 0;  // match results found in the journal
     int64_t matches_reused = 0;     // of the replay's matches, served from them (not run)
-    int64_t matches_run = 0;        // run again (not journaled, or not the same match)
+    int64_t matches_run = 0;        // run (not journaled: never run before the crash)
+    // Journaled for the ordinal but for another match (another tag): run. 0 unless the
+    // journal is replayed with other options than it was written with.
+    int64_t matches_mismatched = 0;
     UpdateResult batch_step;        // the closing batch step, when deferred
   };
   // From events[first] on (the events before it are covered by a restored snapshot).
