@@ -20,8 +20,9 @@
 # while one is being written); at least one restart must have used one. Before restart 5
 # the newest snapshot is cut short: that restart must refuse it and use the one before it
 # (or the whole journal).
-# Mode `scan` (ctest crash_scan_test): the scan-matching sources on (loop closures, scan
-# encounters; the reference too) and no snapshots (they do not hold the sources' state):
+# Mode `scan` (not in ctest yet: too slow on a loaded 2-core machine): the scan-matching
+# sources on (loop closures, scan encounters; the reference too), no snapshots (they do not
+# hold the sources' state), and each server's life counted from when it is up:
 # every restart replays the whole journal, reusing the journaled match results
 # (ServerNode::kJournalMatch) instead of matching again; asserted: every restart reused
 # some, and the final map is the uninterrupted one's as above.
@@ -104,6 +105,9 @@ inside_namespace() {
   local started=$SECONDS
   while [ $run -lt $KILLS ]; do
     local life_ms=$((1000 + RANDOM % 3000)) down_ms=$((RANDOM % 700))
+    # Scan mode: a life starts when the server is up (its replay may run matches its
+    # predecessor never ran; killed before it is up it would publish no instance id).
+    if [ "$MODE" = scan ]; then wait_until_listening "$work" $run || return 1; fi
     sleep "$(milliseconds_as_seconds $life_ms)"
     kill -KILL "$server"
     wait "$server" 2>/dev/null
