@@ -93,6 +93,10 @@ class CanonicalInputOrder {
   // `stream` was heard from (any keyframe received, also one waiting for a gap): it holds
   // the others from now on, for patience_s.
   void Heard(TrajectoryId stream, int64_t clock_utime);
+  // A restarted server resumes at `clock_utime`: the patience of every trajectory still
+  // holding, and of every encounter gap, counts from then at the earliest (the server's
+  // downtime and journal replay are not the robots' silence).
+  void ResumeAt(int64_t clock_utime);
 
   // The next input that may go to the graph at `now_utime`, if any (`settle`: apply
   // settle_s, online). Trajectories that fall silent at `now_utime` are appended to

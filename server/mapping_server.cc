@@ -378,6 +378,12 @@ UpdateResult MappingServer::DeferredBatchStep() {
   return result;
 }
 
+void MappingServer::ResumeClocks(int64_t now_utime) {
+  receipt_.ResumeAt(now_utime);
+  order_.ResumeAt(now_utime);
+  for (auto& [name, since] : encounter_gap_since_) since = std::max(since, now_utime);
+}
+
 bool MappingServer::CanDeferUpdates() const {
   return std::none_of(sources_.begin(), sources_.end(),
                       [](const auto& source) { return source->ReadsEstimate(); });

@@ -732,5 +732,45 @@ TEST_F(MappingServerTest, ABusRecordingSettlesInDataTimeIntoTheCanonicalOrder) {
   }
 }
 
+// A restart whose journal replay took long resumes its clocks: R2's gap (seq 1 missing) and
+// its silence count from the restart, so a tick 20 s after the inputs bridges
+// nothing and silences nobody, and the resent keyframe still fills the gap. Without it the
+// server's own downtime would be charged to the robots.
+TEST_F(MappingServerTest, ARestartResumesTheHoldAndPatienceClocks) {
+  for (const bool resumed : {false, true}) {
+    MappingServer server(ExactTieOptions());
+    server.SetClock(1'000'000);
+    for (int32_t seq = 0; seq < 5; ++seq) {  // R1 runs 4 s ahead: R2 holds it
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq)).ok());
+    }
+    for (const int32_t seq : {0, 2}) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq)).ok());
+    }
+    if (resumed) server.ResumeClocks(20'000'000);
+    server.Tick(21'000'000);
+    EXPECT_EQ(server.receipt().num_bridged_gaps(), resumed ? 0 : 1);
+    server.SetClock(22'000'000);
+    const Status resent = server.OnKeyframe(testing::StraightKeyframe("R2", 2, 1));
+    EXPECT_EQ(resent.ok(), resumed) << resent.message();
+  }
+  // The patience alone (a hold longer than it, so the gap stays open): R2, its watermark
+  // behind R1's inputs, is given up as silent only without the resume.
+  for (const bool resumed : {false, true}) {
+    MappingServerOptions options = ExactTieOptions();
+    options.table.max_hold_s = 60.0;
+    MappingServer server(options);
+    server.SetClock(1'000'000);
+    for (int32_t seq = 0; seq < 5; ++seq) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq)).ok());
+    }
+    for (const int32_t seq : {0, 2}) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq)).ok());
+    }
+    if (resumed) server.ResumeClocks(20'000'000);
+    server.Tick(21'000'000);
+    EXPECT_EQ(server.order_stats().silences, resumed ? 0 : 1);
+  }
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -118,6 +118,7 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
   }
   line << "); resuming with " << node->server().StatusLine();
   LogInfo(line.str());
+  node->server().ResumeClocks(ServerNode::WallClock());
   return state;
 }
 
