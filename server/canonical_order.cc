@@ -128,6 +128,15 @@ std::optional<OrderedInput> CanonicalInputOrder::Next(int64_t now_utime, bool se
   return Take(head);
 }
 
+void CanonicalInputOrder::ResumeAt(int64_t clock_utime) {
+  for (auto& [id, stream] : streams_) {
+    if (!stream.silent) stream.last_heard = std::max(stream.last_heard, clock_utime);
+  }
+  for (auto& [name, stream] : encounter_streams_) {
+    if (!stream.above.empty()) stream.gap_since = std::max(stream.gap_since, clock_utime);
+  }
+}
+
 std::optional<OrderedInput> CanonicalInputOrder::NextAtEnd() {
   const Head head = Smallest();
   if (head.entry == nullptr) return std::nullopt;

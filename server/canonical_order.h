@@ -47,6 +47,13 @@ struct CanonicalOrderOptions {
   // Online: an input waits at least this long (wall time) after its arrival. A keyframe
   // every 0.5 m comes every 1-2 s on a real robot, 4x faster in the loss test's replay.
   double settle_s = 2.0;
+  // Offline (no clock set: data time), settle too: an input waits until inputs settle_s
+  // newer have arrived (or the end). For a recording of a bus (anchormap-server --log on
+  // what lcm-logger heard), whose first inputs need not come in canonical order: without
+  // it the first keyframe to arrive goes out before the others' of that time are known,
+  // takes solver id 0 and a first join found by scan matching is oriented the other way
+  // than the live server's (daemon-intel.md: the loss test's "1 missing + 1 extra" link).
+  bool settle_offline = false;
   // Inputs released into the graph per input or tick of the server (0: none there; the
   // online server releases from its timer, within a wall-time budget: a backlog released
   // from one message handler blocked its loop for 18 s in the loss test, and the resends it
@@ -86,6 +93,10 @@ class CanonicalInputOrder {
   // `stream` was heard from (any keyframe received, also one waiting for a gap): it holds
   // the others from now on, for patience_s.
   void Heard(TrajectoryId stream, int64_t clock_utime);
+  // A restarted server resumes at `clock_utime`: the patience of every trajectory still
+  // holding, and of every encounter gap, counts from then at the earliest (the server's
+  // downtime and journal replay are not the robots' silence).
+  void ResumeAt(int64_t clock_utime);
 
   // The next input that may go to the graph at `now_utime`, if any (`settle`: apply
   // settle_s, online). Trajectories that fall silent at `now_utime` are appended to

@@ -461,7 +461,7 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     auto job = [submap, query, window, match] {
       return SearchWindowAndFinish(*submap, *query, window, match);
     };
-    pending.result = RunMatch(pool_, std::move(job));
+    pending.result = RunMatch(pool_, MatchTag{key, candidate}, std::move(job));
   } else {
     LocalMatchOptions window;
     window.match = options_.match;
@@ -472,7 +472,7 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     auto job = [submap, query, guess, window] {
       return MatchLocal(*submap, *query, guess, window);
     };
-    pending.result = RunMatch(pool_, std::move(job));
+    pending.result = RunMatch(pool_, MatchTag{key, candidate}, std::move(job));
   }
   matches_.push_back(std::move(pending));
 }

@@ -124,8 +124,9 @@ void MappingServer::Enqueue(const std::vector<AdmittedKeyframe>& admitted) {
 int MappingServer::ReleaseDue(int max_inputs) { return Release(/*at_end=*/false, max_inputs); }
 
 int MappingServer::Release(bool at_end, int limit) {
-  // Settling is for the bus (online: a wall clock is set); offline inputs are complete.
-  const bool settle = clock_utime_ >= 0;
+  // Settling is for the bus (online: a wall clock is set); offline inputs are complete,
+  // unless they are a bus recording (settle_offline: in data time).
+  const bool settle = clock_utime_ >= 0 || options_.order.settle_offline;
   int released = 0;
   for (; at_end || released < limit; ++released) {
     std::vector<TrajectoryId> silenced;
@@ -375,6 +376,12 @@ UpdateResult MappingServer::DeferredBatchStep() {
                     "deferred batch step: " + result.status.message());
   }
   return result;
+}
+
+void MappingServer::ResumeClocks(int64_t now_utime) {
+  receipt_.ResumeAt(now_utime);
+  order_.ResumeAt(now_utime);
+  for (auto& [name, since] : encounter_gap_since_) since = std::max(since, now_utime);
 }
 
 bool MappingServer::CanDeferUpdates() const {

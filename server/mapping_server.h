@@ -183,6 +183,11 @@ class MappingServer {
   // deferred ones). Ok when nothing was deferred.
   UpdateResult EndDeferredUpdates();
   bool deferring_updates() const { return deferring_; }
+  // After a restart's journal replay, before going live at `now_utime` (wall time): the
+  // waits measured on the clock (gap holds, the order stage's patience, encounter gaps)
+  // count from now at the earliest. A replay that took long (the scan sources' backlog)
+  // would otherwise silence robots and bridge gaps the agents are about to resend.
+  void ResumeClocks(int64_t now_utime);
 
   // Periodic snapshots (server/snapshot_codec.h): only the direct-encounter source's state
   // is serialised, so a server with a scan-matching source (or any added source) cannot
@@ -215,6 +220,9 @@ class MappingServer {
   const RejectCounter& rejects() const { return rejects_; }
   const std::vector<EncounterLink>& encounter_links() const { return links_; }
   MapPublisher& publisher() { return publisher_; }
+  // The scan-matching sources' workers; their results are journaled and reused on a
+  // restart through it (MatchPool::SetRecorder, Preload).
+  MatchPool& match_pool() { return *pool_; }
   int num_anchored() const;
 
   // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.

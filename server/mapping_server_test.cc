@@ -12,6 +12,7 @@
 
 #include "common/util/log.h"
 #include "tests/testing/map_difference.h"
+#include "tests/testing/straight_keyframes.h"
 
 namespace anchormap {
 namespace {
@@ -702,6 +703,73 @@ TEST_F(MappingServerTest, UpdateTimesAreRecordedOnlyWhenAsked) {
   EXPECT_TRUE(times.back().batch_step);            // Flush ends with a batch step
   // The server's mode runs no batch step on a clock: the recorded flags are the smoother's.
   EXPECT_EQ(batch_steps, recorded.smoother().stats().batch_steps);
+}
+
+// A bus recording replayed offline (anchormap-server --log): R2's first keyframe was heard
+// before R1's of the same time. Released at once, it takes solver id 0 (the live server,
+// settling, would have ordered R1 first); with settle_offline it waits in data time until
+// the inputs 2 s newer arrived, and the graph is built in canonical order: R1 first.
+TEST_F(MappingServerTest, ABusRecordingSettlesInDataTimeIntoTheCanonicalOrder) {
+  for (const bool settle_offline : {false, true}) {
+    MappingServerOptions options = ExactTieOptions();
+    options.order.settle_offline = settle_offline;
+    options.order.release_per_call = 64;
+    MappingServer server(options);
+    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, 0)).ok());
+    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, 0)).ok());
+    for (int32_t seq = 1; seq < 5; ++seq) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq)).ok());
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq)).ok());
+    }
+    // Settling holds the newest 2 s of data (3 keyframes of 5 per robot released so far).
+    EXPECT_EQ(server.table().num_keyframes(), settle_offline ? 6 : 10);
+    server.Flush();
+    EXPECT_EQ(server.table().num_keyframes(), 10);
+    ASSERT_EQ(server.table().records().size(), 2u);
+    EXPECT_EQ(server.table().records()[0].robot, settle_offline ? "R1" : "R2");
+    // Released at once, R1's first keyframe came after R2's: late.
+    EXPECT_EQ(server.order_stats().late, settle_offline ? 0 : 1);
+  }
+}
+
+// A restart whose journal replay took long resumes its clocks: R2's gap (seq 1 missing) and
+// its silence count from the restart, so a tick 20 s after the inputs bridges
+// nothing and silences nobody, and the resent keyframe still fills the gap. Without it the
+// server's own downtime would be charged to the robots.
+TEST_F(MappingServerTest, ARestartResumesTheHoldAndPatienceClocks) {
+  for (const bool resumed : {false, true}) {
+    MappingServer server(ExactTieOptions());
+    server.SetClock(1'000'000);
+    for (int32_t seq = 0; seq < 5; ++seq) {  // R1 runs 4 s ahead: R2 holds it
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq)).ok());
+    }
+    for (const int32_t seq : {0, 2}) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq)).ok());
+    }
+    if (resumed) server.ResumeClocks(20'000'000);
+    server.Tick(21'000'000);
+    EXPECT_EQ(server.receipt().num_bridged_gaps(), resumed ? 0 : 1);
+    server.SetClock(22'000'000);
+    const Status resent = server.OnKeyframe(testing::StraightKeyframe("R2", 2, 1));
+    EXPECT_EQ(resent.ok(), resumed) << resent.message();
+  }
+  // The patience alone (a hold longer than it, so the gap stays open): R2, its watermark
+  // behind R1's inputs, is given up as silent only without the resume.
+  for (const bool resumed : {false, true}) {
+    MappingServerOptions options = ExactTieOptions();
+    options.table.max_hold_s = 60.0;
+    MappingServer server(options);
+    server.SetClock(1'000'000);
+    for (int32_t seq = 0; seq < 5; ++seq) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq)).ok());
+    }
+    for (const int32_t seq : {0, 2}) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq)).ok());
+    }
+    if (resumed) server.ResumeClocks(20'000'000);
+    server.Tick(21'000'000);
+    EXPECT_EQ(server.order_stats().silences, resumed ? 0 : 1);
+  }
 }
 
 }  // namespace

@@ -17,8 +17,27 @@ MatchPool::~MatchPool() {
   for (std::thread& thread : threads_) thread.join();
 }
 
-std::shared_future<std::optional<MatchResult>> MatchPool::Submit(Job job) {
-  std::packaged_task<std::optional<MatchResult>()> task(std::move(job));
+std::shared_future<std::optional<MatchResult>> MatchPool::Submit(const MatchTag& tag, Job job) {
+  const int64_t ordinal = next_ordinal_++;
+  ++stats_.submitted;
+  if (const auto found = preloaded_.find(ordinal); found != preloaded_.end()) {
+    const RecordedMatch recorded = std::move(found->second);
+    preloaded_.erase(found);
+    if (recorded.tag == tag) {
+      ++stats_.reused;
+      std::promise<std::optional<MatchResult>> done;
+      done.set_value(recorded.result);
+      return done.get_future().share();
+    }
+    ++stats_.mismatched;
+  }
+  // The result is recorded (journaled) before the future is ready, hence before it is used.
+  std::packaged_task<std::optional<MatchResult>()> task(
+      [this, ordinal, tag, job = std::move(job)]() -> std::optional<MatchResult> {
+        RecordedMatch recorded{ordinal, tag, job()};
+        Record(recorded);
+        return std::move(recorded.result);
+      });
   std::shared_future<std::optional<MatchResult>> result = task.get_future().share();
   if (threads_.empty()) {
     task();
@@ -47,8 +66,25 @@ void MatchPool::Work() {
   }
 }
 
-std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, MatchPool::Job job) {
-  if (pool) return pool->Submit(std::move(job));
+void MatchPool::Preload(const std::vector<RecordedMatch>& recorded) {
+  for (const RecordedMatch& match : recorded) {
+    if (match.ordinal >= next_ordinal_) preloaded_[match.ordinal] = match;
+  }
+}
+
+void MatchPool::SetRecorder(Recorder recorder) {
+  std::lock_guard<std::mutex> lock(record_mutex_);
+  recorder_ = std::move(recorder);
+}
+
+void MatchPool::Record(const RecordedMatch& match) {
+  std::lock_guard<std::mutex> lock(record_mutex_);
+  if (recorder_) recorder_(match);
+}
+
+std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, const MatchTag& tag,
+                                                        MatchPool::Job job) {
+  if (pool) return pool->Submit(tag, std::move(job));
   std::promise<std::optional<MatchResult>> done;
   done.set_value(job());
   return done.get_future().share();

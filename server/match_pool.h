@@ -5,12 +5,22 @@
 // of the canonical input (MatchSchedule), waiting for it if the job is not done, so that
 // what the server accepts never depends on thread timing or on the number of workers.
 // With 0 workers a job runs at once on the caller's thread (the same results).
+//
+// Crash recovery (docs/ARCHITECTURE.md "Scan sources in the journal"): every job gets an
+// ordinal when it is submitted (the sources submit on the server's thread, in the canonical
+// input's order, so a replay of the same journal submits the same jobs in the same order)
+// and its result is handed to a recorder (the server's journal) before it is used. A
+// restart preloads the journaled results: a job whose ordinal and tag match one is not run
+// again, its recorded result is returned. The sources' logic runs as it did live on the same
+// results, so their decisions and their state (kept candidates, hypotheses, budgets) are
+// rebuilt exactly, without the matching's cost.
 
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -18,6 +28,7 @@
 #include <vector>
 
 #include "common/scan_matching/correlative_matcher.h"
+#include "common/solver/keys.h"
 
 namespace anchormap {
 
@@ -30,21 +41,61 @@ struct MatchSchedule {
   }
 };
 
+// What a match is of: the query keyframe and the reference's keyframe (a submap's centre,
+// a loop-closure candidate). A recorded result is reused only for the same ordinal and tag,
+// so a journal replayed with other options (other jobs) recomputes instead of mixing up.
+struct MatchTag {
+  PoseKey query;
+  PoseKey reference;
+  bool operator==(const MatchTag& o) const { return query == o.query && reference == o.reference; }
+};
+
+// One job's result, as journaled.
+struct RecordedMatch {
+  int64_t ordinal = 0;  // the pool's submission count before it
+  MatchTag tag;
+  std::optional<MatchResult> result;
+};
+
+struct MatchPoolStats {
+  int64_t submitted = 0;
+  int64_t reused = 0;      // served from preloaded results (not run)
+  int64_t mismatched = 0;  // a preloaded result with the ordinal but another tag (run)
+};
+
 class MatchPool {
  public:
   using Job = std::function<std::optional<MatchResult>()>;
+  // Called with each computed result before its future is ready (so before it is used), on
+  // the thread that ran the job; calls are serialised by the pool.
+  using Recorder = std::function<void(const RecordedMatch&)>;
 
   explicit MatchPool(int workers);
   ~MatchPool();
   MatchPool(const MatchPool&) = delete;
   MatchPool& operator=(const MatchPool&) = delete;
 
-  std::shared_future<std::optional<MatchResult>> Submit(Job job);
+  std::shared_future<std::optional<MatchResult>> Submit(const MatchTag& tag, Job job);
   int workers() const { return static_cast<int>(threads_.size()); }
+
+  // Results to serve instead of running their jobs (a restart's journal). Reused results
+  // are not recorded again (they are in the journal already).
+  void Preload(const std::vector<RecordedMatch>& recorded);
+  // Null: nothing recorded. Jobs already running record with the recorder set when they end.
+  void SetRecorder(Recorder recorder);
+  // Preloaded results not (yet) used.
+  size_t preloaded() const { return preloaded_.size(); }
+  const MatchPoolStats& stats() const { return stats_; }
 
  private:
   void Work();
+  void Record(const RecordedMatch& match);
 
+  int64_t next_ordinal_ = 0;
+  std::map<int64_t, RecordedMatch> preloaded_;  // by ordinal; the server's thread only
+  MatchPoolStats stats_;
+  std::mutex record_mutex_;
+  Recorder recorder_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<std::packaged_task<std::optional<MatchResult>()>> queue_;
@@ -54,6 +105,7 @@ class MatchPool {
 
 // Runs `job` on `pool`, or at once on the caller's thread when there is no pool (the
 // sources' 0-worker mode): either way the caller gets a future of its result.
-std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, MatchPool::Job job);
+std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, const MatchTag& tag,
+                                                        MatchPool::Job job);
 
 }  // namespace anchormap

@@ -5,6 +5,12 @@
 
 namespace anchormap {
 
+void TrajectoryTable::ResumeAt(int64_t now_utime) {
+  for (Pending& pending : pending_) {
+    if (pending.gap_since >= 0) pending.gap_since = std::max(pending.gap_since, now_utime);
+  }
+}
+
 int TrajectoryRecord::NearestIndex(int64_t utime) const {
   const auto after = std::lower_bound(utimes.begin(), utimes.end(), utime);
   if (after == utimes.begin()) return 0;

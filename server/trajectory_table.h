@@ -100,6 +100,9 @@ class TrajectoryTable {
   void Poll(int64_t now_utime, std::vector<AdmittedKeyframe>* out);
   // Admits every waiting keyframe, bridging gaps (end of input).
   void FlushHeld(std::vector<AdmittedKeyframe>* out);
+  // A restarted server resumes at `now_utime`: open gaps count their hold from then at the
+  // earliest (the server's downtime and replay are not the agents' delay).
+  void ResumeAt(int64_t now_utime);
 
   // The missing sequence numbers below the highest waiting one of trajectory `solver_id`
   // (empty when nothing waits), as inclusive ranges.

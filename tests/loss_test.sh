@@ -13,12 +13,15 @@
 # (the same keyframes and encounters, in order, without loss). Assert: the same keyframes
 # and encounters, none missing or doubled, poses within 1e-9 (both runs iterate their
 # final batch step to a 1e-12 step), no gap bridged.
+# Both servers run with the daemon's defaults, or with SOURCES (e.g. "--loop-closures false
+# --scan-encounters false") when set.
 # Without network namespaces: exit 77 (ctest SKIP_RETURN_CODE) with a message.
 #
 # usage: loss_test.sh BUILD_DIR      (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
 set -uo pipefail
 
 BUILD=${1:?usage: loss_test.sh BUILD_DIR}
+SOURCES=${SOURCES:-}
 BIN=$BUILD/bin
 SKIP=77
 ROBOTS=3
@@ -42,8 +45,9 @@ inside_namespace() {
   local logger_a=$!
   LCM_DEFAULT_URL="$URL_B" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger_b.log" 2>&1 &
   local logger_b=$!
+  # shellcheck disable=SC2086 # the flags are words
   "$BIN/anchormap-server" --lcm-url "$URL_B" --status-period-s 2 --convergence-step $CONVERGENCE \
-    >"$work/server.log" 2>&1 &
+    $SOURCES >"$work/server.log" 2>&1 &
   local server=$!
   "$BIN/anchormap-relay" --from "$URL_A" --to "$URL_B" --drop 0.3 --duplicate 0.05 --reorder 0.1 \
     --seed 13 >"$work/relay.log" 2>&1 &
@@ -68,7 +72,7 @@ main() {
   simulate $ROBOTS $DURATION_S
 
   export -f inside_namespace stop_run outboxes_empty wait_for_outboxes log
-  export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME
+  export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
   cat "$work/relay.log" | grep 'anchormap-relay [a-z]*:' | sed 's/^/loss_test: /'
@@ -77,7 +81,8 @@ main() {
   done
   [ $status -eq 0 ] || { log "daemons failed (status $status)"; tail -20 "$work/server.log"; exit 1; }
 
-  "$BIN/anchormap-server" --log "$work/agents.lcmlog" --output "$work/reference.lcmlog" \
+  # shellcheck disable=SC2086
+  "$BIN/anchormap-server" --log "$work/agents.lcmlog" --output "$work/reference.lcmlog" $SOURCES \
     --convergence-step $CONVERGENCE --log-level warning >"$work/reference.log" 2>&1 ||
     { log "the reference run failed"; cat "$work/reference.log"; exit 1; }
   "$BIN/anchormap-test-compare-maps" --map "$work/out.lcmlog" --reference "$work/reference.lcmlog" \

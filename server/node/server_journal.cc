@@ -71,9 +71,27 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
   std::unique_ptr<ServerJournal> state(new ServerJournal);
   state->journal_ = std::move(*journal);
   state->dir_ = dir;
+  state->node_ = node;
   const auto start = std::chrono::steady_clock::now();
   const std::clock_t cpu_start = std::clock();
   const int64_t covered = RestoreNewestSnapshot(dir, events, node);
+  state->last_.events = static_cast<int64_t>(events.size());
+  if (!events.empty()) {
+    state->last_.last_utime = events.back().utime;
+    state->last_.last_channel = events.back().channel;
+  }
+  state->snapshot_events_ = covered > 0 ? covered : -1;
+  // Journaling from here: the replay journals no input, but the matches it has to run
+  // again (not journaled before the crash) are, so a server killed during its replay
+  // leaves them to the next one.
+  ServerJournal* s = state.get();
+  node->SetJournal(
+      [s](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
+        std::lock_guard<std::mutex> lock(s->append_mutex_);
+        const Status status = s->journal_->Append(channel, clock_utime, data, size);
+        if (status.ok()) s->last_ = {s->last_.events + 1, clock_utime, channel};
+        return status;
+      });
   const int64_t deferred_before = node->server().stats().deferred_updates;  // the snapshot's
   const ServerNode::JournalReplay replay =
       node->ReplayJournal(events, defer_updates, static_cast<size_t>(covered));
@@ -93,21 +111,14 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
     line << "every solver update run"
          << (defer_updates ? " (a scan-matching source reads the estimate)" : "");
   }
+  if (replay.matches_journaled > 0 || replay.matches_run > 0) {
+    line << "; scan matches: " << replay.matches_reused << " reused from the journal, "
+         << replay.matches_run << " run (" << replay.matches_mismatched
+         << " journaled for another match)";
+  }
   line << "); resuming with " << node->server().StatusLine();
   LogInfo(line.str());
-  state->last_.events = static_cast<int64_t>(events.size());
-  if (!events.empty()) {
-    state->last_.last_utime = events.back().utime;
-    state->last_.last_channel = events.back().channel;
-  }
-  state->snapshot_events_ = covered > 0 ? covered : -1;
-  ServerJournal* s = state.get();
-  node->SetJournal(
-      [s](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
-        const Status status = s->journal_->Append(channel, clock_utime, data, size);
-        if (status.ok()) s->last_ = {s->last_.events + 1, clock_utime, channel};
-        return status;
-      });
+  node->server().ResumeClocks(ServerNode::WallClock());
   return state;
 }
 
@@ -115,6 +126,7 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
 // (from the loop's timer: the state is the journal prefix's).
 void ServerJournal::SnapshotIfDue(const ServerOptions& options, ServerNode* node) {
   if (!CollectSnapshotWrite(/*wait=*/false)) return;  // the previous one is still going
+  std::lock_guard<std::mutex> lock(append_mutex_);
   const int64_t fresh = last_.events - std::max<int64_t>(snapshot_events_, 0);
   if (fresh <= 0 || !node->CanSnapshot()) return;
   const auto now = std::chrono::steady_clock::now();
@@ -147,9 +159,13 @@ void ServerJournal::SnapshotIfDue(const ServerOptions& options, ServerNode* node
       });
 }
 
-ServerJournal::~ServerJournal() { CollectSnapshotWrite(/*wait=*/true); }
+ServerJournal::~ServerJournal() {
+  if (node_ != nullptr) node_->SetJournal(nullptr);
+  CollectSnapshotWrite(/*wait=*/true);
+}
 
 std::string ServerJournal::StatusText() const {
+  std::lock_guard<std::mutex> lock(append_mutex_);
   return "journal " + std::to_string(journal_->events()) + " events " +
          std::to_string(journal_->bytes()) + " bytes, snapshot at " +
          std::to_string(std::max<int64_t>(snapshot_events_, 0));

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <future>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "common/bus/journal.h"
@@ -26,7 +27,7 @@ class ServerJournal {
   // now on. `node` must outlive the returned journal's use.
   static Result<std::unique_ptr<ServerJournal>> OpenAndReplay(const std::string& dir,
                                                               bool defer_updates, ServerNode* node);
-  // Waits for a snapshot still being written.
+  // Waits for a snapshot still being written; the node journals nothing more.
   ~ServerJournal();
 
   // From the loop's timer (between two events, so the state is the journal prefix's):
@@ -48,6 +49,9 @@ class ServerJournal {
     double seconds = 0.0;
   };
 
+  ServerNode* node_ = nullptr;
+  // Appends come from the loop and from the match workers (match results).
+  mutable std::mutex append_mutex_;
   std::unique_ptr<Journal> journal_;
   std::string dir_;
   JournalPosition last_;          // the journal's length and its last event

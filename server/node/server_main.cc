@@ -167,6 +167,9 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "online: wall time per 100 ms tick spent putting waiting inputs into the graph (s)");
   l->Add("order.settle_s", "order-settle-s", &s.order.settle_s,
          "online, an input waits this long after its arrival before it is ordered (s)");
+  l->Add("order.settle_offline", "order-settle-offline", &s.order.settle_offline,
+         "with --log: settle in data time too (the log is a recording of a bus, as the "
+         "online server heard it; false: the log's inputs are complete, released at once)");
   l->Add("scan.near_distance_m", "scan-near-distance-m", &s.scan.near_distance_m,
          "joined trajectories: window search when predicted this close (m)");
   l->Add("scan.near_min_overlap", "scan-near-min-overlap", &s.scan.near_min_overlap,
@@ -408,6 +411,9 @@ int RunOffline(const ServerOptions& options) {
 
 int Main(int argc, char** argv) {
   ServerOptions options;
+  // --log reads what a bus carried (a recording, a journal): settled in data time, so its
+  // map is the live server's (online the wall clock settles).
+  options.server.order.settle_offline = true;
   std::string formulation = ToString(options.server.smoother.formulation);
   OptionsLoader loader(
       "anchormap-server",

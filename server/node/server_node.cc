@@ -5,6 +5,8 @@
 #include "common/bus/codec.h"
 #include "common/bus/delivery_codec.h"
 #include "common/bus/map_codec.h"
+#include "common/util/log.h"
+#include "server/recorded_match_codec.h"
 
 namespace anchormap {
 
@@ -62,7 +64,26 @@ void ServerNode::Dispatch(const std::string& channel, const uint8_t* data, size_
   }
 }
 
+void ServerNode::SetJournal(JournalAppend append) {
+  journal_ = std::move(append);
+  if (!journal_) {
+    server_->match_pool().SetRecorder(nullptr);
+    return;
+  }
+  server_->match_pool().SetRecorder(
+      [append = journal_, utime = journal_utime_](const RecordedMatch& match) {
+        const std::vector<uint8_t> bytes = EncodeRecordedMatch(match);
+        const Status status = append(kJournalMatch, utime->load(), bytes.data(), bytes.size());
+        if (!status.ok()) {
+          LogWarning("match " + std::to_string(match.ordinal) +
+                     " not journaled (a restart will run it again): " + status.message());
+        }
+      });
+}
+
 bool ServerNode::Replay(const LogEvent& event) {
+  // Used by ReplayJournal before the inputs (MatchPool::Preload); nothing to apply here.
+  if (event.channel == kJournalMatch) return true;
   if (event.channel == kJournalTick) {
     server_->Tick(event.utime);
     // What was due then (how much went in per tick does not change the map: the order does).
@@ -88,10 +109,33 @@ ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>&
     replay.batch_step = server_->EndDeferredUpdates();
   }
   replay.deferred = defer_updates && server_->BeginDeferredUpdates();
+  // The match results journaled live: the sources' replayed jobs get them instead of running
+  // (from the whole journal: a job may have been submitted before a snapshot's end).
+  std::vector<RecordedMatch> recorded;
+  int64_t undecodable = 0;
+  for (const LogEvent& event : events) {
+    if (event.channel != kJournalMatch) continue;
+    Result<RecordedMatch> match = DecodeRecordedMatch(event.data.data(), event.data.size());
+    if (match.ok()) {
+      recorded.push_back(std::move(*match));
+    } else {
+      ++undecodable;
+    }
+  }
+  if (undecodable > 0) {
+    LogWarning(std::to_string(undecodable) + " journaled match results do not decode: run again");
+  }
+  replay.matches_journaled = static_cast<int64_t>(recorded.size());
+  MatchPool& pool = server_->match_pool();
+  const MatchPoolStats before = pool.stats();
+  pool.Preload(recorded);
   for (size_t i = first; i < events.size(); ++i) {
     if (Replay(events[i])) ++replay.events;
   }
   if (replay.deferred) replay.batch_step = server_->EndDeferredUpdates();
+  replay.matches_reused = pool.stats().reused - before.reused;
+  replay.matches_run = pool.stats().submitted - before.submitted - replay.matches_reused;
+  replay.matches_mismatched = pool.stats().mismatched - before.mismatched;
   return replay;
 }
 
@@ -126,6 +170,7 @@ Result<int64_t> ServerNode::RestoreSnapshot(const std::vector<uint8_t>& bytes,
     return s;
   }
   server_ = std::move(fresh);
+  if (journal_) SetJournal(journal_);  // the new server's match pool records too
   robots_ = std::move(node.robots);
   trajectories_ = std::move(node.trajectories);
   return covered;
@@ -150,6 +195,7 @@ void ServerNode::Tick(int64_t now_utime) {
 
 bool ServerNode::Journaled(const std::string& channel, const uint8_t* data, size_t size) {
   if (!journal_) return true;
+  journal_utime_->store(server_->clock_utime());
   const Status status = journal_(channel, server_->clock_utime(), data, size);
   if (!status.ok()) server_->CountRejection(status, channel);
   return status.ok();

@@ -10,6 +10,7 @@
 // replay), data times ahead of the receive clock (from_future), new robots or
 // trajectories past their caps and oversize scans (cap_reached).
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -61,7 +62,14 @@ class ServerNode {
   using JournalAppend = std::function<Status(const std::string& channel, int64_t clock_utime,
                                              const uint8_t* data, size_t size)>;
   static constexpr char kJournalTick[] = "ANCHORMAP_JOURNAL_TICK";
-  void SetJournal(JournalAppend append) { journal_ = std::move(append); }
+  // The scan-matching sources' match results (server/recorded_match_codec.h), appended by the
+  // thread that computed one before it is used (MatchPool::SetRecorder): `append` must then
+  // be safe to call from several threads. A restart's ReplayJournal reuses them instead of
+  // matching again; one that could not be journaled is only logged (a restart recomputes
+  // it: the same result, at the matching's cost).
+  static constexpr char kJournalMatch[] = "ANCHORMAP_JOURNAL_MATCH";
+  // Null: nothing journaled from now on (waits for a match result being journaled).
+  void SetJournal(JournalAppend append);
   // Applies one journal event as it was applied live: the logic's clock set to the event's
   // time, the same handlers, nothing appended. Events of other channels are ignored
   // (returns false).
@@ -73,7 +81,13 @@ class ServerNode {
   struct JournalReplay {
     int64_t events = 0;  // the node's events among those given
     bool deferred = false;
-    UpdateResult batch_step;  // the closing batch step, when deferred
+    int64_t matches_journaled = 0;  // match results found in the journal
+    int64_t matches_reused = 0;     // of the replay's matches, served from them (not run)
+    int64_t matches_run = 0;        // run (not journaled: never run before the crash)
+    // Journaled for the ordinal but for another match (another tag): run. 0 unless the
+    // journal is replayed with other options than it was written with.
+    int64_t matches_mismatched = 0;
+    UpdateResult batch_step;        // the closing batch step, when deferred
   };
   // From events[first] on (the events before it are covered by a restored snapshot).
   JournalReplay ReplayJournal(const std::vector<LogEvent>& events, bool defer_updates,
@@ -143,6 +157,8 @@ class ServerNode {
   Clock clock_;
   std::optional<Authenticator> authenticator_;
   JournalAppend journal_;
+  // The logic's clock at the last journaled input: the time of match results' events.
+  std::shared_ptr<std::atomic<int64_t>> journal_utime_ = std::make_shared<std::atomic<int64_t>>(0);
   std::unique_ptr<MappingServer> server_;  // replaced whole by RestoreSnapshot
   std::set<std::string> robots_;           // admitted, at most options_.max_robots
   std::set<TrajectoryName> trajectories_;  // at most max_trajectories

@@ -20,6 +20,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -91,9 +92,11 @@ int Run(const BenchOptions& bench) {
   const ServerOptions options = OnlineServerOptions(bench);
   int64_t now = inputs.front().utime;
   std::vector<LogEvent> journal;
+  std::mutex journal_mutex;  // scan-matching sources journal their matches from workers
   ServerNode live(options, IgnoreOutputs, [&now] { return now; });
-  live.SetJournal([&journal](const std::string& channel, int64_t clock_utime, const uint8_t* data,
-                             size_t size) {
+  live.SetJournal([&journal, &journal_mutex](const std::string& channel, int64_t clock_utime,
+                                             const uint8_t* data, size_t size) {
+    std::lock_guard<std::mutex> lock(journal_mutex);
     LogEvent event;
     event.channel = channel;
     event.utime = clock_utime;
