@@ -68,9 +68,14 @@ struct ScanEncounterOptions {
   double global_min_score = 0.55;
   double global_min_overlap = 0.7;
   double pcm_chi2 = 11.34;  // 3 dof, 99 %
-  // Keyframes between two candidates that confirm each other, in each trajectory (another
-  // place on both sides).
+  // Two candidates confirm each other only from two places, in each trajectory: at least
+  // this many keyframes apart and this far apart in the trajectory's own estimate. Keyframes
+  // come every 0.5 m or 0.35 rad, so a robot turning on the spot makes ten in one place
+  // (ACES 3 robots simultaneous: R1 turned at its start, its submaps 5, 15, 25 and 35 lay
+  // within 2.6 m; three candidates there, from one place under a building's 180-degree
+  // symmetry, passed the pairwise test and joined R1 to R3 35 m off).
   int pcm_min_separation = 10;
+  double pcm_min_separation_m = 4.0;
   int max_kept = 200;  // lone candidates kept per pair of trajectories
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
@@ -195,6 +200,10 @@ class ScanEncounters : public EncounterSource {
   // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
   bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
                   const GraphView& graph) const;
+  // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories:
+  // only then can one confirm the other.
+  bool TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                 const GraphView& graph) const;
 
   struct PendingMatch {
     int64_t due_utime = 0;
