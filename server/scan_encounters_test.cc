@@ -189,9 +189,9 @@ TEST(ScanEncountersTest, SameInputSameMap) {
   EXPECT_EQ(first.scan.accepted, second.scan.accepted);
 }
 
-// An aliased place seen from one spot (the mechanism of ACES 3 robots simultaneous, where
-// R1 turned on the spot at its start and three of its candidates there, ten keyframes apart
-// each, agreed on a 180-degree copy of the place and joined R1 35 m off). Here R1 turns on
+// An aliased place seen from one spot (the mechanism of ACES 2 robots simultaneous, where
+// R2 turned on the spot and two candidates there, 20 keyframes but 0.97 m apart, joined
+// the robots 3 m off; on ACES 3 robots R1's candidates lay within 2.6 m). Here R1 turns on
 // the spot in the south corridor of TwinCorridorWorld, making a keyframe every 0.35 rad,
 // and R2 drives the north corridor, an exact copy 10 m north: every match between them is
 // the alias, and the two robots never see one place. Candidates of R1's keyframes ten
