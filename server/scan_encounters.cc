@@ -35,6 +35,7 @@ Status ScanEncounterOptions::Validate() const {
   if (!(alternative_ratio >= 1)) return Status::Error("scan.alternative_ratio must be >= 1");
   if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
   if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
+  if (!(pcm_min_separation_m >= 0)) return Status::Error("scan.pcm_min_separation_m must be >= 0");
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
   if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
     return Status::Error("scan first-join sigmas must be > 0");
@@ -386,22 +387,24 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   const Pair pair{candidate.a.trajectory, candidate.b.trajectory};
   std::deque<Kept>& kept = kept_[pair];
   std::vector<bool> agrees(kept.size(), false);
-  int consistent = 0;
+  // The places that confirm it: agreeing candidates at one place count once.
+  std::vector<const EncounterCandidate*> confirming;
   const bool localised = Localised(candidate);
   for (size_t i = 0; localised && i < kept.size(); ++i) {
     if (!kept[i].localised) continue;
     // One place seen twice is no second opinion: the two must be apart in both
     // trajectories (a symmetric spot makes every match there agree).
     const EncounterCandidate& other = kept[i].candidate;
-    if (std::abs(other.a.index - candidate.a.index) < options_.pcm_min_separation ||
-        std::abs(other.b.index - candidate.b.index) < options_.pcm_min_separation) {
-      continue;
-    }
-    if (!Consistent(kept[i].candidate, candidate, graph)) continue;
+    if (!TwoPlaces(other, candidate, graph)) continue;
+    if (!Consistent(other, candidate, graph)) continue;
     agrees[i] = true;
     ++kept[i].support;
-    ++consistent;
+    if (std::all_of(confirming.begin(), confirming.end(),
+                    [&](const EncounterCandidate* c) { return TwoPlaces(*c, other, graph); })) {
+      confirming.push_back(&other);
+    }
   }
+  const int consistent = static_cast<int>(confirming.size());
   // The strongest hypothesis this candidate disagrees with.
   int alternative = 0;
   for (size_t i = 0; i < kept.size(); ++i) {
@@ -441,6 +444,26 @@ bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCan
          options_.pcm_chi2;
 }
 
+bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                               const GraphView& graph) const {
+  if (std::abs(c1.a.index - c2.a.index) < options_.pcm_min_separation ||
+      std::abs(c1.b.index - c2.b.index) < options_.pcm_min_separation) {
+    return false;
+  }
+  // Straight-line distance in the estimate, not the path: driving back and forth, or
+  // turning on the spot, does not make another place.
+  const Smoother& smoother = graph.smoother;
+  if (!smoother.HasPose(c1.a) || !smoother.HasPose(c2.a) || !smoother.HasPose(c1.b) ||
+      !smoother.HasPose(c2.b)) {
+    return false;
+  }
+  const auto distance = [&](PoseKey k1, PoseKey k2) {
+    return (smoother.FramePose(k1).translation() - smoother.FramePose(k2).translation()).norm();
+  };
+  return distance(c1.a, c2.a) >= options_.pcm_min_separation_m &&
+         distance(c1.b, c2.b) >= options_.pcm_min_separation_m;
+}
+
 void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {
   for (auto it = qualified_since_.begin(); it != qualified_since_.end();) {
     const Pair pair = it->first;
@@ -467,15 +490,11 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
     // so far (a clique, as in PCM), not only with the best: two that each agree with the
     // best may still disagree with each other.
     std::vector<size_t> set{best};
-    const auto apart = [&](const EncounterCandidate& c1, const EncounterCandidate& c2) {
-      return std::abs(c1.a.index - c2.a.index) >= options_.pcm_min_separation &&
-             std::abs(c1.b.index - c2.b.index) >= options_.pcm_min_separation;
-    };
     for (size_t i = 0; i < kept.size(); ++i) {
       if (i == best || !kept[i].localised) continue;
       bool agrees = true;
       for (const size_t j : set) {
-        const bool same_place = !apart(kept[i].candidate, kept[j].candidate);
+        const bool same_place = !TwoPlaces(kept[i].candidate, kept[j].candidate, graph);
         // Two candidates at one place cannot confirm each other, but one may join the
         // set when another member at another place confirms it.
         if (same_place && j == best) {

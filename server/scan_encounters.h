@@ -67,10 +67,19 @@ struct ScanEncounterOptions {
   GlobalSearchBudgetOptions global_budget;
   double global_min_score = 0.55;
   double global_min_overlap = 0.7;
-  double pcm_chi2 = 11.34;  // 3 dof, 99 %
-  // Keyframes between two candidates that confirm each other, in each trajectory (another
-  // place on both sides).
+  // The pairwise test at 95 %, not 99 %: a first join cannot be undone, while a true pair
+  // refused now is offered again with the next candidates. On ACES 3 robots simultaneous
+  // a 180-degree copy of R1's start area passed at chi2 10.6 and 10.9 (R1 joined to R3
+  // 35 m off); the true pairs measured there and on FR079 2 robots gave 2.2-6.6.
+  double pcm_chi2 = 7.81;  // 3 dof, 95 %
+  // Two candidates confirm each other only from two places, in each trajectory: at least
+  // this many keyframes apart and this far apart in the trajectory's own estimate.
+  // Keyframes come every 0.5 m or 0.35 rad, so a robot turning on the spot makes ten in
+  // one place (ACES 2 robots simultaneous: R2's candidates 70 and 90 lay 0.97 m apart and
+  // joined the robots 3 m off). The true pairs measured on FR079 and ACES were 1.8 m and
+  // more apart: the bar is low, for scans taken at one spot.
   int pcm_min_separation = 10;
+  double pcm_min_separation_m = 1.5;
   int max_kept = 200;  // lone candidates kept per pair of trajectories
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
@@ -195,6 +204,10 @@ class ScanEncounters : public EncounterSource {
   // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
   bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
                   const GraphView& graph) const;
+  // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories:
+  // only then can one confirm the other.
+  bool TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                 const GraphView& graph) const;
 
   struct PendingMatch {
     int64_t due_utime = 0;

@@ -72,9 +72,18 @@ struct TeamRun {
   int false_offered = 0;
 };
 
+// No direct encounters here to wait for; a short hold keeps the global searches (the
+// test's cost) few.
+ScanEncounterOptions ShortHold() {
+  ScanEncounterOptions options;
+  options.first_join_hold_s = 5.0;
+  return options;
+}
+
 // Two robots with their paths (world poses), keyframes interleaved in time.
 TeamRun RunTeam(const SyntheticWorld& world, const std::vector<Pose2>& path1,
-                const std::vector<Pose2>& path2, double false_rate, uint64_t seed) {
+                const std::vector<Pose2>& path2, double false_rate, uint64_t seed,
+                const ScanEncounterOptions& scan_options = ShortHold()) {
   const std::vector<Keyframe> k1 =
       DriveKeyframes(world, path1, "R1", 1, 1'000'000, OdometryNoise{0.01, 0.005}, seed);
   const std::vector<Keyframe> k2 =
@@ -83,10 +92,6 @@ TeamRun RunTeam(const SyntheticWorld& world, const std::vector<Pose2>& path1,
   options.loop_closures = true;     // each robot's own map closed by scan matching too
   options.scan_encounters = false;  // added below, to read its statistics
   MappingServer server(options);
-  ScanEncounterOptions scan_options;
-  // No direct encounters here to wait for; a short hold keeps the global searches (the
-  // test's cost) few.
-  scan_options.first_join_hold_s = 5.0;
   auto scan = std::make_unique<ScanEncounters>(scan_options);
   ScanEncounters* source = scan.get();
   server.AddEncounterSource(std::move(scan));
@@ -182,6 +187,37 @@ TEST(ScanEncountersTest, SameInputSameMap) {
     EXPECT_EQ(first.final_poses[i].theta(), second.final_poses[i].theta()) << i;
   }
   EXPECT_EQ(first.scan.accepted, second.scan.accepted);
+}
+
+// An aliased place seen from one spot (the mechanism of ACES 2 robots simultaneous, where
+// R2 turned on the spot and two candidates there, 20 keyframes but 0.97 m apart, joined
+// the robots 3 m off; on ACES 3 robots R1's candidates lay within 2.6 m). Here R1 turns on
+// the spot in the south corridor of TwinCorridorWorld, making a keyframe every 0.35 rad,
+// and R2 drives the north corridor, an exact copy 10 m north: every match between them is
+// the alias, and the two robots never see one place. Candidates of R1's keyframes ten
+// apart are one place seen again, not a second opinion: no join.
+TEST(ScanEncountersTest, CandidatesFromOneSpotDoNotJoinAnAliasedPlace) {
+  std::vector<Pose2> turning;
+  for (int i = 0; i < 40; ++i) turning.emplace_back(12.0, 1.5, 0.35 * i);
+  std::vector<Pose2> corridor = testing::StraightPath({19.0, 11.5}, {5.0, 11.5}, 0.5);
+  const std::vector<Pose2> back = testing::StraightPath({5.0, 11.5}, {12.0, 11.5}, 0.5);
+  corridor.insert(corridor.end(), back.begin() + 1, back.end());
+  const TeamRun run = RunTeam(testing::TwinCorridorWorld(), turning, corridor, 0.0, 3);
+  // The rule before: keyframes ten apart counted as two places, whatever the distance.
+  ScanEncounterOptions by_index = ShortHold();
+  by_index.pcm_min_separation_m = 0.0;
+  const TeamRun old_rule =
+      RunTeam(testing::TwinCorridorWorld(), turning, corridor, 0.0, 3, by_index);
+  std::printf("one spot: joined %d (%s); by keyframe index only: joined %d mean %.2f m (%s)\n",
+              run.joined, run.scan.Summary("scan").c_str(), old_rule.joined, old_rule.mean_error_m,
+              old_rule.scan.Summary("scan").c_str());
+  // The scenario makes the mechanism: the alias is matched, and by index alone it joins
+  // the robots, R2 10 m off (the mean is over both robots' keyframes; measured 4.9 m).
+  ASSERT_TRUE(old_rule.joined);
+  EXPECT_GT(old_rule.mean_error_m, 3.0);
+  EXPECT_FALSE(run.joined);
+  EXPECT_EQ(run.scan.accepted, 0);
+  EXPECT_GE(run.scan.unconfirmed, 3);  // the alias was matched, and refused
 }
 
 // The first-join rule on hand-made candidates. R1 and R2 drive along parallel tracks 3 m
