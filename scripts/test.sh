@@ -17,23 +17,53 @@ cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 
 jobs=$(nproc)
-run_pass() {
-  local dir=$1; shift
-  cmake -S . -B "$dir" -DANCHORMAP_WERROR=ON "$@" >/dev/null
-  cmake --build "$dir" -j "$jobs"
-  (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 900 \
-    ${ANCHORMAP_CTEST_EXCLUDE:+-E "$ANCHORMAP_CTEST_EXCLUDE"})
+
+# Each phase's wall time and the CPU seconds (user + system) of the processes it ran, so that
+# a slow CI run shows where the time went.
+# `times` runs in this shell (not in a pipe or $(...), which would fork and count nothing).
+times_file=$(mktemp)
+trap 'rm -f "$times_file"' EXIT
+children_cpu() {
+  local _ user sys
+  times >"$times_file"
+  { read -r _ _; read -r user sys; } <"$times_file"
+  cpu=$(awk -v u="$user" -v s="$sys" 'function sec(t, p) { split(t, p, /[ms]/); return p[1] * 60 + p[2] }
+    BEGIN { printf "%.1f", sec(u) + sec(s) }')
+}
+phase_name="" phase_wall=0 phase_cpu=0 cpu=0
+phase() {
+  phase_end
+  children_cpu
+  phase_name=$1 phase_wall=$(date +%s.%N) phase_cpu=$cpu
+  echo "== $1 ($(date +%H:%M:%S))"
+}
+phase_end() {
+  [ -n "$phase_name" ] || return 0
+  children_cpu
+  awk -v n="$phase_name" -v w0="$phase_wall" -v w1="$(date +%s.%N)" -v c0="$phase_cpu" -v c1="$cpu" \
+    'BEGIN { printf "== time: %s: %.0f s wall, %.0f s CPU (user + system)\n", n, w1 - w0, c1 - c0 }'
+  phase_name=""
 }
 
-echo "== Formatting (clang-format, .clang-format at the root)"
+run_pass() {
+  local name=$1 dir=$2; shift 2
+  phase "$name: build"
+  cmake -S . -B "$dir" -DANCHORMAP_WERROR=ON "$@" >/dev/null
+  cmake --build "$dir" -j "$jobs"
+  phase "$name: ctest"
+  (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 900 \
+    ${ANCHORMAP_CTEST_EXCLUDE:+-E "$ANCHORMAP_CTEST_EXCLUDE"})
+  phase_end
+}
+
+phase "Formatting (clang-format, .clang-format at the root)"
 if ! find common agent server tools tests \( -name '*.cc' -o -name '*.h' \) -print0 |
     xargs -0 clang-format --dry-run -Werror; then
   echo "test.sh: files above are not clang-formatted (fix: clang-format -i FILE)" >&2
   exit 1
 fi
 
-echo "== Release build (warnings are errors) and tests"
-run_pass build -DCMAKE_BUILD_TYPE=Release
+run_pass "Release (gcc, warnings are errors)" build -DCMAKE_BUILD_TYPE=Release
 
 # Whether clang can build the fuzz targets: clang, clang++ and libFuzzer's runtime.
 clang_fuzz_missing() {
@@ -55,7 +85,7 @@ clang_fuzz_missing() {
 
 fuzz_run() {
   local tree=$1 seconds=${ANCHORMAP_FUZZ_SECONDS:-20}
-  echo "== Fuzz targets: -fsanitize=fuzzer,address,undefined, ${seconds} s per target"
+  phase "Fuzz targets: -fsanitize=fuzzer,address,undefined, ${seconds} s per target"
   # Targets are single-threaded: run as many at once as there are cores.
   mkdir -p "$tree/artifacts"
   rm -f "$tree"/fuzz-*.rc
@@ -82,6 +112,7 @@ fuzz_run() {
       failed="$failed $target"
     fi
   done
+  phase_end
   [ -z "$failed" ] || exit 1
 }
 
@@ -95,11 +126,10 @@ if [ "${ANCHORMAP_SKIP_SANITIZE:-0}" != "1" ]; then
   # (AgentServerTest.ThreeRobots..., ScanEncountersTest.TwoRobots...) run here.
   export ANCHORMAP_CTEST_EXCLUDE='IncrementalVsBatchTest\.City10000|PerUpdateOracleTest\.IsamMode|AgentServerTest\.OfflineServerOnARecordedLogIsDeterministicAndAgrees|ScanEncountersTest\.SameInputSameMap'
   if why=$(clang_fuzz_missing); then
-    echo "== ASan + UBSan build (gcc) and tests; fuzz targets SKIPPED: $why"
-    run_pass build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
+    echo "== fuzz targets SKIPPED: $why"
+    run_pass "ASan + UBSan (gcc)" build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
   else
-    echo "== ASan + UBSan build (clang, with the libFuzzer targets) and tests"
-    CC=clang CXX=clang++ run_pass build-asan-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    CC=clang CXX=clang++ run_pass "ASan + UBSan (clang, with the libFuzzer targets)" build-asan-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DANCHORMAP_SANITIZE=ON -DANCHORMAP_FUZZ=ON
     if [ "${ANCHORMAP_SKIP_FUZZ:-0}" != "1" ]; then
       unset ASAN_OPTIONS UBSAN_OPTIONS
