@@ -215,9 +215,11 @@ ChainErrors DriveThroughRoom(const AgentOptions& options, const testing::Synthet
     if (i > 0) {
       const Pose2 d = Between(truth[i - 1], truth[i]);
       const double dist = d.translation().norm();
-      odometry.push_back(
-          Compose(odometry.back(), Pose2(1.03 * d.x() + 0.005 * noise(*rng), d.y(),
-                                         d.theta() + 0.0175 * dist + 0.005 * noise(*rng))));
+      // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+      const double noise_theta = 0.005 * noise(*rng);
+      const double noise_x = 0.005 * noise(*rng);
+      odometry.push_back(Compose(odometry.back(), Pose2(1.03 * d.x() + noise_x, d.y(),
+                                                        d.theta() + 0.0175 * dist + noise_theta)));
     }
     const int64_t utime = static_cast<int64_t>(i) * 100'000;
     step_at_utime[utime] = i;

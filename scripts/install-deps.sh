@@ -17,7 +17,7 @@ PACKAGES=(
   libssl-dev                                                # HMAC-SHA-256 of the auth layer (--key-file)
   libcairo2-dev fonts-dejavu-core                           # map and plot drawing (anchormap-render)
   iproute2 util-linux                                       # ip / unshare for the network-namespace tests
-  clang libclang-rt-dev                                     # the fuzz pass: libFuzzer with ASan + UBSan
+  clang libclang-rt-dev                                     # the sanitizer pass: clang ASan + UBSan + libFuzzer
   time                                                      # GNU time: CPU of each process in tools/bench scripts
 )
 

@@ -55,9 +55,12 @@ struct Scenario {
         k.utime = static_cast<int64_t>(t * 1e6) + 1'000'000;
         if (s > 0) {
           const Pose2 true_delta = Between(WorldPose(r, t - 0.5), WorldPose(r, t));
-          k.T_previous_this =
-              Pose2(true_delta.x() + 0.02 * normal(rng), true_delta.y() + 0.02 * normal(rng),
-                    true_delta.theta() + 0.01 * normal(rng));
+          // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+          const double noise_theta = 0.01 * normal(rng);
+          const double noise_y = 0.02 * normal(rng);
+          const double noise_x = 0.02 * normal(rng);
+          k.T_previous_this = Pose2(true_delta.x() + noise_x, true_delta.y() + noise_y,
+                                    true_delta.theta() + noise_theta);
           k.T_previous_this_covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
           odometry[r] = Compose(odometry[r], k.T_previous_this);
         }
@@ -77,9 +80,11 @@ struct Scenario {
         e.observer_trajectory_id = 1000 + observer;
         e.observed = names[observed];
         const Pose2 truth = Between(WorldPose(observer, t), WorldPose(observed, t));
+        const double noise_theta = 0.02 * normal(rng);
+        const double noise_y = 0.05 * normal(rng);
+        const double noise_x = 0.05 * normal(rng);
         e.T_observer_observed =
-            Pose2(truth.x() + 0.05 * normal(rng), truth.y() + 0.05 * normal(rng),
-                  truth.theta() + 0.02 * normal(rng));
+            Pose2(truth.x() + noise_x, truth.y() + noise_y, truth.theta() + noise_theta);
         e.covariance = Eigen::Vector3d(2.5e-3, 2.5e-3, 4e-4).asDiagonal();
         inputs.push_back({std::nullopt, e});
       }

@@ -25,7 +25,10 @@ TEST(PositionIndexTest, NearFindsExactlyThePointsWithinTheRadius) {
   std::vector<Eigen::Vector2d> points;
   PositionIndex index(4.0);
   for (int32_t i = 0; i < 500; ++i) {
-    points.emplace_back(coordinate(random), coordinate(random));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double y = coordinate(random);
+    const double x = coordinate(random);
+    points.emplace_back(x, y);
     index.Add(i, points.back());
   }
   EXPECT_EQ(index.size(), 500u);
@@ -33,7 +36,9 @@ TEST(PositionIndexTest, NearFindsExactlyThePointsWithinTheRadius) {
   // Radii below a cell, across cells, and wider than the whole set (every cell is read).
   for (const double radius : {0.0, 0.5, 3.9, 4.0, 9.5, 30.0, 500.0}) {
     for (int q = 0; q < 40; ++q) {
-      const Eigen::Vector2d center(coordinate(random), coordinate(random));
+      const double center_y = coordinate(random);
+      const double center_x = coordinate(random);
+      const Eigen::Vector2d center(center_x, center_y);
       const std::vector<int32_t> near = index.Near(center, radius);
       EXPECT_EQ(near, BruteForce(points, center, radius)) << "radius " << radius;
       found += static_cast<int>(near.size());

@@ -47,8 +47,11 @@ class FalseCandidates : public EncounterSource {
     EncounterCandidate candidate;
     candidate.a = a;
     candidate.b = b;
-    candidate.T_a_b =
-        Pose2(16.0 * uniform(rng_) - 8.0, 16.0 * uniform(rng_) - 8.0, 6.28 * uniform(rng_) - 3.14);
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double theta = 6.28 * uniform(rng_) - 3.14;
+    const double y = 16.0 * uniform(rng_) - 8.0;
+    const double x = 16.0 * uniform(rng_) - 8.0;
+    candidate.T_a_b = Pose2(x, y, theta);
     candidate.covariance = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
     ++offered_;
     target_->OfferCandidate(candidate, graph, out);

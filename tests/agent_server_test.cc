@@ -81,9 +81,12 @@ class MiniSim {
         const Pose2 truth = Truth(r, t);
         if (step > 0) {
           const Pose2 delta = Between(previous_truth, truth);
-          odometry = Compose(odometry,
-                             Pose2(delta.x() + 0.002 * normal(rng), delta.y() + 0.001 * normal(rng),
-                                   delta.theta() + 0.0005 * normal(rng)));
+          // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+          const double noise_theta = 0.0005 * normal(rng);
+          const double noise_y = 0.001 * normal(rng);
+          const double noise_x = 0.002 * normal(rng);
+          odometry = Compose(odometry, Pose2(delta.x() + noise_x, delta.y() + noise_y,
+                                             delta.theta() + noise_theta));
         }
         previous_truth = truth;
         messages_.push_back({utime, Name(r) + "_ODOMETRY", EncodeOdometry({utime, odometry})});
@@ -106,9 +109,11 @@ class MiniSim {
       e.observer = Name(m.observer);
       e.observed = Name(m.observed);
       const Pose2 relative = Between(Truth(m.observer, m.t), Truth(m.observed, m.t));
+      const double noise_theta = 0.01 * normal(rng);
+      const double noise_y = 0.02 * normal(rng);
+      const double noise_x = 0.02 * normal(rng);
       e.T_observer_observed =
-          Pose2(relative.x() + 0.02 * normal(rng), relative.y() + 0.02 * normal(rng),
-                relative.theta() + 0.01 * normal(rng));
+          Pose2(relative.x() + noise_x, relative.y() + noise_y, relative.theta() + noise_theta);
       e.covariance = Eigen::Vector3d(4e-4, 4e-4, 1e-4).asDiagonal();
       messages_.push_back({e.utime, e.observer + "_ENCOUNTER", EncodeEncounter(e)});
     }

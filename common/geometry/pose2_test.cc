@@ -19,7 +19,13 @@ std::vector<Pose2> HardPoses() {
                               Pose2(5, 5, 3.0)};
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-10, 10), a(-kPi, kPi);
-  for (int i = 0; i < 20; ++i) poses.emplace_back(u(rng), u(rng), a(rng));
+  for (int i = 0; i < 20; ++i) {
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double theta = a(rng);
+    const double y = u(rng);
+    const double x = u(rng);
+    poses.emplace_back(x, y, theta);
+  }
   return poses;
 }
 

@@ -103,7 +103,11 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
   std::map<uint64_t, Pose2> truth;
   std::map<uint64_t, LaserScan> scans;
   for (uint64_t key = 0; key < 40; ++key) {
-    const Pose2 pose(x(rng), y(rng), theta(rng));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double pose_theta = theta(rng);
+    const double pose_y = y(rng);
+    const double pose_x = x(rng);
+    const Pose2 pose(pose_x, pose_y, pose_theta);
     scans[key] = BoxScan(pose, 180);
     truth[key] = pose;
     ASSERT_EQ(grid.Place(key, scans[key], pose), KeyframeGrid::Placement::kInserted);
@@ -113,7 +117,10 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
     for (auto& [key, pose] : truth) {
       const bool big = std::uniform_int_distribution<int>(0, 3)(rng) == 0;
       auto& noise = big ? large : small;
-      pose = Pose2(pose.x() + noise(rng), pose.y() + noise(rng), pose.theta() + 0.1 * noise(rng));
+      const double noise_theta = 0.1 * noise(rng);
+      const double noise_y = noise(rng);
+      const double noise_x = noise(rng);
+      pose = Pose2(pose.x() + noise_x, pose.y() + noise_y, pose.theta() + noise_theta);
       const auto placement = grid.Place(key, scans[key], pose);
       (placement == KeyframeGrid::Placement::kMoved ? moved : unchanged) += 1;
     }

@@ -28,8 +28,11 @@ Pose2 NearbyFreePose(const SyntheticWorld& world, const Pose2& T_world_a, double
                      double max_angle_rad, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (;;) {
-    const Pose2 delta(max_offset_m * unit(*rng), max_offset_m * unit(*rng),
-                      max_angle_rad * unit(*rng));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double dtheta = max_angle_rad * unit(*rng);
+    const double dy = max_offset_m * unit(*rng);
+    const double dx = max_offset_m * unit(*rng);
+    const Pose2 delta(dx, dy, dtheta);
     const Pose2 b = Compose(T_world_a, delta);
     if (world.DistanceToNearestWall(b.translation()) > 0.5) return b;
   }
@@ -57,8 +60,10 @@ Trial MakeTrial(const SyntheticWorld& world, const SyntheticLaser& laser, double
   const Pose2 b = NearbyFreePose(world, a, 0.5, 0.3, rng);
   trial.truth = Between(a, b);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  trial.guess = Compose(trial.truth, Pose2(guess_offset_m * unit(*rng), guess_offset_m * unit(*rng),
-                                           guess_angle_rad * unit(*rng)));
+  const double dtheta = guess_angle_rad * unit(*rng);
+  const double dy = guess_offset_m * unit(*rng);
+  const double dx = guess_offset_m * unit(*rng);
+  trial.guess = Compose(trial.truth, Pose2(dx, dy, dtheta));
   trial.reference = ScanToPointCloud(SimulateScan(world, laser, a, rng));
   trial.query = ScanToPointCloud(SimulateScan(world, laser, b, rng));
   return trial;

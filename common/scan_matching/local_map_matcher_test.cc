@@ -54,8 +54,11 @@ TEST(LocalMapMatcherTest, RefinesDriftingOdometry) {
       if (i > 0) {
         const Pose2 d = Between(truth[i - 1], truth[i]);
         const double dist = d.translation().norm();
-        odometry = Compose(odometry, Pose2(1.03 * d.x() + 0.005 * noise(rng), d.y(),
-                                           d.theta() + 0.0175 * dist + 0.005 * noise(rng)));
+        // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+        const double noise_theta = 0.005 * noise(rng);
+        const double noise_x = 0.005 * noise(rng);
+        odometry = Compose(odometry, Pose2(1.03 * d.x() + noise_x, d.y(),
+                                           d.theta() + 0.0175 * dist + noise_theta));
       }
       const PointCloud points = ScanToPointCloud(SimulateScan(world, laser, truth[i], &rng));
       const LocalMapUpdate update = matcher.AddScan(points, odometry);

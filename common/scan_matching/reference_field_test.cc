@@ -79,7 +79,11 @@ TEST(ReferenceFieldTest, InterpolationIsExactNearAStraightWallWithItsJacobian) {
   std::uniform_real_distribution<double> along(-1.5, 1.5);
   std::uniform_real_distribution<double> off(-0.06, 0.06);
   for (int i = 0; i < 200; ++i) {
-    const Eigen::Vector2d p = along(rng) * dir + off(rng) * n;
+    // One draw per statement: the operands of an overloaded + are unsequenced (gcc's order
+    // kept: the right one first).
+    const double o = off(rng);
+    const double a = along(rng);
+    const Eigen::Vector2d p = a * dir + o * n;
     Eigen::Vector2d v;
     Eigen::Matrix2d J;
     ASSERT_TRUE(field.Interpolate(p, &v, &J));

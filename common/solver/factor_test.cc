@@ -56,7 +56,13 @@ void ExpectJacobiansMatchNumeric(const Factor& factor, std::vector<Pose2> values
 std::vector<Pose2> RandomPoses(std::mt19937* rng, int n) {
   std::uniform_real_distribution<double> u(-20, 20), a(-kPi, kPi);
   std::vector<Pose2> poses;
-  for (int k = 0; k < n; ++k) poses.emplace_back(u(*rng), u(*rng), a(*rng));
+  for (int k = 0; k < n; ++k) {
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double theta = a(*rng);
+    const double y = u(*rng);
+    const double x = u(*rng);
+    poses.emplace_back(x, y, theta);
+  }
   return poses;
 }
 

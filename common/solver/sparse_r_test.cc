@@ -43,7 +43,11 @@ std::vector<NewRows> RandomRows(int n, int extra, std::mt19937* rng) {
     if (b == a) b = (a + 1) % n;
     row.blocks.emplace_back(b, Eigen::Matrix3d::Random());
     row.blocks.emplace_back(a, Eigen::Matrix3d::Random());
-    row.rhs = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double rhs2 = g(*rng);
+    const double rhs1 = g(*rng);
+    const double rhs0 = g(*rng);
+    row.rhs = Eigen::Vector3d(rhs0, rhs1, rhs2);
     rows.push_back(row);
   }
   return rows;

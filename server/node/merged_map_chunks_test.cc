@@ -35,9 +35,18 @@ MergedMap TestMap() {
     t.robot = robot;
     t.trajectory_id = id;
     t.anchored = anchored;
-    if (anchored) t.T_global_local = Pose2(u(rng), u(rng), 0.01 * u(rng));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    if (anchored) {
+      const double theta = 0.01 * u(rng);
+      const double y = u(rng);
+      const double x = u(rng);
+      t.T_global_local = Pose2(x, y, theta);
+    }
     for (int i = 0; i < poses; ++i) {
-      t.poses.emplace_back(u(rng), u(rng), 0.05 * u(rng));
+      const double theta = 0.05 * u(rng);
+      const double y = u(rng);
+      const double x = u(rng);
+      t.poses.emplace_back(x, y, theta);
       t.pose_utimes.push_back(1000 * i);
     }
     map.trajectories.push_back(t);

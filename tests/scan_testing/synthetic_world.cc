@@ -59,9 +59,13 @@ SyntheticWorld RandomRoom(uint64_t seed) {
   AddBox(&world, world.min_corner, world.max_corner);
   const int pillars = 4 + static_cast<int>(unit(rng) * 4.0);
   for (int i = 0; i < pillars; ++i) {
-    const Eigen::Vector2d size(0.3 + 0.9 * unit(rng), 0.3 + 0.9 * unit(rng));
-    const Eigen::Vector2d lo(1.0 + (w - 2.0 - size.x()) * unit(rng),
-                             1.0 + (h - 2.0 - size.y()) * unit(rng));
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double size_y = 0.3 + 0.9 * unit(rng);
+    const double size_x = 0.3 + 0.9 * unit(rng);
+    const Eigen::Vector2d size(size_x, size_y);
+    const double lo_y = 1.0 + (h - 2.0 - size.y()) * unit(rng);
+    const double lo_x = 1.0 + (w - 2.0 - size.x()) * unit(rng);
+    const Eigen::Vector2d lo(lo_x, lo_y);
     AddBox(&world, lo, lo + size);
   }
   const int partitions = 2 + static_cast<int>(unit(rng) * 3.0);
@@ -100,9 +104,12 @@ LaserScan SimulateScan(const SyntheticWorld& world, const SyntheticLaser& laser,
 Pose2 RandomFreePose(const SyntheticWorld& world, double clearance_m, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (;;) {
+    // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+    const double v = unit(*rng);
+    const double u = unit(*rng);
     const Eigen::Vector2d p =
         world.min_corner +
-        (world.max_corner - world.min_corner).cwiseProduct(Eigen::Vector2d(unit(*rng), unit(*rng)));
+        (world.max_corner - world.min_corner).cwiseProduct(Eigen::Vector2d(u, v));
     if (world.DistanceToNearestWall(p) < clearance_m) continue;
     return Pose2(p.x(), p.y(), (2.0 * unit(*rng) - 1.0) * 3.14159265358979323846);
   }

@@ -48,6 +48,17 @@ struct Scene {
   Pose2 guess;
 };
 
+// A random offset within +-translation_m and +-rotation_rad, one draw per statement: a call's
+// argument order is unspecified, so Pose2(unit(rng), ...) would draw other scenes under clang
+// than under gcc (gcc's order kept: theta, y, x).
+Pose2 RandomOffset(double translation_m, double rotation_rad,
+                   std::uniform_real_distribution<double>* unit, std::mt19937_64* rng) {
+  const double theta = rotation_rad * (*unit)(*rng);
+  const double y = translation_m * (*unit)(*rng);
+  const double x = translation_m * (*unit)(*rng);
+  return Pose2(x, y, theta);
+}
+
 void BenchSynthetic(const testing::SyntheticLaser& laser, const char* name, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
@@ -60,10 +71,10 @@ void BenchSynthetic(const testing::SyntheticLaser& laser, const char* name, uint
     const Pose2 a = testing::RandomFreePose(world, 0.8, &rng);
     Pose2 b;
     do {
-      b = Compose(a, Pose2(0.3 * unit(rng), 0.3 * unit(rng), 0.15 * unit(rng)));
+      b = Compose(a, RandomOffset(0.3, 0.15, &unit, &rng));
     } while (world.DistanceToNearestWall(b.translation()) < 0.5);
     scene.truth = Between(a, b);
-    scene.guess = Compose(scene.truth, Pose2(0.2 * unit(rng), 0.2 * unit(rng), 0.1 * unit(rng)));
+    scene.guess = Compose(scene.truth, RandomOffset(0.2, 0.1, &unit, &rng));
     scene.reference = ScanToPointCloud(testing::SimulateScan(world, laser, a, &rng));
     scene.query = ScanToPointCloud(testing::SimulateScan(world, laser, b, &rng));
     scene.local_map.push_back(scene.reference);
@@ -71,7 +82,7 @@ void BenchSynthetic(const testing::SyntheticLaser& laser, const char* name, uint
       // Nine more scans within 1.5 m of the keyframe, in free space.
       Pose2 c;
       do {
-        c = Compose(a, Pose2(1.5 * unit(rng), 1.5 * unit(rng), 0.3 * unit(rng)));
+        c = Compose(a, RandomOffset(1.5, 0.3, &unit, &rng));
       } while (world.DistanceToNearestWall(c.translation()) < 0.3);
       scene.local_map.push_back(TransformPointCloud(
           ScanToPointCloud(testing::SimulateScan(world, laser, c, &rng)), Between(a, c)));

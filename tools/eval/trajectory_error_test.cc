@@ -15,7 +15,10 @@ TEST(AlignRigid2DTest, RecoversAKnownRigidTransformExactly) {
                                  Pose2(0.5, 0.25, -2.5), Pose2(0.0, 0.0, 0.0)}) {
     std::vector<Eigen::Vector2d> estimate, reference;
     for (int i = 0; i < 50; ++i) {
-      reference.emplace_back(coordinate(rng), coordinate(rng));
+      // One draw per statement: a call's argument order is unspecified (gcc's order kept).
+      const double y = coordinate(rng);
+      const double x = coordinate(rng);
+      reference.emplace_back(x, y);
       estimate.push_back(T_ref_est.Inverse().TransformPoint(reference.back()));
     }
     const Pose2 found = AlignRigid2D(estimate, reference);

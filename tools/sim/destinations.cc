@@ -56,8 +56,11 @@ std::vector<Eigen::Vector2d> Destinations::StartPositions(int num_robots, Rng& r
     const size_t k = used[HomeRegion(i)]++;
     Eigen::Vector2d point = plan_.places[rooms[k % rooms.size()]].position;
     if (k >= rooms.size()) {
-      const Eigen::Vector2d shifted =
-          point + Eigen::Vector2d(rng.Uniform(-1.0, 1.0), rng.Uniform(-1.0, 1.0));
+      // One draw per statement: a call's argument order is unspecified, and the simulator's
+      // streams must not depend on the compiler (gcc's order kept: y, then x).
+      const double dy = rng.Uniform(-1.0, 1.0);
+      const double dx = rng.Uniform(-1.0, 1.0);
+      const Eigen::Vector2d shifted = point + Eigen::Vector2d(dx, dy);
       if (planner_.IsTraversable(shifted) && planner_.Connected(point, shifted)) point = shifted;
     }
     starts.push_back(point);

@@ -213,8 +213,11 @@ bool RoutePlanner::Connected(const Eigen::Vector2d& a, const Eigen::Vector2d& b)
 bool RoutePlanner::SampleTraversable(Rng& rng, Eigen::Vector2d* point, int max_attempts) const {
   const Eigen::Vector2d extent = Eigen::Vector2d(width_, height_) * options_.resolution_m;
   for (int attempt = 0; attempt < max_attempts; ++attempt) {
-    const Eigen::Vector2d candidate =
-        origin_ + Eigen::Vector2d(rng.Uniform() * extent.x(), rng.Uniform() * extent.y());
+    // One draw per statement: a call's argument order is unspecified, and the simulator's
+    // streams must not depend on the compiler (gcc's order kept: y, then x).
+    const double y = rng.Uniform() * extent.y();
+    const double x = rng.Uniform() * extent.x();
+    const Eigen::Vector2d candidate = origin_ + Eigen::Vector2d(x, y);
     if (IsTraversable(candidate)) {
       *point = candidate;
       return true;
