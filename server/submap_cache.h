@@ -28,7 +28,7 @@
 namespace anchormap {
 
 struct SubmapCacheOptions {
-  double budget_mb = 512.0;  // estimated bytes of the references held (one is always kept)
+  double budget_mb = 128.0;  // estimated bytes of the references held (one is always kept)
   double reuse_m = 0.0;      // keyframes moved at most this far since the reference was drawn
   double reuse_rad = 0.0;
 
