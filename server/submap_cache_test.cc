@@ -44,7 +44,7 @@ class SubmapCacheTest : public ::testing::Test {
   const TrajectoryId t_{0};
   std::unique_ptr<MappingServer> server_;
   const TrajectoryRecord* record_ = nullptr;
-  const ScanReferenceOptions reference_;
+  const ScanReferenceOptions reference_{};
 };
 
 TEST_F(SubmapCacheTest, ASecondUseOfTheSameDrawingIsServedFromTheCache) {
