@@ -17,7 +17,12 @@
 // map, so a wide match passes higher bars and is only kept as a hypothesis: it enters the
 // graph with a later wide match of the same trajectory, from a query at least
 // wide_pair_min_gap keyframes on, that agrees with it through the estimate (pairwise
-// consistency, PairwiseInconsistency2).
+// consistency, PairwiseInconsistency2). A wide window can hold a look-alike of the place (the
+// simulator's offices repeat every 8 m: a window of 3 sigma of the drift model reached the
+// copy, and two queries agreed on it): the query is also matched in the local window around
+// the prediction (the "rival"), and when that match agrees with the estimate's own
+// covariance (without the drift model) at a pose distinct from the wide match's, the estimate
+// is borne out where it is and the wide match is refused (counted in gate and as "ambiguous").
 // Step 2 runs on the MatchPool's workers (or on the caller's thread without a pool); step 3
 // and what follows from it happen when the canonical input reaches the keyframe's time plus
 // the schedule's lag (MatchSchedule), waiting for the match if needed: the results do not
@@ -114,11 +119,12 @@ class LoopClosures : public EncounterSource {
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
   size_t pending() const override { return waiting_.size() + matches_.size(); }
   std::string StatsLine() const override {
-    return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_) + " " +
-           references_.stats().Summary(name());
+    return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_) + " ambiguous " +
+           std::to_string(ambiguous_) + " " + references_.stats().Summary(name());
   }
   const CandidateStats& stats() const { return stats_; }
   int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
+  int64_t ambiguous() const { return ambiguous_; }          // of stats().gate_rejected
 
  private:
   // The reference of the submap around `center` drawn at the current estimates (cached).
@@ -167,7 +173,11 @@ class LoopClosures : public EncounterSource {
     std::shared_ptr<const PointCloud> query;
     std::vector<std::pair<int32_t, Pose2>> submap_poses;
     std::shared_future<std::optional<MatchResult>> result;
+    // Wide only: the query matched in the local window around the prediction (the rival).
+    std::shared_future<std::optional<MatchResult>> rival;
   };
+  // True when the rival passes the wide bars at a pose distinct from the wide match's.
+  bool Ambiguous(const PendingMatch& pending, const MatchResult& wide) const;
   // A wide match (against a submap drawn at drifting estimates) made exact: the query
   // matched locally against a small submap around the keyframe nearest to where it landed. nullopt
   // (counted) when that match is weak or disagrees with the estimate.
@@ -190,6 +200,7 @@ class LoopClosures : public EncounterSource {
   CandidateStats stats_;
   int64_t wide_searches_ = 0;
   SubmapCache references_;
+  int64_t ambiguous_ = 0;
 };
 
 }  // namespace anchormap

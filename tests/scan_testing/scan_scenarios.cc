@@ -65,6 +65,19 @@ SyntheticWorld TwinCorridorWorld() {
   return world;
 }
 
+SyntheticWorld PeriodicCorridorWorld() {
+  SyntheticWorld world;
+  AddBox(&world, -10.0, 0.0, 50.0, 13.0);  // outer walls
+  AddBox(&world, -7.0, 3.0, 47.0, 10.0);   // the block the ring goes round
+  for (double x = -8.0; x <= 48.0; x += 8.0) {
+    AddBox(&world, x, 0.0, x + 0.3, 0.4);
+    if (x + 3.0 < 47.0) AddBox(&world, x + 3.0, 2.6, x + 3.3, 3.0);
+  }
+  world.min_corner = {-10.0, 0.0};
+  world.max_corner = {50.0, 13.0};
+  return world;
+}
+
 std::vector<Pose2> RectanglePath(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
                                  double step_m, double laps) {
   const Eigen::Vector2d corners[4] = {lo, {hi.x(), lo.y()}, hi, {lo.x(), hi.y()}};

@@ -22,6 +22,11 @@ SyntheticWorld LoopWorld();
 // the first moved by (0, 10) m), joined at their west ends by a hall with distinct pillars.
 SyntheticWorld TwinCorridorWorld();
 
+// A corridor ring around a 54 m x 7 m block (corridors 3 m wide) whose south corridor repeats
+// every 8 m: door jambs at x = 8k on its south wall and 8k + 3 on its north wall, as the
+// simulator's offices repeat their rooms. A place there looks like the places 8 m away.
+SyntheticWorld PeriodicCorridorWorld();
+
 // Poses every `step_m` along the rectangle [lo, hi] driven counter-clockwise from `lo`,
 // heading along the side (turning at corners in one step), for `laps` laps (fractions
 // allowed).
