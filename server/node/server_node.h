@@ -87,7 +87,7 @@ class ServerNode {
     // Journaled for the ordinal but for another match (another tag): run. 0 unless the
     // journal is replayed with other options than it was written with.
     int64_t matches_mismatched = 0;
-    UpdateResult batch_step;        // the closing batch step, when deferred
+    UpdateResult batch_step;  // the closing batch step, when deferred
   };
   // From events[first] on (the events before it are covered by a restored snapshot).
   JournalReplay ReplayJournal(const std::vector<LogEvent>& events, bool defer_updates,
