@@ -14,10 +14,13 @@ PoseGraph RandomGraph(const RandomGraphOptions& options) {
   Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
   information(0, 0) = information(1, 1) = 1.0 / (options.sigma_xy_m * options.sigma_xy_m);
   information(2, 2) = 1.0 / (options.sigma_theta_rad * options.sigma_theta_rad);
+  // One draw per statement, last coordinate first: gcc's order of the arguments this once
+  // drew in (the order of a call's arguments is unspecified; clang drew other graphs).
   auto noisy = [&](const Pose2& truth) {
-    return Pose2(truth.x() + options.sigma_xy_m * unit(rng),
-                 truth.y() + options.sigma_xy_m * unit(rng),
-                 truth.theta() + options.sigma_theta_rad * unit(rng));
+    const double theta = truth.theta() + options.sigma_theta_rad * unit(rng);
+    const double y = truth.y() + options.sigma_xy_m * unit(rng);
+    const double x = truth.x() + options.sigma_xy_m * unit(rng);
+    return Pose2(x, y, theta);
   };
   for (int i = 0; i < options.poses; ++i) {
     graph.vertices.push_back({i, pose});
