@@ -51,10 +51,15 @@ struct SmootherStats {
   int64_t partial_relinearizations = 0;
   int64_t relinearized_variables = 0;  // summed over partial steps
   int64_t rows_reeliminated = 0;       // block rows of R re-eliminated, summed
-  int64_t partial_merges = 0;          // group merges done by a partial step (also counted
-                                       // in partial_relinearizations)
-  double partial_seconds = 0.0;        // time spent in partial steps
-  int64_t batch_iterations = 0;        // summed over batch steps
+  // Of those, the rows marked before the elimination-tree closure (S, the variables
+  // sharing a factor with S, newest poses and anchors), and the rows from the first of
+  // them to the end of R (what a column-ordered re-elimination would redo), summed.
+  int64_t rows_before_closure = 0;
+  int64_t rows_in_tails = 0;
+  int64_t partial_merges = 0;    // group merges done by a partial step (also counted
+                                 // in partial_relinearizations)
+  double partial_seconds = 0.0;  // time spent in partial steps
+  int64_t batch_iterations = 0;  // summed over batch steps
   int64_t iterations_to_convergence =
       0;                             // batch iterations until the step fell below convergence_step
   int64_t givens_block_rows = 0;     // block rows of R met by Givens eliminations

@@ -191,6 +191,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   }
   // (Every block of row p is an ancestor of p; marking them all, not only the parent,
   // keeps B closed even where an exact zero dropped a fill-in block.)
+  const int64_t marked_before_closure = std::count(in_b.begin(), in_b.end(), 1);
   int p0 = n;
   for (int p = 0; p < n; ++p) {
     if (!in_b[p]) continue;
@@ -405,6 +406,8 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   ++stats_.partial_relinearizations;
   stats_.relinearized_variables += static_cast<int64_t>(drifted_positions.size());
   stats_.rows_reeliminated += nb;
+  stats_.rows_before_closure += marked_before_closure;
+  stats_.rows_in_tails += n - p0;
   stats_.partial_seconds += Seconds(start);
   result->relinearized = static_cast<int>(drifted_positions.size());
   return true;

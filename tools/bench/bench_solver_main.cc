@@ -295,6 +295,7 @@ int Run(const Flags& flags) {
         "\"givens_block_rows\": %lld, \"givens_block_columns\": %lld, "
         "\"partial_relinearizations\": %lld, \"partial_s\": %.4f, "
         "\"relinearized_variables\": %lld, \"rows_reeliminated\": %lld, "
+        "\"rows_before_closure\": %lld, \"rows_in_tails\": %lld, "
         "\"partial_merges\": %lld, \"correction_steps\": %lld, "
         "\"correction_stalls\": %lld, \"correction_skips\": %lld, \"correction_s\": %.4f, "
         "\"checked_steps\": %d, \"worst_step_chi2_excess\": %.3e, "
@@ -318,7 +319,8 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
         static_cast<long long>(stats.relinearized_variables),
         static_cast<long long>(stats.rows_reeliminated),
-        static_cast<long long>(stats.partial_merges),
+        static_cast<long long>(stats.rows_before_closure),
+        static_cast<long long>(stats.rows_in_tails), static_cast<long long>(stats.partial_merges),
         static_cast<long long>(stats.correction_steps),
         static_cast<long long>(stats.correction_stalls),
         static_cast<long long>(stats.correction_skips), stats.correction_seconds, checks,
@@ -357,10 +359,13 @@ int Run(const Flags& flags) {
     if (stats.partial_relinearizations > 0) {
       std::printf(
           "partial relinearisations %lld (%.3f s): %.1f variables relinearised and %.1f block "
-          "rows re-eliminated per step\n",
+          "rows re-eliminated per step (%.1f marked before the elimination-tree closure; %.1f "
+          "from the first of them to the end of R)\n",
           static_cast<long long>(stats.partial_relinearizations), stats.partial_seconds,
           static_cast<double>(stats.relinearized_variables) / stats.partial_relinearizations,
-          static_cast<double>(stats.rows_reeliminated) / stats.partial_relinearizations);
+          static_cast<double>(stats.rows_reeliminated) / stats.partial_relinearizations,
+          static_cast<double>(stats.rows_before_closure) / stats.partial_relinearizations,
+          static_cast<double>(stats.rows_in_tails) / stats.partial_relinearizations);
     }
     if (flags.smoother.correction_tolerance > 0) {
       std::printf("correction: %lld steps, %lld updates not converged, %lld skipped (%.3f s)\n",
