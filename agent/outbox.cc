@@ -153,6 +153,20 @@ void Outbox::Acknowledge(int32_t keyframes_next, int32_t encounters_next) {
   }
 }
 
+std::vector<Outbox::Message> Outbox::EncountersLeftByAck(int64_t now_utime) {
+  std::vector<Message> out;
+  if (options_.encounter_resend_after_ack_s <= 0) return out;
+  for (auto& [seq, entry] : encounters_) {
+    if (out.size() >= static_cast<size_t>(options_.max_resend_per_poll)) break;
+    if (1e-6 * static_cast<double>(now_utime - entry.last_sent_utime) <
+        options_.encounter_resend_after_ack_s) {
+      continue;
+    }
+    if (TakeForSending(&entry, now_utime, &out)) ++stats_.resent_after_ack;
+  }
+  return out;
+}
+
 std::vector<Outbox::Message> Outbox::Requested(const std::vector<SeqRange>& ranges,
                                                int64_t now_utime) {
   std::vector<Message> out;

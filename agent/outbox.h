@@ -42,12 +42,23 @@ struct OutboxOptions {
   double resend_timeout_s = 2.0;
   // At most this many timed-out entries are resent per Poll (the server asks for the rest).
   int max_resend_per_poll = 16;
+  // An acknowledgement that leaves an encounter unacknowledged this long after it was last
+  // sent has it sent again at once (0: off). The server cannot see a lost encounter that
+  // no later one follows (a restarted server: the ones sent while it was down), and the
+  // timeout's back-off would bring it after the inputs that follow it in data time had
+  // gone into the map (late: with the scan sources on, other decisions); an
+  // acknowledgement shows the server is there to take it. Encounters are small; keyframes
+  // are not, and the next keyframe reveals a lost one (the server asks for it).
+  double encounter_resend_after_ack_s = 1.0;
 
   Status Validate() const {
     if (max_bytes < 1024) return Status::Error("outbox.max_bytes must be >= 1024");
     if (max_spill_bytes < 0) return Status::Error("outbox.max_spill_bytes must be >= 0");
     if (!(resend_timeout_s > 0)) return Status::Error("outbox.resend_timeout_s must be > 0");
     if (max_resend_per_poll < 1) return Status::Error("outbox.max_resend_per_poll must be >= 1");
+    if (!(encounter_resend_after_ack_s >= 0)) {
+      return Status::Error("outbox.encounter_resend_after_ack_s must be >= 0");
+    }
     return Status::Ok();
   }
 };
@@ -57,6 +68,7 @@ struct OutboxStats {
   int64_t acknowledged = 0;
   int64_t resent_on_request = 0;
   int64_t resent_on_timeout = 0;
+  int64_t resent_after_ack = 0;    // encounters an acknowledgement left out (see the option)
   int64_t requested_but_gone = 0;  // asked for, but acknowledged or dropped before
   int64_t spilled = 0;             // written to the spill file (past the memory bound)
   int64_t read_back = 0;           // read from the spill file to be resent
@@ -81,6 +93,10 @@ class Outbox {
   Status Add(StreamKind kind, int32_t seq, std::vector<uint8_t> bytes, int64_t now_utime);
   // A cumulative acknowledgement: frees every entry below the two bounds.
   void Acknowledge(int32_t keyframes_next, int32_t encounters_next);
+  // Right after Acknowledge: the encounters still unacknowledged that were last sent at
+  // least encounter_resend_after_ack_s before `now_utime` (at most max_resend_per_poll,
+  // oldest first), marked as sent at `now_utime`.
+  std::vector<Message> EncountersLeftByAck(int64_t now_utime);
   // The kept entries in `ranges`, in stream and seq order (spilled ones read back), marked
   // as sent at `now_utime`.
   std::vector<Message> Requested(const std::vector<SeqRange>& ranges, int64_t now_utime);

@@ -69,6 +69,31 @@ TEST(OutboxTest, ResendsOnTimeoutWithBackOffAndAtMostAFewPerPoll) {
   EXPECT_TRUE(outbox.TimedOut(3'000'003).empty());
 }
 
+// An acknowledgement that leaves out an encounter sent at least
+// encounter_resend_after_ack_s ago has it sent again at once (the server cannot ask for
+// an encounter it does not know was lost); keyframes and recent encounters wait.
+TEST(OutboxTest, EncountersAnAcknowledgementLeavesOutAreResentAtOnce) {
+  OutboxOptions options;
+  options.encounter_resend_after_ack_s = 1.0;
+  Outbox outbox(options);
+  ASSERT_TRUE(outbox.Add(StreamKind::kKeyframes, 0, Bytes(100), 0).ok());
+  ASSERT_TRUE(outbox.Add(StreamKind::kEncounters, 0, Bytes(10), 0).ok());
+  ASSERT_TRUE(outbox.Add(StreamKind::kEncounters, 1, Bytes(10), 0).ok());
+  ASSERT_TRUE(outbox.Add(StreamKind::kEncounters, 2, Bytes(10), 900'000).ok());
+  outbox.Acknowledge(1, 1);  // keyframe 0 and encounter 0 arrived
+  const auto resent = outbox.EncountersLeftByAck(1'000'000);
+  EXPECT_EQ(Seqs(resent), (std::vector<int32_t>{1}));  // 2 was sent 0.1 s ago
+  EXPECT_EQ(resent[0].kind, StreamKind::kEncounters);
+  EXPECT_EQ(outbox.stats().resent_after_ack, 1);
+  // Marked as sent: the next acknowledgement 0.5 s later leaves both alone.
+  EXPECT_TRUE(outbox.EncountersLeftByAck(1'500'000).empty());
+  EXPECT_EQ(Seqs(outbox.EncountersLeftByAck(2'000'000)), (std::vector<int32_t>{1, 2}));
+  options.encounter_resend_after_ack_s = 0.0;  // off
+  Outbox off(options);
+  ASSERT_TRUE(off.Add(StreamKind::kEncounters, 0, Bytes(10), 0).ok());
+  EXPECT_TRUE(off.EncountersLeftByAck(10'000'000).empty());
+}
+
 TEST(OutboxTest, BoundedMemoryDropsTheOldestKeyframesAndSaysSo) {
   OutboxOptions options;
   options.max_bytes = 4096;

@@ -131,6 +131,15 @@ std::optional<OrderedInput> CanonicalInputOrder::Next(int64_t now_utime, bool se
 void CanonicalInputOrder::ResumeAt(int64_t clock_utime) {
   for (auto& [id, stream] : streams_) {
     if (!stream.silent) stream.last_heard = std::max(stream.last_heard, clock_utime);
+    // What waits settles again from the restart: the agents hear the new server's
+    // acknowledgements and resend what its predecessor lacked (an encounter sent while it
+    // was down, which no later one reveals) before the inputs after it go out.
+    for (Entry& entry : stream.queue) {
+      entry.arrival_clock = std::max(entry.arrival_clock, clock_utime);
+    }
+  }
+  for (auto& [key, entry] : encounters_) {
+    entry.arrival_clock = std::max(entry.arrival_clock, clock_utime);
   }
   for (auto& [name, stream] : encounter_streams_) {
     if (!stream.above.empty()) stream.gap_since = std::max(stream.gap_since, clock_utime);

@@ -95,7 +95,8 @@ class CanonicalInputOrder {
   void Heard(TrajectoryId stream, int64_t clock_utime);
   // A restarted server resumes at `clock_utime`: the patience of every trajectory still
   // holding, and of every encounter gap, counts from then at the earliest (the server's
-  // downtime and journal replay are not the robots' silence).
+  // downtime and journal replay are not the robots' silence), and so does the settle time
+  // of every input waiting (what was lost while it was down is resent meanwhile).
   void ResumeAt(int64_t clock_utime);
 
   // The next input that may go to the graph at `now_utime`, if any (`settle`: apply

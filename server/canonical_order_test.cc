@@ -117,6 +117,28 @@ TEST(CanonicalInputOrderTest, OnlineAnInputWaitsTheSettleTime) {
   EXPECT_TRUE(order.Next(12'000'000, /*settle=*/true));
 }
 
+// After a restart what waits settles again from the restart: an encounter lost while the
+// server was down and resent within settle_s of the restart goes out before the keyframes
+// after it, although they had settled long before (they came before the crash).
+TEST(CanonicalInputOrderTest, ARestartSettlesWhatWaitsAgain) {
+  CanonicalOrderOptions options;
+  options.settle_s = 2.0;
+  CanonicalInputOrder order(options);
+  order.AddKeyframe(TrajectoryId(0), MakeKeyframe("R1", 1, 0, 1'000'000), 10'000'000);
+  order.AddKeyframe(TrajectoryId(0), MakeKeyframe("R1", 1, 1, 3'000'000), 10'000'000);
+  order.ResumeAt(30'000'000);
+  EXPECT_FALSE(order.Next(31'000'000, /*settle=*/true));
+  order.AddEncounter(MakeEncounter("R1", "R2", 2'000'000), 31'500'000);  // the resend
+  std::vector<std::string> out;
+  for (int64_t now = 31'000'000; now <= 34'000'000; now += 100'000) {
+    while (auto input = order.Next(now, /*settle=*/true)) {
+      out.push_back(input->is_keyframe ? "R1:" + std::to_string(input->keyframe.seq) : "E");
+    }
+  }
+  EXPECT_EQ(out, (Labels{"R1:0", "E", "R1:1"}));
+  EXPECT_EQ(order.stats().late, 0);
+}
+
 // The two-robot loop world with the scan sources on (the defaults) and one direct
 // encounter: what the graph holds after Flush.
 struct MapResult {

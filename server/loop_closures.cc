@@ -487,7 +487,8 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     auto job = [submap, query, window, match] {
       return SearchWindowAndFinish(*submap, *query, window, match);
     };
-    pending.result = RunMatch(pool_, MatchTag{key, candidate}, std::move(job));
+    pending.result =
+        RunMatch(pool_, MatchTag{key, candidate, MatchKind::kLoopWide}, std::move(job));
     // The rival: the local window the prediction would have without the drift model.
     const Eigen::Matrix3d undrifted = predicted.covariance - drift;
     LocalMatchOptions local;
@@ -499,8 +500,8 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     auto rival = [submap, query, guess, local] {
       return MatchLocal(*submap, *query, guess, local);
     };
-    // Same tag as the wide job: a journal's result is reused by ordinal and tag together.
-    pending.rival = RunMatch(pool_, MatchTag{key, candidate}, std::move(rival));
+    pending.rival =
+        RunMatch(pool_, MatchTag{key, candidate, MatchKind::kLoopRival}, std::move(rival));
   } else {
     LocalMatchOptions window;
     window.match = options_.match;
@@ -511,7 +512,8 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     auto job = [submap, query, guess, window] {
       return MatchLocal(*submap, *query, guess, window);
     };
-    pending.result = RunMatch(pool_, MatchTag{key, candidate}, std::move(job));
+    pending.result =
+        RunMatch(pool_, MatchTag{key, candidate, MatchKind::kLoopLocal}, std::move(job));
   }
   matches_.push_back(std::move(pending));
 }

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
+#include <string>
 
 #include "common/util/log.h"
+#include "server/match_options_fingerprint.h"
 
 namespace anchormap {
 
@@ -18,6 +20,18 @@ double ThreadCpuSeconds() {
   return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
 }
 
+// "keyframe R1/123 seq 4 at 1000000" / "encounter R1/123 seq 2 -> R2 at 1000000".
+std::string DescribeInput(const OrderedInput& input) {
+  if (input.is_keyframe) {
+    const Keyframe& k = input.keyframe;
+    return "keyframe " + k.robot + "/" + std::to_string(k.trajectory_id) + " seq " +
+           std::to_string(k.seq) + " at " + std::to_string(k.utime);
+  }
+  const Encounter& e = input.encounter;
+  return "encounter " + e.observer + "/" + std::to_string(e.observer_trajectory_id) + " seq " +
+         std::to_string(e.seq) + " -> " + e.observed + " at " + std::to_string(e.utime);
+}
+
 }  // namespace
 
 MappingServer::MappingServer(const MappingServerOptions& options)
@@ -29,6 +43,8 @@ MappingServer::MappingServer(const MappingServerOptions& options)
       publisher_(options.publish),
       pool_(std::make_unique<MatchPool>(options.match_workers)),
       resend_(options.delivery) {
+  // A journaled match is reused only under the options it was computed with.
+  pool_->SetOptionsFingerprint(MatchOptionsFingerprint(options));
   sources_.push_back(std::make_unique<DirectEncounters>(options.direct));
   if (options.loop_closures) {
     sources_.push_back(
@@ -130,6 +146,7 @@ int MappingServer::Release(bool at_end, int limit) {
   int released = 0;
   for (; at_end || released < limit; ++released) {
     std::vector<TrajectoryId> silenced;
+    const int64_t late_before = order_.stats().late;
     std::optional<OrderedInput> input =
         at_end ? order_.NextAtEnd() : order_.Next(clock_utime(), settle, &silenced);
     for (const TrajectoryId id : silenced) {
@@ -139,6 +156,11 @@ int MappingServer::Release(bool at_end, int limit) {
                  " s: it no longer holds the other trajectories' inputs");
     }
     if (!input) break;
+    if (order_.stats().late != late_before) {
+      // Said each time: a late input is where a live map may part from the canonical one.
+      LogWarning("late input (released after later ones, data time " +
+                 std::to_string(released_utime_) + "): " + DescribeInput(*input));
+    }
     released_utime_ = std::max(released_utime_, input->utime());
     if (input->is_keyframe) {
       ApplyKeyframe(std::move(input->keyframe));

@@ -56,12 +56,9 @@ struct MappingServerOptions {
   // Scan matching on the keyframes' scans (keyframes without a scan are skipped). Their
   // decisions depend on the graph's state when they look; the canonical order makes that
   // state a function of the input set (offline: tested to 1e-9 across interleavings, bit
-  // for bit across worker counts). On in anchormap-replay; off by default here, hence in
-  // anchormap-server, because on this 2-core machine under load the live system tests
-  // did not pass with them on (the scan encounters cost ~20 s CPU per 60 s of the 3-robot
-  // test; a server that long behind gave up resends; the loss test still differed by one
-  // encounter in 118, 7.6e-7 m: likely the offline reference's order, see
-  // docs/ARCHITECTURE.md "Canonical input order", Defaults).
+  // for bit across worker counts). Off here, so that unit tests and library users switch
+  // them on where they mean to; on in the daemons (anchormap-server, anchormap-replay:
+  // DaemonDefaults in server/node/server_options.h; docs/ARCHITECTURE.md, Defaults).
   bool loop_closures = false;
   LoopClosureOptions loop;
   bool scan_encounters = false;

@@ -23,18 +23,22 @@ std::shared_future<std::optional<MatchResult>> MatchPool::Submit(const MatchTag&
   if (const auto found = preloaded_.find(ordinal); found != preloaded_.end()) {
     const RecordedMatch recorded = std::move(found->second);
     preloaded_.erase(found);
-    if (recorded.tag == tag) {
+    if (recorded.options_fingerprint != options_fingerprint_) {
+      ++stats_.other_options;
+    } else if (recorded.tag == tag) {
       ++stats_.reused;
       std::promise<std::optional<MatchResult>> done;
       done.set_value(recorded.result);
       return done.get_future().share();
+    } else {
+      ++stats_.mismatched;
     }
-    ++stats_.mismatched;
   }
   // The result is recorded (journaled) before the future is ready, hence before it is used.
   std::packaged_task<std::optional<MatchResult>()> task(
-      [this, ordinal, tag, job = std::move(job)]() -> std::optional<MatchResult> {
-        RecordedMatch recorded{ordinal, tag, job()};
+      [this, ordinal, tag, fingerprint = options_fingerprint_,
+       job = std::move(job)]() -> std::optional<MatchResult> {
+        RecordedMatch recorded{ordinal, tag, fingerprint, job()};
         Record(recorded);
         return std::move(recorded.result);
       });

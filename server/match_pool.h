@@ -41,19 +41,39 @@ struct MatchSchedule {
   }
 };
 
-// What a match is of: the query keyframe and the reference's keyframe (a submap's centre,
-// a loop-closure candidate). A recorded result is reused only for the same ordinal and tag,
-// so a journal replayed with other options (other jobs) recomputes instead of mixing up.
+// Which of the sources' searches a job is: two jobs on the same two keyframes (a loop
+// closure's wide search and the local match its ambiguity test compares it with) are told
+// apart. kUnknown: a result journaled before kinds were recorded (codec version 1).
+enum class MatchKind : uint8_t {
+  kUnknown = 0,
+  kLoopLocal = 1,   // a loop closure's window search around the prediction
+  kLoopWide = 2,    // a loop closure's wide (branch-and-bound) search
+  kLoopRival = 3,   // the wide search's ambiguity test: the local window it competes with
+  kScanNear = 4,    // a scan encounter's window search near the prediction
+  kScanGlobal = 5,  // a scan encounter's global search
+};
+constexpr uint8_t kLastMatchKind = 5;
+
+// What a match is of: the query keyframe, the reference's keyframe (a submap's centre, a
+// loop-closure candidate) and the kind of search. A recorded result is reused only for the
+// same ordinal and tag, so a journal replayed with other options (other jobs) recomputes
+// instead of mixing up.
 struct MatchTag {
   PoseKey query;
   PoseKey reference;
-  bool operator==(const MatchTag& o) const { return query == o.query && reference == o.reference; }
+  MatchKind kind = MatchKind::kUnknown;
+  bool operator==(const MatchTag& o) const {
+    return query == o.query && reference == o.reference && kind == o.kind;
+  }
 };
 
 // One job's result, as journaled.
 struct RecordedMatch {
   int64_t ordinal = 0;  // the pool's submission count before it
   MatchTag tag;
+  // The options it was computed under (MatchOptionsFingerprint; 0: not recorded, an older
+  // journal): a result is reused only under the same.
+  uint64_t options_fingerprint = 0;
   std::optional<MatchResult> result;
 };
 
@@ -61,6 +81,9 @@ struct MatchPoolStats {
   int64_t submitted = 0;
   int64_t reused = 0;      // served from preloaded results (not run)
   int64_t mismatched = 0;  // a preloaded result with the ordinal but another tag (run)
+  // A preloaded result with the ordinal but computed under other options, or under options
+  // not recorded (an older journal): run again.
+  int64_t other_options = 0;
 };
 
 class MatchPool {
@@ -83,6 +106,10 @@ class MatchPool {
   void Preload(const std::vector<RecordedMatch>& recorded);
   // Null: nothing recorded. Jobs already running record with the recorder set when they end.
   void SetRecorder(Recorder recorder);
+  // The options the results are computed under (stamped on every record; only records
+  // with the same are reused). Set before the first Submit.
+  void SetOptionsFingerprint(uint64_t fingerprint) { options_fingerprint_ = fingerprint; }
+  uint64_t options_fingerprint() const { return options_fingerprint_; }
   // Preloaded results not (yet) used.
   size_t preloaded() const { return preloaded_.size(); }
   const MatchPoolStats& stats() const { return stats_; }
@@ -92,6 +119,7 @@ class MatchPool {
   void Record(const RecordedMatch& match);
 
   int64_t next_ordinal_ = 0;
+  uint64_t options_fingerprint_ = 0;
   std::map<int64_t, RecordedMatch> preloaded_;  // by ordinal; the server's thread only
   MatchPoolStats stats_;
   std::mutex record_mutex_;

@@ -64,9 +64,9 @@ TEST(MatchPoolTest, PreloadedResultsAreServedOnlyForTheSameOrdinalAndTag) {
   std::atomic<int> ran{0};
   std::atomic<int> recorded{0};
   pool.SetRecorder([&](const RecordedMatch&) { ++recorded; });
-  pool.Preload({{0, Tag(0, 10), ResultAt(100.0)},
-                {1, Tag(1, 11), std::nullopt},
-                {2, Tag(7, 7), ResultAt(300.0)}});
+  pool.Preload({{0, Tag(0, 10), 0, ResultAt(100.0)},
+                {1, Tag(1, 11), 0, std::nullopt},
+                {2, Tag(7, 7), 0, ResultAt(300.0)}});
   EXPECT_EQ(pool.preloaded(), 3u);
   auto job = [&ran](double x) {
     return [&ran, x]() -> std::optional<MatchResult> {
@@ -91,6 +91,43 @@ TEST(MatchPoolTest, PreloadedResultsAreServedOnlyForTheSameOrdinalAndTag) {
   EXPECT_EQ(pool.stats().reused, 2);
   EXPECT_EQ(pool.stats().mismatched, 1);
   EXPECT_EQ(pool.preloaded(), 0u);
+}
+
+// Results journaled under other options (another fingerprint, or none: an older journal)
+// are run again and counted, and the new results are recorded under the pool's own.
+TEST(MatchPoolTest, ResultsOfOtherOptionsAreRunAgainAndCounted) {
+  MatchPool pool(0);
+  pool.SetOptionsFingerprint(77);
+  std::vector<RecordedMatch> recorded;
+  pool.SetRecorder([&](const RecordedMatch& match) { recorded.push_back(match); });
+  pool.Preload({{0, Tag(0, 10), 77, ResultAt(100.0)},
+                {1, Tag(1, 11), 78, ResultAt(200.0)},
+                {2, Tag(2, 12), 0, ResultAt(300.0)}});
+  auto job = [](double x) { return [x]() -> std::optional<MatchResult> { return ResultAt(x); }; };
+  EXPECT_EQ(pool.Submit(Tag(0, 10), job(1.0)).get()->pose.x(), 100.0);
+  EXPECT_EQ(pool.Submit(Tag(1, 11), job(2.0)).get()->pose.x(), 2.0);
+  EXPECT_EQ(pool.Submit(Tag(2, 12), job(3.0)).get()->pose.x(), 3.0);
+  EXPECT_EQ(pool.stats().reused, 1);
+  EXPECT_EQ(pool.stats().other_options, 2);
+  EXPECT_EQ(pool.stats().mismatched, 0);
+  ASSERT_EQ(recorded.size(), 2u);
+  for (const RecordedMatch& m : recorded) EXPECT_EQ(m.options_fingerprint, 77u);
+}
+
+// The kind is part of the tag: a wide search's result is not served to the local match of
+// the same two keyframes (its ambiguity rival).
+TEST(MatchPoolTest, TheKindOfSearchIsPartOfTheTag) {
+  MatchPool pool(0);
+  const MatchTag wide{PoseKey{TrajectoryId(0), 40}, PoseKey{TrajectoryId(0), 5},
+                      MatchKind::kLoopWide};
+  MatchTag rival = wide;
+  rival.kind = MatchKind::kLoopRival;
+  pool.Preload({{0, wide, 0, ResultAt(100.0)}});
+  EXPECT_EQ(
+      pool.Submit(rival, [] { return std::optional<MatchResult>(ResultAt(1.0)); }).get()->pose.x(),
+      1.0);
+  EXPECT_EQ(pool.stats().mismatched, 1);
+  EXPECT_EQ(pool.stats().reused, 0);
 }
 
 }  // namespace

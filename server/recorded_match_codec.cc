@@ -8,7 +8,11 @@ namespace anchormap {
 namespace {
 
 constexpr char kMagic[4] = {'A', 'M', 'M', 'R'};
-constexpr uint32_t kVersion = 1;
+// Version 2 adds the search's kind to the tag and the options fingerprint. Version 1
+// records (journals written before) are still read, with kind kUnknown and fingerprint 0:
+// a server never reuses them (it cannot know their options), it matches again.
+constexpr uint32_t kVersion = 2;
+constexpr uint32_t kOldestVersion = 1;
 
 void PutKey(ByteWriter* w, const PoseKey& key) {
   w->I64(key.trajectory.value());
@@ -30,6 +34,8 @@ std::vector<uint8_t> EncodeRecordedMatch(const RecordedMatch& match) {
   w.Raw<int64_t>(match.ordinal);
   PutKey(&w, match.tag.query);
   PutKey(&w, match.tag.reference);
+  w.Raw<uint8_t>(static_cast<uint8_t>(match.tag.kind));
+  w.Raw<uint64_t>(match.options_fingerprint);
   w.Raw<uint8_t>(match.result ? 1 : 0);
   if (match.result) {
     const MatchResult& r = *match.result;
@@ -61,15 +67,24 @@ Result<RecordedMatch> DecodeRecordedMatch(const uint8_t* data, size_t size) {
     }
   }
   const uint32_t version = r.Raw<uint32_t>();
-  if (!r.failed() && version != kVersion) {
-    return Status::Error(ErrorCode::kDecodeFailed, "recorded match: version " +
-                                                       std::to_string(version) + ", this reads " +
-                                                       std::to_string(kVersion));
+  if (!r.failed() && (version < kOldestVersion || version > kVersion)) {
+    return Status::Error(ErrorCode::kDecodeFailed,
+                         "recorded match: version " + std::to_string(version) + ", this reads " +
+                             std::to_string(kOldestVersion) + " to " + std::to_string(kVersion));
   }
   RecordedMatch match;
   match.ordinal = r.Raw<int64_t>();
   match.tag.query = GetKey(&r);
   match.tag.reference = GetKey(&r);
+  if (version >= 2) {
+    const uint8_t kind = r.Raw<uint8_t>();
+    if (!r.failed() && (kind == 0 || kind > kLastMatchKind)) {
+      return Status::Error(ErrorCode::kDecodeFailed,
+                           "recorded match: bad kind " + std::to_string(kind));
+    }
+    match.tag.kind = static_cast<MatchKind>(kind);
+    match.options_fingerprint = r.Raw<uint64_t>();
+  }
   const uint8_t has_result = r.Raw<uint8_t>();
   if (has_result > 1) {
     return Status::Error(ErrorCode::kDecodeFailed, "recorded match: bad result flag");

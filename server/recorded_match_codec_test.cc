@@ -1,6 +1,7 @@
 #include "server/recorded_match_codec.h"
 
 #include <cstring>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -22,7 +23,10 @@ RecordedMatch FullMatch() {
   m.window.half_cells_x = 40;
   m.window.half_cells_y = 41;
   m.lattice = {-3, 5, -7, 0.61};
-  return {42, {PoseKey{TrajectoryId(3), 17}, PoseKey{TrajectoryId(1), 250}}, m};
+  return {42,
+          {PoseKey{TrajectoryId(3), 17}, PoseKey{TrajectoryId(1), 250}, MatchKind::kLoopRival},
+          0xfedcba9876543210ULL,
+          m};
 }
 
 bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
@@ -34,6 +38,8 @@ TEST(RecordedMatchCodecTest, EveryFieldComesBackBitForBit) {
   ASSERT_TRUE(out.ok()) << out.status().message();
   EXPECT_EQ(out->ordinal, 42);
   EXPECT_TRUE(out->tag == in.tag);
+  EXPECT_EQ(out->tag.kind, MatchKind::kLoopRival);
+  EXPECT_EQ(out->options_fingerprint, 0xfedcba9876543210ULL);
   ASSERT_TRUE(out->result.has_value());
   const MatchResult& a = *in.result;
   const MatchResult& b = *out->result;
@@ -81,11 +87,45 @@ TEST(RecordedMatchCodecTest, DamagedBytesAreRefusedWithTheReason) {
   magic[0] = 'X';
   EXPECT_NE(DecodeRecordedMatch(magic.data(), magic.size()).status().message().find("magic"),
             std::string::npos);
-  std::vector<uint8_t> version = bytes;
-  version[4] = 9;
-  EXPECT_NE(
-      DecodeRecordedMatch(version.data(), version.size()).status().message().find("version 9"),
-      std::string::npos);
+  for (const uint8_t v : {uint8_t{0}, uint8_t{3}, uint8_t{9}}) {
+    std::vector<uint8_t> version = bytes;
+    version[4] = v;
+    EXPECT_NE(DecodeRecordedMatch(version.data(), version.size())
+                  .status()
+                  .message()
+                  .find("version " + std::to_string(v) + ", this reads 1 to 2"),
+              std::string::npos);
+  }
+  // The kind follows magic (4), version (4), ordinal (8) and two keys (12 each).
+  for (const uint8_t kind : {uint8_t{0}, uint8_t{6}}) {
+    std::vector<uint8_t> bad = bytes;
+    bad[40] = kind;
+    EXPECT_NE(DecodeRecordedMatch(bad.data(), bad.size()).status().message().find("bad kind"),
+              std::string::npos);
+  }
+}
+
+// A journal written before version 2 (no kind, no fingerprint) is still read: its results
+// come back with kind kUnknown and fingerprint 0, which no server's options have, so a
+// restart matches them again instead of reusing them (MatchPool).
+TEST(RecordedMatchCodecTest, AVersionOneRecordIsReadWithoutKindOrFingerprint) {
+  const RecordedMatch in = FullMatch();
+  std::vector<uint8_t> old = EncodeRecordedMatch(in);
+  ASSERT_EQ(old[40], static_cast<uint8_t>(MatchKind::kLoopRival));
+  old.erase(old.begin() + 40, old.begin() + 40 + 1 + 8);  // the version 1 layout
+  old[4] = 1;
+  const Result<RecordedMatch> out = DecodeRecordedMatch(old.data(), old.size());
+  ASSERT_TRUE(out.ok()) << out.status().message();
+  EXPECT_EQ(out->ordinal, 42);
+  EXPECT_TRUE(out->tag.query == in.tag.query);
+  EXPECT_TRUE(out->tag.reference == in.tag.reference);
+  EXPECT_EQ(out->tag.kind, MatchKind::kUnknown);
+  EXPECT_EQ(out->options_fingerprint, 0u);
+  ASSERT_TRUE(out->result.has_value());
+  EXPECT_TRUE(SameBits(out->result->score, in.result->score));
+  EXPECT_TRUE(SameBits(out->result->lattice.score, in.result->lattice.score));
+  const std::vector<uint8_t> cut(old.begin(), old.end() - 1);
+  EXPECT_FALSE(DecodeRecordedMatch(cut.data(), cut.size()).ok());
 }
 
 }  // namespace

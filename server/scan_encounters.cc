@@ -326,7 +326,9 @@ void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, int64_t ke
   pending.global = global;
   pending.key_utime = key_utime;
   pending.due_utime = pool_ ? schedule_.DueUtime(key_utime) : std::numeric_limits<int64_t>::min();
-  pending.result = RunMatch(pool_, MatchTag{key, center}, std::move(job));
+  pending.result =
+      RunMatch(pool_, MatchTag{key, center, global ? MatchKind::kScanGlobal : MatchKind::kScanNear},
+               std::move(job));
   matches_.push_back(std::move(pending));
 }
 

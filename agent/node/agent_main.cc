@@ -102,6 +102,10 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
          "second signal ends the wait)");
   l->Add("outbox.resend_timeout_s", "resend-timeout-s", &node->outbox.resend_timeout_s,
          "resend an unacknowledged message after this long (s; then 2x, then 4x)");
+  l->Add("outbox.encounter_resend_after_ack_s", "encounter-resend-after-ack-s",
+         &node->outbox.encounter_resend_after_ack_s,
+         "an acknowledgement that leaves out an encounter sent this long ago has it resent at "
+         "once (s; 0: off)");
 }
 
 // On SIGINT / SIGTERM (Run has returned) what the server has not acknowledged yet is not

@@ -133,6 +133,7 @@ void AgentNode::OnDelivery(const std::string& channel, const uint8_t* data, size
     const Result<DeliveryAck> ack = DecodeDeliveryAck(data, size);
     if (ack.ok() && mine(ack->robot, ack->trajectory_id)) {
       outbox_.Acknowledge(ack->keyframes_next, ack->encounters_next);
+      Resend(outbox_.EncountersLeftByAck(now_utime_));
     }
     return;
   }

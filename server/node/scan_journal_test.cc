@@ -13,6 +13,7 @@
 #include "common/bus/channels.h"
 #include "common/bus/codec.h"
 #include "server/node/server_node.h"
+#include "server/recorded_match_codec.h"
 #include "tests/scan_testing/scan_scenarios.h"
 
 namespace anchormap {
@@ -71,19 +72,6 @@ void Apply(const Step& step, ServerNode* node) {
   node->OnMessage(channels::kKeyframes, step.keyframe.data(), step.keyframe.size());
 }
 
-ServerNode::JournalAppend AppendTo(std::vector<LogEvent>* journal, std::mutex* mutex) {
-  return [journal, mutex](const std::string& channel, int64_t utime, const uint8_t* data,
-                          size_t size) {
-    std::lock_guard<std::mutex> lock(*mutex);
-    LogEvent event;
-    event.channel = channel;
-    event.utime = utime;
-    event.data.assign(data, data + size);
-    journal->push_back(std::move(event));
-    return Status::Ok();
-  };
-}
-
 void Publishes(const std::string&, const std::vector<uint8_t>&) {}
 
 // Same links, keyframes and every pose within `tolerance`.
@@ -118,7 +106,7 @@ TEST(ScanJournalTest, ARestartReusesTheJournaledMatchesAndEndsWithTheUninterrupt
   std::mutex mutex;
   std::vector<LogEvent> journal;
   ServerNode live(ScanOptions(), Publishes, FarClock);
-  live.SetJournal(AppendTo(&journal, &mutex));
+  live.SetJournal(AppendToMemory(&journal, &mutex));
   std::vector<size_t> journal_at;  // the journal's length before each step
   for (const Step& step : steps) {
     {
@@ -150,6 +138,53 @@ TEST(ScanJournalTest, ARestartReusesTheJournaledMatchesAndEndsWithTheUninterrupt
   EXPECT_EQ(whole.server().match_pool().stats().reused, live_matches);
   ExpectSameServer(live.server(), whole.server(), 0.0);
 
+  // Other worker counts give the same results (the fingerprint leaves them out): reused.
+  ServerOptions one_worker = ScanOptions();
+  one_worker.server.match_workers = 0;
+  ServerNode serial(one_worker, Publishes, FarClock);
+  const ServerNode::JournalReplay serial_replay = serial.ReplayJournal(journal, true);
+  EXPECT_EQ(serial_replay.matches_run, 0);
+  EXPECT_EQ(serial_replay.matches_other_options, 0);
+
+  // A restart under other matcher options (a point sigma 10 % wider changes every score),
+  // from the journal of the session's first third (every match it runs costs): no
+  // journaled result is reused, each job at a journaled ordinal is matched again and
+  // counted, and the new results are journaled under the new fingerprint.
+  std::vector<LogEvent> first_third;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    first_third.assign(journal.begin(),
+                       journal.begin() + static_cast<long>(journal_at[steps.size() / 3]));
+  }
+  const int64_t first_third_matches =
+      std::count_if(first_third.begin(), first_third.end(),
+                    [](const LogEvent& e) { return e.channel == ServerNode::kJournalMatch; });
+  ASSERT_GT(first_third_matches, 0);
+  ServerOptions other = ScanOptions();
+  other.server.loop.match.point_sigma_m *= 1.1;
+  other.server.scan.match.point_sigma_m *= 1.1;
+  ServerNode changed(other, Publishes, FarClock);
+  EXPECT_NE(changed.server().match_pool().options_fingerprint(),
+            live.server().match_pool().options_fingerprint());
+  std::mutex changed_mutex;
+  std::vector<LogEvent> changed_journal;
+  changed.SetJournal(AppendToMemory(&changed_journal, &changed_mutex));
+  const ServerNode::JournalReplay changed_replay = changed.ReplayJournal(first_third, true);
+  changed.SetJournal(nullptr);
+  const MatchPoolStats& changed_stats = changed.server().match_pool().stats();
+  EXPECT_EQ(changed_replay.matches_reused, 0);
+  EXPECT_GT(changed_replay.matches_run, 0);
+  EXPECT_EQ(changed_replay.matches_run, changed_stats.submitted);
+  EXPECT_EQ(changed_replay.matches_other_options,
+            std::min(changed_stats.submitted, first_third_matches));
+  EXPECT_EQ(changed_replay.matches_mismatched, 0);
+  for (const LogEvent& event : changed_journal) {
+    if (event.channel != ServerNode::kJournalMatch) continue;
+    const Result<RecordedMatch> m = DecodeRecordedMatch(event.data.data(), event.data.size());
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->options_fingerprint, changed.server().match_pool().options_fingerprint());
+  }
+
   // Killed at two moments (after a step, with what the journal held then), restarted
   // and fed the rest of the session: the uninterrupted server's graphs and estimate.
   for (const size_t crash : {steps.size() / 3, 2 * steps.size() / 3}) {
@@ -166,7 +201,7 @@ TEST(ScanJournalTest, ARestartReusesTheJournaledMatchesAndEndsWithTheUninterrupt
     EXPECT_LE(r.matches_run, r.matches_reused / 10 + 4);
     std::mutex restarted_mutex;
     std::vector<LogEvent> tail;
-    restarted.SetJournal(AppendTo(&tail, &restarted_mutex));
+    restarted.SetJournal(AppendToMemory(&tail, &restarted_mutex));
     for (size_t i = crash; i < steps.size(); ++i) Apply(steps[i], &restarted);
     restarted.server().Flush();
     restarted.SetJournal(nullptr);

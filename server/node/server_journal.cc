@@ -114,11 +114,17 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
   if (replay.matches_journaled > 0 || replay.matches_run > 0) {
     line << "; scan matches: " << replay.matches_reused << " reused from the journal, "
          << replay.matches_run << " run (" << replay.matches_mismatched
-         << " journaled for another match)";
+         << " journaled for another match) (" << replay.matches_other_options
+         << " journaled under other options)";
+  }
+  if (replay.matches_other_options > 0) {
+    LogWarning(std::to_string(replay.matches_other_options) +
+               " journaled scan matches were computed under other matcher or source options "
+               "(or by an older server that did not record them): matched again");
   }
   line << "); resuming with " << node->server().StatusLine();
   LogInfo(line.str());
-  node->server().ResumeClocks(ServerNode::WallClock());
+  node->ResumeClocks(ServerNode::WallClock());
   return state;
 }
 

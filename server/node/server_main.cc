@@ -145,8 +145,7 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
          &s.direct.inflation.theta_base_rad, "heading sigma added for clock offsets (rad)");
   l->Add("loop.enabled", "loop-closures", &s.loop_closures,
-         "find loop closures within a trajectory by scan matching (off by default online: "
-         "see docs/ARCHITECTURE.md, canonical input order)");
+         "find loop closures within a trajectory by scan matching");
   l->Add("loop.max_distance_m", "loop-max-distance-m", &s.loop.max_distance_m,
          "a loop-closure candidate may lie this close to the keyframe (m)");
   l->Add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
@@ -155,8 +154,7 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          "loop closures: memory kept for built candidate submaps, least recently used dropped "
          "beyond (MB, estimated)");
   l->Add("scan.enabled", "scan-encounters", &s.scan_encounters,
-         "find encounters between trajectories by scan matching (off by default online: see "
-         "docs/ARCHITECTURE.md, canonical input order)");
+         "find encounters between trajectories by scan matching");
   l->Add("match.workers", "match-workers", &s.match_workers,
          "worker threads of the scan-matching sources (0: the server's thread)");
   l->Add("match.lag_s", "match-lag-s", &s.match_schedule.lag_s,
@@ -410,7 +408,7 @@ int RunOffline(const ServerOptions& options) {
 }
 
 int Main(int argc, char** argv) {
-  ServerOptions options;
+  ServerOptions options = DaemonDefaults();
   // --log reads what a bus carried (a recording, a journal): settled in data time, so its
   // map is the live server's (online the wall clock settles).
   options.server.order.settle_offline = true;

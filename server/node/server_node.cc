@@ -1,6 +1,8 @@
 #include "server/node/server_node.h"
 
 #include <chrono>
+#include <cstring>
+#include <tuple>
 
 #include "common/bus/codec.h"
 #include "common/bus/delivery_codec.h"
@@ -86,9 +88,22 @@ bool ServerNode::Replay(const LogEvent& event) {
   if (event.channel == kJournalMatch) return true;
   if (event.channel == kJournalTick) {
     server_->Tick(event.utime);
-    // What was due then (how much went in per tick does not change the map: the order does).
-    while (server_->ReleaseDue(64) > 0) {
+    int64_t released = -1;  // a journal older than the count: all that was due
+    if (event.data.size() == sizeof released) {
+      std::memcpy(&released, event.data.data(), sizeof released);
     }
+    if (released < 0) {
+      while (server_->ReleaseDue(64) > 0) {
+      }
+    } else {
+      // As many as the live tick's budget let through (the same ones: the same state).
+      for (int64_t i = 0; i < released && server_->ReleaseDue(1) > 0; ++i) {
+      }
+    }
+    return true;
+  }
+  if (event.channel == kJournalResume) {
+    server_->ResumeClocks(event.utime);
     return true;
   }
   if (event.channel != options_.channels.keyframes &&
@@ -136,6 +151,7 @@ ServerNode::JournalReplay ServerNode::ReplayJournal(const std::vector<LogEvent>&
   replay.matches_reused = pool.stats().reused - before.reused;
   replay.matches_run = pool.stats().submitted - before.submitted - replay.matches_reused;
   replay.matches_mismatched = pool.stats().mismatched - before.mismatched;
+  replay.matches_other_options = pool.stats().other_options - before.other_options;
   return replay;
 }
 
@@ -177,19 +193,36 @@ Result<int64_t> ServerNode::RestoreSnapshot(const std::vector<uint8_t>& bytes,
 }
 
 void ServerNode::Tick(int64_t now_utime) {
-  const int64_t updates = server_->update_count();
-  const int64_t released = server_->order_stats().released;
+  const auto changes = [this] {
+    return std::make_tuple(server_->update_count(), server_->order_stats().released,
+                           server_->order_stats().silences, server_->receipt().num_bridged_gaps(),
+                           server_->table().num_bridged_gaps());
+  };
+  const auto before = changes();
   server_->Tick(now_utime);
   // Online the inputs go into the graph from here, within the release budget (the node's
   // clock), one at a time.
   const int64_t deadline = clock_() + static_cast<int64_t>(1e6 * options_.release_budget_s);
-  while (clock_() < deadline && server_->ReleaseDue(1) > 0) {
-  }
-  // A tick that bridged gaps or released inputs into the graph is replayed as a tick.
-  if (journal_ &&
-      (server_->update_count() != updates || server_->order_stats().released != released)) {
-    const Status status = journal_(kJournalTick, now_utime, nullptr, 0);
+  int64_t released = 0;
+  while (clock_() < deadline && server_->ReleaseDue(1) > 0) ++released;
+  // A tick that changed anything (bridged gaps, silenced a trajectory, released inputs) is
+  // replayed as a tick, with the number the budget let through: a replay that released all
+  // that was due would release inputs the live server had not when the next input came,
+  // and that input would be late in one and not in the other (a server behind its bus).
+  if (journal_ && changes() != before) {
+    uint8_t bytes[sizeof released];
+    std::memcpy(bytes, &released, sizeof released);
+    const Status status = journal_(kJournalTick, now_utime, bytes, sizeof bytes);
     if (!status.ok()) server_->CountRejection(status, kJournalTick);
+  }
+}
+
+void ServerNode::ResumeClocks(int64_t now_utime) {
+  server_->ResumeClocks(now_utime);
+  // Journaled, so that a later restart's replay resumes them at the same point.
+  if (journal_) {
+    const Status status = journal_(kJournalResume, now_utime, nullptr, 0);
+    if (!status.ok()) server_->CountRejection(status, kJournalResume);
   }
 }
 
@@ -341,6 +374,20 @@ void ServerNode::PublishAll() {
   PublishMap(clock_(), /*full=*/true);
   PublishGrid(/*full=*/true);
   PublishStatus();
+}
+
+ServerNode::JournalAppend AppendToMemory(std::vector<LogEvent>* journal, std::mutex* mutex) {
+  return [journal, mutex](const std::string& channel, int64_t clock_utime, const uint8_t* data,
+                          size_t size) {
+    std::unique_lock<std::mutex> lock;
+    if (mutex != nullptr) lock = std::unique_lock<std::mutex>(*mutex);
+    LogEvent event;
+    event.channel = channel;
+    event.utime = clock_utime;
+    event.data.assign(data, data + size);
+    journal->push_back(std::move(event));
+    return Status::Ok();
+  };
 }
 
 }  // namespace anchormap

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -61,7 +62,11 @@ class ServerNode {
   // event right after it (nothing is published in between).
   using JournalAppend = std::function<Status(const std::string& channel, int64_t clock_utime,
                                              const uint8_t* data, size_t size)>;
+  // Its payload: the number of inputs the tick's release budget let through (int64, host
+  // order; empty in older journals: then a replayed tick releases all that is due).
   static constexpr char kJournalTick[] = "ANCHORMAP_JOURNAL_TICK";
+  // A restarted server resumed its clocks here (ResumeClocks): replayed at the same point.
+  static constexpr char kJournalResume[] = "ANCHORMAP_JOURNAL_RESUME";
   // The scan-matching sources' match results (server/recorded_match_codec.h), appended by the
   // thread that computed one before it is used (MatchPool::SetRecorder): `append` must then
   // be safe to call from several threads. A restart's ReplayJournal reuses them instead of
@@ -87,6 +92,10 @@ class ServerNode {
     // Journaled for the ordinal but for another match (another tag): run. 0 unless the
     // journal is replayed with other options than it was written with.
     int64_t matches_mismatched = 0;
+    // Journaled for the ordinal but under other matcher / source options (their
+    // fingerprint, server/match_options_fingerprint.h), or by a server that recorded none
+    // (an older journal): run again, not reused.
+    int64_t matches_other_options = 0;
     UpdateResult batch_step;  // the closing batch step, when deferred
   };
   // From events[first] on (the events before it are covered by a restored snapshot).
@@ -106,6 +115,9 @@ class ServerNode {
                                   const std::vector<LogEvent>& journal);
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).
   void Tick(int64_t now_utime);
+  // After a restart's replay: the hold and patience clocks count from `now_utime` at the
+  // earliest (MappingServer::ResumeClocks), journaled as a kJournalResume event.
+  void ResumeClocks(int64_t now_utime);
   // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor
   // covariances after an update (at most once per map period), the grid tiles that changed
   // at most once per grid period (every tile once per full grid period).
@@ -168,5 +180,11 @@ class ServerNode {
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };
+
+// A journal kept in memory (tests, the journal-replay benchmark): each append becomes one
+// event of `journal`. With `mutex` the appends take it, as the match workers append from
+// their threads; a reader holds it too while workers may run.
+ServerNode::JournalAppend AppendToMemory(std::vector<LogEvent>* journal,
+                                         std::mutex* mutex = nullptr);
 
 }  // namespace anchormap

@@ -108,16 +108,12 @@ TEST_F(ServerNodeTest, UndecodableBytesAreCountedByReasonOnTheirChannel) {
 class ServerNodeJournalTest : public ServerNodeTest {
  protected:
   ServerNodeJournalTest() {
-    node_.SetJournal(
-        [this](const std::string& channel, int64_t clock_utime, const uint8_t* data, size_t size) {
-          if (fail_appends_) return Status::Error(ErrorCode::kIoError, "disk full");
-          LogEvent event;
-          event.channel = channel;
-          event.utime = clock_utime;
-          event.data.assign(data, data + size);
-          journal_.push_back(std::move(event));
-          return Status::Ok();
-        });
+    node_.SetJournal([this, append = AppendToMemory(&journal_)](const std::string& channel,
+                                                                int64_t clock_utime,
+                                                                const uint8_t* data, size_t size) {
+      if (fail_appends_) return Status::Error(ErrorCode::kIoError, "disk full");
+      return append(channel, clock_utime, data, size);
+    });
   }
   // A message received at `clock_s` (seconds of the logic's clock).
   void Receive(double clock_s, const std::string& channel, const std::vector<uint8_t>& bytes) {
@@ -322,6 +318,110 @@ TEST_F(ServerNodeTest, StatusCarriesTheInstanceIdAndTheMapIsRepublishedWhenQuiet
   EXPECT_EQ(published_[channels::kMapChunks][0], published_[channels::kMapChunks][1]);
   node_.RepublishMapDue(8'000'000, 5.0);
   EXPECT_EQ(published_[channels::kMapHeader].size(), 2u);
+}
+
+// A live tick puts into the graph only what its release budget lets through; a replayed tick
+// puts in as many (the journaled count), not all that was due then. Otherwise an input that
+// came between two ticks (here an encounter) is in order live but late in the replay, and
+// with the scan sources on a late input changes decisions.
+TEST(ServerNodeReplayTest, AReplayedTickReleasesAsManyInputsAsTheLiveTickDid) {
+  int64_t now = 0;
+  // Every reading of the node's clock 50 ms later: the 80 ms budget lets one input through.
+  const ServerNode::Clock stepping = [&now] { return now += 50'000; };
+  const auto nothing = [](const std::string&, const std::vector<uint8_t>&) {};
+  std::vector<LogEvent> journal;
+  ServerOptions options;
+  options.server.order.release_per_call = 0;  // as online: only the ticks release
+  ServerNode live(options, nothing, stepping);
+  live.SetJournal(AppendToMemory(&journal));
+  const auto receive = [&live](int64_t clock, const std::string& channel,
+                               const std::vector<uint8_t>& bytes) {
+    live.server().SetClock(clock);
+    live.OnMessage(channel, bytes.data(), bytes.size());
+  };
+  for (int32_t seq = 0; seq < 6; ++seq) {
+    receive(1'000'000, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq)));
+    receive(1'000'000, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq)));
+  }
+  // Three ticks: R1's and R2's first keyframes (1 s) and R1's second (2 s) go in.
+  for (int i = 0; i < 3; ++i) live.Tick(20'000'000 + i * 100'000);
+  EXPECT_EQ(live.server().order_stats().released, 3);
+  receive(21'000'000, channels::kEncounters, EncodeEncounter(R1SeesR2()));  // at 2 s
+  for (int i = 0; i < 20; ++i) live.Tick(40'000'000 + i * 100'000);
+  EXPECT_EQ(live.server().order_stats().released, 13);
+  EXPECT_EQ(live.server().order_stats().late, 0);
+  ASSERT_EQ(live.server().encounter_links().size(), 1u);
+
+  ServerNode replayed(options, nothing, stepping);
+  for (const LogEvent& event : journal) EXPECT_TRUE(replayed.Replay(event));
+  EXPECT_EQ(replayed.server().order_stats().late, 0);
+  EXPECT_EQ(replayed.server().encounter_links(), live.server().encounter_links());
+  ExpectSameMap(live.server().BuildMergedMap(), replayed.server().BuildMergedMap());
+
+  // The same journal without the counts (as written before them): the first replayed tick
+  // releases all that was due, and the encounter comes late.
+  ServerNode uncounted(options, nothing, stepping);
+  for (LogEvent event : journal) {
+    if (event.channel == ServerNode::kJournalTick) event.data.clear();
+    EXPECT_TRUE(uncounted.Replay(event));
+  }
+  EXPECT_EQ(uncounted.server().order_stats().late, 1);
+}
+
+// A restarted server's ResumeClocks is journaled, and a later restart's replay resumes the
+// clocks at the same point: a gap open across the first restart is not bridged by the
+// replay when the live server (whose hold counted from its restart) did not bridge it.
+TEST(ServerNodeReplayTest, AReplayResumesTheClocksWhereTheRestartedServerDid) {
+  const auto nothing = [](const std::string&, const std::vector<uint8_t>&) {};
+  ServerOptions options;
+  options.server.order.release_per_call = 0;  // as online: only the ticks release
+  std::vector<LogEvent> journal;
+  const ServerNode::JournalAppend append = AppendToMemory(&journal);
+  const auto receive = [](ServerNode* node, double clock_s, const Keyframe& keyframe) {
+    node->server().SetClock(static_cast<int64_t>(1e6 * clock_s));
+    const std::vector<uint8_t> bytes = EncodeKeyframe(keyframe);
+    node->OnMessage(channels::kKeyframes, bytes.data(), bytes.size());
+  };
+  {
+    // The first server: R1's seq 2 never comes before it dies (a gap opened at 4 s, when
+    // seq 3 came).
+    ServerNode first(options, nothing);
+    first.SetJournal(append);
+    for (int32_t seq : {0, 1, 3}) receive(&first, 1.0 + seq, MakeKeyframe("R1", 11, seq));
+    first.Tick(3'500'000);
+  }
+  // Restarted at 12 s (8 s after the gap opened, max_hold_s 10): its clocks resume there.
+  ServerNode second(options, nothing);
+  second.SetJournal(append);
+  second.ReplayJournal(journal, true);
+  second.ResumeClocks(12'000'000);
+  EXPECT_EQ(journal.back().channel, ServerNode::kJournalResume);
+  // 10.5 s after the gap opened, 2.5 s after the restart; it releases R1's seq 1 (settled),
+  // so it is journaled.
+  second.Tick(14'500'000);
+  EXPECT_EQ(second.server().receipt().num_bridged_gaps(), 0);
+  receive(&second, 15.0, MakeKeyframe("R1", 11, 2));  // the resend fills it
+  second.Tick(30'000'000);
+  EXPECT_EQ(second.server().receipt().num_bridged_gaps(), 0);
+  EXPECT_EQ(second.server().table().num_keyframes(), 4);
+
+  // A later restart replays it all alike: no gap bridged, seq 2 accepted.
+  ServerNode third(options, nothing);
+  third.ReplayJournal(journal, true);
+  EXPECT_EQ(third.server().receipt().num_bridged_gaps(), 0);
+  EXPECT_EQ(third.server().table().num_keyframes(), 4);
+  EXPECT_EQ(third.server().rejects().total(), second.server().rejects().total());
+
+  // Without the resume event (a journal of before), the replay bridges the gap at the
+  // tick of 14.5 s and then refuses the resent keyframe: what the restarts differed on.
+  std::vector<LogEvent> without;
+  for (const LogEvent& event : journal) {
+    if (event.channel != ServerNode::kJournalResume) without.push_back(event);
+  }
+  ServerNode old(options, nothing);
+  old.ReplayJournal(without, true);
+  EXPECT_EQ(old.server().receipt().num_bridged_gaps(), 1);
+  EXPECT_EQ(old.server().rejects().count(ErrorCode::kLateSequence), 1);
 }
 
 }  // namespace

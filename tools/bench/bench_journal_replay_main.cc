@@ -94,16 +94,7 @@ int Run(const BenchOptions& bench) {
   std::vector<LogEvent> journal;
   std::mutex journal_mutex;  // scan-matching sources journal their matches from workers
   ServerNode live(options, IgnoreOutputs, [&now] { return now; });
-  live.SetJournal([&journal, &journal_mutex](const std::string& channel, int64_t clock_utime,
-                                             const uint8_t* data, size_t size) {
-    std::lock_guard<std::mutex> lock(journal_mutex);
-    LogEvent event;
-    event.channel = channel;
-    event.utime = clock_utime;
-    event.data.assign(data, data + size);
-    journal.push_back(std::move(event));
-    return Status::Ok();
-  });
+  live.SetJournal(AppendToMemory(&journal, &journal_mutex));
   const int64_t tick = 100'000;
   int64_t next_tick = now + tick;
   // Snapshots as the online main writes them (between events, by journaled count).

@@ -3,14 +3,13 @@
 #   anchormap-import-carmen LOG --output in.lcmlog [--split N] [--simultaneous]
 #   in a private network namespace (multicast on loopback only, ttl=0: nothing leaves it):
 #     lcm-logplayer --speed S -> one anchormap-agent per robot -> anchormap-server
-#     (its scan-matching sources switched on: --loop-closures true --scan-encounters true;
-#     they are off by default in the daemon) -> lcm-logger (out.lcmlog)
+#     (its defaults: both scan-matching sources on) -> lcm-logger (out.lcmlog)
 #   anchormap-eval --map out.lcmlog --relations RELATIONS --odometry in.lcmlog
 # and prints the figures: relation errors (all, and the relations joining two robots),
 # across_frames, keyframes, loop closures and scan encounters accepted, how far the server
 # was behind when the player finished, x real time, CPU of each agent and of the server.
 # With --offline, also the same input through anchormap-replay (all defaults) and the
-# daemons' recorded keyframes through anchormap-server --log (the same sources on), so the
+# daemons' recorded keyframes through anchormap-server --log (its defaults too), so the
 # daemons' map can be compared with the offline ones.
 # Not a test (a real log takes minutes); no ctest registers it.
 #
@@ -76,7 +75,7 @@ inside_namespace() {
   LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger.log" 2>&1 &
   local logger=$!
   /usr/bin/time -o "$work/server.time" -f '%U %S %e' "$BIN/anchormap-server" --lcm-url "$URL" \
-    --loop-closures true --scan-encounters true --status-period-s 2 >"$work/server.log" 2>&1 &
+    --status-period-s 2 >"$work/server.log" 2>&1 &
   local server=$!
   # Trajectory ids 1, 2, ... in robot order, as anchormap-replay gives them: the maps can
   # then be compared pose by pose (the id also breaks ties in the server's canonical order).
@@ -201,7 +200,7 @@ main() {
   drained=$(cat "$WORK/drained.wall")
   played=$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }')
   total=$(awk -v a="$start" -v b="$drained" 'BEGIN { printf "%.1f", b - a }')
-  echo "== daemons (lcm-logplayer --speed $SPEED; server --loop-closures true --scan-encounters true)"
+  echo "== daemons (lcm-logplayer --speed $SPEED; server with its defaults)"
   echo "player: ${played} s for ${duration} s of data ($(awk -v d="$duration" -v p="$played" \
     'BEGIN { printf "%.2f", d / p }')x); server done ${total} s after the start ($(awk -v d="$duration" \
     -v p="$total" 'BEGIN { printf "%.2f", d / p }')x real time)"
@@ -231,10 +230,9 @@ main() {
       sed -nE 's/.*(anchored [0-9]+ keyframes [0-9]+ encounters [0-9]+).*/\1/p'); $(grep 'server:' "$WORK/replay.log" |
       tail -1 | grep -oE '(loop|scan): candidates [0-9]+ accepted [0-9]+' | tr '\n' ';')"
     evaluate replay "$WORK/replay.lcmlog" || exit 1
-    echo "== offline: anchormap-server --log on the daemons' recorded keyframes (sources on)"
+    echo "== offline: anchormap-server --log on the daemons' recorded keyframes (its defaults)"
     /usr/bin/time -o "$WORK/server_offline.time" -f '%U %S %e' "$BIN/anchormap-server" \
-      --log "$WORK/out.lcmlog" --output "$WORK/server_offline.lcmlog" --loop-closures true \
-      --scan-encounters true >"$WORK/server_offline.log" 2>&1 ||
+      --log "$WORK/out.lcmlog" --output "$WORK/server_offline.lcmlog" >"$WORK/server_offline.log" 2>&1 ||
       { log "anchormap-server --log failed"; tail -5 "$WORK/server_offline.log"; exit 1; }
     echo "server --log: cpu $(cpu_of "$WORK/server_offline.time") s; $(source_counts "$WORK/server_offline.log")"
     evaluate server_offline "$WORK/server_offline.lcmlog" || exit 1

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "tools/render/canvas.h"
 
@@ -144,13 +145,15 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
 
   // Title band.
   canvas.FillRect(0, 0, view.width_px, view.header_px, {245, 245, 245});
+  int by_kind[kNumConstraintKinds] = {};
+  if (map) {
+    for (const EncounterLink& link : map->encounters) ++by_kind[static_cast<int>(link.kind)];
+  }
   std::string title = options.title;
   if (map) {
     title += Format("   update %.0f: %.0f trajectories, %.0f keyframes",
                     static_cast<double>(map->update), static_cast<double>(map->trajectories.size()),
                     static_cast<double>(keyframes));
-    int by_kind[kNumConstraintKinds] = {};
-    for (const EncounterLink& link : map->encounters) ++by_kind[static_cast<int>(link.kind)];
     title += Format(", encounters: %.0f direct (dark)", static_cast<double>(by_kind[0]));
     title += Format(", %.0f scan (magenta)", static_cast<double>(by_kind[1]));
     title += Format(", %.0f loop closures (grey)", static_cast<double>(by_kind[2]));
@@ -168,15 +171,32 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
     std::vector<std::string> labels;
     for (size_t i = 0; i < shown; ++i) {
       const TrajectoryView& t = map->trajectories[i];
-      labels.push_back(t.key.robot +
-                       Format(" (trajectory %.0f): %.0f keyframes",
-                              static_cast<double>(t.key.trajectory_id),
-                              static_cast<double>(t.poses.size())) +
+      // The id in full: agents draw 63-bit ids, which a double would round.
+      labels.push_back(t.key.robot + " (trajectory " + std::to_string(t.key.trajectory_id) +
+                       Format("): %.0f keyframes", static_cast<double>(t.poses.size())) +
                        (t.anchored ? "" : ", not anchored"));
       width = std::max(width, canvas.TextWidth(labels.back(), 12));
     }
     if (shown < map->trajectories.size()) {
       labels.push_back(Format("... and %.0f more", double(map->trajectories.size() - shown)));
+    }
+    // Then the constraint kinds, each with its line.
+    struct KindRow {
+      ConstraintKind kind;
+      const char* label;
+      Rgb color;
+      double width_px;
+    };
+    const KindRow kinds[] = {
+        {ConstraintKind::kDirectEncounter, "direct encounters: %.0f", kDark, 1.5},
+        {ConstraintKind::kScanEncounter, "scan encounters: %.0f", kScanEncounterColor, 1.5},
+        {ConstraintKind::kLoopClosure, "loop closures: %.0f", kLoopClosureColor, 1.0}};
+    const size_t first_kind = labels.size();
+    if (options.draw_encounters) {
+      for (const KindRow& k : kinds) {
+        labels.push_back(Format(k.label, static_cast<double>(by_kind[static_cast<int>(k.kind)])));
+        width = std::max(width, canvas.TextWidth(labels.back(), 12));
+      }
     }
     const double x0 = 8;
     const double y0 = view.header_px + 8;
@@ -188,6 +208,10 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
       if (i < shown) {
         const TrajectoryView& t = map->trajectories[i];
         canvas.Polyline({{x0 + 8, y}, {x0 + 32, y}}, colors.ColorOf(t.key), 3.0, 1.0, !t.anchored);
+      } else if (i >= first_kind) {
+        // Drawn thicker than on the map, so that the colour reads at legend size.
+        const KindRow& k = kinds[i - first_kind];
+        canvas.Line({x0 + 8, y}, {x0 + 32, y}, k.color, 2.0 * k.width_px, 1.0);
       }
       canvas.Text(x0 + 38, y + 4, labels[i], 12, kBlack);
     }

@@ -75,6 +75,50 @@ TEST(MapPngTest, ExplicitScale) {
   EXPECT_EQ(PixelAt(r, {2.0, 2.0}), TrajectoryColor(0));
 }
 
+// The legend names the three constraint kinds, each beside a line in the colour the map
+// draws it in (direct dark, scan encounters magenta, loop closures grey).
+TEST(MapPngTest, LegendShowsEachConstraintKindInItsColour) {
+  ServerOutput output;
+  const std::string log = ScratchPath("map_png_kinds.lcmlog");
+  ASSERT_TRUE(testing::WriteTestServerLog(log).ok());
+  ASSERT_TRUE(ReadServerOutput(log, ChannelNames{}, &output).ok());
+  MergedMap map = *output.map;
+  ASSERT_FALSE(map.encounters.empty());
+  EncounterLink scan = map.encounters.front();
+  scan.kind = ConstraintKind::kScanEncounter;
+  EncounterLink loop = scan;
+  loop.kind = ConstraintKind::kLoopClosure;
+  loop.b = loop.a;
+  loop.index_b = loop.index_a + 1;
+  map.encounters.push_back(scan);
+  map.encounters.push_back(loop);
+  const std::string png_path = ScratchPath("map_kinds.png");
+  const ColorAssignment colors({{"R1", 11}, {"R2", 12}, {"R3", 13}});
+  MapViewport viewport;
+  ASSERT_TRUE(
+      RenderMapPng(&map, OccupancyRaster{}, colors, MapPngOptions{}, png_path, &viewport).ok());
+  testing::DecodedPng png;
+  ASSERT_TRUE(testing::DecodePng(png_path, &png));
+  // The legend's line column (x = 28 px), from the title band down: the trajectory rows,
+  // then one row per kind. Each kind's colour is there exactly (its line's core).
+  auto found = [&](const Rgb& color) {
+    for (int y = viewport.header_px; y < viewport.header_px + 200; ++y) {
+      if (png.at(28, y) == color) return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(found(Rgb{40, 40, 40}));     // direct encounters
+  EXPECT_TRUE(found(Rgb{220, 0, 170}));    // scan encounters
+  EXPECT_TRUE(found(Rgb{150, 150, 150}));  // loop closures
+  // Without links drawn, no kind rows.
+  MapPngOptions no_links;
+  no_links.draw_encounters = false;
+  ASSERT_TRUE(RenderMapPng(&map, OccupancyRaster{}, colors, no_links, png_path, &viewport).ok());
+  ASSERT_TRUE(testing::DecodePng(png_path, &png));
+  EXPECT_FALSE(found(Rgb{220, 0, 170}));
+  EXPECT_FALSE(found(Rgb{150, 150, 150}));
+}
+
 TEST(MapPngTest, OccupancyGrayLevels) {
   EXPECT_EQ(OccupancyGray(-1), 205);
   EXPECT_EQ(OccupancyGray(0), 255);

@@ -27,15 +27,6 @@
 namespace anchormap {
 namespace {
 
-// The replay's server: the scan-matching sources on (offline their decisions depend only
-// on the input set: the canonical order, worker results used at fixed points).
-ServerOptions WithScanSources() {
-  ServerOptions options;
-  options.server.loop_closures = true;
-  options.server.scan_encounters = true;
-  return options;
-}
-
 struct ReplayOptions {
   std::string input;
   std::string output;
@@ -49,7 +40,9 @@ struct ReplayOptions {
   // The agents' keyframes and encounters, as a logger on the bus would record them (the
   // input of anchormap-server --log and tools/bench's journal replay benchmark).
   std::string inputs_output;
-  ServerOptions server = WithScanSources();
+  // The daemon's defaults (scan-matching sources on; offline their decisions depend only on
+  // the input set: the canonical order, worker results used at fixed points).
+  ServerOptions server = DaemonDefaults();
 };
 
 // One line per solver update: data time (s since the first), its cost (wall ms), batch step
@@ -257,14 +250,14 @@ int Main(int argc, char** argv) {
   loader.Add("inputs_output", "inputs-output", &options.inputs_output,
              "also write the agents' keyframes and encounters to this LCM log (empty: none)");
   loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
-             "server: loop closures within a trajectory by scan matching (on by default)");
+             "server: loop closures within a trajectory by scan matching");
   loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
              "server: worker threads of the scan-matching sources (0: its own thread)");
   loader.Add("match.lag_s", "match-lag-s", &options.server.server.match_schedule.lag_s,
              "server: a match is used once the inputs reach its keyframe's time plus this "
              "(data time, s)");
   loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
-             "server: encounters between trajectories by scan matching (on by default)");
+             "server: encounters between trajectories by scan matching");
   loader.Add("scan.global_searches_per_s", "scan-global-searches-per-s",
              &options.server.server.scan.global_budget.searches_per_s,
              "server: first-join (global) searches per second of data, whole team");
