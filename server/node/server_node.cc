@@ -1,13 +1,13 @@
 #include "server/node/server_node.h"
 
 #include <chrono>
-#include <cstring>
 #include <tuple>
 
 #include "common/bus/codec.h"
 #include "common/bus/delivery_codec.h"
 #include "common/bus/map_codec.h"
 #include "common/util/log.h"
+#include "server/byte_codec.h"
 #include "server/recorded_match_codec.h"
 
 namespace anchormap {
@@ -90,7 +90,7 @@ bool ServerNode::Replay(const LogEvent& event) {
     server_->Tick(event.utime);
     int64_t released = -1;  // a journal older than the count: all that was due
     if (event.data.size() == sizeof released) {
-      std::memcpy(&released, event.data.data(), sizeof released);
+      released = ByteReader(event.data.data(), event.data.size()).I64();
     }
     if (released < 0) {
       while (server_->ReleaseDue(64) > 0) {
@@ -210,9 +210,10 @@ void ServerNode::Tick(int64_t now_utime) {
   // that was due would release inputs the live server had not when the next input came,
   // and that input would be late in one and not in the other (a server behind its bus).
   if (journal_ && changes() != before) {
-    uint8_t bytes[sizeof released];
-    std::memcpy(bytes, &released, sizeof released);
-    const Status status = journal_(kJournalTick, now_utime, bytes, sizeof bytes);
+    ByteWriter count;
+    count.I64(released);
+    const Status status =
+        journal_(kJournalTick, now_utime, count.bytes().data(), count.bytes().size());
     if (!status.ok()) server_->CountRejection(status, kJournalTick);
   }
 }
