@@ -279,6 +279,8 @@ std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactor
 Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
   return impl_->LinearSystemForTesting();
 }
+SmootherState Smoother::ExportState() const { return impl_->ExportState(); }
+Status Smoother::ImportState(SmootherState state) { return impl_->ImportState(std::move(state)); }
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   std::vector<Pose2> poses;

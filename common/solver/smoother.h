@@ -78,6 +78,8 @@ struct SmootherStats {
   double incremental_seconds = 0.0;  // time spent in incremental updates
 };
 
+struct SmootherState;  // smoother_state.h
+
 class Smoother {
  public:
   explicit Smoother(const SmootherOptions& options = {});
@@ -167,6 +169,13 @@ class Smoother {
     std::vector<std::vector<Pose2>> linearized_at;
   };
   LinearSystem LinearSystemForTesting() const;
+
+  // The incremental state (smoother_state.h), for snapshots. ImportState takes the state of a
+  // smoother that was given the same Add* calls as this one, in the same order, and nothing
+  // since (no Update()); it refuses (kInvalidArgument, nothing changed) a state that does not
+  // fit this graph. The smoother then continues exactly as the exporting one would.
+  SmootherState ExportState() const;
+  Status ImportState(SmootherState state);
 
  private:
   class Impl;

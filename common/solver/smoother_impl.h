@@ -23,6 +23,7 @@
 #include "common/solver/covariances.h"
 #include "common/solver/factor.h"
 #include "common/solver/smoother.h"
+#include "common/solver/smoother_state.h"
 #include "common/solver/sparse_r.h"
 
 namespace anchormap {
@@ -128,6 +129,8 @@ class Smoother::Impl {
     }
     return out;
   }
+  SmootherState ExportState() const;
+  Status ImportState(SmootherState state);
   std::vector<Factor> ActiveFactors() const {
     std::vector<Factor> out;
     for (const FactorRecord& f : factors_) {

@@ -288,6 +288,27 @@ void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
   }
 }
 
+bool SparseR::ImportState(State state) {
+  if (state.column_rows.size() != state.rows.size()) return false;
+  const int n = static_cast<int>(state.rows.size());
+  for (const std::vector<int>& referencing : state.column_rows) {
+    for (int r : referencing) {
+      if (r < 0 || r >= n) return false;
+    }
+  }
+  for (const RBlockRow& row : state.rows) {
+    for (const auto& [q, block] : row.right) {
+      if (q < 0 || q >= n) return false;
+    }
+  }
+  rows_ = std::move(state.rows);
+  column_rows_ = std::move(state.column_rows);
+  nonzeros_ = state.nonzeros;
+  eliminated_block_rows_ = state.eliminated_block_rows;
+  eliminated_block_columns_ = state.eliminated_block_columns;
+  return true;
+}
+
 Eigen::Vector3d SparseR::SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const {
   const RBlockRow& row = rows_[p];
   Eigen::Vector3d v = row.rhs;

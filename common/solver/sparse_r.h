@@ -31,6 +31,21 @@ struct NewRows {
 
 class SparseR {
  public:
+  // The matrix and its bookkeeping as plain values (SmootherState): the order of each
+  // column's referencing rows is kept, as partial steps sum over them in that order.
+  struct State {
+    std::vector<RBlockRow> rows;
+    std::vector<std::vector<int>> column_rows;
+    int64_t nonzeros = 0;
+    int64_t eliminated_block_rows = 0;
+    int64_t eliminated_block_columns = 0;
+  };
+  State ExportState() const {
+    return {rows_, column_rows_, nonzeros_, eliminated_block_rows_, eliminated_block_columns_};
+  }
+  // False (nothing changed) when the column lists do not fit the rows.
+  bool ImportState(State state);
+
   int size() const { return static_cast<int>(rows_.size()); }
   // Appends `count` empty block rows/columns at the end (new variables).
   void Append(int count);
