@@ -101,6 +101,8 @@ class ByteReader {
     return m;
   }
   bool failed() const { return failed_; }
+  // A value read whole but refused by its reader (a nested record that does not decode).
+  void Fail() { failed_ = true; }
   bool at_end() const { return pos_ == size_; }
   size_t left() const { return size_ - pos_; }
 

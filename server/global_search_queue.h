@@ -65,6 +65,29 @@ class GlobalSearchQueue {
   // Keyframes replaced by a newer one of their trajectory before being served.
   int64_t dropped() const { return dropped_; }
 
+  // The queue as plain values (snapshots: server/scan_encounter_state.h).
+  struct State {
+    double tokens = 0.0;
+    std::optional<int64_t> last_utime;
+    std::map<TrajectoryId, PoseKey> waiting;
+    std::map<TrajectoryId, int64_t> searched;
+    std::map<std::pair<TrajectoryId, TrajectoryId>, int64_t> pair_searched;
+    int64_t searches = 0;
+    int64_t dropped = 0;
+  };
+  State ExportState() const {
+    return {tokens_, last_utime_, waiting_, searched_, pair_searched_, searches_, dropped_};
+  }
+  void ImportState(State s) {
+    tokens_ = s.tokens;
+    last_utime_ = s.last_utime;
+    waiting_ = std::move(s.waiting);
+    searched_ = std::move(s.searched);
+    pair_searched_ = std::move(s.pair_searched);
+    searches_ = s.searches;
+    dropped_ = s.dropped;
+  }
+
  private:
   GlobalSearchBudgetOptions options_;
   double tokens_;

@@ -45,6 +45,7 @@
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
 #include "server/encounter_source.h"
+#include "server/loop_closure_state.h"
 #include "server/match_pool.h"
 #include "server/relative_pose.h"
 #include "server/submap_cache.h"
@@ -125,6 +126,11 @@ class LoopClosures : public EncounterSource {
   const CandidateStats& stats() const { return stats_; }
   int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
   int64_t ambiguous() const { return ambiguous_; }          // of stats().gate_rejected
+
+  // The source's state for snapshots (loop_closure_state.h, defined in loop_closure_state.cc):
+  // ExportState waits for the matches in flight; ImportState is for a source given no input.
+  LoopClosureState ExportState() const;
+  void ImportState(const LoopClosureState& state);
 
  private:
   // The reference of the submap around `center` drawn at the current estimates (cached).

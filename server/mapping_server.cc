@@ -412,8 +412,13 @@ bool MappingServer::CanDeferUpdates() const {
 }
 
 bool MappingServer::CanSnapshot() const {
-  return !deferring_ && sources_.size() == 1 &&
-         dynamic_cast<const DirectEncounters*>(sources_.front().get()) != nullptr;
+  if (deferring_ || dynamic_cast<const DirectEncounters*>(sources_.front().get()) == nullptr) {
+    return false;
+  }
+  return std::all_of(sources_.begin() + 1, sources_.end(), [](const auto& source) {
+    return dynamic_cast<const LoopClosures*>(source.get()) != nullptr ||
+           dynamic_cast<const ScanEncounters*>(source.get()) != nullptr;
+  });
 }
 
 bool MappingServer::BeginDeferredUpdates() {
@@ -432,6 +437,12 @@ UpdateResult MappingServer::EndDeferredUpdates() {
   // Nothing changed the graph since the last step: the estimate holds.
   if (!unsolved_) return result;
   return DeferredBatchStep();
+}
+
+std::vector<const EncounterSource*> MappingServer::sources() const {
+  std::vector<const EncounterSource*> out;
+  for (const auto& source : sources_) out.push_back(source.get());
+  return out;
 }
 
 int MappingServer::num_anchored() const {

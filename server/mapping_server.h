@@ -186,9 +186,9 @@ class MappingServer {
   // would otherwise silence robots and bridge gaps the agents are about to resend.
   void ResumeClocks(int64_t now_utime);
 
-  // Periodic snapshots (server/snapshot_codec.h): only the direct-encounter source's state
-  // is serialised, so a server with a scan-matching source (or any added source) cannot
-  // be snapshot; nor while deferring.
+  // Periodic snapshots (server/snapshot_codec.h): the state of the server's own sources
+  // (direct encounters, loop closures, scan encounters) is serialised, so a server with an
+  // added source (AddEncounterSource) cannot be snapshot; nor while deferring.
   bool CanSnapshot() const;
   const std::vector<GraphEdit>& graph_edits() const { return graph_edits_; }
 
@@ -220,6 +220,8 @@ class MappingServer {
   // The scan-matching sources' workers; their results are journaled and reused on a
   // restart through it (MatchPool::SetRecorder, Preload).
   MatchPool& match_pool() { return *pool_; }
+  // The encounter sources, the direct-encounter one first (tests look at their state).
+  std::vector<const EncounterSource*> sources() const;
   int num_anchored() const;
 
   // The snapshot codec (server/snapshot_codec.cc) reads and restores the private state.

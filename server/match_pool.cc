@@ -50,6 +50,7 @@ std::shared_future<std::optional<MatchResult>> MatchPool::Submit(const MatchTag&
   {
     std::lock_guard<std::mutex> lock(mutex_);
     queue_.push_back(std::move(task));
+    ++outstanding_;
   }
   wake_.notify_one();
   return result;
@@ -67,7 +68,14 @@ void MatchPool::Work() {
       queue_.pop_front();
     }
     task();
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (--outstanding_ == 0) idle_.notify_all();
   }
+}
+
+void MatchPool::WaitIdle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  idle_.wait(lock, [this] { return outstanding_ == 0; });
 }
 
 void MatchPool::Preload(const std::vector<RecordedMatch>& recorded) {
@@ -92,6 +100,12 @@ std::shared_future<std::optional<MatchResult>> RunMatch(MatchPool* pool, const M
   std::promise<std::optional<MatchResult>> done;
   done.set_value(job());
   return done.get_future().share();
+}
+
+std::shared_future<std::optional<MatchResult>> ReadyMatch(std::optional<MatchResult> result) {
+  std::promise<std::optional<MatchResult>> promise;
+  promise.set_value(std::move(result));
+  return promise.get_future().share();
 }
 
 }  // namespace anchormap

@@ -113,6 +113,16 @@ class MatchPool {
   // Preloaded results not (yet) used.
   size_t preloaded() const { return preloaded_.size(); }
   const MatchPoolStats& stats() const { return stats_; }
+  // The ordinal the next job gets. A server restored from a snapshot continues the
+  // numbering where the snapshot's server was (ContinueAt), so the jobs after it meet their
+  // journaled results.
+  int64_t next_ordinal() const { return next_ordinal_; }
+  // Waits until every job handed to the workers has ended (its result recorded). Jobs are
+  // submitted from the server's thread only, so a caller on it then has no match in flight
+  // (a snapshot: server/node/server_journal.cc takes it without holding the journal's lock,
+  // which the recorder needs).
+  void WaitIdle();
+  void ContinueAt(int64_t ordinal) { next_ordinal_ = ordinal; }
 
  private:
   void Work();
@@ -126,10 +136,15 @@ class MatchPool {
   Recorder recorder_;
   std::mutex mutex_;
   std::condition_variable wake_;
+  std::condition_variable idle_;
+  int64_t outstanding_ = 0;  // handed to the workers and not ended (under mutex_)
   std::deque<std::packaged_task<std::optional<MatchResult>()>> queue_;
   bool stopping_ = false;
   std::vector<std::thread> threads_;
 };
+
+// A result already known (a snapshot's match in flight) as the future a job would give.
+std::shared_future<std::optional<MatchResult>> ReadyMatch(std::optional<MatchResult> result);
 
 // Runs `job` on `pool`, or at once on the caller's thread when there is no pool (the
 // sources' 0-worker mode): either way the caller gets a future of its result.

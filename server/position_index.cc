@@ -52,4 +52,18 @@ std::vector<int32_t> PositionIndex::Near(const Eigen::Vector2d& center, double r
   return items;
 }
 
+std::vector<std::pair<int32_t, Eigen::Vector2d>> PositionIndex::Entries() const {
+  // Sorted by cell key so that the bytes of a snapshot do not depend on the hash map.
+  std::vector<uint64_t> keys;
+  keys.reserve(cells_.size());
+  for (const auto& [key, entries] : cells_) keys.push_back(key);
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::pair<int32_t, Eigen::Vector2d>> out;
+  out.reserve(size_);
+  for (uint64_t key : keys) {
+    for (const Entry& e : cells_.at(key)) out.emplace_back(e.item, e.position);
+  }
+  return out;
+}
+
 }  // namespace anchormap

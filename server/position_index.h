@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,9 @@ class PositionIndex {
   // The items whose stored position is within `radius` of `center`, in increasing order.
   std::vector<int32_t> Near(const Eigen::Vector2d& center, double radius) const;
   size_t size() const { return size_; }
+  // Every stored (item, position), by cell then in the order added (snapshots: Add them
+  // again to rebuild an index that answers Near the same).
+  std::vector<std::pair<int32_t, Eigen::Vector2d>> Entries() const;
 
  private:
   struct Entry {

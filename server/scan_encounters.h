@@ -48,6 +48,7 @@
 #include "server/keyframe_submap.h"
 #include "server/match_pool.h"
 #include "server/position_index.h"
+#include "server/scan_encounter_state.h"
 #include "server/submap_cache.h"
 
 namespace anchormap {
@@ -161,6 +162,12 @@ class ScanEncounters : public EncounterSource {
   std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
   const GlobalSearchQueue& global_searches() const { return global_queue_; }
+
+  // The source's state for snapshots (scan_encounter_state.h, defined in
+  // scan_encounter_state.cc): ExportState waits for the matches in flight; ImportState is for
+  // a source given no input.
+  ScanEncounterState ExportState() const;
+  void ImportState(const ScanEncounterState& state);
 
   // A candidate from outside the matcher (tests inject false ones): it takes the same
   // path as a matched one (pairwise consistency when unjoined, the gate when joined).

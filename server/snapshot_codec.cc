@@ -9,6 +9,8 @@
 #include <utility>
 
 #include "server/byte_codec.h"
+#include "server/smoother_state_codec.h"
+#include "server/source_state_codec.h"
 
 namespace anchormap {
 namespace {
@@ -184,16 +186,24 @@ Status Corrupt(const std::string& why) {
   return Status::Error(ErrorCode::kDecodeFailed, "snapshot refused: " + why);
 }
 
-// Opens the envelope: the payload's bounds, or why not.
-Result<std::pair<const uint8_t*, size_t>> OpenEnvelope(const uint8_t* data, size_t size) {
+// An opened envelope: the payload's bounds and the format version.
+struct Payload {
+  const uint8_t* data = nullptr;
+  size_t size = 0;
+  uint32_t version = 0;
+};
+
+// Opens the envelope: the payload, or why not.
+Result<Payload> OpenEnvelope(const uint8_t* data, size_t size) {
   if (size < kHeaderSize + kTrailerSize)
     return Corrupt("truncated (" + std::to_string(size) + " bytes)");
   if (std::memcmp(data, kMagic, sizeof(kMagic)) != 0) return Corrupt("not a snapshot (magic)");
   Reader header(data + sizeof(kMagic), kHeaderSize - sizeof(kMagic));
   const uint32_t version = header.Raw<uint32_t>();
   const uint64_t payload_size = header.Raw<uint64_t>();
-  if (version != kSnapshotVersion) {
+  if (version < kOldestSnapshotVersion || version > kSnapshotVersion) {
     return Corrupt("version " + std::to_string(version) + ", this server reads " +
+                   std::to_string(kOldestSnapshotVersion) + " to " +
                    std::to_string(kSnapshotVersion));
   }
   if (payload_size != size - kHeaderSize - kTrailerSize) {
@@ -202,8 +212,11 @@ Result<std::pair<const uint8_t*, size_t>> OpenEnvelope(const uint8_t* data, size
   }
   Reader trailer(data + size - kTrailerSize, kTrailerSize);
   if (trailer.Raw<uint64_t>() != Fnv1a64(data, size - kTrailerSize)) return Corrupt("checksum");
-  return std::make_pair(data + kHeaderSize, static_cast<size_t>(payload_size));
+  return Payload{data + kHeaderSize, static_cast<size_t>(payload_size), version};
 }
+
+// The scan-matching sources in a version-2 snapshot, in the server's order of sources.
+enum class SourceKind : uint8_t { kLoopClosures = 1, kScanEncounters = 2 };
 
 }  // namespace
 
@@ -233,8 +246,8 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
                                                     const SnapshotNodeState& node) {
   if (!s.CanSnapshot()) {
     return Status::Error(ErrorCode::kInvalidArgument,
-                         "snapshots need the direct-encounter source alone (no scan-matching "
-                         "source) and no deferral in progress");
+                         "snapshots need the server's own sources (direct encounters, loop "
+                         "closures, scan encounters; no added one) and no deferral in progress");
   }
   Writer w;
   w.bytes().assign(kMagic, kMagic + sizeof(kMagic));
@@ -299,6 +312,22 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   const auto& direct = dynamic_cast<const DirectEncounters&>(*s.sources_.front());
   PutAll(&w, direct.pending_);
   w.I64(direct.now_utime_);
+  // Version 2: the smoother's incremental state (its graph follows from the edits above),
+  // the match pool's numbering, the scan-matching sources (their matches in flight waited
+  // for: server/loop_closure_state.h).
+  PutSmootherState(&w, s.smoother_.ExportState());
+  w.I64(s.pool_->next_ordinal());
+  w.Size(s.sources_.size() - 1);
+  for (size_t i = 1; i < s.sources_.size(); ++i) {
+    if (const auto* loop = dynamic_cast<const LoopClosures*>(s.sources_[i].get())) {
+      w.U8(static_cast<uint8_t>(SourceKind::kLoopClosures));
+      PutLoopClosureState(&w, loop->ExportState());
+    } else {
+      const auto& scan = dynamic_cast<const ScanEncounters&>(*s.sources_[i]);
+      w.U8(static_cast<uint8_t>(SourceKind::kScanEncounters));
+      PutScanEncounterState(&w, scan.ExportState());
+    }
+  }
 
   std::vector<uint8_t>& bytes = w.bytes();
   const uint64_t payload_size = bytes.size() - kHeaderSize;
@@ -311,7 +340,7 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
 Result<JournalPosition> SnapshotCodec::ReadPosition(const uint8_t* data, size_t size) {
   const auto payload = OpenEnvelope(data, size);
   if (!payload.ok()) return payload.status();
-  Reader r(payload->first, payload->second);
+  Reader r(payload->data, payload->size);
   JournalPosition position;
   Get(&r, &position);
   if (r.failed() || position.events < 0) return Corrupt("bad journal position");
@@ -322,11 +351,14 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
                               SnapshotNodeState* node) {
   const auto payload = OpenEnvelope(data, size);
   if (!payload.ok()) return payload.status();
-  if (!s->CanSnapshot()) {
+  const bool version1 = payload->version == 1;
+  if (!s->CanSnapshot() || (version1 && s->sources_.size() != 1)) {
     return Status::Error(ErrorCode::kInvalidArgument,
-                         "this server has a scan-matching source: snapshots cannot restore it");
+                         version1 ? "this server has a scan-matching source: a version-1 "
+                                    "snapshot holds none"
+                                  : "this server has a source a snapshot cannot hold");
   }
-  Reader r(payload->first, payload->second);
+  Reader r(payload->data, payload->size);
   Get(&r, &node->position);
   GetSet<std::string>(&r, &node->robots);
   GetSet<TrajectoryName>(&r, &node->trajectories);
@@ -380,9 +412,10 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
     s->links_.push_back(std::move(l));
   }
   // The smoother: the same calls in the same order (the same variables, factors, gauge
-  // priors and anchor groups), each pose from the initial guess the live run gave it, then
-  // one batch step. (Starting from the snapshot's estimate instead, the final maps differed
-  // by up to 2.6e-9 m in the codec test; from the live guesses, by 1e-14.)
+  // priors and anchor groups), each pose from the initial guess the live run gave it. Version
+  // 2 then imports the incremental state (below); version 1 held none: one batch step
+  // (EndDeferredUpdates) solves. (Starting from the snapshot's estimate instead, the final
+  // maps differed by up to 2.6e-9 m in the codec test; from the live guesses, by 1e-14.)
   s->graph_edits_.clear();
   s->smoother_ = Smoother(s->options_.smoother);
   for (size_t i = 0, n = r.Count(); i < n && !r.failed(); ++i) {
@@ -413,10 +446,40 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   auto& direct = dynamic_cast<DirectEncounters&>(*s->sources_.front());
   GetSequence<Encounter>(&r, &direct.pending_);
   direct.now_utime_ = r.I64();
+  if (!version1) {
+    SmootherState smoother;
+    GetSmootherState(&r, &smoother);
+    const int64_t next_ordinal = r.I64();
+    const size_t sources = r.Count();
+    if (r.failed()) return Corrupt("payload ends early");
+    if (sources != s->sources_.size() - 1) return Corrupt("another set of sources");
+    if (Status imported = s->smoother_.ImportState(std::move(smoother)); !imported.ok()) {
+      return Corrupt(imported.message());
+    }
+    s->pool_->ContinueAt(next_ordinal);
+    for (size_t i = 1; i < s->sources_.size() && !r.failed(); ++i) {
+      const auto kind = static_cast<SourceKind>(r.U8());
+      auto* loop = dynamic_cast<LoopClosures*>(s->sources_[i].get());
+      auto* scan = dynamic_cast<ScanEncounters*>(s->sources_[i].get());
+      if (kind == SourceKind::kLoopClosures && loop != nullptr) {
+        LoopClosureState state;
+        GetLoopClosureState(&r, &state);
+        loop->ImportState(state);
+      } else if (kind == SourceKind::kScanEncounters && scan != nullptr) {
+        ScanEncounterState state;
+        GetScanEncounterState(&r, &state);
+        scan->ImportState(state);
+      } else {
+        return Corrupt("source " + std::to_string(i) + " is not the server's");
+      }
+    }
+  }
   if (r.failed()) return Corrupt("payload ends early");
   if (!r.at_end()) return Corrupt("bytes after the last section");
-  // Unsolved, deferring: the journal's tail is replayed deferred and one batch step then
-  // solves everything (EndDeferredUpdates), rather than one step here and one after it.
+  // Version 2: the exact state, solved; the journal's tail is replayed as it ran live.
+  if (!version1) return Status::Ok();
+  // Version 1: unsolved, deferring: the journal's tail is replayed deferred and one batch
+  // step then solves everything (EndDeferredUpdates), rather than one step here and one after.
   s->deferring_ = true;
   s->unsolved_ = s->smoother_.stats().variables > 0;
   s->variables_at_deferred_batch_ = s->smoother_.stats().variables;

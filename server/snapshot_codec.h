@@ -8,18 +8,27 @@
 // keyframes waiting for it, the canonical order stage (its queues, watermarks, encounter
 // streams, the last released key), the graph's trajectory table (keyframes with scans),
 // the smoother's graph as the ordered list of its edits (GraphEdit: each pose with the
-// initial guess it was given live, each measurement), the encounter links, the relayed encounters'
-// windows, resend and gap clocks, the direct-encounter source's waiting encounters, the counters
-// (stats, refusals by reason); and the node's admitted robots and trajectories (its caps). Not
-// held: the smoother's estimate and factorisation (rebuilt by one batch step from the live initial
-// guesses, after the journal's tail, so the estimate after a restore is the converged one, as after
-// a deferred journal replay, not the incremental one the old server held), the map publisher's
-// state (the next map and grid go out whole, as after any restart), the update timings (this
-// process's last and total update ms) and the once-per-kind log memories.
+// initial guess it was given live, each measurement), the encounter links, the relayed
+// encounters' windows, resend and gap clocks, the direct-encounter source's waiting
+// encounters, the counters (stats, refusals by reason); and the node's admitted robots and
+// trajectories (its caps). Since version 2 also: the smoother's incremental state
+// (common/solver/smoother_state.h: linearisation points, R and d, delta, pending variables
+// and factors, the step policy's counters), the match pool's job numbering, and the
+// scan-matching sources' state (server/loop_closure_state.h, scan_encounter_state.h: waiting
+// keyframes, submap drawings, kept hypotheses and candidates, cooldowns, budgets, counters,
+// and the matches in flight with their results, waited for when the snapshot is taken). So a
+// restored server, scan sources on, continues exactly as the uninterrupted one: the same
+// estimate and covariances, hence the same candidates, gates and graph edits (tested to the
+// bit: snapshot_codec_test.cc, tests/crash_test.sh mode scan). Not held: the map publisher's
+// state (the next map and grid go out whole, as after any restart), the submap references
+// (rebuilt from their drawings when needed), memoised covariances, the update timings and
+// the match pool's counters (this process's), and the once-per-kind log memories.
 //
-// Only a server whose only source is the direct-encounter one can be snapshot
-// (MappingServer::CanSnapshot): the scan-matching sources' state (submaps, kept
-// hypotheses, matches running on workers) is not serialised.
+// A version-1 snapshot (direct-encounter source alone) held no smoother state: it is
+// restored by one batch step from the live initial guesses, after the journal's tail (the
+// converged estimate, as after a deferred journal replay). Only a server whose sources are
+// its own (MappingServer::CanSnapshot: no source added with AddEncounterSource) can be
+// snapshot.
 //
 // Format: "AMSNAPSH", version (u32), payload size (u64), payload, FNV-1a 64 of everything
 // before it (u64); little-endian. A wrong magic, version, size or checksum, or a payload
@@ -37,7 +46,10 @@
 
 namespace anchormap {
 
-inline constexpr uint32_t kSnapshotVersion = 1;
+// Version 2 adds the smoother's incremental state, the match pool's numbering and the
+// scan-matching sources' state; version 1 snapshots (direct encounters only) are still read.
+inline constexpr uint32_t kSnapshotVersion = 2;
+inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had
 // this time and channel (checked against the journal on restore).
@@ -62,10 +74,12 @@ class SnapshotCodec {
   // Checks the envelope (magic, version, size, checksum) and reads the journal position.
   static Result<JournalPosition> ReadPosition(const uint8_t* data, size_t size);
   // Restores into `server`, freshly constructed with the options of the server that wrote
-  // the snapshot (options are not stored; sources are checked) and given no input. The
-  // server is left deferring its updates (MappingServer::BeginDeferredUpdates) with its
-  // graph not yet solved: the caller replays the journal's tail, then EndDeferredUpdates()
-  // solves once by a batch step. On an error `server` is unusable (the caller discards it).
+  // the snapshot (options are not stored; sources are checked) and given no input. Version
+  // 2: the server is as the snapshot's was (solved); the caller replays the journal's tail.
+  // Version 1: the server is left deferring its updates (MappingServer::
+  // BeginDeferredUpdates) with its graph not yet solved: the caller replays the journal's
+  // tail, then EndDeferredUpdates() solves once by a batch step. On an error `server` is
+  // unusable (the caller discards it).
   static Status Decode(const uint8_t* data, size_t size, MappingServer* server,
                        SnapshotNodeState* node);
 };

@@ -1,0 +1,96 @@
+// ScanEncounters::ExportState / ImportState (scan_encounter_state.h).
+
+#include "server/scan_encounter_state.h"
+
+#include "server/scan_encounters.h"
+
+namespace anchormap {
+namespace {
+
+ScanEncounterCandidateState ToState(const EncounterCandidate& c) {
+  return {c.a, c.b, c.T_a_b, c.covariance, c.utime, c.a_is_query};
+}
+
+EncounterCandidate FromState(const ScanEncounterCandidateState& c) {
+  EncounterCandidate out;
+  out.a = c.a;
+  out.b = c.b;
+  out.T_a_b = c.T_a_b;
+  out.covariance = c.covariance;
+  out.utime = c.utime;
+  out.a_is_query = c.a_is_query;
+  return out;
+}
+
+}  // namespace
+
+ScanEncounterState ScanEncounters::ExportState() const {
+  ScanEncounterState s;
+  for (const PendingMatch& m : matches_) {
+    // Waits for a match in flight.
+    s.matches.push_back({m.due_utime, m.key, m.center, m.global, m.key_utime, m.result.get()});
+  }
+  s.waiting.assign(waiting_.begin(), waiting_.end());
+  for (const auto& [trajectory, submaps] : submaps_) {
+    auto& out = s.submaps[trajectory];
+    for (const Submap& submap : submaps) out.emplace_back(submap.center, submap.drawing);
+  }
+  s.global_cursor = global_cursor_;
+  s.global_queue = global_queue_.ExportState();
+  for (const auto& [pair, kept] : kept_) {
+    auto& out = s.kept[pair];
+    for (const Kept& k : kept) out.push_back({ToState(k.candidate), k.support, k.localised});
+  }
+  s.qualified_since = qualified_since_;
+  s.now_utime = now_utime_;
+  s.near_quiet_until = near_quiet_until_;
+  for (const auto& [trajectory, entry] : near_index_) {
+    s.near_index[trajectory] = {entry.index.Entries(), entry.indexed, entry.refreshed_utime,
+                                entry.merges};
+  }
+  s.stats = stats_;
+  return s;
+}
+
+void ScanEncounters::ImportState(const ScanEncounterState& s) {
+  matches_.clear();
+  for (const ScanEncounterState::Match& m : s.matches) {
+    PendingMatch pending;
+    pending.due_utime = m.due_utime;
+    pending.key = m.key;
+    pending.center = m.center;
+    pending.global = m.global;
+    pending.key_utime = m.key_utime;
+    pending.result = ReadyMatch(m.result);
+    matches_.push_back(std::move(pending));
+  }
+  waiting_.assign(s.waiting.begin(), s.waiting.end());
+  submaps_.clear();
+  for (const auto& [trajectory, submaps] : s.submaps) {
+    std::vector<Submap>& out = submaps_[trajectory];
+    for (const auto& [center, drawing] : submaps) out.push_back({center, drawing});
+  }
+  global_cursor_ = s.global_cursor;
+  global_queue_.ImportState(s.global_queue);
+  kept_.clear();
+  for (const auto& [pair, kept] : s.kept) {
+    std::deque<Kept>& out = kept_[pair];
+    for (const ScanEncounterState::Kept& k : kept) {
+      out.push_back({FromState(k.candidate), k.support, k.localised});
+    }
+  }
+  qualified_since_ = s.qualified_since;
+  now_utime_ = s.now_utime;
+  near_quiet_until_ = s.near_quiet_until;
+  near_index_.clear();
+  for (const auto& [trajectory, entry] : s.near_index) {
+    SubmapIndex& out = near_index_[trajectory];
+    for (const auto& [item, position] : entry.entries) out.index.Add(item, position);
+    out.indexed = entry.indexed;
+    out.refreshed_utime = entry.refreshed_utime;
+    out.merges = entry.merges;
+  }
+  stats_ = s.stats;
+}
+
+}  // namespace anchormap

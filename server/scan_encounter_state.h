@@ -1,0 +1,74 @@
+#pragma once
+// ScanEncounters' private state as plain values (issue 13: snapshots with the scan-matching
+// sources on), exported and imported by the source (ScanEncounters::ExportState /
+// ImportState) and written by server/source_state_codec.h. Held: the submaps' drawings (drawn
+// at the estimate of their time, not of now), the near-search indexes (positions of their
+// last refresh), the global-search budget, kept candidates, cooldowns and counters. Not
+// held: the submap references (a pure function of their drawing: SubmapCache) and the pool.
+// Matches in flight are held with their results (ExportState waits for them): the restored
+// source consumes the results the uninterrupted one would, at the same point of the input.
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/scan_matching/correlative_matcher.h"
+#include "common/solver/keys.h"
+#include "server/candidate_stats.h"
+#include "server/global_search_queue.h"
+#include "server/keyframe_submap.h"
+
+namespace anchormap {
+
+// A candidate encounter: keyframe b measured in the frame of keyframe a (as ScanEncounters'
+// EncounterCandidate, whose header includes this one).
+struct ScanEncounterCandidateState {
+  PoseKey a;
+  PoseKey b;
+  Pose2 T_a_b;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int64_t utime = 0;
+  bool a_is_query = false;
+};
+
+struct ScanEncounterState {
+  using Pair = std::pair<TrajectoryId, TrajectoryId>;
+  struct Match {
+    int64_t due_utime = 0;
+    PoseKey key;
+    PoseKey center;
+    bool global = false;
+    int64_t key_utime = 0;
+    std::optional<MatchResult> result;
+  };
+  struct Kept {
+    ScanEncounterCandidateState candidate;
+    int support = 0;
+    bool localised = true;
+  };
+  struct NearIndex {
+    std::vector<std::pair<int32_t, Eigen::Vector2d>> entries;  // PositionIndex's items
+    size_t indexed = 0;
+    int64_t refreshed_utime = 0;
+    int64_t merges = -1;
+  };
+  std::vector<Match> matches;
+  std::vector<PoseKey> waiting;
+  std::map<TrajectoryId, std::vector<std::pair<PoseKey, SubmapDrawing>>>
+      submaps;  // (centre, drawing)
+  std::map<Pair, size_t> global_cursor;
+  GlobalSearchQueue::State global_queue;
+  std::map<Pair, std::vector<Kept>> kept;
+  std::map<Pair, int64_t> qualified_since;
+  int64_t now_utime = 0;
+  std::map<Pair, int32_t> near_quiet_until;
+  std::map<TrajectoryId, NearIndex> near_index;
+  CandidateStats stats;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,388 @@
+#include "server/source_state_codec.h"
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "server/match_pool.h"
+#include "server/recorded_match_codec.h"
+
+namespace anchormap {
+namespace {
+
+using Pair = std::pair<TrajectoryId, TrajectoryId>;
+
+void Put(ByteWriter* w, TrajectoryId t) { w->I64(t.value()); }
+void Get(ByteReader* r, TrajectoryId* t) { *t = TrajectoryId(r->I64()); }
+void Put(ByteWriter* w, const PoseKey& k) {
+  w->I64(k.trajectory.value());
+  w->I32(k.index);
+}
+void Get(ByteReader* r, PoseKey* k) {
+  k->trajectory = TrajectoryId(r->I64());
+  k->index = r->I32();
+}
+void Put(ByteWriter* w, const Pair& p) {
+  Put(w, p.first);
+  Put(w, p.second);
+}
+void Get(ByteReader* r, Pair* p) {
+  Get(r, &p->first);
+  Get(r, &p->second);
+}
+void Put(ByteWriter* w, int32_t v) { w->I32(v); }
+void Get(ByteReader* r, int32_t* v) { *v = r->I32(); }
+void Put(ByteWriter* w, int64_t v) { w->I64(v); }
+void Get(ByteReader* r, int64_t* v) { *v = r->I64(); }
+void Put(ByteWriter* w, size_t v) { w->Size(v); }
+void Get(ByteReader* r, size_t* v) { *v = static_cast<size_t>(r->Raw<uint64_t>()); }
+void Put(ByteWriter* w, const std::pair<int32_t, int32_t>& p) {
+  w->I32(p.first);
+  w->I32(p.second);
+}
+void Get(ByteReader* r, std::pair<int32_t, int32_t>* p) {
+  p->first = r->I32();
+  p->second = r->I32();
+}
+
+// Maps with keys and values of the kinds above: a count, then the pairs.
+template <typename Map>
+void PutMap(ByteWriter* w, const Map& map) {
+  w->Size(map.size());
+  for (const auto& [key, value] : map) {
+    Put(w, key);
+    Put(w, value);
+  }
+}
+template <typename Map>
+void GetMap(ByteReader* r, Map* map) {
+  map->clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    typename Map::key_type key{};
+    typename Map::mapped_type value{};
+    Get(r, &key);
+    Get(r, &value);
+    map->emplace(std::move(key), std::move(value));
+  }
+}
+
+void PutKeys(ByteWriter* w, const std::vector<PoseKey>& keys) {
+  w->Size(keys.size());
+  for (const PoseKey& k : keys) Put(w, k);
+}
+void GetKeys(ByteReader* r, std::vector<PoseKey>* keys) {
+  keys->resize(r->Count(12));
+  for (PoseKey& k : *keys) Get(r, &k);
+}
+
+// A match result as its journal record holds it (every field, bit for bit).
+void PutResult(ByteWriter* w, const std::optional<MatchResult>& result) {
+  RecordedMatch record;
+  record.tag.kind = MatchKind::kLoopLocal;  // any valid kind: only the result is read back
+  record.result = result;
+  const std::vector<uint8_t> bytes = EncodeRecordedMatch(record);
+  w->Size(bytes.size());
+  for (uint8_t b : bytes) w->U8(b);
+}
+void GetResult(ByteReader* r, std::optional<MatchResult>* result) {
+  std::vector<uint8_t> bytes(r->Count());
+  for (uint8_t& b : bytes) b = r->U8();
+  if (r->failed()) return;
+  Result<RecordedMatch> record = DecodeRecordedMatch(bytes.data(), bytes.size());
+  if (!record.ok()) {
+    r->Fail();
+    return;
+  }
+  *result = std::move(record->result);
+}
+
+void Put(ByteWriter* w, const CandidateStats& s) {
+  for (int64_t v : {s.candidates, s.accepted, s.no_match, s.weak_match, s.gate_rejected, s.kept,
+                    s.unconfirmed, s.repeated}) {
+    w->I64(v);
+  }
+}
+void Get(ByteReader* r, CandidateStats* s) {
+  for (int64_t* v : {&s->candidates, &s->accepted, &s->no_match, &s->weak_match, &s->gate_rejected,
+                     &s->kept, &s->unconfirmed, &s->repeated}) {
+    *v = r->I64();
+  }
+}
+static_assert(sizeof(CandidateStats) == 8 * 8, "CandidateStats changed: update the codec");
+
+}  // namespace
+
+void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
+  w->Size(s.matches.size());
+  for (const LoopClosureState::Match& m : s.matches) {
+    w->I64(m.due_utime);
+    Put(w, m.candidate);
+    Put(w, m.key);
+    w->I64(m.key_utime);
+    w->Pose(m.predicted.T_a_b);
+    w->Matrix(m.predicted.covariance);
+    w->Bool(m.wide);
+    w->Matrix(m.drift);
+    w->Size(m.query.size());
+    for (const Eigen::Vector2d& p : m.query) {
+      w->F64(p.x());
+      w->F64(p.y());
+    }
+    w->Size(m.submap_poses.size());
+    for (const auto& [index, pose] : m.submap_poses) {
+      w->I32(index);
+      w->Pose(pose);
+    }
+    PutResult(w, m.result);
+    w->Bool(m.has_rival);
+    if (m.has_rival) PutResult(w, m.rival);
+  }
+  w->I64(s.now_utime);
+  PutKeys(w, s.waiting);
+  PutMap(w, s.quiet_until);
+  PutMap(w, s.next_wide);
+  w->Size(s.kept.size());
+  for (const auto& [trajectory, hypotheses] : s.kept) {
+    Put(w, trajectory);
+    w->Size(hypotheses.size());
+    for (const LoopClosureState::Hypothesis& h : hypotheses) {
+      Put(w, h.candidate);
+      Put(w, h.key);
+      w->Pose(h.measured);
+      w->Matrix(h.covariance);
+      w->I64(h.key_utime);
+    }
+  }
+  PutMap(w, s.last_closure);
+  w->Size(s.entered.size());
+  for (const auto& [trajectory, pairs] : s.entered) {
+    Put(w, trajectory);
+    w->Size(pairs.size());
+    for (const auto& p : pairs) Put(w, p);
+  }
+  Put(w, s.stats);
+  w->I64(s.wide_searches);
+  w->I64(s.ambiguous);
+}
+
+void GetLoopClosureState(ByteReader* r, LoopClosureState* s) {
+  s->matches.resize(r->Count(8));
+  for (LoopClosureState::Match& m : s->matches) {
+    m.due_utime = r->I64();
+    Get(r, &m.candidate);
+    Get(r, &m.key);
+    m.key_utime = r->I64();
+    m.predicted.T_a_b = r->Pose();
+    m.predicted.covariance = r->Matrix();
+    m.wide = r->Bool();
+    m.drift = r->Matrix();
+    m.query.resize(r->Count(2 * sizeof(double)));
+    for (Eigen::Vector2d& p : m.query) {
+      const double x = r->F64();
+      p = Eigen::Vector2d(x, r->F64());
+    }
+    m.submap_poses.resize(r->Count(sizeof(int32_t) + 3 * sizeof(double)));
+    for (auto& [index, pose] : m.submap_poses) {
+      index = r->I32();
+      pose = r->Pose();
+    }
+    GetResult(r, &m.result);
+    m.has_rival = r->Bool();
+    if (m.has_rival) GetResult(r, &m.rival);
+  }
+  s->now_utime = r->I64();
+  GetKeys(r, &s->waiting);
+  GetMap(r, &s->quiet_until);
+  GetMap(r, &s->next_wide);
+  s->kept.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    TrajectoryId trajectory(0);
+    Get(r, &trajectory);
+    std::vector<LoopClosureState::Hypothesis>& hypotheses = s->kept[trajectory];
+    hypotheses.resize(r->Count(8));
+    for (LoopClosureState::Hypothesis& h : hypotheses) {
+      Get(r, &h.candidate);
+      Get(r, &h.key);
+      h.measured = r->Pose();
+      h.covariance = r->Matrix();
+      h.key_utime = r->I64();
+    }
+  }
+  GetMap(r, &s->last_closure);
+  s->entered.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    TrajectoryId trajectory(0);
+    Get(r, &trajectory);
+    auto& pairs = s->entered[trajectory];
+    for (size_t j = 0, m = r->Count(8); j < m && !r->failed(); ++j) {
+      std::pair<int32_t, int32_t> p;
+      Get(r, &p);
+      pairs.insert(p);
+    }
+  }
+  Get(r, &s->stats);
+  s->wide_searches = r->I64();
+  s->ambiguous = r->I64();
+}
+
+void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& s) {
+  w->Size(s.matches.size());
+  for (const ScanEncounterState::Match& m : s.matches) {
+    w->I64(m.due_utime);
+    Put(w, m.key);
+    Put(w, m.center);
+    w->Bool(m.global);
+    w->I64(m.key_utime);
+    PutResult(w, m.result);
+  }
+  PutKeys(w, s.waiting);
+  w->Size(s.submaps.size());
+  for (const auto& [trajectory, submaps] : s.submaps) {
+    Put(w, trajectory);
+    w->Size(submaps.size());
+    for (const auto& [center, drawing] : submaps) {
+      Put(w, center);
+      Put(w, drawing.center);
+      w->Size(drawing.T_center_keyframes.size());
+      for (const auto& [index, pose] : drawing.T_center_keyframes) {
+        w->I32(index);
+        w->Pose(pose);
+      }
+      w->Size(drawing.num_points);
+    }
+  }
+  PutMap(w, s.global_cursor);
+  const GlobalSearchQueue::State& q = s.global_queue;
+  w->F64(q.tokens);
+  w->Bool(q.last_utime.has_value());
+  w->I64(q.last_utime.value_or(0));
+  w->Size(q.waiting.size());
+  for (const auto& [trajectory, key] : q.waiting) {
+    Put(w, trajectory);
+    Put(w, key);
+  }
+  PutMap(w, q.searched);
+  PutMap(w, q.pair_searched);
+  w->I64(q.searches);
+  w->I64(q.dropped);
+  w->Size(s.kept.size());
+  for (const auto& [pair, kept] : s.kept) {
+    Put(w, pair);
+    w->Size(kept.size());
+    for (const ScanEncounterState::Kept& k : kept) {
+      Put(w, k.candidate.a);
+      Put(w, k.candidate.b);
+      w->Pose(k.candidate.T_a_b);
+      w->Matrix(k.candidate.covariance);
+      w->I64(k.candidate.utime);
+      w->Bool(k.candidate.a_is_query);
+      w->I32(k.support);
+      w->Bool(k.localised);
+    }
+  }
+  PutMap(w, s.qualified_since);
+  w->I64(s.now_utime);
+  PutMap(w, s.near_quiet_until);
+  w->Size(s.near_index.size());
+  for (const auto& [trajectory, index] : s.near_index) {
+    Put(w, trajectory);
+    w->Size(index.entries.size());
+    for (const auto& [item, position] : index.entries) {
+      w->I32(item);
+      w->F64(position.x());
+      w->F64(position.y());
+    }
+    w->Size(index.indexed);
+    w->I64(index.refreshed_utime);
+    w->I64(index.merges);
+  }
+  Put(w, s.stats);
+}
+
+void GetScanEncounterState(ByteReader* r, ScanEncounterState* s) {
+  s->matches.resize(r->Count(8));
+  for (ScanEncounterState::Match& m : s->matches) {
+    m.due_utime = r->I64();
+    Get(r, &m.key);
+    Get(r, &m.center);
+    m.global = r->Bool();
+    m.key_utime = r->I64();
+    GetResult(r, &m.result);
+  }
+  GetKeys(r, &s->waiting);
+  s->submaps.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    TrajectoryId trajectory(0);
+    Get(r, &trajectory);
+    auto& submaps = s->submaps[trajectory];
+    submaps.resize(r->Count(12));
+    for (auto& [center, drawing] : submaps) {
+      Get(r, &center);
+      Get(r, &drawing.center);
+      drawing.T_center_keyframes.resize(r->Count(sizeof(int32_t) + 3 * sizeof(double)));
+      for (auto& [index, pose] : drawing.T_center_keyframes) {
+        index = r->I32();
+        pose = r->Pose();
+      }
+      drawing.num_points = static_cast<size_t>(r->Raw<uint64_t>());
+    }
+  }
+  GetMap(r, &s->global_cursor);
+  GlobalSearchQueue::State& q = s->global_queue;
+  q.tokens = r->F64();
+  const bool has_last = r->Bool();
+  const int64_t last = r->I64();
+  q.last_utime.reset();
+  if (has_last) q.last_utime = last;
+  q.waiting.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    TrajectoryId trajectory(0);
+    Get(r, &trajectory);
+    PoseKey key;
+    Get(r, &key);
+    q.waiting.emplace(trajectory, key);
+  }
+  GetMap(r, &q.searched);
+  GetMap(r, &q.pair_searched);
+  q.searches = r->I64();
+  q.dropped = r->I64();
+  s->kept.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    Pair pair{TrajectoryId(0), TrajectoryId(0)};
+    Get(r, &pair);
+    auto& kept = s->kept[pair];
+    kept.resize(r->Count(8));
+    for (ScanEncounterState::Kept& k : kept) {
+      Get(r, &k.candidate.a);
+      Get(r, &k.candidate.b);
+      k.candidate.T_a_b = r->Pose();
+      k.candidate.covariance = r->Matrix();
+      k.candidate.utime = r->I64();
+      k.candidate.a_is_query = r->Bool();
+      k.support = r->I32();
+      k.localised = r->Bool();
+    }
+  }
+  GetMap(r, &s->qualified_since);
+  s->now_utime = r->I64();
+  GetMap(r, &s->near_quiet_until);
+  s->near_index.clear();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    TrajectoryId trajectory(0);
+    Get(r, &trajectory);
+    ScanEncounterState::NearIndex& index = s->near_index[trajectory];
+    index.entries.resize(r->Count(sizeof(int32_t) + 2 * sizeof(double)));
+    for (auto& [item, position] : index.entries) {
+      item = r->I32();
+      const double x = r->F64();
+      position = Eigen::Vector2d(x, r->F64());
+    }
+    index.indexed = static_cast<size_t>(r->Raw<uint64_t>());
+    index.refreshed_utime = r->I64();
+    index.merges = r->I64();
+  }
+  Get(r, &s->stats);
+}
+
+}  // namespace anchormap

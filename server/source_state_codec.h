@@ -1,0 +1,18 @@
+#pragma once
+// The scan-matching sources' state (loop_closure_state.h, scan_encounter_state.h) in a
+// snapshot: every double bit for bit, in the server's byte codec (server/byte_codec.h); a
+// match result as its journal record (server/recorded_match_codec.h) holds it.
+
+#include "server/byte_codec.h"
+#include "server/loop_closure_state.h"
+#include "server/scan_encounter_state.h"
+
+namespace anchormap {
+
+void PutLoopClosureState(ByteWriter* w, const LoopClosureState& state);
+void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& state);
+// A failed read latches in `r` (the caller checks r->failed()).
+void GetLoopClosureState(ByteReader* r, LoopClosureState* state);
+void GetScanEncounterState(ByteReader* r, ScanEncounterState* state);
+
+}  // namespace anchormap
