@@ -21,7 +21,7 @@ int64_t RestoreNewestSnapshot(const std::string& dir, const std::vector<LogEvent
   if (files.empty()) return 0;
   if (!node->CanSnapshot()) {
     LogWarning("journal " + dir + ": " + std::to_string(files.size()) +
-               " snapshots ignored (a scan-matching source is on: its state is not in them); "
+               " snapshots ignored (the server has a source a snapshot cannot hold); "
                "replaying the whole journal");
     return 0;
   }
@@ -132,14 +132,25 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
 // (from the loop's timer: the state is the journal prefix's).
 void ServerJournal::SnapshotIfDue(const ServerOptions& options, ServerNode* node) {
   if (!CollectSnapshotWrite(/*wait=*/false)) return;  // the previous one is still going
+  const auto due = [&] {
+    const int64_t fresh = last_.events - std::max<int64_t>(snapshot_events_, 0);
+    if (fresh <= 0 || !node->CanSnapshot()) return false;
+    const double since =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - snapshot_time_).count();
+    return (options.snapshot_every_events > 0 && fresh >= options.snapshot_every_events) ||
+           (options.snapshot_every_s > 0 && since >= options.snapshot_every_s);
+  };
+  {
+    std::lock_guard<std::mutex> lock(append_mutex_);
+    if (!due()) return;
+  }
+  // The scan sources' matches in flight end first (their results journaled: the recorder
+  // takes the lock below), so the snapshot holds them and the journal prefix it covers is
+  // final: only this thread submits matches.
+  node->server().match_pool().WaitIdle();
   std::lock_guard<std::mutex> lock(append_mutex_);
-  const int64_t fresh = last_.events - std::max<int64_t>(snapshot_events_, 0);
-  if (fresh <= 0 || !node->CanSnapshot()) return;
+  if (!due()) return;
   const auto now = std::chrono::steady_clock::now();
-  const double since = std::chrono::duration<double>(now - snapshot_time_).count();
-  const bool by_count = options.snapshot_every_events > 0 && fresh >= options.snapshot_every_events;
-  const bool by_time = options.snapshot_every_s > 0 && since >= options.snapshot_every_s;
-  if (!by_count && !by_time) return;
   snapshot_time_ = now;  // also after a failure: retried at the next period, not at once
   // Encoded here, between two events (the state is the journal prefix's); written off the
   // loop. A write that fails leaves the previous snapshots (and the journal) in place.

@@ -252,12 +252,6 @@ int RunOnline(const ServerOptions& given) {
       return 1;
     }
     journal = std::move(*opened);
-    if (!node.CanSnapshot() &&
-        (options.snapshot_every_events > 0 || options.snapshot_every_s > 0)) {
-      LogInfo(
-          "snapshots off: a scan-matching source is on (its state is not in a snapshot); a "
-          "restart replays the whole journal");
-    }
   }
   auto handler = [&node](const std::string& channel, const uint8_t* data, size_t size) {
     node.server().SetClock(WallUtime());

@@ -103,14 +103,18 @@ class ServerNode {
                               size_t first = 0);
   // Periodic snapshots (server/snapshot_codec.h, snapshot_store.h): the node's and the
   // logic's state after the journal prefix `position`. Only when the server can be
-  // snapshot (MappingServer::CanSnapshot: no scan-matching source).
+  // snapshot (MappingServer::CanSnapshot: its own sources only, no deferral running).
   bool CanSnapshot() const { return server_->CanSnapshot(); }
+  // Waits for the scan sources' matches in flight (their results go into the snapshot):
+  // the caller must not hold what the match recorder (SetJournal) takes, e.g. drain the
+  // pool first (MatchPool::WaitIdle, as ServerJournal does).
   Result<std::vector<uint8_t>> EncodeSnapshot(const JournalPosition& position) const;
   // Replaces the state by a snapshot's, after checking that `journal` holds the prefix it
   // covers (same length at least, the same last event's time and channel); decoded into a
   // fresh MappingServer, so a refused snapshot changes nothing. Returns the number of
-  // journal events it covers. The server is then deferring its updates, its graph not yet
-  // solved: ReplayJournal from there must follow (it ends with the batch step).
+  // journal events it covers. ReplayJournal from there must follow (a version-1 snapshot
+  // leaves the server deferring, its graph not yet solved: the replay ends with the batch
+  // step).
   Result<int64_t> RestoreSnapshot(const std::vector<uint8_t>& bytes,
                                   const std::vector<LogEvent>& journal);
   // The online timer: the logic's clock, and gaps that waited too long bridged (journaled).

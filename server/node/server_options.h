@@ -53,8 +53,8 @@ struct ServerOptions {
   // Periodic snapshots with --journal (server/node/snapshot_store.h): one is written when
   // this many events were journaled since the last, or this many seconds passed and some
   // were (0 switches a rule off; both 0: no snapshots). A restart restores the newest valid
-  // one and replays only the journal after it. Not with a scan-matching source (its state
-  // is not in a snapshot): then the whole journal is replayed.
+  // one and replays only the journal after it; with the scan-matching sources on too (their
+  // state and the smoother's are in a snapshot: server/snapshot_codec.h).
   int64_t snapshot_every_events = 5000;
   double snapshot_every_s = 300.0;
   std::string log_level = "info";
