@@ -88,6 +88,9 @@ void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* o
   keyframe.robot = options_.robot;
   keyframe.trajectory_id = options_.trajectory_id;
   keyframe.seq = next_seq_++;
+  // Every encounter relayed so far went out before this keyframe: the server, seeing this
+  // count, knows which it misses even when no later encounter reveals the loss.
+  keyframe.encounters_relayed = next_encounter_seq_;
   keyframe.utime = scan.utime;
   // The local frame: the odometry frame, moved by the corrections scan matching made.
   keyframe.T_local_pose = refined.pose;

@@ -143,6 +143,45 @@ TEST(AgentTest, RelaysEncounterWithTrajectoryIdAndForcesAKeyframe) {
   EXPECT_EQ(agent.OnEncounter(encounter, &relay).code(), ErrorCode::kWrongRobot);
 }
 
+// Each keyframe carries how many encounters were relayed before it, so that the server
+// sees a lost last encounter at the next keyframe.
+TEST(AgentTest, EachKeyframeCarriesTheCountOfEncountersRelayedBeforeIt) {
+  Agent agent(TestOptions());
+  AgentOutput out = DriveStraight(&agent, 1.0);  // keyframes at 0.005 and 0.505 s
+  ASSERT_EQ(out.keyframes.size(), 2u);
+  EXPECT_EQ(out.keyframes[0].encounters_relayed, 0);
+  EXPECT_EQ(out.keyframes[1].encounters_relayed, 0);
+  Encounter encounter;
+  encounter.observer = "R1";
+  encounter.observed = "R2";
+  AgentOutput relay;
+  for (const int64_t utime : {1'150'000, 1'160'000}) {
+    encounter.utime = utime;
+    ASSERT_TRUE(agent.OnEncounter(encounter, &relay).ok());
+  }
+  ASSERT_EQ(relay.encounters.size(), 2u);
+  EXPECT_EQ(relay.encounters[1].seq, 1);
+  AgentOutput more;
+  for (int64_t t = 1'020'000; t <= 2'000'000; t += 20'000) {
+    ASSERT_TRUE(agent.OnOdometry({t, Pose2(1e-6 * t, 0, 0)}, &more).ok());
+    if (t % 100'000 == 20'000) {
+      ASSERT_TRUE(agent.OnScan(Scan(t - 15'000), &more).ok());
+    }
+    if (t == 1'600'000) {
+      encounter.utime = t;
+      ASSERT_TRUE(agent.OnEncounter(encounter, &relay).ok());  // seq 2
+    }
+  }
+  // 1.005 (distance), 1.205 and 1.605 s (forced by the encounters).
+  ASSERT_EQ(more.keyframes.size(), 3u);
+  EXPECT_EQ(more.keyframes[0].utime, 1'005'000);
+  EXPECT_EQ(more.keyframes[0].encounters_relayed, 2);  // both relayed before it was made
+  EXPECT_EQ(more.keyframes[1].utime, 1'205'000);
+  EXPECT_EQ(more.keyframes[1].encounters_relayed, 2);
+  EXPECT_EQ(more.keyframes[2].utime, 1'605'000);
+  EXPECT_EQ(more.keyframes[2].encounters_relayed, 3);
+}
+
 TEST(AgentTest, BeingObservedAlsoForcesAKeyframe) {
   Agent agent(TestOptions());
   AgentOutput out;

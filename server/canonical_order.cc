@@ -34,7 +34,7 @@ void CanonicalInputOrder::AddEncounter(Encounter encounter, int64_t clock_utime)
     EncounterStream& stream =
         encounter_streams_[{encounter.observer, encounter.observer_trajectory_id}];
     if (encounter.seq >= stream.next_seq) {
-      if (stream.above.empty() && encounter.seq > stream.next_seq) stream.gap_since = clock_utime;
+      if (!stream.HasGap() && encounter.seq > stream.next_seq) stream.gap_since = clock_utime;
       stream.above.emplace(encounter.seq, encounter.utime);
       while (!stream.above.empty() && stream.above.begin()->first == stream.next_seq) {
         stream.last_utime = std::max(stream.last_utime, stream.above.begin()->second);
@@ -48,6 +48,14 @@ void CanonicalInputOrder::AddEncounter(Encounter encounter, int64_t clock_utime)
   const Key key = entry.key;
   encounters_.emplace(key, std::move(entry));
   stats_.peak_held = std::max(stats_.peak_held, static_cast<int64_t>(held()));
+}
+
+void CanonicalInputOrder::ExpectEncounters(const std::string& observer, int64_t trajectory_id,
+                                           int32_t count, int64_t clock_utime) {
+  EncounterStream& stream = encounter_streams_[{observer, trajectory_id}];
+  if (count <= stream.expected) return;
+  if (!stream.HasGap() && count > stream.next_seq) stream.gap_since = clock_utime;
+  stream.expected = count;
 }
 
 void CanonicalInputOrder::Heard(TrajectoryId stream_id, int64_t clock_utime) {
@@ -119,7 +127,7 @@ std::optional<OrderedInput> CanonicalInputOrder::Next(int64_t now_utime, bool se
   }
   for (const auto& [name, stream] : encounter_streams_) {
     // A gap: the missing encounters come after last_utime.
-    if (!stream.above.empty() && t > stream.last_utime &&
+    if (stream.HasGap() && t > stream.last_utime &&
         static_cast<double>(now_utime - stream.gap_since) <= 1e6 * options_.patience_s) {
       held_back = true;
     }
@@ -142,7 +150,7 @@ void CanonicalInputOrder::ResumeAt(int64_t clock_utime) {
     entry.arrival_clock = std::max(entry.arrival_clock, clock_utime);
   }
   for (auto& [name, stream] : encounter_streams_) {
-    if (!stream.above.empty()) stream.gap_since = std::max(stream.gap_since, clock_utime);
+    if (stream.HasGap()) stream.gap_since = std::max(stream.gap_since, clock_utime);
   }
 }
 

@@ -18,8 +18,9 @@
 // Relayed encounters have a sequence of their own per observer trajectory: while one of
 // those sequences has a gap, the missing encounters lie between the last contiguous one
 // and the next received one in time, so inputs after the last contiguous one's time wait
-// (for patience_s at most) for the resend. A lost encounter with no later one to reveal
-// it is only covered by the settle time.
+// (for patience_s at most) for the resend. A keyframe reveals the same gap for an
+// encounter with no later one: it carries the count its agent had relayed before it
+// (ExpectEncounters), so the missing tail is known as soon as that keyframe arrives.
 // An input that arrives after later inputs were released (a silent trajectory that speaks
 // again, an encounter resent late) is released at once and counted as late: from then on
 // the map may differ from one built from the same set in canonical order.
@@ -90,6 +91,11 @@ class CanonicalInputOrder {
   // A keyframe of trajectory `stream` (the delivery table's id), next in its sequence.
   void AddKeyframe(TrajectoryId stream, Keyframe keyframe, int64_t clock_utime);
   void AddEncounter(Encounter encounter, int64_t clock_utime);
+  // Relayed encounters 0 .. count-1 of (observer, trajectory) exist (a keyframe's
+  // encounters_relayed): the ones not arrived are a gap, which holds the inputs after the
+  // last contiguous one's time as a gap between two arrived ones does.
+  void ExpectEncounters(const std::string& observer, int64_t trajectory_id, int32_t count,
+                        int64_t clock_utime);
   // `stream` was heard from (any keyframe received, also one waiting for a gap): it holds
   // the others from now on, for patience_s.
   void Heard(TrajectoryId stream, int64_t clock_utime);
@@ -127,6 +133,8 @@ class CanonicalInputOrder {
     int64_t last_utime = 0;            // time of seq next_seq - 1 (0 before any)
     std::map<int32_t, int64_t> above;  // seqs beyond a gap, with their times
     int64_t gap_since = 0;             // clock when the current gap opened
+    int32_t expected = 0;              // a keyframe said every seq below this exists
+    bool HasGap() const { return !above.empty() || expected > next_seq; }
   };
   struct Stream {
     std::deque<Entry> queue;

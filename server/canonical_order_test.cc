@@ -108,6 +108,43 @@ TEST(CanonicalInputOrderTest, AGapInAnEncounterSequenceHoldsWhatComesAfterItsLas
   EXPECT_EQ(order.stats().late, 0);
 }
 
+// An encounter lost with no later one of its observer: the observer's next keyframe carries
+// the count of encounters relayed before it, which reveals the gap. Inputs after the last
+// contiguous encounter's time wait for the resend (without the count, R1:2 and R1:3 went
+// out first and the resent encounter was late).
+TEST(CanonicalInputOrderTest, AKeyframesRelayCountRevealsALostLastEncounter) {
+  for (const bool revealed : {false, true}) {
+    CanonicalInputOrder order;
+    const TrajectoryId r1(0);
+    Encounter e = MakeEncounter("R1", "R2", 1'000'000);
+    e.observer_trajectory_id = 1;
+    e.seq = 0;
+    order.AddEncounter(e, 0);
+    // Seq 1 at 1.5 s is lost; keyframes 1 .. 3 were published after it was relayed.
+    for (int32_t seq = 0; seq < 4; ++seq) {
+      order.AddKeyframe(r1, MakeKeyframe("R1", 1, seq, 1'000'000 * (seq + 1)), 0);
+      if (seq == 1 && revealed) order.ExpectEncounters("R1", 1, 2, 0);
+    }
+    EXPECT_EQ(Drain(&order, 0), revealed ? (Labels{"R1:0", "E:R1>R2"})
+                                         : (Labels{"R1:0", "E:R1>R2", "R1:1", "R1:2", "R1:3"}));
+    e.seq = 1;
+    e.utime = 1'500'000;
+    order.AddEncounter(e, 0);
+    EXPECT_EQ(Drain(&order, 0),
+              revealed ? (Labels{"E:R1>R2", "R1:1", "R1:2", "R1:3"}) : (Labels{"E:R1>R2"}));
+    EXPECT_EQ(order.stats().late, revealed ? 0 : 1);
+  }
+  // The gap holds for patience_s at most, like a gap between two arrived encounters.
+  CanonicalOrderOptions options;
+  options.patience_s = 5.0;
+  CanonicalInputOrder order(options);
+  order.AddKeyframe(TrajectoryId(0), MakeKeyframe("R1", 1, 0, 1'000'000), 0);
+  order.AddKeyframe(TrajectoryId(0), MakeKeyframe("R1", 1, 1, 2'000'000), 0);
+  order.ExpectEncounters("R1", 1, 1, 0);  // seq 0, time unknown: all that waits waits
+  EXPECT_EQ(Drain(&order, 5'000'000), Labels{});
+  EXPECT_EQ(Drain(&order, 5'000'001), (Labels{"R1:0", "R1:1"}));
+}
+
 TEST(CanonicalInputOrderTest, OnlineAnInputWaitsTheSettleTime) {
   CanonicalOrderOptions options;
   options.settle_s = 2.0;

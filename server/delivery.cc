@@ -18,19 +18,21 @@ bool SeqWindow::Insert(int32_t seq) {
 
 std::vector<std::pair<int32_t, int32_t>> SeqWindow::Missing() const {
   std::vector<std::pair<int32_t, int32_t>> ranges;
-  int32_t expected = next_;
+  int32_t first_unknown = next_;
   for (int32_t seq : above_) {
-    if (seq > expected) ranges.emplace_back(expected, seq - 1);
-    expected = seq + 1;
+    if (seq > first_unknown) ranges.emplace_back(first_unknown, seq - 1);
+    first_unknown = seq + 1;
   }
+  // The tail no later arrival revealed, only a keyframe's count.
+  if (expected_ > first_unknown) ranges.emplace_back(first_unknown, expected_ - 1);
   return ranges;
 }
 
 int32_t SeqWindow::GiveUpMissing() {
-  if (above_.empty()) return 0;
-  const int32_t highest = *above_.rbegin();
-  const int32_t given_up = highest + 1 - next_ - static_cast<int32_t>(above_.size());
-  next_ = highest + 1;
+  const int32_t end = std::max(above_.empty() ? next_ : *above_.rbegin() + 1, expected_);
+  if (end <= next_) return 0;
+  const int32_t given_up = end - next_ - static_cast<int32_t>(above_.size());
+  next_ = end;
   above_.clear();
   return given_up;
 }

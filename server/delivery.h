@@ -5,6 +5,7 @@
 // asked again for what it misses (ResendTracker). MappingServer builds the resend
 // requests and acknowledgements from them; ServerNode encodes and publishes them.
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <set>
@@ -35,8 +36,11 @@ class SeqWindow {
   // False when `seq` arrived before (a duplicate). Precondition: seq >= 0.
   bool Insert(int32_t seq);
   bool Contains(int32_t seq) const { return seq < next_ || above_.count(seq) > 0; }
+  // Every number below `count` exists (a keyframe said so: Keyframe::encounters_relayed),
+  // arrived or not: the ones that did not are missing even when nothing after them came.
+  void Expect(int32_t count) { expected_ = std::max(expected_, count); }
   int32_t next() const { return next_; }
-  // The missing numbers below the highest arrived one, as inclusive ranges.
+  // The missing numbers below the highest arrived or expected one, as inclusive ranges.
   std::vector<std::pair<int32_t, int32_t>> Missing() const;
   // Gives the missing numbers up (they will never come: e.g. acknowledged by a server
   // that was restarted); returns how many. Later arrivals of them are duplicates.
@@ -48,6 +52,7 @@ class SeqWindow {
  private:
   int32_t next_ = 0;
   std::set<int32_t> above_;
+  int32_t expected_ = 0;  // the highest count a keyframe gave (Expect)
 };
 
 // Rate limit of resend requests per trajectory (robot, agent trajectory id).

@@ -72,6 +72,7 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
   std::vector<AdmittedKeyframe> admitted;
   const int64_t reused_before = receipt_.num_reused_ids();
   const TrajectoryName name{keyframe.robot, keyframe.trajectory_id};
+  const int32_t relayed = keyframe.encounters_relayed;
   const auto arrival_key =
       std::make_tuple(keyframe.robot, keyframe.trajectory_id, keyframe.seq, keyframe.utime);
   // The delivery table needs no scan: the keyframe waits here with it until admitted.
@@ -88,6 +89,12 @@ Status MappingServer::OnKeyframe(Keyframe keyframe) {
     LogWarning(name.robot + " restarted with the trajectory id " + std::to_string(name.id) +
                " of an earlier session: a new trajectory under the same name");
     encounter_seqs_.erase(name);
+  }
+  if (relayed > 0) {
+    // The encounters relayed before this keyframe: those not here are missing (asked for,
+    // and they hold the inputs after them), even with no later encounter to reveal them.
+    encounter_seqs_[name].Expect(relayed);
+    order_.ExpectEncounters(name.robot, name.id, relayed, clock_utime());
   }
   if (const TrajectoryRecord* record = receipt_.Find(name)) {
     order_.Heard(record->solver_id, clock_utime());

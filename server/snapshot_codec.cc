@@ -52,20 +52,25 @@ void Get(Reader* r, LaserScan* s) {
   s->T_body_sensor = r->Pose();
 }
 
-void Put(Writer* w, const Keyframe& k) {
+// Version 3 adds the count of relayed encounters a keyframe carries.
+constexpr uint32_t kRelayCountsVersion = 3;
+
+void Put(Writer* w, const Keyframe& k, uint32_t version) {
   w->String(k.robot);
   w->I64(k.trajectory_id);
   w->I32(k.seq);
+  if (version >= kRelayCountsVersion) w->I32(k.encounters_relayed);
   w->I64(k.utime);
   w->Pose(k.T_local_pose);
   w->Pose(k.T_previous_this);
   w->Matrix(k.T_previous_this_covariance);
   Put(w, k.scan);
 }
-void Get(Reader* r, Keyframe* k) {
+void Get(Reader* r, Keyframe* k, uint32_t version) {
   k->robot = r->String();
   k->trajectory_id = r->I64();
   k->seq = r->I32();
+  k->encounters_relayed = version >= kRelayCountsVersion ? r->I32() : 0;
   k->utime = r->I64();
   k->T_local_pose = r->Pose();
   k->T_previous_this = r->Pose();
@@ -224,17 +229,28 @@ enum class SourceKind : uint8_t { kLoopClosures = 1, kScanEncounters = 2 };
 
 // The classes' friend (they declare it): their private state is read and written only here.
 struct SnapshotAccess {
-  static Result<std::vector<uint8_t>> Encode(const MappingServer& s, const SnapshotNodeState& node);
+  static Result<std::vector<uint8_t>> Encode(const MappingServer& s, const SnapshotNodeState& node,
+                                             uint32_t version);
   static Status Decode(const uint8_t* data, size_t size, MappingServer* s, SnapshotNodeState* node);
-  static void PutTable(Writer* w, const TrajectoryTable& t);
-  static void GetTable(Reader* r, TrajectoryTable* t);
-  static void PutOrder(Writer* w, const CanonicalInputOrder& o);
-  static void GetOrder(Reader* r, CanonicalInputOrder* o);
+  static void PutTable(Writer* w, const TrajectoryTable& t, uint32_t version);
+  static void GetTable(Reader* r, TrajectoryTable* t, uint32_t version);
+  static void PutOrder(Writer* w, const CanonicalInputOrder& o, uint32_t version);
+  static void GetOrder(Reader* r, CanonicalInputOrder* o, uint32_t version);
 };
 
 Result<std::vector<uint8_t>> SnapshotCodec::Encode(const MappingServer& server,
                                                    const SnapshotNodeState& node) {
-  return SnapshotAccess::Encode(server, node);
+  return SnapshotAccess::Encode(server, node, kSnapshotVersion);
+}
+
+Result<std::vector<uint8_t>> SnapshotCodec::EncodeVersion(const MappingServer& server,
+                                                          const SnapshotNodeState& node,
+                                                          uint32_t version) {
+  if (version < 2 || version > kSnapshotVersion) {
+    return Status::Error(ErrorCode::kInvalidArgument,
+                         "snapshot version " + std::to_string(version) + " is not written");
+  }
+  return SnapshotAccess::Encode(server, node, version);
 }
 
 Status SnapshotCodec::Decode(const uint8_t* data, size_t size, MappingServer* server,
@@ -243,7 +259,8 @@ Status SnapshotCodec::Decode(const uint8_t* data, size_t size, MappingServer* se
 }
 
 Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
-                                                    const SnapshotNodeState& node) {
+                                                    const SnapshotNodeState& node,
+                                                    uint32_t version) {
   if (!s.CanSnapshot()) {
     return Status::Error(ErrorCode::kInvalidArgument,
                          "snapshots need the server's own sources (direct encounters, loop "
@@ -251,7 +268,7 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   }
   Writer w;
   w.bytes().assign(kMagic, kMagic + sizeof(kMagic));
-  w.Raw<uint32_t>(kSnapshotVersion);
+  w.Raw<uint32_t>(version);
   w.Raw<uint64_t>(0);  // payload size, filled in below
   // The node.
   Put(&w, node.position);
@@ -275,20 +292,23 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   }
   // Delivery: the receipt table, the keyframes it holds the scans of, the relayed
   // encounters' windows and gap clocks, the resend rate limit.
-  SnapshotAccess::PutTable(&w, s.receipt_);
+  SnapshotAccess::PutTable(&w, s.receipt_, version);
   w.Size(s.arrived_.size());
-  for (const auto& [key, keyframe] : s.arrived_) Put(&w, keyframe);  // the key follows from it
+  for (const auto& [key, keyframe] : s.arrived_) {
+    Put(&w, keyframe, version);  // the key follows from it
+  }
   w.Size(s.encounter_seqs_.size());
   for (const auto& [name, window] : s.encounter_seqs_) {
     Put(&w, name);
     w.I32(window.next_);
     PutAll(&w, window.above_);
+    if (version >= kRelayCountsVersion) w.I32(window.expected_);
   }
   PutAll(&w, s.encounter_gap_since_);
   PutAll(&w, s.resend_.last_request_utime_);
   // The order stage, the graph's table, the links.
-  SnapshotAccess::PutOrder(&w, s.order_);
-  SnapshotAccess::PutTable(&w, s.table_);
+  SnapshotAccess::PutOrder(&w, s.order_, version);
+  SnapshotAccess::PutTable(&w, s.table_, version);
   w.Size(s.links_.size());
   for (const EncounterLink& l : s.links_) {
     w.String(l.robot_a);
@@ -377,11 +397,12 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   for (int i = 0; i < static_cast<int>(ErrorCode::kNumCodes); ++i) {
     s->rejects_.Restore(static_cast<ErrorCode>(i), r.I64());
   }
-  SnapshotAccess::GetTable(&r, &s->receipt_);
+  const uint32_t version = payload->version;
+  SnapshotAccess::GetTable(&r, &s->receipt_, version);
   s->arrived_.clear();
   for (size_t i = 0, n = r.Count(); i < n && !r.failed(); ++i) {
     Keyframe k;
-    Get(&r, &k);
+    Get(&r, &k, version);
     const auto key = std::make_tuple(k.robot, k.trajectory_id, k.seq, k.utime);
     s->arrived_.emplace(key, std::move(k));
   }
@@ -392,11 +413,12 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
     SeqWindow& window = s->encounter_seqs_[name];
     window.next_ = r.I32();
     GetSet<int32_t>(&r, &window.above_);
+    window.expected_ = version >= kRelayCountsVersion ? r.I32() : 0;
   }
   GetMap<TrajectoryName, int64_t>(&r, &s->encounter_gap_since_);
   GetMap<TrajectoryName, int64_t>(&r, &s->resend_.last_request_utime_);
-  SnapshotAccess::GetOrder(&r, &s->order_);
-  SnapshotAccess::GetTable(&r, &s->table_);
+  SnapshotAccess::GetOrder(&r, &s->order_, version);
+  SnapshotAccess::GetTable(&r, &s->table_, version);
   s->links_.clear();
   for (size_t i = 0, n = r.Count(); i < n && !r.failed(); ++i) {
     EncounterLink l;
@@ -486,7 +508,7 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   return Status::Ok();
 }
 
-void SnapshotAccess::PutTable(Writer* w, const TrajectoryTable& t) {
+void SnapshotAccess::PutTable(Writer* w, const TrajectoryTable& t, uint32_t version) {
   w->Size(t.records_.size());
   for (const TrajectoryRecord& rec : t.records_) {
     w->String(rec.robot);
@@ -503,8 +525,9 @@ void SnapshotAccess::PutTable(Writer* w, const TrajectoryTable& t) {
     w->I32(p.next_seq);
     w->Bool(p.started);
     w->I64(p.gap_since);
+    if (version >= kRelayCountsVersion) w->I32(p.admitted_encounters_relayed);
     w->Size(p.held.size());
-    for (const auto& [seq, keyframe] : p.held) Put(w, keyframe);  // seq == keyframe.seq
+    for (const auto& [seq, keyframe] : p.held) Put(w, keyframe, version);  // seq == keyframe.seq
   }
   PutAll(w, t.index_);
   w->I64(t.num_keyframes_);
@@ -512,7 +535,7 @@ void SnapshotAccess::PutTable(Writer* w, const TrajectoryTable& t) {
   w->I64(t.num_reused_ids_);
 }
 
-void SnapshotAccess::GetTable(Reader* r, TrajectoryTable* t) {
+void SnapshotAccess::GetTable(Reader* r, TrajectoryTable* t, uint32_t version) {
   t->records_.clear();
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
     TrajectoryRecord rec;
@@ -532,9 +555,10 @@ void SnapshotAccess::GetTable(Reader* r, TrajectoryTable* t) {
     p.next_seq = r->I32();
     p.started = r->Bool();
     p.gap_since = r->I64();
+    p.admitted_encounters_relayed = version >= kRelayCountsVersion ? r->I32() : 0;
     for (size_t j = 0, m = r->Count(); j < m && !r->failed(); ++j) {
       Keyframe k;
-      Get(r, &k);
+      Get(r, &k, version);
       const int32_t seq = k.seq;
       p.held.emplace(seq, std::move(k));
     }
@@ -572,24 +596,24 @@ OrderKey GetKey(Reader* r) {
 }
 
 template <typename Entry>
-void PutEntry(Writer* w, const Entry& e) {
+void PutEntry(Writer* w, const Entry& e, uint32_t version) {
   PutKey(w, e.key);
   w->I64(e.arrival_clock);
   w->Bool(e.input.is_keyframe);
   if (e.input.is_keyframe) {
-    Put(w, e.input.keyframe);
+    Put(w, e.input.keyframe, version);
   } else {
     Put(w, e.input.encounter);
   }
 }
 template <typename Entry>
-Entry GetEntry(Reader* r) {
+Entry GetEntry(Reader* r, uint32_t version) {
   Entry e;
   e.key = GetKey(r);
   e.arrival_clock = r->I64();
   e.input.is_keyframe = r->Bool();
   if (e.input.is_keyframe) {
-    Get(r, &e.input.keyframe);
+    Get(r, &e.input.keyframe, version);
   } else {
     Get(r, &e.input.encounter);
   }
@@ -598,20 +622,20 @@ Entry GetEntry(Reader* r) {
 
 }  // namespace
 
-void SnapshotAccess::PutOrder(Writer* w, const CanonicalInputOrder& o) {
+void SnapshotAccess::PutOrder(Writer* w, const CanonicalInputOrder& o, uint32_t version) {
   static_assert(std::is_same<CanonicalInputOrder::Key, OrderKey>::value, "the order key changed");
   w->Size(o.streams_.size());
   for (const auto& [id, stream] : o.streams_) {
     w->I64(id.value());
     w->Size(stream.queue.size());
-    for (const auto& entry : stream.queue) PutEntry(w, entry);
+    for (const auto& entry : stream.queue) PutEntry(w, entry, version);
     w->Bool(stream.started);
     w->I64(stream.watermark);
     w->I64(stream.last_heard);
     w->Bool(stream.silent);
   }
   w->Size(o.encounters_.size());
-  for (const auto& [key, entry] : o.encounters_) PutEntry(w, entry);  // key == entry.key
+  for (const auto& [key, entry] : o.encounters_) PutEntry(w, entry, version);  // key == entry.key
   w->Size(o.encounter_streams_.size());
   for (const auto& [name, stream] : o.encounter_streams_) {
     w->String(name.first);
@@ -620,6 +644,7 @@ void SnapshotAccess::PutOrder(Writer* w, const CanonicalInputOrder& o) {
     w->I64(stream.last_utime);
     PutAll(w, stream.above);
     w->I64(stream.gap_since);
+    if (version >= kRelayCountsVersion) w->I32(stream.expected);
   }
   w->I64(o.arrivals_);
   w->Bool(o.last_released_.has_value());
@@ -629,13 +654,13 @@ void SnapshotAccess::PutOrder(Writer* w, const CanonicalInputOrder& o) {
   }
 }
 
-void SnapshotAccess::GetOrder(Reader* r, CanonicalInputOrder* o) {
+void SnapshotAccess::GetOrder(Reader* r, CanonicalInputOrder* o, uint32_t version) {
   using Entry = CanonicalInputOrder::Entry;
   o->streams_.clear();
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
     CanonicalInputOrder::Stream& stream = o->streams_[TrajectoryId(r->I64())];
     for (size_t j = 0, m = r->Count(); j < m && !r->failed(); ++j) {
-      stream.queue.push_back(GetEntry<Entry>(r));
+      stream.queue.push_back(GetEntry<Entry>(r, version));
     }
     stream.started = r->Bool();
     stream.watermark = r->I64();
@@ -644,7 +669,7 @@ void SnapshotAccess::GetOrder(Reader* r, CanonicalInputOrder* o) {
   }
   o->encounters_.clear();
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
-    Entry entry = GetEntry<Entry>(r);
+    Entry entry = GetEntry<Entry>(r, version);
     const OrderKey key = entry.key;
     o->encounters_.emplace(key, std::move(entry));
   }
@@ -658,6 +683,7 @@ void SnapshotAccess::GetOrder(Reader* r, CanonicalInputOrder* o) {
     stream.last_utime = r->I64();
     GetMap<int32_t, int64_t>(r, &stream.above);
     stream.gap_since = r->I64();
+    stream.expected = version >= kRelayCountsVersion ? r->I32() : 0;
   }
   o->arrivals_ = r->I64();
   o->last_released_.reset();

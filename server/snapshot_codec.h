@@ -47,8 +47,11 @@
 namespace anchormap {
 
 // Version 2 adds the smoother's incremental state, the match pool's numbering and the
-// scan-matching sources' state; version 1 snapshots (direct encounters only) are still read.
-inline constexpr uint32_t kSnapshotVersion = 2;
+// scan-matching sources' state; version 3 the keyframes' counts of relayed encounters and
+// the per-trajectory counts they revealed (the delivery windows, the order stage's
+// encounter streams, the last admitted keyframe's count). Versions 1 and 2 are still read
+// (every count 0: nothing revealed, as the keyframes of that time carried none).
+inline constexpr uint32_t kSnapshotVersion = 3;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had
@@ -71,12 +74,17 @@ class SnapshotCodec {
   // kInvalidArgument when !server.CanSnapshot().
   static Result<std::vector<uint8_t>> Encode(const MappingServer& server,
                                              const SnapshotNodeState& node);
+  // The same state in an older format (2 .. kSnapshotVersion), for the tests that it is
+  // still read; what that format cannot hold is left out.
+  static Result<std::vector<uint8_t>> EncodeVersion(const MappingServer& server,
+                                                    const SnapshotNodeState& node,
+                                                    uint32_t version);
   // Checks the envelope (magic, version, size, checksum) and reads the journal position.
   static Result<JournalPosition> ReadPosition(const uint8_t* data, size_t size);
   // Restores into `server`, freshly constructed with the options of the server that wrote
   // the snapshot (options are not stored; sources are checked) and given no input. Version
-  // 2: the server is as the snapshot's was (solved); the caller replays the journal's tail.
-  // Version 1: the server is left deferring its updates (MappingServer::
+  // 2 and later: the server is as the snapshot's was (solved); the caller replays the journal's
+  // tail. Version 1: the server is left deferring its updates (MappingServer::
   // BeginDeferredUpdates) with its graph not yet solved: the caller replays the journal's
   // tail, then EndDeferredUpdates() solves once by a batch step. On an error `server` is
   // unusable (the caller discards it).

@@ -30,7 +30,8 @@ struct Delivery {
 // 5 % duplicated; a timer tick every 0.1 s. The server then holds inputs in every stage
 // (gaps in the delivery table, the canonical order's settle time, encounters waiting for
 // their keyframes) at most moments.
-std::vector<Delivery> LossyMission(double duration_s, uint32_t seed) {
+// With `relay_counts`, each keyframe carries its robot's count of relayed encounters.
+std::vector<Delivery> LossyMission(double duration_s, uint32_t seed, bool relay_counts = false) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -55,6 +56,7 @@ std::vector<Delivery> LossyMission(double duration_s, uint32_t seed) {
       k.robot = names[r];
       k.trajectory_id = 77 + r;
       k.seq = s;
+      if (relay_counts) k.encounters_relayed = encounter_seq[r];
       k.utime = utime;
       if (s > 0) {
         const Pose2 delta(0.5, 0.0, 0.1 * normal(rng));
@@ -133,7 +135,10 @@ MappingServerOptions Options() {
 // The version-1 bytes of the same state: version 1 is version 2 without its last sections
 // (the smoother's state, the pool's numbering, no scan source here), under its own
 // envelope (magic, version, payload size, payload, FNV-1a 64).
-std::vector<uint8_t> AsVersion1(const std::vector<uint8_t>& v2, const MappingServer& server) {
+std::vector<uint8_t> AsVersion1(const MappingServer& server, const SnapshotNodeState& node) {
+  const Result<std::vector<uint8_t>> encoded = SnapshotCodec::EncodeVersion(server, node, 2);
+  EXPECT_TRUE(encoded.ok());
+  const std::vector<uint8_t>& v2 = *encoded;
   ByteWriter tail;
   PutSmootherState(&tail, server.smoother().ExportState());
   const size_t tail_size = tail.bytes().size() + 8 + 8;  // + next ordinal, sources (0)
@@ -238,7 +243,7 @@ TEST_F(SnapshotCodecTest, RestoredServerEndsWithTheUninterruptedMap) {
     EXPECT_TRUE(restored.CanSnapshot());
     // Version 1: left deferring, unsolved: one batch step solves it (after a journal's
     // tail, online).
-    const std::vector<uint8_t> v1 = AsVersion1(*bytes, first);
+    const std::vector<uint8_t> v1 = AsVersion1(first, node);
     MappingServer from_v1(Options());
     SnapshotNodeState read_v1;
     const Status decoded_v1 = SnapshotCodec::Decode(v1.data(), v1.size(), &from_v1, &read_v1);
@@ -278,6 +283,45 @@ TEST_F(SnapshotCodecTest, RestoredServerEndsWithTheUninterruptedMap) {
               0.0);
     EXPECT_LT(testing::LargestPoseDifference(live.BuildMergedMap(), from_v1.BuildMergedMap()),
               1e-9);
+  }
+}
+
+// Version 3 holds the keyframes' counts of relayed encounters and what they revealed (the
+// delivery windows, the order stage's encounter streams, the last admitted count): with
+// every keyframe carrying its count, a server restored at a random moment of the lossy
+// mission (lost encounters revealed by the next keyframe and held for) ends with the
+// uninterrupted server's bytes. Version 2 bytes of the same state leave the counts out.
+TEST_F(SnapshotCodecTest, RelayCountsAndWhatTheyRevealedAreHeld) {
+  const std::vector<Delivery> mission = LossyMission(40.0, 11, /*relay_counts=*/true);
+  MappingServer live(Options());
+  for (const Delivery& d : mission) Apply(&live, d);
+  live.Flush();
+  EXPECT_EQ(live.order_stats().late, 0);
+  EXPECT_EQ(live.rejects().count(ErrorCode::kBadSequence), 0);
+  const Result<std::vector<uint8_t>> live_bytes = SnapshotCodec::Encode(live, {});
+  ASSERT_TRUE(live_bytes.ok());
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 4; ++trial) {
+    const size_t cut = 1 + rng() % (mission.size() - 1);
+    SCOPED_TRACE("snapshot after delivery " + std::to_string(cut));
+    MappingServer first(Options());
+    for (size_t i = 0; i < cut; ++i) Apply(&first, mission[i]);
+    const Result<std::vector<uint8_t>> bytes = SnapshotCodec::Encode(first, {});
+    const Result<std::vector<uint8_t>> v2 = SnapshotCodec::EncodeVersion(first, {}, 2);
+    ASSERT_TRUE(bytes.ok() && v2.ok());
+    EXPECT_GT(bytes->size(), v2->size());  // the counts
+    MappingServer restored(Options());
+    SnapshotNodeState read;
+    ASSERT_TRUE(SnapshotCodec::Decode(bytes->data(), bytes->size(), &restored, &read).ok());
+    const Result<std::vector<uint8_t>> again = SnapshotCodec::Encode(restored, read);
+    ASSERT_TRUE(again.ok());
+    EXPECT_TRUE(*again == *bytes);
+    for (size_t i = cut; i < mission.size(); ++i) Apply(&restored, mission[i]);
+    restored.Flush();
+    ExpectSameState(live, restored);
+    const Result<std::vector<uint8_t>> end = SnapshotCodec::Encode(restored, {});
+    ASSERT_TRUE(end.ok());
+    EXPECT_TRUE(*end == *live_bytes);
   }
 }
 
@@ -506,7 +550,7 @@ TEST_F(SnapshotRefusalTest, ASnapshotOfOtherSourcesIsRefused) {
   EXPECT_NE(decoded.message().find("another set of sources"), std::string::npos);
   // A version-1 snapshot held no scan-matching source.
   MappingServer direct(Options());
-  const std::vector<uint8_t> v1 = AsVersion1(bytes_, server_at_snapshot_);
+  const std::vector<uint8_t> v1 = AsVersion1(server_at_snapshot_, SnapshotNodeState{});
   MappingServer other(options);
   const Status old = SnapshotCodec::Decode(v1.data(), v1.size(), &other, &node);
   EXPECT_EQ(old.code(), ErrorCode::kInvalidArgument);

@@ -74,6 +74,20 @@ Status TrajectoryTable::Offer(Keyframe keyframe, int64_t now_utime,
   if (pending.started && keyframe.seq < pending.next_seq) {
     return Status::Error(ErrorCode::kLateSequence, name() + " came after its gap was bridged");
   }
+  // The count of relayed encounters never decreases along a trajectory (the agent's relay
+  // sequence only grows): compared with the nearest keyframes known before and after this
+  // one (those are consistent with each other already).
+  const auto later = pending.held.upper_bound(keyframe.seq);
+  const int32_t at_least = later != pending.held.begin()
+                               ? std::prev(later)->second.encounters_relayed
+                               : (pending.started ? pending.admitted_encounters_relayed : 0);
+  if (keyframe.encounters_relayed < at_least ||
+      (later != pending.held.end() &&
+       keyframe.encounters_relayed > later->second.encounters_relayed)) {
+    return Status::Error(ErrorCode::kBadSequence, name() + ": encounters_relayed " +
+                                                      std::to_string(keyframe.encounters_relayed) +
+                                                      " goes backwards along the trajectory");
+  }
   const int32_t seq = keyframe.seq;
   pending.held.emplace(seq, std::move(keyframe));
   Drain(record_index, &pending, /*force=*/false, now_utime, out);
@@ -165,6 +179,7 @@ void TrajectoryTable::Admit(TrajectoryRecord* record, Pending* pending, Keyframe
   record->odometry_poses.push_back(keyframe.T_local_pose);
   record->scans.push_back(std::move(keyframe.scan));
   pending->next_seq = keyframe.seq + 1;
+  pending->admitted_encounters_relayed = keyframe.encounters_relayed;
   pending->started = true;
   ++num_keyframes_;
   out->push_back(admitted);

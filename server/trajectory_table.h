@@ -16,7 +16,9 @@
 // resort, the gap is bridged, the odometry poses of the two keyframes around it giving the
 // measurement and the waiting keyframe's delta covariance scaled by the number of missing
 // steps giving its noise. A trajectory first seen at seq > 0 (a server started late)
-// starts at its lowest seq when the same limits run out.
+// starts at its lowest seq when the same limits run out. A keyframe whose count of relayed
+// encounters (Keyframe::encounters_relayed) is below an earlier keyframe's or above a later
+// one's is refused (kBadSequence): the count never decreases along a trajectory.
 
 #include <cstdint>
 #include <deque>
@@ -132,6 +134,8 @@ class TrajectoryTable {
   struct Pending {
     int32_t next_seq = 0;
     bool started = false;  // at least one keyframe admitted
+    // The last admitted keyframe's count of relayed encounters: a later one may not be lower.
+    int32_t admitted_encounters_relayed = 0;
     std::map<int32_t, Keyframe> held;
     int64_t gap_since = -1;  // clock when the current gap opened; -1: no gap
   };

@@ -61,6 +61,35 @@ TEST(TrajectoryTableTest, ReusedSequenceNumbersAreRefused) {
   EXPECT_TRUE(table.Offer(MakeKeyframe("R1", 2, 0), &out).ok());
 }
 
+// The count of relayed encounters never decreases along a trajectory: a keyframe whose
+// count is below an earlier keyframe's (admitted or waiting) or above a later waiting one's
+// is refused, and the keyframe with that seq may still come with a sound count.
+TEST(TrajectoryTableTest, ARelayCountThatGoesBackwardsIsRefused) {
+  TrajectoryTable table;
+  std::vector<AdmittedKeyframe> out;
+  auto with_count = [](int32_t seq, int32_t relayed) {
+    Keyframe k = MakeKeyframe("R1", 1, seq);
+    k.encounters_relayed = relayed;
+    return k;
+  };
+  ASSERT_TRUE(table.Offer(with_count(0, 0), &out).ok());
+  ASSERT_TRUE(table.Offer(with_count(1, 2), &out).ok());
+  EXPECT_EQ(table.Offer(with_count(2, 1), &out).code(), ErrorCode::kBadSequence);  // < admitted
+  ASSERT_TRUE(table.Offer(with_count(4, 5), &out).ok());                           // waits for 2, 3
+  EXPECT_EQ(table.Offer(with_count(3, 6), &out).code(), ErrorCode::kBadSequence);  // > later one
+  EXPECT_EQ(table.Offer(with_count(5, 4), &out).code(), ErrorCode::kBadSequence);  // < earlier one
+  EXPECT_EQ(table.Offer(with_count(2, 1), &out).code(), ErrorCode::kBadSequence);
+  ASSERT_TRUE(table.Offer(with_count(3, 5), &out).ok());
+  ASSERT_TRUE(table.Offer(with_count(2, 2), &out).ok());
+  EXPECT_EQ(out.size(), 5u);
+  EXPECT_EQ(table.num_held(), 0u);
+  EXPECT_EQ(table.Offer(with_count(5, 4), &out).code(), ErrorCode::kBadSequence);
+  ASSERT_TRUE(table.Offer(with_count(5, 5), &out).ok());
+  // Another session counts from 0 again.
+  Keyframe other = MakeKeyframe("R1", 2, 0);
+  EXPECT_TRUE(table.Offer(other, &out).ok());
+}
+
 TEST(TrajectoryTableTest, ReorderedKeyframesWaitForTheMissingOne) {
   TrajectoryTable table;
   std::vector<AdmittedKeyframe> out;

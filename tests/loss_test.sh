@@ -82,6 +82,7 @@ main() {
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"
   done
   [ $status -eq 0 ] || { log "daemons failed (status $status)"; tail -20 "$work/server.log"; exit 1; }
+  log "late inputs: $(grep -h 'final:' "$work/server.log" | tail -1 | sed -n 's/.* late \([0-9]*\) .*/\1/p')"
 
   # shellcheck disable=SC2086
   "$BIN/anchormap-server" --log "$work/agents.lcmlog" --output "$work/reference.lcmlog" $SOURCES \

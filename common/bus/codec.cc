@@ -7,6 +7,7 @@
 #include "anchormap/encounter_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/keyframe_t.hpp"
+#include "anchormap/keyframe_v1_t.hpp"
 #include "anchormap/merged_map_t.hpp"
 #include "anchormap/server_status_t.hpp"
 #include "bot_core/planar_lidar_t.hpp"
@@ -90,11 +91,24 @@ std::vector<uint8_t> EncodeLaser(const LaserScan& scan) {
   return Encode(message);
 }
 
-Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
-  anchormap::keyframe_t m;
-  if (Status p = SafeDecode(data, size, CheckKeyframeWire, &m); !p.ok()) return p;
+namespace {
+
+// True when the message starts with the fingerprint of T (an lcm-gen type).
+template <typename T>
+bool HasFingerprint(const void* data, size_t size) {
+  WireCursor cursor(data, size);
+  uint64_t hash = 0;
+  return cursor.ReadUint64(&hash) && hash == static_cast<uint64_t>(T::getHash());
+}
+
+// keyframe_t and keyframe_v1_t (before encounters_relayed) share every other field.
+template <typename Message>
+Result<Keyframe> ValidKeyframe(Message& m, int32_t encounters_relayed) {
   if (Status p = CheckName(m.robot, "robot"); !p.ok()) return p;
   if (m.seq < 0) return Status::Error(ErrorCode::kBadSequence, "negative seq");
+  if (encounters_relayed < 0) {
+    return Status::Error(ErrorCode::kBadSequence, "negative encounters_relayed");
+  }
   if (Status p = CheckUtime(m.utime); !p.ok()) return p;
   if (!AllFinite(m.pose, 3) || !AllFinite(m.T_previous_this, 3) ||
       !AllFinite(m.T_previous_this_covariance, 9) || !AllFinite(m.sensor_offset, 3) ||
@@ -114,6 +128,7 @@ Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   k.robot = m.robot;
   k.trajectory_id = m.trajectory_id;
   k.seq = m.seq;
+  k.encounters_relayed = encounters_relayed;
   k.utime = m.utime;
   k.T_local_pose = PoseFromArray(m.pose);
   k.T_previous_this = PoseFromArray(m.T_previous_this);
@@ -127,12 +142,27 @@ Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
   return Success(std::move(k));
 }
 
+}  // namespace
+
+Result<Keyframe> DecodeKeyframe(const void* data, size_t size) {
+  if (HasFingerprint<anchormap::keyframe_v1_t>(data, size)) {
+    // The layout before encounters_relayed (journals written then): it reveals nothing.
+    anchormap::keyframe_v1_t m;
+    if (Status p = SafeDecode(data, size, CheckKeyframeV1Wire, &m); !p.ok()) return p;
+    return ValidKeyframe(m, 0);
+  }
+  anchormap::keyframe_t m;
+  if (Status p = SafeDecode(data, size, CheckKeyframeWire, &m); !p.ok()) return p;
+  return ValidKeyframe(m, m.encounters_relayed);
+}
+
 std::vector<uint8_t> EncodeKeyframe(const Keyframe& k) {
   anchormap::keyframe_t m;
   m.utime = k.utime;
   m.robot = k.robot;
   m.trajectory_id = k.trajectory_id;
   m.seq = k.seq;
+  m.encounters_relayed = k.encounters_relayed;
   PoseToArray(k.T_local_pose, m.pose);
   PoseToArray(k.T_previous_this, m.T_previous_this);
   MatrixToRowMajor(k.T_previous_this_covariance, m.T_previous_this_covariance);

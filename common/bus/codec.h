@@ -43,7 +43,8 @@ std::vector<uint8_t> EncodeOdometry(const OdometrySample& sample);
 Result<LaserScan> DecodeLaser(const void* data, size_t size);
 std::vector<uint8_t> EncodeLaser(const LaserScan& scan);
 
-// anchormap.keyframe_t
+// anchormap.keyframe_t; also the layout before encounters_relayed (anchormap.keyframe_v1_t,
+// in journals written then), decoded with encounters_relayed = 0 (it reveals nothing).
 Result<Keyframe> DecodeKeyframe(const void* data, size_t size);
 std::vector<uint8_t> EncodeKeyframe(const Keyframe& keyframe);
 

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "anchormap/keyframe_v1_t.hpp"
 #include "common/bus/map_codec.h"
 
 namespace anchormap {
@@ -27,6 +28,7 @@ Keyframe MakeKeyframe() {
   k.robot = "R2";
   k.trajectory_id = 1'700'000'000'000'000;
   k.seq = 7;
+  k.encounters_relayed = 3;
   k.utime = 5'000'000;
   k.T_local_pose = Pose2(1.5, -2.0, 0.3);
   k.T_previous_this = Pose2(0.5, 0.01, 0.02);
@@ -130,6 +132,7 @@ TEST(CodecTest, KeyframeRoundTripsEveryField) {
   EXPECT_EQ(d.robot, "R2");
   EXPECT_EQ(d.trajectory_id, k.trajectory_id);
   EXPECT_EQ(d.seq, 7);
+  EXPECT_EQ(d.encounters_relayed, 3);
   EXPECT_EQ(d.utime, 5'000'000);
   EXPECT_DOUBLE_EQ(d.T_local_pose.y(), -2.0);
   EXPECT_DOUBLE_EQ(d.T_previous_this.theta(), 0.02);
@@ -151,6 +154,13 @@ TEST(CodecTest, KeyframeRejectsEachKindOfBadContent) {
   k.seq = -1;
   bytes = EncodeKeyframe(k);
   EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kBadSequence);
+
+  k = MakeKeyframe();
+  k.encounters_relayed = -1;
+  bytes = EncodeKeyframe(k);
+  const Status negative_count = DecodeKeyframe(bytes.data(), bytes.size()).status();
+  EXPECT_EQ(negative_count.code(), ErrorCode::kBadSequence);
+  EXPECT_NE(negative_count.message().find("encounters_relayed"), std::string::npos);
 
   k = MakeKeyframe();
   k.T_previous_this_covariance(2, 2) = -0.1;
@@ -183,6 +193,48 @@ TEST(CodecTest, KeyframeRejectsEachKindOfBadContent) {
 
   bytes = EncodeKeyframe(MakeKeyframe());
   bytes.push_back(0);  // trailing garbage
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
+}
+
+// Journals written before keyframe_t carried encounters_relayed hold the older layout
+// (anchormap.keyframe_v1_t, the same fingerprint as keyframe_t had): read, with a count of 0
+// (it reveals nothing), and checked like the new one.
+TEST(CodecTest, TheLayoutBeforeTheRelayCountIsStillRead) {
+  anchormap::keyframe_v1_t old;
+  old.utime = 5'000'000;
+  old.robot = "R2";
+  old.trajectory_id = 99;
+  old.seq = 7;
+  const double pose[3] = {1.5, -2.0, 0.3};
+  const double delta[3] = {0.5, 0.01, 0.02};
+  const double covariance[9] = {0.01, 0, 0, 0, 0.02, 0, 0, 0, 0.003};
+  const double offset[3] = {0.2, 0, 0};
+  std::copy(pose, pose + 3, old.pose);
+  std::copy(delta, delta + 3, old.T_previous_this);
+  std::copy(covariance, covariance + 9, old.T_previous_this_covariance);
+  std::copy(offset, offset + 3, old.sensor_offset);
+  old.rad0 = -1.5f;
+  old.radstep = 0.01f;
+  old.max_range = 30.0f;
+  old.nranges = 3;
+  old.ranges = {1.0f, 2.0f, 3.0f};
+  std::vector<uint8_t> bytes(static_cast<size_t>(old.getEncodedSize()));
+  ASSERT_EQ(old.encode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  const Result<Keyframe> decoded = DecodeKeyframe(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().message();
+  EXPECT_EQ(decoded->seq, 7);
+  EXPECT_EQ(decoded->trajectory_id, 99);
+  EXPECT_EQ(decoded->encounters_relayed, 0);
+  EXPECT_DOUBLE_EQ(decoded->T_previous_this.theta(), 0.02);
+  EXPECT_EQ(decoded->scan.ranges, old.ranges);
+  // Re-encoded, it is the new layout (4 bytes more: the count).
+  EXPECT_EQ(EncodeKeyframe(*decoded).size(), bytes.size() + 4);
+  old.seq = -2;
+  ASSERT_EQ(old.encode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kBadSequence);
+  bytes.pop_back();
   EXPECT_EQ(DecodeKeyframe(bytes.data(), bytes.size()).status().code(), ErrorCode::kDecodeFailed);
 }
 

@@ -4,6 +4,7 @@
 #include "anchormap/encounter_t.hpp"
 #include "anchormap/grid_tile_t.hpp"
 #include "anchormap/keyframe_t.hpp"
+#include "anchormap/keyframe_v1_t.hpp"
 #include "anchormap/merged_map_chunk_t.hpp"
 #include "anchormap/merged_map_header_t.hpp"
 #include "anchormap/merged_map_t.hpp"
@@ -114,16 +115,30 @@ Status CheckPoseWire(const void* data, size_t size) {
   return Status::Ok();
 }
 
+namespace {
+// The fields after the fingerprint; `relay_count_bytes` is 4 in keyframe_t (the
+// encounters_relayed after seq), 0 in keyframe_v1_t.
+Status CheckKeyframeFields(WireCursor* c, size_t relay_count_bytes) {
+  WIRE_SKIP(*c, 8, "utime");
+  WIRE_TRY(c->SkipString("robot", CodecLimits::kMaxNameLength));
+  WIRE_SKIP(*c, 8 + 4 + relay_count_bytes + 8 * (3 + 3 + 9 + 3) + 4 * 3, "keyframe fields");
+  int32_t n = 0;
+  WIRE_TRY(c->ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
+  WIRE_SKIP(*c, 4 * static_cast<size_t>(n), "ranges");
+  return Status::Ok();
+}
+}  // namespace
+
 Status CheckKeyframeWire(const void* data, size_t size) {
   WireCursor c(data, size);
   WIRE_TRY(CheckFingerprint<anchormap::keyframe_t>(&c));
-  WIRE_SKIP(c, 8, "utime");
-  WIRE_TRY(c.SkipString("robot", CodecLimits::kMaxNameLength));
-  WIRE_SKIP(c, 8 + 4 + 8 * (3 + 3 + 9 + 3) + 4 * 3, "keyframe fields");
-  int32_t n = 0;
-  WIRE_TRY(c.ReadCount("nranges", CodecLimits::kMaxRanges, 4, &n));
-  WIRE_SKIP(c, 4 * static_cast<size_t>(n), "ranges");
-  return Status::Ok();
+  return CheckKeyframeFields(&c, 4);
+}
+
+Status CheckKeyframeV1Wire(const void* data, size_t size) {
+  WireCursor c(data, size);
+  WIRE_TRY(CheckFingerprint<anchormap::keyframe_v1_t>(&c));
+  return CheckKeyframeFields(&c, 0);
 }
 
 Status CheckEncounterWire(const void* data, size_t size) {

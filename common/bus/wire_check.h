@@ -59,6 +59,8 @@ Status CheckFingerprint(WireCursor* cursor) {
 Status CheckPlanarLidarWire(const void* data, size_t size);
 Status CheckPoseWire(const void* data, size_t size);
 Status CheckKeyframeWire(const void* data, size_t size);
+// anchormap.keyframe_v1_t: keyframe_t before it carried encounters_relayed (old journals).
+Status CheckKeyframeV1Wire(const void* data, size_t size);
 Status CheckEncounterWire(const void* data, size_t size);
 Status CheckMergedMapWire(const void* data, size_t size);
 Status CheckMergedMapHeaderWire(const void* data, size_t size);

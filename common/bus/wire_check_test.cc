@@ -105,9 +105,9 @@ TEST(WireCheckTest, EveryWalkerRefusesEveryOtherFingerprint) {
 }
 
 TEST(WireCheckTest, RefusesOversizeAndNegativeCounts) {
-  // keyframe: fingerprint 8, utime 8, robot (4 + 3), trajectory 8, seq 4, doubles 8 * 18,
-  // floats 4 * 3, then nranges.
-  const size_t nranges = 8 + 8 + 7 + 8 + 4 + 8 * 18 + 12;
+  // keyframe: fingerprint 8, utime 8, robot (4 + 3), trajectory 8, seq 4, encounters_relayed
+  // 4, doubles 8 * 18, floats 4 * 3, then nranges.
+  const size_t nranges = 8 + 8 + 7 + 8 + 4 + 4 + 8 * 18 + 12;
   std::vector<uint8_t> bytes = EncodeKeyframe(MakeKeyframe());
   for (int32_t bad : {CodecLimits::kMaxRanges + 1, -1, INT32_MAX, INT32_MIN}) {
     std::vector<uint8_t> b = bytes;

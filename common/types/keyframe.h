@@ -16,7 +16,11 @@ struct Keyframe {
   std::string robot;          // e.g. "R1"
   int64_t trajectory_id = 0;  // one value per agent session (a restart is a new trajectory)
   int32_t seq = 0;            // 0, 1, 2, ... within the trajectory
-  int64_t utime = 0;          // time of the scan, microseconds
+  // Encounters the trajectory's agent relayed before this keyframe (relay seqs below it): a
+  // keyframe reveals a lost encounter as it reveals a lost keyframe. Never decreases along
+  // a trajectory; 0 reveals nothing (also for keyframes of the older wire layout).
+  int32_t encounters_relayed = 0;
+  int64_t utime = 0;  // time of the scan, microseconds
   // This keyframe's pose in the trajectory's local (odometry) frame.
   Pose2 T_local_pose;
   // This keyframe in the frame of keyframe seq-1 (identity for seq 0), and its covariance

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "anchormap/keyframe_v1_t.hpp"
 #include "common/bus/codec.h"
 #include "common/bus/map_codec.h"
 #include "common/bus/merged_map_assembler.h"
@@ -225,6 +226,68 @@ TEST_F(ServerNodeJournalTest, ReplayingTheJournalRebuildsTheSameGraphsAndEstimat
   LogEvent other;
   other.channel = "SOMEONE_ELSES_CHANNEL";
   EXPECT_FALSE(restarted.Replay(other));
+}
+
+// A keyframe in the layout before keyframe_t carried encounters_relayed (journals written
+// then): the same fields in anchormap.keyframe_v1_t.
+std::vector<uint8_t> AsKeyframeV1(const std::vector<uint8_t>& bytes) {
+  const Result<Keyframe> k = DecodeKeyframe(bytes.data(), bytes.size());
+  EXPECT_TRUE(k.ok());
+  anchormap::keyframe_v1_t m;
+  m.utime = k->utime;
+  m.robot = k->robot;
+  m.trajectory_id = k->trajectory_id;
+  m.seq = k->seq;
+  const Pose2 poses[] = {k->T_local_pose, k->T_previous_this, k->scan.T_body_sensor};
+  double* arrays[] = {m.pose, m.T_previous_this, m.sensor_offset};
+  for (int i = 0; i < 3; ++i) {
+    arrays[i][0] = poses[i].x();
+    arrays[i][1] = poses[i].y();
+    arrays[i][2] = poses[i].theta();
+  }
+  for (int i = 0; i < 9; ++i)
+    m.T_previous_this_covariance[i] = k->T_previous_this_covariance(i / 3, i % 3);
+  m.rad0 = k->scan.rad0;
+  m.radstep = k->scan.radstep;
+  m.max_range = k->scan.max_range;
+  m.nranges = static_cast<int32_t>(k->scan.ranges.size());
+  m.ranges = k->scan.ranges;
+  std::vector<uint8_t> out(static_cast<size_t>(m.getEncodedSize()));
+  EXPECT_EQ(m.encode(out.data(), 0, static_cast<int>(out.size())), static_cast<int>(out.size()));
+  return out;
+}
+
+// A journal written before keyframes carried their count of relayed encounters is still
+// read: its keyframes (the older layout, count 0: nothing revealed) replay into the same
+// graphs, acknowledgements and map as the same session in today's layout.
+TEST_F(ServerNodeJournalTest, AJournalOfTheOlderKeyframeLayoutIsReplayed) {
+  for (int32_t seq = 0; seq < 4; ++seq) {
+    Receive(1.0 + seq, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq)));
+    Receive(1.1 + seq, channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq)));
+  }
+  Encounter e = R1SeesR2();
+  e.seq = 0;
+  Receive(5.0, channels::kEncounters, EncodeEncounter(e));
+  node_.Tick(30'000'000);
+  ASSERT_EQ(node_.server().table().num_keyframes(), 8);
+  std::vector<LogEvent> old_journal = journal_;
+  int converted = 0;
+  for (LogEvent& event : old_journal) {
+    if (event.channel != channels::kKeyframes) continue;
+    event.data = AsKeyframeV1(event.data);
+    ++converted;
+  }
+  ASSERT_EQ(converted, 8);
+  ServerNode restarted(ServerOptions{}, [](const std::string&, const std::vector<uint8_t>&) {});
+  for (const LogEvent& event : old_journal) EXPECT_TRUE(restarted.Replay(event));
+  EXPECT_EQ(restarted.server().rejects().total(), 0);
+  EXPECT_EQ(restarted.server().table().num_keyframes(), 8);
+  EXPECT_EQ(restarted.server().stats().encounters_added, 1);
+  ExpectSameMap(node_.server().BuildMergedMap(), restarted.server().BuildMergedMap());
+  const std::vector<DeliveryAck> acks = restarted.server().BuildAcks();
+  ASSERT_EQ(acks.size(), 2u);
+  EXPECT_EQ(acks[0].keyframes_next, 4);
+  EXPECT_EQ(acks[0].encounters_next, 1);
 }
 
 // A restart from a snapshot taken mid-session plus the journal's tail rebuilds what the

@@ -26,6 +26,7 @@ Keyframe MakeKeyframe(const std::string& robot, int64_t trajectory, int32_t seq)
   k.robot = robot;
   k.trajectory_id = trajectory;
   k.seq = seq;
+  k.encounters_relayed = seq / 2;  // an encounter relayed every other keyframe
   k.utime = kEpoch + 500'000 * seq;
   k.T_local_pose = Pose2(0.5 * seq, 0.1 * seq, 0.05 * seq);
   if (seq > 0) {
