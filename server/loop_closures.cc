@@ -49,6 +49,11 @@ Status LoopClosureOptions::Validate() const {
       !(wide_pair_chi2 > 0)) {
     return Status::Error("loop wide: min score in [0, 1), min overlap >= 0, pair chi2 > 0");
   }
+  if (!(wide_weak_min_overlap >= 0) || !(wide_pair_min_separation_m >= 0) ||
+      !(refine_look_ahead_m >= 0)) {
+    return Status::Error(
+        "loop wide: weak min overlap >= 0, pair min separation >= 0, refine look-ahead >= 0");
+  }
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
   return match.Validate();
@@ -116,7 +121,10 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
       continue;
     }
     const double min_score = pending.wide ? options_.wide_min_score : options_.min_score;
-    const double min_overlap = pending.wide ? options_.wide_min_overlap : options_.min_overlap;
+    // A wide match below wide_min_overlap may still be a weak hypothesis.
+    const double min_overlap =
+        pending.wide ? std::min(options_.wide_min_overlap, options_.wide_weak_min_overlap)
+                     : options_.min_overlap;
     if (match->score < min_score || match->overlap < min_overlap) {
       ++stats_.weak_match;
       continue;
@@ -134,7 +142,8 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
       continue;
     }
     if (pending.wide) {
-      if (const std::optional<Hypothesis> closure = RefineWide(pending, *match, graph)) {
+      if (std::optional<Hypothesis> closure = RefineWide(pending, *match, graph)) {
+        closure->weak = match->overlap < options_.wide_min_overlap;
         OfferWide(*closure, graph, out);
       }
       continue;
@@ -181,15 +190,17 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
     ++stats_.no_match;
     return std::nullopt;
   }
-  // The submap keyframe nearest to the query, far enough back to be a loop.
-  const Eigen::Vector2d at = coarse.pose.translation();
+  // The submap keyframe that looks nearest to where the query looks (the points
+  // refine_look_ahead_m in front of each), far enough back to be a loop.
+  const Pose2 ahead(options_.refine_look_ahead_m, 0.0, 0.0);
+  const Eigen::Vector2d looked_at = Compose(coarse.pose, ahead).translation();
+  auto apart = [&](const Pose2& pose) {
+    return (Compose(pose, ahead).translation() - looked_at).norm();
+  };
   const std::pair<int32_t, Pose2>* nearest = nullptr;
   for (const auto& entry : pending.submap_poses) {
     if (entry.first > pending.key.index - options_.min_index_gap) continue;
-    if (nearest == nullptr ||
-        (entry.second.translation() - at).norm() < (nearest->second.translation() - at).norm()) {
-      nearest = &entry;
-    }
+    if (nearest == nullptr || apart(entry.second) < apart(nearest->second)) nearest = &entry;
   }
   const PoseKey candidate{pending.key.trajectory, nearest ? nearest->first : 0};
   const std::shared_ptr<const ScanReference> scan =
@@ -260,6 +271,12 @@ void LoopClosures::Emit(const Hypothesis& closure, EncounterSourceOutput* out) {
   quiet = std::max(quiet, closure.key.index + 1 + options_.cooldown_keyframes);
 }
 
+bool WidePairMayEnter(bool first_weak, bool second_weak, double separation_m,
+                      const LoopClosureOptions& options) {
+  if (!first_weak && !second_weak) return true;
+  return !(first_weak && second_weak) && separation_m >= options.wide_pair_min_separation_m;
+}
+
 void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
                              EncounterSourceOutput* out) {
   std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
@@ -283,6 +300,10 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
       if (PairwiseInconsistency2(*candidates, it->measured, it->covariance, *keys,
                                  hypothesis.measured,
                                  hypothesis.covariance) > options_.wide_pair_chi2) {
+        continue;
+      }
+      if (!WidePairMayEnter(it->weak, hypothesis.weak, keys->T_a_b.translation().norm(),
+                            options_)) {
         continue;
       }
       const Hypothesis first = *it;

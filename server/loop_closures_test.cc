@@ -231,5 +231,32 @@ TEST(LoopClosuresTest, WideSearchRefusesALookAlikePlaceWhenThePredictionMatchesT
   EXPECT_GT(ambiguous, 0);
 }
 
+// A weak wide match (overlap 0.65-0.8) enters only with a strong second from another place:
+// two queries 0.5 m apart see one spot (an alias that fits one fits the other); 1.73 m apart
+// is the weak pair that closed ACES's first long loop (keyframes 427 and 435). Two weak
+// matches never pair: in the periodic corridor below (seed 3) two weak matches of the copy
+// 8 m away agreed from queries a few metres apart and entered (worst closure 11.04 m).
+TEST(LoopClosuresTest, AWeakWidePairNeedsTwoPlacesAndAStrongMatch) {
+  const LoopClosureOptions options;
+  EXPECT_FALSE(WidePairMayEnter(true, false, 0.5, options));
+  EXPECT_FALSE(WidePairMayEnter(false, true, 0.5, options));
+  EXPECT_TRUE(WidePairMayEnter(true, false, 1.73, options));
+  EXPECT_TRUE(WidePairMayEnter(false, true, 1.0, options));
+  EXPECT_FALSE(WidePairMayEnter(true, true, 0.99, options));
+  EXPECT_FALSE(WidePairMayEnter(true, true, 5.0, options));
+  // Two strong matches pair as before, wherever their queries stand.
+  EXPECT_TRUE(WidePairMayEnter(false, false, 0.1, options));
+}
+
+TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
+  LoopClosureOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.wide_pair_min_separation_m = -1.0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = LoopClosureOptions{};
+  options.refine_look_ahead_m = -0.5;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
 }  // namespace
 }  // namespace anchormap
