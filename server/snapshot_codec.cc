@@ -463,7 +463,7 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
       auto* scan = dynamic_cast<ScanEncounters*>(s->sources_[i].get());
       if (kind == SourceKind::kLoopClosures && loop != nullptr) {
         LoopClosureState state;
-        GetLoopClosureState(&r, &state);
+        GetLoopClosureState(&r, payload->version, &state);
         loop->ImportState(state);
       } else if (kind == SourceKind::kScanEncounters && scan != nullptr) {
         ScanEncounterState state;

@@ -47,8 +47,10 @@
 namespace anchormap {
 
 // Version 2 adds the smoother's incremental state, the match pool's numbering and the
-// scan-matching sources' state; version 1 snapshots (direct encounters only) are still read.
-inline constexpr uint32_t kSnapshotVersion = 2;
+// scan-matching sources' state; version 3 the weak flag of the loop closures' kept wide
+// hypotheses (none was weak before). Version 1 snapshots (direct encounters only) and
+// version 2 are still read.
+inline constexpr uint32_t kSnapshotVersion = 3;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

@@ -152,6 +152,7 @@ void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
       w->Pose(h.measured);
       w->Matrix(h.covariance);
       w->I64(h.key_utime);
+      w->Bool(h.weak);
     }
   }
   PutMap(w, s.last_closure);
@@ -166,7 +167,7 @@ void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
   w->I64(s.ambiguous);
 }
 
-void GetLoopClosureState(ByteReader* r, LoopClosureState* s) {
+void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* s) {
   s->matches.resize(r->Count(8));
   for (LoopClosureState::Match& m : s->matches) {
     m.due_utime = r->I64();
@@ -207,6 +208,7 @@ void GetLoopClosureState(ByteReader* r, LoopClosureState* s) {
       h.measured = r->Pose();
       h.covariance = r->Matrix();
       h.key_utime = r->I64();
+      h.weak = snapshot_version >= 3 && r->Bool();  // before version 3 none was weak
     }
   }
   GetMap(r, &s->last_closure);
