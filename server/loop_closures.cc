@@ -50,9 +50,10 @@ Status LoopClosureOptions::Validate() const {
     return Status::Error("loop wide: min score in [0, 1), min overlap >= 0, pair chi2 > 0");
   }
   if (!(wide_weak_min_overlap >= 0) || !(wide_pair_min_separation_m >= 0) ||
-      !(refine_look_ahead_m >= 0)) {
+      !(refine_look_ahead_m >= 0) || !(wide_weak_partner_max_sigma_m > 0)) {
     return Status::Error(
-        "loop wide: weak min overlap >= 0, pair min separation >= 0, refine look-ahead >= 0");
+        "loop wide: weak min overlap >= 0, pair min separation >= 0, refine look-ahead >= 0, "
+        "weak partner max sigma > 0");
   }
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
@@ -271,10 +272,19 @@ void LoopClosures::Emit(const Hypothesis& closure, EncounterSourceOutput* out) {
   quiet = std::max(quiet, closure.key.index + 1 + options_.cooldown_keyframes);
 }
 
-bool WidePairMayEnter(bool first_weak, bool second_weak, double separation_m,
+double LargestTranslationSigma(const Eigen::Matrix3d& covariance) {
+  const double a = covariance(0, 0), b = covariance(0, 1), c = covariance(1, 1);
+  const double half_gap = 0.5 * (a - c);
+  return std::sqrt(std::max(0.0, 0.5 * (a + c) + std::sqrt(half_gap * half_gap + b * b)));
+}
+
+bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
                       const LoopClosureOptions& options) {
-  if (!first_weak && !second_weak) return true;
-  return !(first_weak && second_weak) && separation_m >= options.wide_pair_min_separation_m;
+  if (!first.weak && !second.weak) return true;
+  if (first.weak && second.weak) return false;
+  const WideEvidence& strong = first.weak ? second : first;
+  return separation_m >= options.wide_pair_min_separation_m &&
+         strong.sigma_m <= options.wide_weak_partner_max_sigma_m;
 }
 
 void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
@@ -302,8 +312,9 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
                                  hypothesis.covariance) > options_.wide_pair_chi2) {
         continue;
       }
-      if (!WidePairMayEnter(it->weak, hypothesis.weak, keys->T_a_b.translation().norm(),
-                            options_)) {
+      if (!WidePairMayEnter({it->weak, LargestTranslationSigma(it->covariance)},
+                            {hypothesis.weak, LargestTranslationSigma(hypothesis.covariance)},
+                            keys->T_a_b.translation().norm(), options_)) {
         continue;
       }
       const Hypothesis first = *it;

@@ -22,7 +22,11 @@
 // robot comes back along the other side of the corridor) is kept too, as a weak hypothesis:
 // it enters only with a strong one (two weak matches of a look-alike 8 m away agreed in the
 // simulated periodic corridor) whose query stands wide_pair_min_separation_m from its own, so
-// that the two are two views of the loop's far end, not one spot matched twice. A wide
+// that the two are two views of the loop's far end, not one spot matched twice, and whose
+// match pins the place in every direction (largest standard deviation at most
+// wide_weak_partner_max_sigma_m): a corridor match, free along the corridor (sigma 0.4-0.5 m),
+// agrees with any slide of the weak one along it (on Intel a weak match 0.25 m off entered
+// so and bent the map). A wide
 // match is refined against the keyframes near where the query looks (refine_look_ahead_m in
 // front of it), not where it stands: with a 180-degree laser the keyframe nearest to the
 // query's position may have passed it facing the other way. A wide window can hold a look-alike of
@@ -104,8 +108,9 @@ struct LoopClosureOptions {
   int wide_pair_max_gap = 60;           // ... and at most (older hypotheses are given up)
   int wide_max_kept = 8;                // hypotheses kept per trajectory
   double wide_weak_min_overlap = 0.65;  // a weak hypothesis from here (see the top)
-  double wide_pair_min_separation_m = 1.0;  // between the queries of a pair with a weak one
-  double refine_look_ahead_m = 2.0;         // the point the refinement's keyframe is chosen by
+  double wide_pair_min_separation_m = 1.0;     // between the queries of a pair with a weak one
+  double refine_look_ahead_m = 2.0;            // the point the refinement's keyframe is chosen by
+  double wide_weak_partner_max_sigma_m = 0.1;  // a weak one's partner pins the place this well
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
   // The candidates' submaps, kept for the next keyframes (which mostly have the same
   // candidates) under a memory budget.
@@ -115,10 +120,19 @@ struct LoopClosureOptions {
   Status Validate() const;
 };
 
+// What a wide hypothesis brings to a pair.
+struct WideEvidence {
+  bool weak = false;
+  double sigma_m = 0.0;  // its match's largest translational standard deviation
+};
+// The largest translational standard deviation of a match's covariance (x, y, theta).
+double LargestTranslationSigma(const Eigen::Matrix3d& covariance);
 // Whether two wide hypotheses that agree through the estimate may enter together, their
 // queries being `separation_m` apart: a weak match needs a strong partner from another place
-// (one spot matched twice is one piece of evidence; two weak matches are not enough).
-bool WidePairMayEnter(bool first_weak, bool second_weak, double separation_m,
+// (one spot matched twice is one piece of evidence; two weak matches are not enough) that
+// pins the place in every direction (a partner free along a corridor vouches for nothing
+// along it).
+bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
                       const LoopClosureOptions& options);
 
 class LoopClosures : public EncounterSource {

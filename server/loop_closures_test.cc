@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include "server/mapping_server.h"
@@ -238,14 +239,37 @@ TEST(LoopClosuresTest, WideSearchRefusesALookAlikePlaceWhenThePredictionMatchesT
 // 8 m away agreed from queries a few metres apart and entered (worst closure 11.04 m).
 TEST(LoopClosuresTest, AWeakWidePairNeedsTwoPlacesAndAStrongMatch) {
   const LoopClosureOptions options;
-  EXPECT_FALSE(WidePairMayEnter(true, false, 0.5, options));
-  EXPECT_FALSE(WidePairMayEnter(false, true, 0.5, options));
-  EXPECT_TRUE(WidePairMayEnter(true, false, 1.73, options));
-  EXPECT_TRUE(WidePairMayEnter(false, true, 1.0, options));
-  EXPECT_FALSE(WidePairMayEnter(true, true, 0.99, options));
-  EXPECT_FALSE(WidePairMayEnter(true, true, 5.0, options));
+  const WideEvidence weak{true, 0.02};
+  const WideEvidence strong{false, 0.02};  // the covariance floor: pinned in every direction
+  EXPECT_FALSE(WidePairMayEnter(weak, strong, 0.5, options));
+  EXPECT_FALSE(WidePairMayEnter(strong, weak, 0.5, options));
+  EXPECT_TRUE(WidePairMayEnter(weak, strong, 1.73, options));
+  EXPECT_TRUE(WidePairMayEnter(strong, weak, 1.0, options));
+  EXPECT_FALSE(WidePairMayEnter(weak, weak, 0.99, options));
+  EXPECT_FALSE(WidePairMayEnter(weak, weak, 5.0, options));
   // Two strong matches pair as before, wherever their queries stand.
-  EXPECT_TRUE(WidePairMayEnter(false, false, 0.1, options));
+  EXPECT_TRUE(WidePairMayEnter(strong, strong, 0.1, options));
+}
+
+// On Intel (two robots, simultaneous) a weak match (keyframe 162 against 11, 0.25 m off the
+// map's other estimates) paired with a strong corridor match (170 against 1: sigma 0.5 m
+// along the corridor, 4.1 m away) that agreed with it only because it is free along the
+// corridor; the pair entered and bent the map (mean relation error 0.0248 -> 0.0275 m).
+TEST(LoopClosuresTest, AWeakMatchsPartnerMustPinThePlaceInEveryDirection) {
+  const LoopClosureOptions options;
+  const WideEvidence weak{true, 0.021};
+  const Eigen::Matrix3d corridor = Eigen::Vector3d(0.25, 0.000508, 4.66e-5).asDiagonal();
+  EXPECT_NEAR(LargestTranslationSigma(corridor), 0.5, 1e-9);
+  EXPECT_FALSE(WidePairMayEnter(weak, {false, LargestTranslationSigma(corridor)}, 4.13, options));
+  // The same corridor turned 30 degrees: the largest sigma does not depend on the axes.
+  Eigen::Matrix3d turned = Eigen::Matrix3d::Identity();
+  turned.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(0.5236).toRotationMatrix();
+  EXPECT_NEAR(LargestTranslationSigma(turned * corridor * turned.transpose()), 0.5, 1e-9);
+  // A partner at the covariance floor (0.02 m) vouches; two strong corridor matches still
+  // pair (their agreement through the estimate is the test, as before).
+  const Eigen::Matrix3d floor = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+  EXPECT_TRUE(WidePairMayEnter(weak, {false, LargestTranslationSigma(floor)}, 4.13, options));
+  EXPECT_TRUE(WidePairMayEnter({false, 0.5}, {false, 0.02}, 4.13, options));
 }
 
 TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
@@ -255,6 +279,9 @@ TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
   EXPECT_FALSE(options.Validate().ok());
   options = LoopClosureOptions{};
   options.refine_look_ahead_m = -0.5;
+  EXPECT_FALSE(options.Validate().ok());
+  options = LoopClosureOptions{};
+  options.wide_weak_partner_max_sigma_m = 0.0;
   EXPECT_FALSE(options.Validate().ok());
 }
 
