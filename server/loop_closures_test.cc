@@ -6,8 +6,8 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "server/mapping_server.h"
 #include "tests/scan_testing/scan_scenarios.h"
