@@ -31,7 +31,7 @@ LoopClosureState LoopClosures::ExportState() const {
   for (const auto& [trajectory, hypotheses] : kept_) {
     std::vector<LoopClosureState::Hypothesis>& out = s.kept[trajectory];
     for (const Hypothesis& h : hypotheses) {
-      out.push_back({h.candidate, h.key, h.measured, h.covariance, h.key_utime});
+      out.push_back({h.candidate, h.key, h.measured, h.covariance, h.key_utime, h.weak});
     }
   }
   s.last_closure = last_closure_;
@@ -67,7 +67,7 @@ void LoopClosures::ImportState(const LoopClosureState& s) {
   for (const auto& [trajectory, hypotheses] : s.kept) {
     std::deque<Hypothesis>& out = kept_[trajectory];
     for (const LoopClosureState::Hypothesis& h : hypotheses) {
-      out.push_back({h.candidate, h.key, h.measured, h.covariance, h.key_utime});
+      out.push_back({h.candidate, h.key, h.measured, h.covariance, h.key_utime, h.weak});
     }
   }
   last_closure_ = s.last_closure;

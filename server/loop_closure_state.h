@@ -34,6 +34,7 @@ struct LoopClosureState {
     Pose2 measured;
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
     int64_t key_utime = 0;
+    bool weak = false;  // enters only with a strong partner (LoopClosureOptions)
   };
   // A match on its way, with its result.
   struct Match {

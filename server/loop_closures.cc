@@ -49,6 +49,12 @@ Status LoopClosureOptions::Validate() const {
       !(wide_pair_chi2 > 0)) {
     return Status::Error("loop wide: min score in [0, 1), min overlap >= 0, pair chi2 > 0");
   }
+  if (!(wide_weak_min_overlap >= 0) || !(wide_pair_min_separation_m >= 0) ||
+      !(refine_look_ahead_m >= 0) || !(wide_weak_partner_max_sigma_m > 0)) {
+    return Status::Error(
+        "loop wide: weak min overlap >= 0, pair min separation >= 0, refine look-ahead >= 0, "
+        "weak partner max sigma > 0");
+  }
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
   return match.Validate();
@@ -116,7 +122,10 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
       continue;
     }
     const double min_score = pending.wide ? options_.wide_min_score : options_.min_score;
-    const double min_overlap = pending.wide ? options_.wide_min_overlap : options_.min_overlap;
+    // A wide match below wide_min_overlap may still be a weak hypothesis.
+    const double min_overlap =
+        pending.wide ? std::min(options_.wide_min_overlap, options_.wide_weak_min_overlap)
+                     : options_.min_overlap;
     if (match->score < min_score || match->overlap < min_overlap) {
       ++stats_.weak_match;
       continue;
@@ -134,7 +143,8 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
       continue;
     }
     if (pending.wide) {
-      if (const std::optional<Hypothesis> closure = RefineWide(pending, *match, graph)) {
+      if (std::optional<Hypothesis> closure = RefineWide(pending, *match, graph)) {
+        closure->weak = match->overlap < options_.wide_min_overlap;
         OfferWide(*closure, graph, out);
       }
       continue;
@@ -181,15 +191,17 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
     ++stats_.no_match;
     return std::nullopt;
   }
-  // The submap keyframe nearest to the query, far enough back to be a loop.
-  const Eigen::Vector2d at = coarse.pose.translation();
+  // The submap keyframe that looks nearest to where the query looks (the points
+  // refine_look_ahead_m in front of each), far enough back to be a loop.
+  const Pose2 ahead(options_.refine_look_ahead_m, 0.0, 0.0);
+  const Eigen::Vector2d looked_at = Compose(coarse.pose, ahead).translation();
+  auto apart = [&](const Pose2& pose) {
+    return (Compose(pose, ahead).translation() - looked_at).norm();
+  };
   const std::pair<int32_t, Pose2>* nearest = nullptr;
   for (const auto& entry : pending.submap_poses) {
     if (entry.first > pending.key.index - options_.min_index_gap) continue;
-    if (nearest == nullptr ||
-        (entry.second.translation() - at).norm() < (nearest->second.translation() - at).norm()) {
-      nearest = &entry;
-    }
+    if (nearest == nullptr || apart(entry.second) < apart(nearest->second)) nearest = &entry;
   }
   const PoseKey candidate{pending.key.trajectory, nearest ? nearest->first : 0};
   const std::shared_ptr<const ScanReference> scan =
@@ -260,6 +272,21 @@ void LoopClosures::Emit(const Hypothesis& closure, EncounterSourceOutput* out) {
   quiet = std::max(quiet, closure.key.index + 1 + options_.cooldown_keyframes);
 }
 
+double LargestTranslationSigma(const Eigen::Matrix3d& covariance) {
+  const double a = covariance(0, 0), b = covariance(0, 1), c = covariance(1, 1);
+  const double half_gap = 0.5 * (a - c);
+  return std::sqrt(std::max(0.0, 0.5 * (a + c) + std::sqrt(half_gap * half_gap + b * b)));
+}
+
+bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
+                      const LoopClosureOptions& options) {
+  if (!first.weak && !second.weak) return true;
+  if (first.weak && second.weak) return false;
+  const WideEvidence& strong = first.weak ? second : first;
+  return separation_m >= options.wide_pair_min_separation_m &&
+         strong.sigma_m <= options.wide_weak_partner_max_sigma_m;
+}
+
 void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
                              EncounterSourceOutput* out) {
   std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
@@ -283,6 +310,11 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
       if (PairwiseInconsistency2(*candidates, it->measured, it->covariance, *keys,
                                  hypothesis.measured,
                                  hypothesis.covariance) > options_.wide_pair_chi2) {
+        continue;
+      }
+      if (!WidePairMayEnter({it->weak, LargestTranslationSigma(it->covariance)},
+                            {hypothesis.weak, LargestTranslationSigma(hypothesis.covariance)},
+                            keys->T_a_b.translation().norm(), options_)) {
         continue;
       }
       const Hypothesis first = *it;

@@ -17,10 +17,22 @@
 // map, so a wide match passes higher bars and is only kept as a hypothesis: it enters the
 // graph with a later wide match of the same trajectory, from a query at least
 // wide_pair_min_gap keyframes on, that agrees with it through the estimate (pairwise
-// consistency, PairwiseInconsistency2). A wide window can hold a look-alike of the place (the
-// simulator's offices repeat every 8 m: a window of 3 sigma of the drift model reached the
-// copy, and two queries agreed on it): the query is also matched in the local window around
-// the prediction (the "rival"), and when that match agrees with the estimate's own
+// consistency, PairwiseInconsistency2). A wide match whose overlap is below wide_min_overlap
+// but at least wide_weak_min_overlap (on ACES the long loops' returns overlap 0.69-0.80: the
+// robot comes back along the other side of the corridor) is kept too, as a weak hypothesis:
+// it enters only with a strong one (two weak matches of a look-alike 8 m away agreed in the
+// simulated periodic corridor) whose query stands wide_pair_min_separation_m from its own, so
+// that the two are two views of the loop's far end, not one spot matched twice, and whose
+// match pins the place in every direction (largest standard deviation at most
+// wide_weak_partner_max_sigma_m): a corridor match, free along the corridor (sigma 0.4-0.5 m),
+// agrees with any slide of the weak one along it (on Intel a weak match 0.25 m off entered
+// so and bent the map). A wide
+// match is refined against the keyframes near where the query looks (refine_look_ahead_m in
+// front of it), not where it stands: with a 180-degree laser the keyframe nearest to the
+// query's position may have passed it facing the other way. A wide window can hold a look-alike of
+// the place (the simulator's offices repeat every 8 m: a window of 3 sigma of the drift model
+// reached the copy, and two queries agreed on it): the query is also matched in the local window
+// around the prediction (the "rival"), and when that match agrees with the estimate's own
 // covariance (without the drift model) at a pose distinct from the wide match's, the estimate
 // is borne out where it is and the wide match is refused (counted in gate and as "ambiguous").
 // Step 2 runs on the MatchPool's workers (or on the caller's thread without a pool); step 3
@@ -91,10 +103,14 @@ struct LoopClosureOptions {
   int wide_every_keyframes = 4;
   double wide_min_score = 0.6;
   double wide_min_overlap = 0.8;
-  double wide_pair_chi2 = 11.34;  // 3 dof, 99 %
-  int wide_pair_min_gap = 4;      // keyframes between the two queries of a pair, at least...
-  int wide_pair_max_gap = 60;     // ... and at most (older hypotheses are given up)
-  int wide_max_kept = 8;          // hypotheses kept per trajectory
+  double wide_pair_chi2 = 11.34;        // 3 dof, 99 %
+  int wide_pair_min_gap = 4;            // keyframes between the two queries of a pair, at least...
+  int wide_pair_max_gap = 60;           // ... and at most (older hypotheses are given up)
+  int wide_max_kept = 8;                // hypotheses kept per trajectory
+  double wide_weak_min_overlap = 0.65;  // a weak hypothesis from here (see the top)
+  double wide_pair_min_separation_m = 1.0;     // between the queries of a pair with a weak one
+  double refine_look_ahead_m = 2.0;            // the point the refinement's keyframe is chosen by
+  double wide_weak_partner_max_sigma_m = 0.1;  // a weak one's partner pins the place this well
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
   // The candidates' submaps, kept for the next keyframes (which mostly have the same
   // candidates) under a memory budget.
@@ -103,6 +119,21 @@ struct LoopClosureOptions {
 
   Status Validate() const;
 };
+
+// What a wide hypothesis brings to a pair.
+struct WideEvidence {
+  bool weak = false;
+  double sigma_m = 0.0;  // its match's largest translational standard deviation
+};
+// The largest translational standard deviation of a match's covariance (x, y, theta).
+double LargestTranslationSigma(const Eigen::Matrix3d& covariance);
+// Whether two wide hypotheses that agree through the estimate may enter together, their
+// queries being `separation_m` apart: a weak match needs a strong partner from another place
+// (one spot matched twice is one piece of evidence; two weak matches are not enough) that
+// pins the place in every direction (a partner free along a corridor vouches for nothing
+// along it).
+bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
+                      const LoopClosureOptions& options);
 
 class LoopClosures : public EncounterSource {
  public:
@@ -161,6 +192,7 @@ class LoopClosures : public EncounterSource {
     Pose2 measured;
     Eigen::Matrix3d covariance;
     int64_t key_utime = 0;
+    bool weak = false;  // overlap below wide_min_overlap: enters only with a separated second
   };
   // Keeps a wide match, or enters it with an earlier one it agrees with.
   void OfferWide(const Hypothesis& hypothesis, const GraphView& graph, EncounterSourceOutput* out);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "server/mapping_server.h"
 #include "tests/scan_testing/scan_scenarios.h"
@@ -229,6 +230,59 @@ TEST(LoopClosuresTest, WideSearchRefusesALookAlikePlaceWhenThePredictionMatchesT
   }
   EXPECT_GT(wide_searches, 0);
   EXPECT_GT(ambiguous, 0);
+}
+
+// A weak wide match (overlap 0.65-0.8) enters only with a strong second from another place:
+// two queries 0.5 m apart see one spot (an alias that fits one fits the other); 1.73 m apart
+// is the weak pair that closed ACES's first long loop (keyframes 427 and 435). Two weak
+// matches never pair: in the periodic corridor below (seed 3) two weak matches of the copy
+// 8 m away agreed from queries a few metres apart and entered (worst closure 11.04 m).
+TEST(LoopClosuresTest, AWeakWidePairNeedsTwoPlacesAndAStrongMatch) {
+  const LoopClosureOptions options;
+  const WideEvidence weak{true, 0.02};
+  const WideEvidence strong{false, 0.02};  // the covariance floor: pinned in every direction
+  EXPECT_FALSE(WidePairMayEnter(weak, strong, 0.5, options));
+  EXPECT_FALSE(WidePairMayEnter(strong, weak, 0.5, options));
+  EXPECT_TRUE(WidePairMayEnter(weak, strong, 1.73, options));
+  EXPECT_TRUE(WidePairMayEnter(strong, weak, 1.0, options));
+  EXPECT_FALSE(WidePairMayEnter(weak, weak, 0.99, options));
+  EXPECT_FALSE(WidePairMayEnter(weak, weak, 5.0, options));
+  // Two strong matches pair as before, wherever their queries stand.
+  EXPECT_TRUE(WidePairMayEnter(strong, strong, 0.1, options));
+}
+
+// On Intel (two robots, simultaneous) a weak match (keyframe 162 against 11, 0.25 m off the
+// map's other estimates) paired with a strong corridor match (170 against 1: sigma 0.5 m
+// along the corridor, 4.1 m away) that agreed with it only because it is free along the
+// corridor; the pair entered and bent the map (mean relation error 0.0248 -> 0.0275 m).
+TEST(LoopClosuresTest, AWeakMatchsPartnerMustPinThePlaceInEveryDirection) {
+  const LoopClosureOptions options;
+  const WideEvidence weak{true, 0.021};
+  const Eigen::Matrix3d corridor = Eigen::Vector3d(0.25, 0.000508, 4.66e-5).asDiagonal();
+  EXPECT_NEAR(LargestTranslationSigma(corridor), 0.5, 1e-9);
+  EXPECT_FALSE(WidePairMayEnter(weak, {false, LargestTranslationSigma(corridor)}, 4.13, options));
+  // The same corridor turned 30 degrees: the largest sigma does not depend on the axes.
+  Eigen::Matrix3d turned = Eigen::Matrix3d::Identity();
+  turned.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(0.5236).toRotationMatrix();
+  EXPECT_NEAR(LargestTranslationSigma(turned * corridor * turned.transpose()), 0.5, 1e-9);
+  // A partner at the covariance floor (0.02 m) vouches; two strong corridor matches still
+  // pair (their agreement through the estimate is the test, as before).
+  const Eigen::Matrix3d floor = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+  EXPECT_TRUE(WidePairMayEnter(weak, {false, LargestTranslationSigma(floor)}, 4.13, options));
+  EXPECT_TRUE(WidePairMayEnter({false, 0.5}, {false, 0.02}, 4.13, options));
+}
+
+TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
+  LoopClosureOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.wide_pair_min_separation_m = -1.0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = LoopClosureOptions{};
+  options.refine_look_ahead_m = -0.5;
+  EXPECT_FALSE(options.Validate().ok());
+  options = LoopClosureOptions{};
+  options.wide_weak_partner_max_sigma_m = 0.0;
+  EXPECT_FALSE(options.Validate().ok());
 }
 
 }  // namespace

@@ -27,6 +27,11 @@ TEST(MatchOptionsFingerprintTest, ChangesWithTheOptionsThatChangeResults) {
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.match.min_score = 0.31; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.reference.num_levels = 4; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_max_window_m = 10.0; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_weak_min_overlap = 0.7; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.refine_look_ahead_m = 1.0; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_pair_min_separation_m = 2.0; }));
+  EXPECT_TRUE(
+      changed([](MappingServerOptions* o) { o->loop.wide_weak_partner_max_sigma_m = 0.2; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.submap_half_width = 4; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.global_budget.burst = 39.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.first_join_hold_s = 29.0; }));

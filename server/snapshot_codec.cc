@@ -341,7 +341,7 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   for (size_t i = 1; i < s.sources_.size(); ++i) {
     if (const auto* loop = dynamic_cast<const LoopClosures*>(s.sources_[i].get())) {
       w.U8(static_cast<uint8_t>(SourceKind::kLoopClosures));
-      PutLoopClosureState(&w, loop->ExportState());
+      PutLoopClosureState(&w, version, loop->ExportState());
     } else {
       const auto& scan = dynamic_cast<const ScanEncounters&>(*s.sources_[i]);
       w.U8(static_cast<uint8_t>(SourceKind::kScanEncounters));
@@ -485,7 +485,7 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
       auto* scan = dynamic_cast<ScanEncounters*>(s->sources_[i].get());
       if (kind == SourceKind::kLoopClosures && loop != nullptr) {
         LoopClosureState state;
-        GetLoopClosureState(&r, &state);
+        GetLoopClosureState(&r, payload->version, &state);
         loop->ImportState(state);
       } else if (kind == SourceKind::kScanEncounters && scan != nullptr) {
         ScanEncounterState state;

@@ -49,8 +49,9 @@ namespace anchormap {
 // Version 2 adds the smoother's incremental state, the match pool's numbering and the
 // scan-matching sources' state; version 3 the keyframes' counts of relayed encounters and
 // the per-trajectory counts they revealed (the delivery windows, the order stage's
-// encounter streams, the last admitted keyframe's count). Versions 1 and 2 are still read
-// (every count 0: nothing revealed, as the keyframes of that time carried none).
+// encounter streams, the last admitted keyframe's count), and the weak flag of the loop
+// closures' kept wide hypotheses. Versions 1 and 2 are still read (every count 0: nothing
+// revealed, as the keyframes of that time carried none; no hypothesis weak, as none was).
 inline constexpr uint32_t kSnapshotVersion = 3;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 

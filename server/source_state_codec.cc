@@ -113,7 +113,7 @@ static_assert(sizeof(CandidateStats) == 8 * 8, "CandidateStats changed: update t
 
 }  // namespace
 
-void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
+void PutLoopClosureState(ByteWriter* w, uint32_t snapshot_version, const LoopClosureState& s) {
   w->Size(s.matches.size());
   for (const LoopClosureState::Match& m : s.matches) {
     w->I64(m.due_utime);
@@ -152,6 +152,7 @@ void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
       w->Pose(h.measured);
       w->Matrix(h.covariance);
       w->I64(h.key_utime);
+      if (snapshot_version >= 3) w->Bool(h.weak);  // before version 3 none was weak
     }
   }
   PutMap(w, s.last_closure);
@@ -166,7 +167,7 @@ void PutLoopClosureState(ByteWriter* w, const LoopClosureState& s) {
   w->I64(s.ambiguous);
 }
 
-void GetLoopClosureState(ByteReader* r, LoopClosureState* s) {
+void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* s) {
   s->matches.resize(r->Count(8));
   for (LoopClosureState::Match& m : s->matches) {
     m.due_utime = r->I64();
@@ -207,6 +208,7 @@ void GetLoopClosureState(ByteReader* r, LoopClosureState* s) {
       h.measured = r->Pose();
       h.covariance = r->Matrix();
       h.key_utime = r->I64();
+      h.weak = snapshot_version >= 3 && r->Bool();  // before version 3 none was weak
     }
   }
   GetMap(r, &s->last_closure);

@@ -1,0 +1,93 @@
+// The scan-matching sources' state codec: a kept wide hypothesis's weak flag is written
+// (a restored server must pair it as the uninterrupted one would), and a version-2
+// snapshot's state, written before the flag existed, is read with none weak.
+
+#include "server/source_state_codec.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "server/snapshot_codec.h"
+
+namespace anchormap {
+namespace {
+
+LoopClosureState StateWithOneKeptHypothesis(bool weak) {
+  LoopClosureState state;
+  state.now_utime = 1'000'000;
+  LoopClosureState::Hypothesis h;
+  h.candidate = PoseKey{TrajectoryId(3), 11};
+  h.key = PoseKey{TrajectoryId(3), 162};
+  h.measured = Pose2(5.1, -0.4, 0.02);
+  h.covariance = Eigen::Vector3d(4e-4, 5e-4, 3e-5).asDiagonal();
+  h.key_utime = 2'000'000;
+  h.weak = weak;
+  state.kept[TrajectoryId(3)].push_back(h);
+  state.wide_searches = 7;
+  return state;
+}
+
+std::vector<uint8_t> Encode(const LoopClosureState& state, uint32_t version = kSnapshotVersion) {
+  ByteWriter w;
+  PutLoopClosureState(&w, version, state);
+  return w.Take();
+}
+
+LoopClosureState Decode(const std::vector<uint8_t>& bytes, uint32_t version, bool* complete) {
+  ByteReader r(bytes.data(), bytes.size());
+  LoopClosureState state;
+  GetLoopClosureState(&r, version, &state);
+  *complete = !r.failed() && r.at_end();
+  return state;
+}
+
+TEST(SourceStateCodecTest, AKeptHypothesisKeepsItsWeakFlag) {
+  for (bool weak : {true, false}) {
+    bool complete = false;
+    const LoopClosureState out =
+        Decode(Encode(StateWithOneKeptHypothesis(weak)), kSnapshotVersion, &complete);
+    EXPECT_TRUE(complete);
+    ASSERT_EQ(out.kept.count(TrajectoryId(3)), 1u);
+    ASSERT_EQ(out.kept.at(TrajectoryId(3)).size(), 1u);
+    const LoopClosureState::Hypothesis& h = out.kept.at(TrajectoryId(3)).front();
+    EXPECT_EQ(h.weak, weak);
+    EXPECT_EQ(h.key.index, 162);
+    EXPECT_EQ(h.measured.x(), 5.1);
+    EXPECT_EQ(h.covariance(1, 1), 5e-4);
+    EXPECT_EQ(out.wide_searches, 7);
+  }
+}
+
+// Version 2 is version 3 without the flag: the one byte where a weak and a strong
+// hypothesis's encodings differ.
+TEST(SourceStateCodecTest, AVersionTwoStateIsReadWithNoneWeak) {
+  const std::vector<uint8_t> weak = Encode(StateWithOneKeptHypothesis(true));
+  const std::vector<uint8_t> strong = Encode(StateWithOneKeptHypothesis(false));
+  ASSERT_EQ(weak.size(), strong.size());
+  std::vector<size_t> differ;
+  for (size_t i = 0; i < weak.size(); ++i) {
+    if (weak[i] != strong[i]) differ.push_back(i);
+  }
+  ASSERT_EQ(differ.size(), 1u);
+  std::vector<uint8_t> version2 = weak;
+  version2.erase(version2.begin() + static_cast<std::ptrdiff_t>(differ.front()));
+  // What the encoder writes for a version-2 snapshot (the compatibility tests' bytes).
+  EXPECT_EQ(Encode(StateWithOneKeptHypothesis(true), 2), version2);
+
+  bool complete = false;
+  const LoopClosureState out = Decode(version2, 2, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(out.kept.at(TrajectoryId(3)).size(), 1u);
+  EXPECT_FALSE(out.kept.at(TrajectoryId(3)).front().weak);
+  EXPECT_EQ(out.kept.at(TrajectoryId(3)).front().key_utime, 2'000'000);
+  EXPECT_EQ(out.wide_searches, 7);
+  // Read as the current version, the same bytes end early.
+  Decode(version2, kSnapshotVersion, &complete);
+  EXPECT_FALSE(complete);
+}
+
+}  // namespace
+}  // namespace anchormap
