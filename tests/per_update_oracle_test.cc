@@ -213,6 +213,17 @@ TEST(PerUpdateOracleTest, ServerModeWithCorrection) {
   RunPerUpdateOracle(options, kServerChi2);
 }
 
+TEST(PerUpdateOracleTest, ServerModeWithConjugateGradientCorrection) {
+  // The correction by conjugate gradients: R only preconditions it, the estimate moves
+  // only by correction steps (old variables keep their estimate when R's solution
+  // changes, partial steps on a stall keep it too). R must stay exact all the same.
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_cg_iterations = 50;
+  options.relinearize_when_correction_stalls = true;
+  RunPerUpdateOracle(options, kServerChi2);
+}
+
 // --- Broken odometry chains -------------------------------------------------------------
 
 // Runs `graph` pose by pose (Update after each) and as one batch; both must end at the

@@ -4,6 +4,7 @@
 //   smoother_update.cc     Update() and its steps: incremental (Givens), partial
 //                          relinearisation, batch; the policy is batch_policy.h
 //   smoother_nonlinear.cc  the iterations of a batch step: Gauss-Newton, dog-leg
+//   smoother_correction.cc the correction of the estimate after an update
 
 #include <algorithm>
 #include <array>
@@ -63,12 +64,19 @@ inline Pose2 Retract(const Pose2& theta, const Eigen::Vector3d& delta) {
   return Pose2(theta.x() + delta.x(), theta.y() + delta.y(), theta.theta() + delta.z());
 }
 
+// x - theta in the coordinates of Retract (the angle difference wrapped).
+inline Eigen::Vector3d Difference(const Pose2& x, const Pose2& theta) {
+  return Eigen::Vector3d(x.x() - theta.x(), x.y() - theta.y(),
+                         std::remainder(x.theta() - theta.theta(), 2.0 * M_PI));
+}
+
 inline double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
 }  // namespace smoother_internal
 
+using smoother_internal::Difference;
 using smoother_internal::Retract;
 using smoother_internal::Seconds;
 
@@ -177,8 +185,8 @@ class Smoother::Impl {
   // tree), locally reordered; factors no longer active leave R on the way. `full_solve`
   // back-substitutes all of R afterwards. All or nothing: false (result->status) leaves
   // the smoother as it was. True without work when nothing drifted and nothing is forced.
-  bool PartialRelinearization(const std::vector<int>& forced, bool full_solve,
-                              UpdateResult* result);
+  bool PartialRelinearization(const std::vector<int>& forced, bool full_solve, UpdateResult* result,
+                              bool keep_estimate = false);
   // Two anchored groups joined (relative formulation, partial_merges): the new
   // measurements by Givens updates, then a partial step over the moved anchors and the
   // one whose gauge prior was dropped. Falls back to a batch step if that fails.
@@ -186,11 +194,26 @@ class Smoother::Impl {
   // correction_tolerance: moves the estimate toward the nonlinear optimum with R as the
   // preconditioner; false if it did not converge in correction_iterations steps.
   bool CorrectEstimate();
+  bool CorrectByFixedPointSteps();
+  bool CorrectByConjugateGradients();
   // The drift check: a partial step (or a batch step) on the variables whose estimate
   // moved more than relinearize_threshold from their linearisation point; false if none.
   bool RelinearizeDrifted(UpdateResult* result);
   // After a correction that stalled: relinearise and correct again, up to three times.
   void RelinearizeUntilCorrected(UpdateResult* result);
+  // correction_cg_iterations: R only preconditions the correction; the estimate moves only
+  // by correction steps (and batch steps), not when R's solution changes (new rows, partial
+  // steps), because a stale R's linear model moves it the wrong way.
+  bool KeepsEstimate() const {
+    return options_.correction_tolerance > 0 && options_.correction_cg_iterations > 0;
+  }
+  // After IncrementalStep's solve: old variables back where they were, new ones placed
+  // relative to them by the factor that determines them.
+  void KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
+                              const std::vector<LinearizedFactor>& jacobians, int first_new,
+                              const std::vector<Eigen::Vector3d>& delta_before);
+  // Sets the correction so that every variable in R is at `estimate` (by variable).
+  void KeepEstimate(const std::vector<Pose2>& estimate);
   bool MergesByPartialStep() const {
     return options_.partial_merges && options_.formulation == Formulation::kRelative;
   }

@@ -71,6 +71,13 @@ struct SmootherOptions {
   // whose correction did not converge within correction_iterations (R too stale to
   // serve as the preconditioner), instead of after every update.
   bool relinearize_when_correction_stalls = false;
+  // With correction_tolerance: each correction step solves the Gauss-Newton system at the
+  // estimate, J^T J h = -g, by conjugate gradients preconditioned with R^T R (a Krylov
+  // method copes with a stale preconditioner where the fixed-point steps stall), to an
+  // inner tolerance of correction_tolerance x chi2. More than correction_cg_iterations
+  // conjugate-gradient iterations in one update count as a stall (the preconditioner is
+  // too stale: relinearize_when_correction_stalls relinearises then). 0 = fixed-point steps.
+  int correction_cg_iterations = 0;
 
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
@@ -111,6 +118,7 @@ struct SmootherOptions {
       return Status::Error("backsubstitution_threshold must be >= 0");
     if (!(correction_tolerance >= 0)) return Status::Error("correction_tolerance must be >= 0");
     if (correction_iterations < 1) return Status::Error("correction_iterations must be >= 1");
+    if (correction_cg_iterations < 0) return Status::Error("correction_cg_iterations must be >= 0");
     if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");
     if (max_batch_iterations < 1) return Status::Error("max_batch_iterations must be >= 1");
     if (!(dogleg_initial_radius > 0)) return Status::Error("dogleg_initial_radius must be > 0");

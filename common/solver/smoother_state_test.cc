@@ -155,9 +155,8 @@ void ExpectSameSmoother(const Smoother& a, const Smoother& b) {
 // linearisation points, estimate and step counters, to the bit (the server's options:
 // partial relinearisation, partial merges, batch steps on fill). States are taken between
 // updates and with measurements pending (added, not yet folded in).
-TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
+void ExpectImportedStatesContinueExactly(const SmootherOptions& options) {
   const std::vector<Edit> edits = Mission();
-  const SmootherOptions options = ServerModeOptions();
   Smoother live(options);
   std::vector<std::pair<size_t, SmootherState>> exported;  // (edits applied, state)
   const size_t n = edits.size();
@@ -172,6 +171,9 @@ TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
   ASSERT_GT(live.stats().partial_merges, 0);  // the groups merged by partial steps
   ASSERT_GT(live.stats().partial_relinearizations, 0);
   ASSERT_GT(live.stats().batch_steps_on_fill, 0);
+  if (options.correction_tolerance > 0) {
+    ASSERT_GT(live.stats().correction_steps, 0);
+  }
 
   int with_pending = 0;
   for (auto& [cut, state] : exported) {
@@ -191,6 +193,20 @@ TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
     ExpectSameSmoother(live, restored);
   }
   EXPECT_GT(with_pending, 0);
+}
+
+TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
+  ExpectImportedStatesContinueExactly(ServerModeOptions());
+}
+
+TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheConjugateGradientCorrection) {
+  // The estimate is then theta + delta + correction with the correction carried across
+  // updates: it must be in the state too.
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_cg_iterations = 50;
+  options.relinearize_when_correction_stalls = true;
+  ExpectImportedStatesContinueExactly(options);
 }
 
 TEST(SmootherStateTest, AStateOfAnotherGraphIsRefusedAndChangesNothing) {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -79,6 +78,9 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
 
   SparseR& R = MutableR();
   const int first_new = R.size();
+  const bool keep_estimate = solve && KeepsEstimate();
+  const std::vector<Eigen::Vector3d> delta_before =
+      keep_estimate ? delta_ : std::vector<Eigen::Vector3d>();
   int appended = 0;
   for (int v : pending_vars_) {
     if (!grounded[v]) continue;
@@ -92,6 +94,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   std::array<Pose2, kMaxFactorKeys> values;
   std::vector<NewRows> new_rows;
   new_rows.reserve(ready.size());
+  std::vector<LinearizedFactor> new_jacobians;  // keep_estimate: for placing new variables
   for (int64_t id : ready) {
     const FactorRecord& f = factors_[id];
     for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
@@ -106,8 +109,9 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
       rows.blocks.emplace_back(position, lin.jacobians[j]);
       rows.rhs += lin.jacobians[j] * OffsetOf(f.vars[j]);
     }
-    if (options_.correction_tolerance > 0) {
-      innovation_ += lin.whitened_error.squaredNorm();
+    if (options_.correction_tolerance > 0) innovation_ += lin.whitened_error.squaredNorm();
+    if (keep_estimate) new_jacobians.push_back(lin);
+    if (options_.correction_tolerance > 0 && !keep_estimate) {
       // A variable this factor determines is placed by R relative to its neighbours'
       // uncorrected estimates: give it their correction, so that its estimate is where
       // this factor puts it relative to their corrected ones.
@@ -135,6 +139,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     result->rows_backsubstituted =
         R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
   }
+  if (keep_estimate) KeepEstimateAfterSolve(ready, new_jacobians, first_new, delta_before);
   if (options_.correction_tolerance > 0) {
     // The new factors at the new estimate: with a zero error at entry R's solution of the
     // old variables is unchanged, so these tell whether the gradient changed (a new
@@ -147,8 +152,42 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   }
 }
 
+void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
+                                            const std::vector<LinearizedFactor>& jacobians,
+                                            int first_new,
+                                            const std::vector<Eigen::Vector3d>& delta_before) {
+  // The old variables stay where they were: what R's new solution moved, the correction
+  // takes back.
+  for (int p = 0; p < first_new; ++p) {
+    correction_[position_to_var_[p]] += delta_before[p] - delta_[p];
+  }
+  // A variable a new factor determines is placed by R relative to its neighbours' R
+  // solution: give it their correction, so that the factor's linear model holds at their
+  // estimates.
+  for (size_t k = 0; k < ready.size(); ++k) {
+    const FactorRecord& f = factors_[ready[k]];
+    const LinearizedFactor& lin = jacobians[k];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const int var = f.vars[j];
+      if (vars_[var].position < first_new || !correction_[var].isZero(0.0)) continue;
+      Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
+      for (int i = 0; i < f.num_vars; ++i) {
+        if (i != j) pushed.noalias() += lin.jacobians[i] * correction_[f.vars[i]];
+      }
+      if (!pushed.isZero(0.0)) correction_[var] = -lin.jacobians[j].partialPivLu().solve(pushed);
+    }
+  }
+}
+
+void Smoother::Impl::KeepEstimate(const std::vector<Pose2>& estimate) {
+  for (int p = 0; p < static_cast<int>(position_to_var_.size()); ++p) {
+    const int var = position_to_var_[p];
+    correction_[var] = Difference(estimate[var], vars_[var].linearization) - delta_[p];
+  }
+}
+
 bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool full_solve,
-                                            UpdateResult* result) {
+                                            UpdateResult* result, bool keep_estimate) {
   const auto start = std::chrono::steady_clock::now();
   const int n = r_->size();
   // 1. The drifted variables S (by position) and their new linearisation points.
@@ -359,6 +398,12 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   }
 
   // 6. Commit (nothing fails from here): linearisation points, factor records, R, positions.
+  std::vector<Pose2> estimate;
+  if (keep_estimate) {
+    estimate.reserve(vars_.size());
+    for (int var = 0; var < static_cast<int>(vars_.size()); ++var)
+      estimate.push_back(EstimateOf(var));
+  }
   const int first_b = p0 + static_cast<int>(kept.size());
   std::vector<int> new_position(n - p0);
   for (size_t k = 0; k < kept.size(); ++k) new_position[kept[k] - p0] = p0 + static_cast<int>(k);
@@ -402,6 +447,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
     result->rows_backsubstituted +=
         MutableR().BackSubstitutePartial(dirty, options_.backsubstitution_threshold, &delta_);
   }
+  if (keep_estimate) KeepEstimate(estimate);
   correction_converged_ = false;
   ++stats_.partial_relinearizations;
   stats_.relinearized_variables += static_cast<int64_t>(drifted_positions.size());
@@ -462,71 +508,6 @@ void Smoother::Impl::PartialMergeStep(UpdateResult* result) {
       break;
     }
   }
-}
-
-bool Smoother::Impl::CorrectEstimate() {
-  // Converged last time and the new factors agree with the estimate: the gradient is
-  // unchanged (new rows only add information), nothing to do.
-  if (correction_converged_ &&
-      innovation_ <= options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
-    ++stats_.correction_skips;
-    return true;
-  }
-  const auto start = std::chrono::steady_clock::now();
-  const int n = r_->size();
-  const SparseR& R = *r_;
-  std::vector<Eigen::Vector3d> g(n), step(n);
-  std::array<Pose2, kMaxFactorKeys> values;
-  double previous_chi2 = std::numeric_limits<double>::infinity();
-  bool converged = false;
-  for (int it = 0;; ++it) {
-    // Gradient of chi2 / 2 at the estimate, over the factors in R.
-    std::fill(g.begin(), g.end(), Eigen::Vector3d::Zero());
-    double chi2 = 0.0;
-    for (size_t id = 0; id < factors_.size(); ++id) {
-      const FactorRecord& f = factors_[id];
-      if (!f.active || !factor_lin_[id].in_r) continue;
-      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
-      const LinearizedFactor lin = Linearize(f.factor, values.data());
-      chi2 += lin.whitened_error.squaredNorm();
-      for (int j = 0; j < f.num_vars; ++j) {
-        g[vars_[f.vars[j]].position].noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
-      }
-    }
-    if (chi2 > previous_chi2) {  // R is too stale to be a preconditioner here: undo
-      for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] += step[p];
-      break;
-    }
-    previous_chi2 = chi2;
-    // y = R^-T g; the predicted decrease of chi2 by the step -(R^T R)^-1 g is |y|^2.
-    double decrease = 0.0;
-    for (int p = 0; p < n; ++p) {
-      const RBlockRow& row = R.row(p);
-      g[p] = row.diagonal.transpose().triangularView<Eigen::Lower>().solve(g[p]);
-      for (const auto& [q, block] : row.right) g[q].noalias() -= block.transpose() * g[p];
-      decrease += g[p].squaredNorm();
-    }
-    last_chi2_ = chi2;
-    if (decrease <= options_.correction_tolerance * std::max(chi2, 1e-12)) {
-      converged = true;
-      break;
-    }
-    if (it == options_.correction_iterations) break;
-    // step = R^-1 y; the estimate moves by -step.
-    for (int p = n - 1; p >= 0; --p) {
-      const RBlockRow& row = R.row(p);
-      Eigen::Vector3d v = g[p];
-      for (const auto& [q, block] : row.right) v.noalias() -= block * step[q];
-      step[p] = row.diagonal.triangularView<Eigen::Upper>().solve(v);
-      correction_[position_to_var_[p]] -= step[p];
-    }
-    ++stats_.correction_steps;
-  }
-  if (!converged) ++stats_.correction_stalls;
-  correction_converged_ = converged;
-  innovation_ = 0.0;
-  stats_.correction_seconds += Seconds(start);
-  return converged;
 }
 
 bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
@@ -721,7 +702,7 @@ bool Smoother::Impl::RelinearizeDrifted(UpdateResult* result) {
     case DriftAction::kNone:
       break;
     case DriftAction::kPartialRelinearization:
-      PartialRelinearization(drifted, /*full_solve=*/false, result);
+      PartialRelinearization(drifted, /*full_solve=*/false, result, KeepsEstimate());
       break;
     case DriftAction::kBatchStep:
       ++stats_.batch_steps_on_drift;

@@ -10,8 +10,9 @@
 #
 # Further tables: broken odometry chains (--break-chain), the server configuration
 # (--relinearize 0.01, partial vs --full-relinearization, --check-every 37), and CPU
-# seconds against Kaess's iSAM 1.7 (../shared/anchors/isam1.sh) in the same run, both
-# modes, medians of REPEAT interleaved runs (city10000 only with CITY=1: minutes per run).
+# seconds against Kaess's iSAM 1.7 (../shared/anchors/isam1.sh) in the same run: iSAM1's
+# mode, the server's, and the server's with the correction by conjugate gradients, medians
+# of REPEAT interleaved runs (city10000 only with CITY=1: minutes per run).
 #
 # "total s" in the first table is the median of REPEAT runs (default 3; this machine kind
 # is noisy); the step times come from the last run, and the other columns are the same
@@ -126,12 +127,14 @@ if [ -x "$ISAM1" ] || [ -f "$ISAM1" ]; then
   echo
   echo "| graph | our mode | ours CPU s | iSAM1 CPU s | ratio | our chi2 at the end |"
   echo "|---|---|---|---|---|---|"
+  # The server's mode with the correction by conjugate gradients (R only preconditions).
+  CG_FLAGS=(--server-mode --correct 1e-4 --relinearize-on-stall --correct-cg 50)
   median() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
   graphs=(M3500)
   [ "${CITY:-0}" = 1 ] && graphs+=(city10000)
   for graph in "${graphs[@]}"; do
     [ -f "$DATA/$graph.g2o" ] || continue
-    iron=() server=() isam=()
+    iron=() server=() cg=() isam=()
     for ((k = 0; k < REPEAT; ++k)); do
       j=$("$BENCH" "$DATA/$graph.g2o" --no-reference --json)
       iron+=("$(field "$j" total_cpu_s)")
@@ -139,12 +142,16 @@ if [ -x "$ISAM1" ] || [ -f "$ISAM1" ]; then
       j=$("$BENCH" "$DATA/$graph.g2o" --server-mode --no-reference --json)
       server+=("$(field "$j" total_cpu_s)")
       server_chi2=$(field "$j" chi2)
+      j=$("$BENCH" "$DATA/$graph.g2o" "${CG_FLAGS[@]}" --no-reference --json)
+      cg+=("$(field "$j" total_cpu_s)")
+      cg_chi2=$(field "$j" chi2)
       isam+=("$(field "$(bash "$ISAM1" "$DATA/$graph.g2o")" total_cpu_s)")
     done
     reference=$(median "${isam[@]}")
-    for mode in isam1 server; do
+    for mode in isam1 server cg; do
       if [ "$mode" = isam1 ]; then ours=$(median "${iron[@]}") chi2=$iron_chi2 label="iSAM1's (default)"
-      else ours=$(median "${server[@]}") chi2=$server_chi2 label="--server-mode"; fi
+      elif [ "$mode" = server ]; then ours=$(median "${server[@]}") chi2=$server_chi2 label="--server-mode"
+      else ours=$(median "${cg[@]}") chi2=$cg_chi2 label="${CG_FLAGS[*]}"; fi
       ratio=$(awk -v a="$ours" -v b="$reference" 'BEGIN { printf "%.2f", a / b }')
       echo "| $graph | $label | $ours | $reference | $ratio | $chi2 |"
     done

@@ -1,0 +1,196 @@
+// The correction of the estimate toward the nonlinear optimum after an update
+// (correction_tolerance; smoother_impl.h): R, linearised at older points, serves as the
+// preconditioner of steps computed from the true gradient at the estimate, either as
+// fixed-point steps h = -(R^T R)^-1 g or by conjugate gradients on J^T J h = -g.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "common/solver/smoother_impl.h"
+
+namespace anchormap {
+namespace {
+
+using Vectors = std::vector<Eigen::Vector3d>;
+
+// v <- R^-T v by block forward substitution; returns |R^-T v|^2.
+double SolveTransposedInPlace(const SparseR& R, Vectors* v) {
+  double norm2 = 0.0;
+  for (int p = 0; p < R.size(); ++p) {
+    const RBlockRow& row = R.row(p);
+    Eigen::Vector3d& x = (*v)[p];
+    x = row.diagonal.transpose().triangularView<Eigen::Lower>().solve(x);
+    for (const auto& [q, block] : row.right) (*v)[q].noalias() -= block.transpose() * x;
+    norm2 += x.squaredNorm();
+  }
+  return norm2;
+}
+
+// v <- R^-1 v by block back-substitution.
+void SolveInPlace(const SparseR& R, Vectors* v) {
+  for (int p = R.size() - 1; p >= 0; --p) {
+    const RBlockRow& row = R.row(p);
+    Eigen::Vector3d x = (*v)[p];
+    for (const auto& [q, block] : row.right) x.noalias() -= block * (*v)[q];
+    (*v)[p] = row.diagonal.triangularView<Eigen::Upper>().solve(x);
+  }
+}
+
+}  // namespace
+
+bool Smoother::Impl::CorrectEstimate() {
+  // Converged last time and the new factors agree with the estimate: the gradient is
+  // unchanged (new rows only add information), nothing to do.
+  if (correction_converged_ &&
+      innovation_ <= options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
+    ++stats_.correction_skips;
+    return true;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const bool converged = options_.correction_cg_iterations > 0 ? CorrectByConjugateGradients()
+                                                               : CorrectByFixedPointSteps();
+  if (!converged) ++stats_.correction_stalls;
+  correction_converged_ = converged;
+  innovation_ = 0.0;
+  stats_.correction_seconds += Seconds(start);
+  return converged;
+}
+
+bool Smoother::Impl::CorrectByFixedPointSteps() {
+  const int n = r_->size();
+  const SparseR& R = *r_;
+  Vectors g(n), step(n);
+  std::array<Pose2, kMaxFactorKeys> values;
+  double previous_chi2 = std::numeric_limits<double>::infinity();
+  for (int it = 0;; ++it) {
+    // Gradient of chi2 / 2 at the estimate, over the factors in R.
+    std::fill(g.begin(), g.end(), Eigen::Vector3d::Zero());
+    double chi2 = 0.0;
+    for (size_t id = 0; id < factors_.size(); ++id) {
+      const FactorRecord& f = factors_[id];
+      if (!f.active || !factor_lin_[id].in_r) continue;
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      const LinearizedFactor lin = Linearize(f.factor, values.data());
+      chi2 += lin.whitened_error.squaredNorm();
+      for (int j = 0; j < f.num_vars; ++j) {
+        g[vars_[f.vars[j]].position].noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
+      }
+    }
+    if (chi2 > previous_chi2) {  // R is too stale to be a preconditioner here: undo
+      for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] += step[p];
+      return false;
+    }
+    previous_chi2 = chi2;
+    // y = R^-T g; the predicted decrease of chi2 by the step -(R^T R)^-1 g is |y|^2.
+    const double decrease = SolveTransposedInPlace(R, &g);
+    last_chi2_ = chi2;
+    if (decrease <= options_.correction_tolerance * std::max(chi2, 1e-12)) return true;
+    if (it == options_.correction_iterations) return false;
+    // step = R^-1 y; the estimate moves by -step.
+    step = g;
+    SolveInPlace(R, &step);
+    for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] -= step[p];
+    ++stats_.correction_steps;
+  }
+}
+
+bool Smoother::Impl::CorrectByConjugateGradients() {
+  const int n = r_->size();
+  const SparseR& R = *r_;
+  const double tolerance = options_.correction_tolerance;
+  // The factors in R, linearised at the estimate: J(x) by blocks, applied factor by
+  // factor (J^T J is never formed).
+  struct Linearized {
+    std::array<int, kMaxFactorKeys> positions;
+    LinearizedFactor lin;
+  };
+  std::vector<Linearized> factors;
+  factors.reserve(factors_.size());
+  Vectors g(n), r(n), z(n), p(n), q(n), h(n);
+  std::array<Pose2, kMaxFactorKeys> values;
+  double previous_chi2 = std::numeric_limits<double>::infinity();
+  int cg_iterations = 0;
+  int halvings = 0;
+  for (int outer = 0;; ++outer) {
+    // Gradient of chi2 / 2 at the estimate, and the Jacobians there.
+    factors.clear();
+    std::fill(g.begin(), g.end(), Eigen::Vector3d::Zero());
+    double chi2 = 0.0;
+    for (size_t id = 0; id < factors_.size(); ++id) {
+      const FactorRecord& f = factors_[id];
+      if (!f.active || !factor_lin_[id].in_r) continue;
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      Linearized& l = factors.emplace_back();
+      l.lin = Linearize(f.factor, values.data());
+      chi2 += l.lin.whitened_error.squaredNorm();
+      for (int j = 0; j < f.num_vars; ++j) {
+        l.positions[j] = vars_[f.vars[j]].position;
+        g[l.positions[j]].noalias() += l.lin.jacobians[j].transpose() * l.lin.whitened_error;
+      }
+    }
+    if (chi2 > previous_chi2) {
+      // The Gauss-Newton step overshot (the model is poor this far): halve it, at most
+      // three times, then give up.
+      const bool halve = halvings++ < 3;
+      for (int k = 0; k < n; ++k) {
+        if (halve) h[k] *= 0.5;
+        correction_[position_to_var_[k]] -= h[k];
+      }
+      if (!halve) return false;
+      continue;
+    }
+    halvings = 0;
+    previous_chi2 = chi2;
+    last_chi2_ = chi2;
+    // Residual of J^T J h = -g at h = 0, and its preconditioned norm: the decrease of chi2
+    // that R^T R predicts for the whole step.
+    for (int k = 0; k < n; ++k) r[k] = -g[k];
+    z = r;
+    double rz = SolveTransposedInPlace(R, &z);
+    const double stop = tolerance * std::max(chi2, 1e-12);
+    if (rz <= stop) return true;
+    if (outer == options_.correction_iterations ||
+        cg_iterations >= options_.correction_cg_iterations) {
+      return false;
+    }
+    SolveInPlace(R, &z);
+    p = z;
+    std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
+    while (cg_iterations < options_.correction_cg_iterations) {
+      // q = J^T J p.
+      std::fill(q.begin(), q.end(), Eigen::Vector3d::Zero());
+      double pq = 0.0;
+      for (const Linearized& l : factors) {
+        Eigen::Vector3d jp = Eigen::Vector3d::Zero();
+        for (int j = 0; j < l.lin.num_keys; ++j)
+          jp.noalias() += l.lin.jacobians[j] * p[l.positions[j]];
+        pq += jp.squaredNorm();
+        for (int j = 0; j < l.lin.num_keys; ++j)
+          q[l.positions[j]].noalias() += l.lin.jacobians[j].transpose() * jp;
+      }
+      ++cg_iterations;
+      ++stats_.correction_steps;
+      if (!(pq > 0)) break;
+      const double alpha = rz / pq;
+      for (int k = 0; k < n; ++k) {
+        h[k] += alpha * p[k];
+        r[k] -= alpha * q[k];
+      }
+      z = r;
+      const double rz_next = SolveTransposedInPlace(R, &z);
+      if (rz_next <= stop) break;
+      SolveInPlace(R, &z);
+      const double beta = rz_next / rz;
+      rz = rz_next;
+      for (int k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];
+    }
+    for (int k = 0; k < n; ++k) correction_[position_to_var_[k]] += h[k];
+  }
+}
+
+}  // namespace anchormap
