@@ -12,7 +12,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 352,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 328,
+static_assert(sizeof(ScanEncounterOptions) == 336,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 104,
               "new SmootherOptions field: add it to the fingerprint");
@@ -107,6 +107,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.pcm_chi2);
   h->I(o.pcm_min_separation);
   h->F(o.pcm_min_separation_m);
+  h->F(o.pcm_max_shared_view);
   h->I(o.max_kept);
   h->F(o.alternative_ratio);
   h->F(o.first_join_max_sigma_m);
@@ -156,7 +157,7 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
 
 uint64_t MatchOptionsFingerprint(const MappingServerOptions& options) {
   Fnv1a h;
-  const char kLayout[] = "anchormap match options 1";  // bumped when the field list changes
+  const char kLayout[] = "anchormap match options 2";  // bumped when the field list changes
   h.Bytes(kLayout, sizeof kLayout);
   h.B(options.loop_closures);
   if (options.loop_closures) Add(&h, options.loop);

@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "common/scan_matching/point_cloud.h"
+#include "server/keyframe_overlap.h"
 #include "server/keyframe_submap.h"
 #include "server/relative_pose.h"
 
@@ -36,6 +37,8 @@ Status ScanEncounterOptions::Validate() const {
   if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
   if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
   if (!(pcm_min_separation_m >= 0)) return Status::Error("scan.pcm_min_separation_m must be >= 0");
+  if (!(pcm_max_shared_view > 0 && pcm_max_shared_view <= 1))
+    return Status::Error("scan.pcm_max_shared_view must be in (0, 1]");
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
   if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
     return Status::Error("scan first-join sigmas must be > 0");
@@ -59,6 +62,10 @@ Status ScanEncounterOptions::Validate() const {
 }
 
 namespace {
+
+// Points of two scans of one trajectory within about this of each other see one wall: the
+// estimate between keyframes some metres apart is good to a few centimetres.
+constexpr double kSharedViewDistanceM = 0.1;
 
 double LargestSigma(const Eigen::Matrix2d& covariance) {
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(covariance);
@@ -462,8 +469,20 @@ bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCand
   const auto distance = [&](PoseKey k1, PoseKey k2) {
     return (smoother.FramePose(k1).translation() - smoother.FramePose(k2).translation()).norm();
   };
-  return distance(c1.a, c2.a) >= options_.pcm_min_separation_m &&
-         distance(c1.b, c2.b) >= options_.pcm_min_separation_m;
+  if (distance(c1.a, c2.a) < options_.pcm_min_separation_m ||
+      distance(c1.b, c2.b) < options_.pcm_min_separation_m) {
+    return false;
+  }
+  // A robot that turns round, or drives on along one corridor, keeps seeing the same walls:
+  // what both trajectories see twice is one piece of evidence, however far apart.
+  const auto shared_view = [&](PoseKey k1, PoseKey k2) {
+    const TrajectoryRecord* record = graph.table.FindBySolverId(k1.trajectory);
+    return record == nullptr ? 0.0
+                             : KeyframeOverlap(*record, smoother, k1.index, k2.index,
+                                               options_.max_range_m, kSharedViewDistanceM);
+  };
+  return shared_view(c1.a, c2.a) < options_.pcm_max_shared_view ||
+         shared_view(c1.b, c2.b) < options_.pcm_max_shared_view;
 }
 
 void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {

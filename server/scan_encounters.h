@@ -81,6 +81,14 @@ struct ScanEncounterOptions {
   // more apart: the bar is low, for scans taken at one spot.
   int pcm_min_separation = 10;
   double pcm_min_separation_m = 1.5;
+  // Distance is not independence: two places count as two only when, in at least one of
+  // the trajectories, their keyframes' scans share less than this of what they see (the
+  // larger share of either scan's points near the other's, at the estimate). On ACES 3
+  // robots simultaneous R1[15]/R1[5] (2 m apart) shared 0.55 and R3[25]/R3[45] (5.6 m
+  // apart) 0.59: one view of a 180-degree copy, seen twice, joined R1 to R3 27-38 m off.
+  // The true joining pairs measured on Intel, ACES and FR079 had one side at 0.44 or less
+  // (FR079 2 robots: R1 0.00, turned round, with R2 0.64).
+  double pcm_max_shared_view = 0.5;
   int max_kept = 200;  // lone candidates kept per pair of trajectories
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
@@ -211,8 +219,9 @@ class ScanEncounters : public EncounterSource {
   // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
   bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
                   const GraphView& graph) const;
-  // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories:
-  // only then can one confirm the other.
+  // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories,
+  // seeing other walls in at least one (pcm_max_shared_view): only then can one confirm the
+  // other.
   bool TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
                  const GraphView& graph) const;
 
