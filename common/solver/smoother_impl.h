@@ -196,6 +196,15 @@ class Smoother::Impl {
   bool CorrectEstimate();
   bool CorrectByFixedPointSteps();
   bool CorrectByConjugateGradients();
+  // A factor in R linearised at the estimate, with its variables' positions in R.
+  struct LinearizedInR {
+    std::array<int, kMaxFactorKeys> positions;
+    LinearizedFactor lin;
+  };
+  // chi2 at the estimate over the factors in R, and its half-gradient g (by position in R,
+  // overwritten); the linearised factors too when `linearized` is not null (replaced).
+  double GradientAtEstimate(std::vector<Eigen::Vector3d>* g,
+                            std::vector<LinearizedInR>* linearized) const;
   // The drift check: a partial step (or a batch step) on the variables whose estimate
   // moved more than relinearize_threshold from their linearisation point; false if none.
   bool RelinearizeDrifted(UpdateResult* result);
