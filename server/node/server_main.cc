@@ -123,8 +123,11 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
          &s.smoother.batch_when_fill_grows, "batch step when nnz(R) grew by this factor (0 = off)");
   l->Add("smoother.relinearize_threshold", "relinearize-threshold",
          &s.smoother.relinearize_threshold,
-         "batch step as soon as an estimate moved this far from its linearisation point "
-         "(m / rad; 0 = off)");
+         "relinearise (partial step) the variables whose estimate moved this far from their "
+         "linearisation point (m / rad; 0 = off); with the correction on, only when it stalls");
+  l->Add("smoother.correction_tolerance", "correction-tolerance", &s.smoother.correction_tolerance,
+         "after each update, conjugate-gradient steps move the estimate until the predicted "
+         "decrease of chi2 is below this fraction of it (0 = off: relinearise on drift)");
   l->Add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
          "sigma of the gauge priors (m, rad)");
   l->Add("table.max_held", "max-held-keyframes", &s.table.max_held,

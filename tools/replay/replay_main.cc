@@ -241,8 +241,13 @@ int Main(int argc, char** argv) {
              "server: batch step every N updates (1 = pure batch)");
   loader.Add("smoother.relinearize_threshold", "relinearize-threshold",
              &options.server.server.smoother.relinearize_threshold,
-             "server: batch step when an estimate drifted this far from its linearisation point "
-             "(m / rad; 0 = off)");
+             "server: relinearise (partial step) the variables whose estimate drifted this far "
+             "from their linearisation point (m / rad; 0 = off); with the correction on, only "
+             "when it stalls");
+  loader.Add("smoother.correction_tolerance", "correction-tolerance",
+             &options.server.server.smoother.correction_tolerance,
+             "server: after each update, conjugate-gradient steps move the estimate until the "
+             "predicted decrease of chi2 is below this fraction of it (0 = off)");
   loader.Add("update_times", "update-times", &options.update_times,
              "write every solver update's data time, cost (ms), kind and the process's CPU "
              "seconds to this CSV, as the replay goes (empty: none; "
