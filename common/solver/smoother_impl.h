@@ -196,6 +196,10 @@ class Smoother::Impl {
   bool CorrectEstimate();
   bool CorrectByFixedPointSteps();
   bool CorrectByConjugateGradients();
+  // A new variable of `f` (position >= first_new) with no correction yet gets the one its
+  // neighbours' corrections imply through the factor's Jacobians `lin`.
+  void PlaceByNeighboursCorrection(const FactorRecord& f, const LinearizedFactor& lin,
+                                   int first_new);
   // A factor in R linearised at the estimate, with its variables' positions in R.
   struct LinearizedInR {
     std::array<int, kMaxFactorKeys> positions;

@@ -111,19 +111,10 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     }
     if (options_.correction_tolerance > 0) innovation_ += lin.whitened_error.squaredNorm();
     if (keep_estimate) new_jacobians.push_back(lin);
+    // A variable this factor determines is placed by R relative to its neighbours'
+    // uncorrected estimates (see PlaceByNeighboursCorrection).
     if (options_.correction_tolerance > 0 && !keep_estimate) {
-      // A variable this factor determines is placed by R relative to its neighbours'
-      // uncorrected estimates: give it their correction, so that its estimate is where
-      // this factor puts it relative to their corrected ones.
-      for (int j = 0; j < f.num_vars; ++j) {
-        const int var = f.vars[j];
-        if (vars_[var].position < first_new || !correction_[var].isZero(0.0)) continue;
-        Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
-        for (int k = 0; k < f.num_vars; ++k) {
-          if (k != j) pushed.noalias() += lin.jacobians[k] * correction_[f.vars[k]];
-        }
-        if (!pushed.isZero(0.0)) correction_[var] = -lin.jacobians[j].partialPivLu().solve(pushed);
-      }
+      PlaceByNeighboursCorrection(f, lin, first_new);
     }
     new_rows.push_back(std::move(rows));
   }
@@ -162,20 +153,24 @@ void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
     correction_[position_to_var_[p]] += delta_before[p] - delta_[p];
   }
   // A variable a new factor determines is placed by R relative to its neighbours' R
-  // solution: give it their correction, so that the factor's linear model holds at their
-  // estimates.
+  // solution.
   for (size_t k = 0; k < ready.size(); ++k) {
-    const FactorRecord& f = factors_[ready[k]];
-    const LinearizedFactor& lin = jacobians[k];
-    for (int j = 0; j < f.num_vars; ++j) {
-      const int var = f.vars[j];
-      if (vars_[var].position < first_new || !correction_[var].isZero(0.0)) continue;
-      Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
-      for (int i = 0; i < f.num_vars; ++i) {
-        if (i != j) pushed.noalias() += lin.jacobians[i] * correction_[f.vars[i]];
-      }
-      if (!pushed.isZero(0.0)) correction_[var] = -lin.jacobians[j].partialPivLu().solve(pushed);
+    PlaceByNeighboursCorrection(factors_[ready[k]], jacobians[k], first_new);
+  }
+}
+
+void Smoother::Impl::PlaceByNeighboursCorrection(const FactorRecord& f, const LinearizedFactor& lin,
+                                                 int first_new) {
+  // Give each new, uncorrected variable of the factor its neighbours' correction, so that
+  // the factor's linear model holds at their corrected estimates.
+  for (int j = 0; j < f.num_vars; ++j) {
+    const int var = f.vars[j];
+    if (vars_[var].position < first_new || !correction_[var].isZero(0.0)) continue;
+    Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
+    for (int i = 0; i < f.num_vars; ++i) {
+      if (i != j) pushed.noalias() += lin.jacobians[i] * correction_[f.vars[i]];
     }
+    if (!pushed.isZero(0.0)) correction_[var] = -lin.jacobians[j].partialPivLu().solve(pushed);
   }
 }
 
