@@ -122,14 +122,15 @@ if [ "${ANCHORMAP_SKIP_SANITIZE:-0}" != "1" ]; then
   # Run in the Release pass only (CI's time): the two longest data tests (city10000 against
   # batch, the per-update oracle in iSAM's mode: 3.5 of the pass's minutes under ASan), whose
   # smaller siblings (M3500, the oracle in the server's mode) cover the same code here, and
-  # two determinism tests (same input, same map: 70 s under ASan) whose code the merge tests
-  # (AgentServerTest.ThreeRobots..., ScanEncountersTest.TwoRobots...) run here. Likewise
+  # three determinism tests (same input, same map: 70 s under ASan for two of them; two
+  # whole replays for the third) whose code the merge tests (AgentServerTest.ThreeRobots...,
+  # ScanEncountersTest.TwoRobots...) run here. Likewise
   # the three longest scan-matching scenarios (122-178 s each in this tree on a loaded
   # machine, 4-12 s in Release): 20 % injected false candidates, a loop across large drift
   # and the 200-trial covariance consistency; the same matcher and source code runs here in
   # the shorter scenarios (two robots joining, the look-alike refusals, loop closing, the
   # matcher's recovery tests). This pays for crash_scan_test in the Release pass.
-  export ANCHORMAP_CTEST_EXCLUDE='IncrementalVsBatchTest\.City10000|PerUpdateOracleTest\.IsamMode|AgentServerTest\.OfflineServerOnARecordedLogIsDeterministicAndAgrees|ScanEncountersTest\.SameInputSameMap|ScanEncountersTest\.FalseCandidatesDoNotCorruptTheMap|LoopClosuresTest\.WideSearchClosesALoopAcrossLargeDrift|CorrelativeMatcherTest\.CovarianceIsConsistent'
+  export ANCHORMAP_CTEST_EXCLUDE='IncrementalVsBatchTest\.City10000|PerUpdateOracleTest\.IsamMode|AgentServerTest\.OfflineServerOnARecordedLogIsDeterministicAndAgrees|ScanEncountersTest\.SameInputSameMap|ReplayDeterminismTest\.|ScanEncountersTest\.FalseCandidatesDoNotCorruptTheMap|LoopClosuresTest\.WideSearchClosesALoopAcrossLargeDrift|CorrelativeMatcherTest\.CovarianceIsConsistent'
   if why=$(clang_fuzz_missing); then
     echo "== fuzz targets SKIPPED: $why"
     run_pass "ASan + UBSan (gcc)" build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DANCHORMAP_SANITIZE=ON
