@@ -143,6 +143,24 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   }
 }
 
+namespace {
+
+// A correction c with delta + c == offset in floating point where one is within a few
+// units in the last place of offset - delta: the estimate keeps its bits, so the
+// correction's cache of linearised factors (linearization_cache.h) stays valid for it.
+Eigen::Vector3d KeepingOffset(const Eigen::Vector3d& offset, const Eigen::Vector3d& delta) {
+  Eigen::Vector3d c = offset - delta;
+  for (int i = 0; i < 3; ++i) {
+    for (int k = 0; k < 4 && delta[i] + c[i] != offset[i]; ++k) {
+      const double toward = delta[i] + c[i] < offset[i] ? HUGE_VAL : -HUGE_VAL;
+      c[i] = std::nextafter(c[i], toward);
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
 void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
                                             const std::vector<LinearizedFactor>& jacobians,
                                             int first_new,
@@ -150,7 +168,8 @@ void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
   // The old variables stay where they were: what R's new solution moved, the correction
   // takes back.
   for (int p = 0; p < first_new; ++p) {
-    correction_[position_to_var_[p]] += delta_before[p] - delta_[p];
+    Eigen::Vector3d& correction = correction_[position_to_var_[p]];
+    correction = KeepingOffset(delta_before[p] + correction, delta_[p]);
   }
   // A variable a new factor determines is placed by R relative to its neighbours' R
   // solution.
