@@ -282,6 +282,7 @@ Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
 SmootherState Smoother::ExportState() const { return impl_->ExportState(); }
 Status Smoother::ImportState(SmootherState state) { return impl_->ImportState(std::move(state)); }
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
+CorrectionWork Smoother::correction_work() const { return impl_->correction_work(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   std::vector<Pose2> poses;
   for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) poses.push_back(impl_->GlobalPose({t, i}));

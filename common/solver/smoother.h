@@ -78,6 +78,13 @@ struct SmootherStats {
   double incremental_seconds = 0.0;  // time spent in incremental updates
 };
 
+// Work counters of the correction's gradient passes (not in SmootherState: a restored
+// smoother counts from zero).
+struct CorrectionWork {
+  int64_t gradient_passes = 0;
+  int64_t factors_linearized = 0;  // by those passes; the others were cached
+};
+
 struct SmootherState;  // smoother_state.h
 
 class Smoother {
@@ -154,6 +161,7 @@ class Smoother {
   // Sum of squared whitened residuals of every factor at the current estimate.
   double Chi2() const;
   const SmootherStats& stats() const;
+  CorrectionWork correction_work() const;
   // Each trajectory's poses in the global frame, in index order (convenience for outputs).
   std::vector<Pose2> GlobalTrajectory(TrajectoryId trajectory) const;
 

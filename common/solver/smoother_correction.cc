@@ -61,25 +61,29 @@ bool Smoother::Impl::CorrectEstimate() {
   return converged;
 }
 
-double Smoother::Impl::GradientAtEstimate(Vectors* g,
-                                          std::vector<LinearizedInR>* linearized) const {
+double Smoother::Impl::GradientAtEstimate(Vectors* g, std::vector<LinearizedInR>* linearized) {
   if (linearized != nullptr) linearized->clear();
   std::fill(g->begin(), g->end(), Eigen::Vector3d::Zero());
-  std::array<Pose2, kMaxFactorKeys> values;
+  estimate_scratch_.resize(vars_.size());
+  for (size_t v = 0; v < vars_.size(); ++v) estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
+  LinearizationCache& cache = linearized_at_estimate_;
+  cache.BeginPass(estimate_scratch_, static_cast<int64_t>(factors_.size()));
   double chi2 = 0.0;
   for (size_t id = 0; id < factors_.size(); ++id) {
     const FactorRecord& f = factors_[id];
-    if (!f.active || !factor_lin_[id].in_r) continue;
-    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
-    // In place when kept (a copy per factor per pass measured slower on M3500).
-    LinearizedInR scratch;
-    LinearizedInR& l = linearized != nullptr ? linearized->emplace_back() : scratch;
-    l.lin = Linearize(f.factor, values.data());
-    chi2 += l.lin.whitened_error.squaredNorm();
-    for (int j = 0; j < f.num_vars; ++j) {
-      l.positions[j] = vars_[f.vars[j]].position;
-      (*g)[l.positions[j]].noalias() += l.lin.jacobians[j].transpose() * l.lin.whitened_error;
+    if (!f.active || !factor_lin_[id].in_r) {
+      cache.Skip(static_cast<int64_t>(id));
+      continue;
     }
+    const LinearizedFactor& lin =
+        cache.At(static_cast<int64_t>(id), f.factor, f.vars.data(), f.num_vars);
+    chi2 += lin.whitened_error.squaredNorm();
+    std::array<int, kMaxFactorKeys> positions;
+    for (int j = 0; j < f.num_vars; ++j) {
+      positions[j] = vars_[f.vars[j]].position;
+      (*g)[positions[j]].noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
+    }
+    if (linearized != nullptr) linearized->push_back({positions, &lin});
   }
   return chi2;
 }
@@ -158,11 +162,11 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
       double pq = 0.0;
       for (const LinearizedInR& l : factors) {
         Eigen::Vector3d jp = Eigen::Vector3d::Zero();
-        for (int j = 0; j < l.lin.num_keys; ++j)
-          jp.noalias() += l.lin.jacobians[j] * p[l.positions[j]];
+        for (int j = 0; j < l.lin->num_keys; ++j)
+          jp.noalias() += l.lin->jacobians[j] * p[l.positions[j]];
         pq += jp.squaredNorm();
-        for (int j = 0; j < l.lin.num_keys; ++j)
-          q[l.positions[j]].noalias() += l.lin.jacobians[j].transpose() * jp;
+        for (int j = 0; j < l.lin->num_keys; ++j)
+          q[l.positions[j]].noalias() += l.lin->jacobians[j].transpose() * jp;
       }
       ++cg_iterations;
       ++stats_.correction_steps;

@@ -23,6 +23,7 @@
 #include "common/solver/batch_policy.h"
 #include "common/solver/covariances.h"
 #include "common/solver/factor.h"
+#include "common/solver/linearization_cache.h"
 #include "common/solver/smoother.h"
 #include "common/solver/smoother_state.h"
 #include "common/solver/sparse_r.h"
@@ -121,6 +122,9 @@ class Smoother::Impl {
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
   double Chi2() const;
   const SmootherStats& stats() const { return stats_; }
+  CorrectionWork correction_work() const {
+    return {linearized_at_estimate_.passes(), linearized_at_estimate_.linearized()};
+  }
   Smoother::LinearSystem LinearSystemForTesting() const {
     Smoother::LinearSystem out;
     for (int var : position_to_var_) {
@@ -200,15 +204,18 @@ class Smoother::Impl {
   // neighbours' corrections imply through the factor's Jacobians `lin`.
   void PlaceByNeighboursCorrection(const FactorRecord& f, const LinearizedFactor& lin,
                                    int first_new);
-  // A factor in R linearised at the estimate, with its variables' positions in R.
+  // A factor in R linearised at the estimate (held by linearized_at_estimate_ until the
+  // next pass), with its variables' positions in R.
   struct LinearizedInR {
     std::array<int, kMaxFactorKeys> positions;
-    LinearizedFactor lin;
+    const LinearizedFactor* lin;
   };
   // chi2 at the estimate over the factors in R, and its half-gradient g (by position in R,
   // overwritten); the linearised factors too when `linearized` is not null (replaced).
+  // Only factors whose variables moved since the last pass are linearised again; the sums
+  // run over every factor in id order, so they are the bits a full pass gives.
   double GradientAtEstimate(std::vector<Eigen::Vector3d>* g,
-                            std::vector<LinearizedInR>* linearized) const;
+                            std::vector<LinearizedInR>* linearized);
   // The drift check: a partial step (or a batch step) on the variables whose estimate
   // moved more than relinearize_threshold from their linearisation point; false if none.
   bool RelinearizeDrifted(UpdateResult* result);
@@ -327,6 +334,9 @@ class Smoother::Impl {
   bool correction_converged_ = false;  // the last CorrectEstimate() converged
   double last_chi2_ = 0.0;             // chi2 at its last gradient evaluation
   double innovation_ = 0.0;            // new factors' chi2 at entry since then
+  // Work space of GradientAtEstimate (not in the state: a function of the estimate).
+  LinearizationCache linearized_at_estimate_;
+  std::vector<Pose2> estimate_scratch_;
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
   BatchFactorization batch_;

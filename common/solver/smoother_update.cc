@@ -66,6 +66,28 @@ void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
   pending_vars_.swap(vars);
 }
 
+namespace {
+
+// IncrementalStep with the estimate kept: a row of delta whose value moved less than this
+// does not make the rows that depend on it solve again.
+constexpr double kKeptDeltaChange = 1e-12;
+
+// A correction c with delta + c == offset in floating point where one is within a few
+// units in the last place of offset - delta: the estimate keeps its bits, so the
+// correction's cache of linearised factors (linearization_cache.h) stays valid for it.
+Eigen::Vector3d KeepingOffset(const Eigen::Vector3d& offset, const Eigen::Vector3d& delta) {
+  Eigen::Vector3d c = offset - delta;
+  for (int i = 0; i < 3; ++i) {
+    for (int k = 0; k < 4 && delta[i] + c[i] != offset[i]; ++k) {
+      const double toward = delta[i] + c[i] < offset[i] ? HUGE_VAL : -HUGE_VAL;
+      c[i] = std::nextafter(c[i], toward);
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
 void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   // grounded[v] == (v is in R), kept between updates so that an update costs what it
   // touches: only new and pending variables need a fresh look (a batch step clears it).
@@ -123,7 +145,13 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   TakeOutOfPending(ready);
 
   if (!solve) return;
-  if (options_.backsubstitution_threshold == 0.0) {
+  // When the correction keeps the estimate, delta only has to solve R delta = d (the
+  // correction takes back what it moves): rows whose inputs moved less than rounding keep
+  // their value, as an update without a loop closure changes the old rows' solution only
+  // by rounding, and a full back-substitution there would cost the map.
+  if (keep_estimate && options_.backsubstitution_threshold == 0.0) {
+    result->rows_backsubstituted = R.BackSubstitutePartial(touched, kKeptDeltaChange, &delta_);
+  } else if (options_.backsubstitution_threshold == 0.0) {
     R.BackSubstitute(&delta_);
     result->rows_backsubstituted = R.size();
   } else {
@@ -150,7 +178,9 @@ void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
   // The old variables stay where they were: what R's new solution moved, the correction
   // takes back.
   for (int p = 0; p < first_new; ++p) {
-    correction_[position_to_var_[p]] += delta_before[p] - delta_[p];
+    if (delta_[p] == delta_before[p]) continue;
+    Eigen::Vector3d& correction = correction_[position_to_var_[p]];
+    correction = KeepingOffset(delta_before[p] + correction, delta_[p]);
   }
   // A variable a new factor determines is placed by R relative to its neighbours' R
   // solution.

@@ -258,6 +258,7 @@ int Run(const Flags& flags) {
       static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC - checking_cpu_s;
   const double chi2 = smoother.Chi2();
   const SmootherStats stats = smoother.stats();  // before the (untimed) final batch step
+  const CorrectionWork work = smoother.correction_work();
   const double nnz_per_column =
       static_cast<double>(stats.nnz_r) / std::max<int64_t>(1, 3 * stats.variables);
 
@@ -302,6 +303,7 @@ int Run(const Flags& flags) {
         "\"rows_before_closure\": %lld, \"rows_in_tails\": %lld, "
         "\"partial_merges\": %lld, \"correction_steps\": %lld, "
         "\"correction_stalls\": %lld, \"correction_skips\": %lld, \"correction_s\": %.4f, "
+        "\"gradient_passes\": %lld, \"factors_linearized_by_passes\": %lld, "
         "\"checked_steps\": %d, \"worst_step_chi2_excess\": %.3e, "
         "\"failures\": %d, \"first_failure\": \"%s\"}\n",
         flags.graph.c_str(), mode, ToString(flags.smoother.formulation), method, replay.num_poses(),
@@ -327,8 +329,10 @@ int Run(const Flags& flags) {
         static_cast<long long>(stats.rows_in_tails), static_cast<long long>(stats.partial_merges),
         static_cast<long long>(stats.correction_steps),
         static_cast<long long>(stats.correction_stalls),
-        static_cast<long long>(stats.correction_skips), stats.correction_seconds, checks,
-        worst_excess, failures, first_failure.c_str());
+        static_cast<long long>(stats.correction_skips), stats.correction_seconds,
+        static_cast<long long>(work.gradient_passes),
+        static_cast<long long>(work.factors_linearized), checks, worst_excess, failures,
+        first_failure.c_str());
   } else {
     std::printf(
         "graph %s: %d poses, %d edges (%d encounters), %d robot(s), %d trajectories (%d broken "
@@ -376,6 +380,11 @@ int Run(const Flags& flags) {
                   static_cast<long long>(stats.correction_steps),
                   static_cast<long long>(stats.correction_stalls),
                   static_cast<long long>(stats.correction_skips), stats.correction_seconds);
+      std::printf("gradient passes %lld, factors linearised by them %lld (%.1f per pass)\n",
+                  static_cast<long long>(work.gradient_passes),
+                  static_cast<long long>(work.factors_linearized),
+                  static_cast<double>(work.factors_linearized) /
+                      std::max<int64_t>(1, work.gradient_passes));
     }
     if (checks > 0) {
       std::printf(

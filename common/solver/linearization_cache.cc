@@ -1,0 +1,56 @@
+#include "common/solver/linearization_cache.h"
+
+#include <array>
+#include <cstring>
+
+namespace anchormap {
+namespace {
+
+// Bit for bit, so that an unmoved variable's factors give exactly what they gave before.
+bool SameBits(const Pose2& a, const Pose2& b) {
+  const double ka[3] = {a.x(), a.y(), a.theta()};
+  const double kb[3] = {b.x(), b.y(), b.theta()};
+  return std::memcmp(ka, kb, sizeof(ka)) == 0;
+}
+
+}  // namespace
+
+void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num_factors) {
+  ++passes_;
+  if (static_cast<int64_t>(factors_.size()) < num_factors) {
+    factors_.resize(num_factors);
+    valid_.resize(num_factors, 0);
+  }
+  const size_t known = values_.size();
+  moved_.assign(values.size(), 1);
+  for (size_t v = 0; v < values.size() && v < known; ++v)
+    moved_[v] = !SameBits(values[v], values_[v]);
+  values_ = values;
+}
+
+const LinearizedFactor& LinearizationCache::At(int64_t id, const Factor& factor, const int* vars,
+                                               int num_vars) {
+  bool fresh = valid_[id] != 0;
+  for (int j = 0; j < num_vars && fresh; ++j) fresh = !moved_[vars[j]];
+  if (!fresh) {
+    std::array<Pose2, kMaxFactorKeys> at;
+    for (int j = 0; j < num_vars; ++j) at[j] = values_[vars[j]];
+    factors_[id] = Linearize(factor, at.data());
+    valid_[id] = 1;
+    ++linearized_;
+  }
+  return factors_[id];
+}
+
+void LinearizationCache::Skip(int64_t id) {
+  if (static_cast<size_t>(id) < valid_.size()) valid_[id] = 0;
+}
+
+void LinearizationCache::Clear() {
+  values_.clear();
+  moved_.clear();
+  factors_.clear();
+  valid_.clear();
+}
+
+}  // namespace anchormap

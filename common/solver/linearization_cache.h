@@ -1,0 +1,45 @@
+#pragma once
+// The factors of a smoother linearised at its current estimate, kept between gradient
+// passes of the correction (smoother_correction.cc). An entry is recomputed only when one
+// of its variables' values differs in any bit from the value it was last computed at, so
+// the cache is a pure function of the estimate: a smoother rebuilt from a snapshot (which
+// starts with an empty cache) computes the same bits, and a pass costs the factors whose
+// variables moved, not the map.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/solver/factor.h"
+
+namespace anchormap {
+
+class LinearizationCache {
+ public:
+  // Starts a pass over factor ids below `num_factors` at `values` (by variable index):
+  // remembers which variables moved since the last pass (every one on the first). Entries
+  // returned by At() stay where they are until the next pass.
+  void BeginPass(const std::vector<Pose2>& values, int64_t num_factors);
+
+  // Factor `id` over variables `vars` linearised at the pass's values: the cached entry
+  // if none of its variables moved and it was computed in the previous pass, else a new one.
+  const LinearizedFactor& At(int64_t id, const Factor& factor, const int* vars, int num_vars);
+  // Factor `id` is not part of this pass: its entry is dropped (its variables may move
+  // unseen before it is back).
+  void Skip(int64_t id);
+  void Clear();
+
+  // Work counters: passes and factors linearised by them (cache misses).
+  int64_t passes() const { return passes_; }
+  int64_t linearized() const { return linearized_; }
+
+ private:
+  std::vector<Pose2> values_;              // by variable: the values of the current pass
+  std::vector<char> moved_;                // by variable: differs from the previous pass
+  std::vector<LinearizedFactor> factors_;  // by factor id
+  std::vector<char> valid_;                // by factor id
+  int64_t passes_ = 0;
+  int64_t linearized_ = 0;
+};
+
+}  // namespace anchormap
