@@ -108,23 +108,8 @@ std::vector<GridTile> OccupancyGrid::Tiles(int64_t utime, int64_t update) const 
 std::vector<std::pair<int64_t, int64_t>> BresenhamLine(int64_t x0, int64_t y0, int64_t x1,
                                                        int64_t y1) {
   std::vector<std::pair<int64_t, int64_t>> cells;
-  const int64_t dx = std::abs(x1 - x0), dy = -std::abs(y1 - y0);
-  const int64_t sx = x0 < x1 ? 1 : -1, sy = y0 < y1 ? 1 : -1;
-  cells.reserve(static_cast<size_t>(std::max(dx, -dy) + 1));
-  int64_t error = dx + dy;
-  while (true) {
-    cells.emplace_back(x0, y0);
-    if (x0 == x1 && y0 == y1) break;
-    const int64_t e2 = 2 * error;
-    if (e2 >= dy) {
-      error += dy;
-      x0 += sx;
-    }
-    if (e2 <= dx) {
-      error += dx;
-      y0 += sy;
-    }
-  }
+  cells.reserve(static_cast<size_t>(std::max(std::abs(x1 - x0), std::abs(y1 - y0)) + 1));
+  ForEachBresenhamCell(x0, y0, x1, y1, [&](int64_t x, int64_t y) { cells.emplace_back(x, y); });
   return cells;
 }
 

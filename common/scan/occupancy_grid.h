@@ -9,6 +9,7 @@
 // (keyframe_grid.h), whose scans can be taken out again.
 
 #include <cstdint>
+#include <cstdlib>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -61,8 +62,30 @@ class OccupancyGrid {
   ScanTracer tracer_;
 };
 
-// The cells of the digital straight line from (x0, y0) to (x1, y1), both ends included
-// (Bresenham). Exposed for tests.
+// Calls visit(x, y) for each cell of the digital straight line from (x0, y0) to (x1, y1),
+// both ends included, in order (Bresenham). No list is built: tracing a scan's beams this
+// way saves an allocation per beam (the server re-traces thousands of scans per grid).
+template <typename Visit>
+void ForEachBresenhamCell(int64_t x0, int64_t y0, int64_t x1, int64_t y1, Visit&& visit) {
+  const int64_t dx = std::abs(x1 - x0), dy = -std::abs(y1 - y0);
+  const int64_t sx = x0 < x1 ? 1 : -1, sy = y0 < y1 ? 1 : -1;
+  int64_t error = dx + dy;
+  while (true) {
+    visit(x0, y0);
+    if (x0 == x1 && y0 == y1) break;
+    const int64_t e2 = 2 * error;
+    if (e2 >= dy) {
+      error += dy;
+      x0 += sx;
+    }
+    if (e2 <= dx) {
+      error += dx;
+      y0 += sy;
+    }
+  }
+}
+
+// The same cells as a list. Exposed for tests.
 std::vector<std::pair<int64_t, int64_t>> BresenhamLine(int64_t x0, int64_t y0, int64_t x1,
                                                        int64_t y1);
 

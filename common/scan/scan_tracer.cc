@@ -43,11 +43,8 @@ const std::vector<TracedCell>& ScanTracer::Trace(const LaserScan& scan, const Po
   }
   // Each traced cell once, with a pointer to its hit flag (in the window, or in a hash map
   // whose nodes do not move).
-  struct Visited {
-    int64_t x, y;
-    const uint8_t* hit;
-  };
-  std::vector<Visited> visited;
+  std::vector<Visited>& visited = visited_;
+  visited.clear();
   std::unordered_map<uint64_t, uint8_t> far_cells;  // only without the window
   // Every traced cell lies within `radius` of the sensor's cell (rays end within
   // max_ray_length_m), so window indices are in range.
@@ -73,9 +70,10 @@ const std::vector<TracedCell>& ScanTracer::Trace(const LaserScan& scan, const Po
   };
   auto trace = [&, x0 = x0, y0 = y0](const Eigen::Vector2d& end, bool hit) {
     const auto [x1, y1] = Cell(end, options.resolution_m);
-    const auto line = BresenhamLine(x0, y0, x1, y1);
-    for (size_t i = 0; i + 1 < line.size(); ++i) visit(line[i].first, line[i].second, false);
-    visit(x1, y1, hit);
+    // The line's cells are misses but its last, (x1, y1).
+    ForEachBresenhamCell(x0, y0, x1, y1, [&, x1 = x1, y1 = y1](int64_t x, int64_t y) {
+      visit(x, y, x == x1 && y == y1 && hit);
+    });
   };
   for (size_t i = 0; i < scan.ranges.size(); ++i) {
     const double angle = scan.Angle(i);

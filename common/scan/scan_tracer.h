@@ -36,6 +36,12 @@ class ScanTracer {
   std::vector<uint32_t> window_stamp_;
   std::vector<uint8_t> window_hit_;
   uint32_t scan_stamp_ = 0;
+  // Each traced cell once, with a pointer to its hit flag; kept between scans (capacity).
+  struct Visited {
+    int64_t x, y;
+    const uint8_t* hit;
+  };
+  std::vector<Visited> visited_;
   std::vector<TracedCell> cells_;
 };
 

@@ -7,8 +7,10 @@
 // [dx, dx + 2^h) x [dy, dy + 2^h), which is what lets a search skip whole blocks.
 //
 // Level h is stored for ix in [-(2^h - 1), width) (blocks that reach into the grid from the
-// left or below) and built from level h - 1 by the max of four shifted values, O(1) per cell.
+// left or below) and built from level h - 1 by the max of four shifted values, O(1) per cell
+// (two separable passes).
 
+#include <memory>
 #include <vector>
 
 #include "common/scan_matching/likelihood_grid.h"
@@ -36,8 +38,12 @@ class MaxGridPyramid {
     int offset = 0;  // 2^h - 1
     int width = 0;
     int height = 0;
-    std::vector<float> values;
+    // Every cell is written by the build: no zero fill first (the fill and the first touch
+    // of the pages were most of a reference's build time once the maxima were cheap).
+    std::unique_ptr<float[]> values;
   };
+  void BuildLevel(int h);
+
   GridGeometry geometry_;
   std::vector<Level> levels_;
 };

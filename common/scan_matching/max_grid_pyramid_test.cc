@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -19,26 +21,40 @@ LikelihoodGrid RandomGrid(int width, int height, uint64_t seed) {
   return LikelihoodGrid(g, values);
 }
 
+void ExpectBruteForceBlockMaxima(const LikelihoodGrid& grid, int num_levels, uint64_t seed) {
+  const MaxGridPyramid pyramid(grid, num_levels);
+  const GridGeometry& g = grid.geometry();
+  for (int level = 0; level < pyramid.num_levels(); ++level) {
+    const int w = 1 << level;
+    // Including blocks that only reach into the grid and blocks entirely outside it.
+    for (int iy = -w - 2; iy < g.height + 2; ++iy) {
+      for (int ix = -w - 2; ix < g.width + 2; ++ix) {
+        float expected = 0.0f;
+        for (int y = iy; y < iy + w; ++y) {
+          for (int x = ix; x < ix + w; ++x) expected = std::max(expected, grid.Value(x, y));
+        }
+        ASSERT_EQ(pyramid.Value(level, ix, iy), expected)
+            << "seed " << seed << " level " << level << " cell " << ix << " " << iy;
+      }
+    }
+  }
+}
+
 TEST(MaxGridPyramidTest, EveryLevelEqualsBruteForceBlockMaxima) {
   for (uint64_t seed = 1; seed <= 5; ++seed) {
     const LikelihoodGrid grid =
         RandomGrid(13 + static_cast<int>(seed), 9 + 2 * static_cast<int>(seed), seed);
-    const MaxGridPyramid pyramid(grid, 5);
-    const GridGeometry& g = grid.geometry();
-    for (int level = 0; level < pyramid.num_levels(); ++level) {
-      const int w = 1 << level;
-      // Including blocks that only reach into the grid and blocks entirely outside it.
-      for (int iy = -w - 2; iy < g.height + 2; ++iy) {
-        for (int ix = -w - 2; ix < g.width + 2; ++ix) {
-          float expected = 0.0f;
-          for (int y = iy; y < iy + w; ++y) {
-            for (int x = ix; x < ix + w; ++x) expected = std::max(expected, grid.Value(x, y));
-          }
-          ASSERT_EQ(pyramid.Value(level, ix, iy), expected)
-              << "seed " << seed << " level " << level << " cell " << ix << " " << iy;
-        }
-      }
-    }
+    ExpectBruteForceBlockMaxima(grid, 5, seed);
+  }
+}
+
+// Grids narrower than the largest blocks (the levels' borders are most of them).
+TEST(MaxGridPyramidTest, GridsSmallerThanTheBlocksEqualBruteForce) {
+  const std::vector<std::pair<int, int>> sizes = {{1, 1}, {1, 7}, {7, 1}, {3, 40}, {40, 2}};
+  uint64_t seed = 10;
+  for (const auto& [width, height] : sizes) {
+    ExpectBruteForceBlockMaxima(RandomGrid(width, height, seed), 7, seed);
+    ++seed;
   }
 }
 

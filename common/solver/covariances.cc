@@ -6,9 +6,28 @@
 
 namespace anchormap {
 
-const Eigen::Matrix3d* CovarianceRecovery::Find(int i, int l) const {
-  auto it = memo_.find(Id(i, l));
-  return it == memo_.end() ? nullptr : &it->second;
+void CovarianceBlockMemo::Insert(uint64_t id, const Eigen::Matrix3d& value) {
+  if (2 * (size_ + 1) > keys_.size()) Grow();
+  size_t slot = Slot(id);
+  while (keys_[slot] != kEmpty) slot = (slot + 1) & mask_;
+  keys_[slot] = id;
+  values_[slot] = value;
+  ++size_;
+}
+
+void CovarianceBlockMemo::Grow() {
+  std::vector<uint64_t> old_keys = std::move(keys_);
+  std::vector<Eigen::Matrix3d> old_values = std::move(values_);
+  const size_t capacity = old_keys.empty() ? 1024 : 2 * old_keys.size();
+  keys_.assign(capacity, kEmpty);
+  values_.resize(capacity);
+  mask_ = capacity - 1;
+  shift_ = 64;
+  for (size_t c = capacity; c > 1; c >>= 1) --shift_;
+  size_ = 0;
+  for (size_t k = 0; k < old_keys.size(); ++k) {
+    if (old_keys[k] != kEmpty) Insert(old_keys[k], old_values[k]);
+  }
 }
 
 Eigen::Matrix3d CovarianceRecovery::Block(int i, int l) {
@@ -21,7 +40,8 @@ const Eigen::Matrix3d& CovarianceRecovery::Canonical(int i0, int l0) {
   // Explicit stack instead of recursion: chains of dependencies can be as long as the
   // trajectory. Dependencies of (i, l) have a larger first index, or the same first
   // index and a larger second one, so this terminates.
-  std::vector<std::pair<int, int>> stack = {{i0, l0}};
+  std::vector<std::pair<int, int>>& stack = stack_;
+  stack.assign(1, {i0, l0});
   while (!stack.empty()) {
     const auto [i, l] = stack.back();
     if (Find(i, l)) {
@@ -30,23 +50,28 @@ const Eigen::Matrix3d& CovarianceRecovery::Canonical(int i0, int l0) {
     }
     const RBlockRow& row = r_->row(i);
     bool ready = true;
+    inputs_.clear();
     for (const auto& [j, block] : row.right) {
       const int a = std::min(j, l), b = std::max(j, l);
-      if (!Find(a, b)) {
+      const Eigen::Matrix3d* input = Find(a, b);
+      if (!input) {
         stack.emplace_back(a, b);
         ready = false;
       }
+      inputs_.push_back(input);
     }
     if (!ready) continue;
 
     // sum_j R_ij Sigma_jl, with Sigma_jl = Sigma_lj^T when j > l.
     Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+    size_t k = 0;
     for (const auto& [j, block] : row.right) {
       if (j <= l) {
-        sum.noalias() += block * *Find(j, l);
+        sum.noalias() += block * *inputs_[k];
       } else {
-        sum.noalias() += block * Find(l, j)->transpose();
+        sum.noalias() += block * inputs_[k]->transpose();
       }
+      ++k;
     }
     const auto Rii = row.diagonal.triangularView<Eigen::Upper>();
     Eigen::Matrix3d value;
@@ -57,7 +82,7 @@ const Eigen::Matrix3d& CovarianceRecovery::Canonical(int i0, int l0) {
     } else {
       value = -Rii.solve(sum);
     }
-    memo_.emplace(Id(i, l), value);
+    memo_.Insert(Id(i, l), value);
     stack.pop_back();
   }
   return *Find(i0, l0);

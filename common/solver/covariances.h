@@ -12,7 +12,7 @@
 
 #include <cstdint>
 #include <memory>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -20,6 +20,36 @@
 #include "common/solver/sparse_r.h"
 
 namespace anchormap {
+
+// The memo of computed blocks: open addressing with linear probing on a 64-bit id. Each
+// entry computed looks up every block its row depends on; std::unordered_map's node per
+// entry and bucket walk made those lookups most of the server's CPU at 100 robots.
+class CovarianceBlockMemo {
+ public:
+  const Eigen::Matrix3d* Find(uint64_t id) const {
+    if (keys_.empty()) return nullptr;
+    for (size_t slot = Slot(id);; slot = (slot + 1) & mask_) {
+      if (keys_[slot] == id) return &values_[slot];
+      if (keys_[slot] == kEmpty) return nullptr;
+    }
+  }
+  // Precondition: id not present. Pointers from Find are invalid afterwards.
+  void Insert(uint64_t id, const Eigen::Matrix3d& value);
+  size_t size() const { return size_; }
+
+ private:
+  static constexpr uint64_t kEmpty = ~uint64_t{0};
+  size_t Slot(uint64_t id) const {
+    return static_cast<size_t>((id * 0x9E3779B97F4A7C15ull) >> shift_);  // Fibonacci hashing
+  }
+  void Grow();
+
+  std::vector<uint64_t> keys_;
+  std::vector<Eigen::Matrix3d> values_;
+  size_t size_ = 0;
+  size_t mask_ = 0;
+  int shift_ = 64;
+};
 
 class CovarianceRecovery {
  public:
@@ -35,13 +65,17 @@ class CovarianceRecovery {
  private:
   // Computes the canonical entry (i <= l) and everything it depends on.
   const Eigen::Matrix3d& Canonical(int i, int l);
-  const Eigen::Matrix3d* Find(int i, int l) const;
+  const Eigen::Matrix3d* Find(int i, int l) const { return memo_.Find(Id(i, l)); }
   uint64_t Id(int i, int l) const {
     return static_cast<uint64_t>(i) * static_cast<uint64_t>(r_->size()) + static_cast<uint64_t>(l);
   }
 
   std::shared_ptr<const SparseR> r_;
-  std::unordered_map<uint64_t, Eigen::Matrix3d> memo_;
+  CovarianceBlockMemo memo_;
+  // Scratch of Canonical, kept between calls: the entries still to compute, and the
+  // blocks one entry depends on.
+  std::vector<std::pair<int, int>> stack_;
+  std::vector<const Eigen::Matrix3d*> inputs_;
 };
 
 }  // namespace anchormap

@@ -1,6 +1,7 @@
 #include "common/solver/covariances.h"
 
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
@@ -64,6 +65,53 @@ TEST(CovarianceRecoveryTest, LastBlockNeedsNoOtherEntries) {
   CovarianceRecovery recovery(r);
   recovery.Block(2, 2);
   EXPECT_EQ(recovery.memoised(), 1u);  // only the anchor-last block: no recursion
+}
+
+// Thousands of blocks: the memo grows (and rehashes) several times; every block, computed
+// before or after a growth, stays the dense inverse's, and asking again changes nothing.
+TEST(CovarianceRecoveryTest, BlocksSurviveTheMemoGrowing) {
+  std::mt19937 rng(4);
+  const int n = 90;
+  auto r = std::make_shared<SparseR>();
+  r->Append(n);
+  for (int p = 0; p < n; ++p) {
+    NewRows rows;
+    rows.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * 2 + 0.2 * Eigen::Matrix3d::Random());
+    if (p > 0) rows.blocks.emplace_back(p - 1, Eigen::Matrix3d::Random());
+    r->Eliminate(rows, nullptr);
+  }
+  for (int k = 0; k < 30; ++k) {
+    NewRows rows;
+    const int a = std::uniform_int_distribution<int>(0, n - 2)(rng);
+    rows.blocks.emplace_back(a, Eigen::Matrix3d::Random());
+    rows.blocks.emplace_back(std::uniform_int_distribution<int>(a + 1, n - 1)(rng),
+                             Eigen::Matrix3d::Random());
+    r->Eliminate(rows, nullptr);
+  }
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int p = 0; p < n; ++p) {
+    R.block<3, 3>(3 * p, 3 * p) = r->row(p).diagonal;
+    for (const auto& [q, block] : r->row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
+  }
+  const Eigen::MatrixXd sigma = (R.transpose() * R).inverse();
+
+  CovarianceRecovery recovery(r);
+  std::vector<Eigen::Matrix3d> first;
+  for (int i = 0; i < n; ++i) {
+    for (int l = i; l < n; ++l) first.push_back(recovery.Block(i, l));
+  }
+  EXPECT_EQ(recovery.memoised(), static_cast<size_t>(n * (n + 1) / 2));
+  size_t k = 0;
+  for (int i = 0; i < n; ++i) {
+    for (int l = i; l < n; ++l, ++k) {
+      EXPECT_EQ(recovery.Block(i, l), first[k]) << i << "," << l;
+      if (l > i) {
+        EXPECT_EQ(recovery.Block(l, i), first[k].transpose()) << l << "," << i;
+      }
+      EXPECT_LT((first[k] - sigma.block<3, 3>(3 * i, 3 * l)).cwiseAbs().maxCoeff(), 1e-9)
+          << i << "," << l;
+    }
+  }
 }
 
 }  // namespace
