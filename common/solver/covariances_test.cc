@@ -1,5 +1,6 @@
 #include "common/solver/covariances.h"
 
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -9,19 +10,24 @@
 namespace anchormap {
 namespace {
 
-TEST(CovarianceRecoveryTest, EveryBlockEqualsTheDenseInverse) {
-  std::mt19937 rng(9);
-  const int n = 25;
+// A random R as a pose graph's: a chain of n poses with `closures` random loop closures,
+// eliminated into R, and the dense inverse of R^T R to compare against.
+struct RandomR {
+  std::shared_ptr<SparseR> r;
+  Eigen::MatrixXd sigma;
+};
+
+RandomR MakeChainWithLoopClosures(int n, int closures, unsigned seed) {
+  std::mt19937 rng(seed);
   auto r = std::make_shared<SparseR>();
   r->Append(n);
-  // A chain with random loop closures, as in a pose graph.
   for (int p = 0; p < n; ++p) {
     NewRows rows;
     rows.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * 2 + 0.2 * Eigen::Matrix3d::Random());
     if (p > 0) rows.blocks.emplace_back(p - 1, Eigen::Matrix3d::Random());
     r->Eliminate(rows, nullptr);
   }
-  for (int k = 0; k < 15; ++k) {
+  for (int k = 0; k < closures; ++k) {
     NewRows rows;
     const int a = std::uniform_int_distribution<int>(0, n - 2)(rng);
     rows.blocks.emplace_back(a, Eigen::Matrix3d::Random());
@@ -34,7 +40,12 @@ TEST(CovarianceRecoveryTest, EveryBlockEqualsTheDenseInverse) {
     R.block<3, 3>(3 * p, 3 * p) = r->row(p).diagonal;
     for (const auto& [q, block] : r->row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
   }
-  const Eigen::MatrixXd sigma = (R.transpose() * R).inverse();
+  return {r, (R.transpose() * R).inverse()};
+}
+
+TEST(CovarianceRecoveryTest, EveryBlockEqualsTheDenseInverse) {
+  const int n = 25;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 15, 9);
 
   CovarianceRecovery recovery(r);
   // Marginals and pairs in R's pattern first (the cheap case), then any pair.
@@ -70,30 +81,8 @@ TEST(CovarianceRecoveryTest, LastBlockNeedsNoOtherEntries) {
 // Thousands of blocks: the memo grows (and rehashes) several times; every block, computed
 // before or after a growth, stays the dense inverse's, and asking again changes nothing.
 TEST(CovarianceRecoveryTest, BlocksSurviveTheMemoGrowing) {
-  std::mt19937 rng(4);
   const int n = 90;
-  auto r = std::make_shared<SparseR>();
-  r->Append(n);
-  for (int p = 0; p < n; ++p) {
-    NewRows rows;
-    rows.blocks.emplace_back(p, Eigen::Matrix3d::Identity() * 2 + 0.2 * Eigen::Matrix3d::Random());
-    if (p > 0) rows.blocks.emplace_back(p - 1, Eigen::Matrix3d::Random());
-    r->Eliminate(rows, nullptr);
-  }
-  for (int k = 0; k < 30; ++k) {
-    NewRows rows;
-    const int a = std::uniform_int_distribution<int>(0, n - 2)(rng);
-    rows.blocks.emplace_back(a, Eigen::Matrix3d::Random());
-    rows.blocks.emplace_back(std::uniform_int_distribution<int>(a + 1, n - 1)(rng),
-                             Eigen::Matrix3d::Random());
-    r->Eliminate(rows, nullptr);
-  }
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * n, 3 * n);
-  for (int p = 0; p < n; ++p) {
-    R.block<3, 3>(3 * p, 3 * p) = r->row(p).diagonal;
-    for (const auto& [q, block] : r->row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
-  }
-  const Eigen::MatrixXd sigma = (R.transpose() * R).inverse();
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 30, 4);
 
   CovarianceRecovery recovery(r);
   std::vector<Eigen::Matrix3d> first;
