@@ -25,6 +25,7 @@
 #include "common/bus/merged_map_assembler.h"
 #include "common/util/log.h"
 #include "server/node/server_node.h"
+#include "tests/merged_map_log.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
@@ -386,15 +387,8 @@ TEST_F(AgentServerTest, OfflineServerOnARecordedLogIsDeterministicAndAgrees) {
   EXPECT_GT(out1.size(), 10u);
   EXPECT_TRUE(out1 == read_outputs(dir / "out2.lcmlog"));
 
-  LcmLogReader reader;
-  ASSERT_TRUE(reader.Open((dir / "out1.lcmlog").string()).ok());
-  MergedMapAssembler assembler;
-  while (auto event = reader.Next()) {
-    if (!assembler.IsMapChannel(event->channel)) continue;
-    ASSERT_TRUE(assembler.Accept(event->channel, event->data.data(), event->data.size()).ok());
-  }
-  const std::optional<MergedMap>& last = assembler.map();
-  ASSERT_TRUE(last);
+  const Result<MergedMap> last = LastMergedMapInLog((dir / "out1.lcmlog").string());
+  ASSERT_TRUE(last.ok()) << last.status().message();
   const MergedMap& online = outputs_.maps.back();
   ASSERT_EQ(last->trajectories.size(), online.trajectories.size());
   for (size_t t = 0; t < online.trajectories.size(); ++t) {

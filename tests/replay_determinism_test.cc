@@ -12,9 +12,8 @@
 
 #include <gtest/gtest.h>
 
-#include "common/bus/lcm_log.h"
-#include "common/bus/merged_map_assembler.h"
 #include "common/types/constraint_kind.h"
+#include "tests/merged_map_log.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
@@ -48,15 +47,9 @@ TEST(ReplayDeterminismTest, TwoReplaysOfOneSimulationWriteTheSameBytes) {
 
   // The run exercised what must be deterministic: both robots in one frame, joined by scan
   // encounters, with loop closures.
-  LcmLogReader reader;
-  ASSERT_TRUE(reader.Open((dir / "out1.lcmlog").string()).ok());
-  MergedMapAssembler assembler;
-  while (auto event = reader.Next()) {
-    if (!assembler.IsMapChannel(event->channel)) continue;
-    ASSERT_TRUE(assembler.Accept(event->channel, event->data.data(), event->data.size()).ok());
-  }
-  ASSERT_TRUE(assembler.map());
-  const MergedMap& map = *assembler.map();
+  const Result<MergedMap> last = LastMergedMapInLog((dir / "out1.lcmlog").string());
+  ASSERT_TRUE(last.ok()) << last.status().message();
+  const MergedMap& map = *last;
   ASSERT_EQ(map.trajectories.size(), 2u);
   for (const MergedTrajectory& trajectory : map.trajectories) EXPECT_TRUE(trajectory.anchored);
   int loop_closures = 0;
