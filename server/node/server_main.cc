@@ -20,6 +20,7 @@
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
+#include "server/node/mapping_server_flags.h"
 #include "server/node/server_journal.h"
 #include "server/node/server_node.h"
 #include "server/node/server_options.h"
@@ -44,24 +45,12 @@ int64_t DrawInstanceId() {
   return id == 0 ? 1 : id;
 }
 
-void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
-  MappingServerOptions& s = o->server;
+// The node's own options: the bus, offline files, limits, channels, journal. The mapping
+// server's options are registered by MappingServerFlags (shared with anchormap-replay).
+void RegisterNodeOptions(OptionsLoader* l, ServerOptions* o) {
   AddLcmUrlOption(l, &o->lcm_url);
   l->Add("log", "log", &o->log_input, "offline: read keyframes/encounters from this LCM log");
   l->Add("output", "output", &o->log_output, "offline: write the outputs to this LCM log");
-  l->Add(
-      "publish.map_period_s", "publish-period-s", &s.publish.map_period_s,
-      "merged map + anchor covariances after an update, at most this often (s; 0 = every update)");
-  l->Add("publish.grid_period_s", "grid-period-s", &s.publish.grid_period_s,
-         "occupancy grid tiles at most this often (s; 0 = only at the end of an offline run)");
-  l->Add("publish.map_full_period_s", "map-full-period-s", &s.publish.map_full_period_s,
-         "every chunk of the merged map at most this often; the maps between carry the changed "
-         "chunks (s; 0 = every chunk each time)");
-  l->Add("publish.chunks.chunk_poses", "map-chunk-poses", &s.publish.chunks.chunk_poses,
-         "keyframes per chunk of the merged map");
-  l->Add("publish.grid_full_period_s", "grid-full-period-s", &s.publish.grid_full_period_s,
-         "every grid tile at most this often; the grids between carry the changed tiles (s; 0 = "
-         "every tile each time)");
   l->Add("status_period_s", "status-period-s", &o->status_period_s,
          "status line and status message period (s; 0 = off)");
   l->Add("queue_capacity", "queue-capacity", &o->queue_capacity,
@@ -110,94 +99,8 @@ void Register(OptionsLoader* l, ServerOptions* o, std::string* formulation) {
   l->Add("snapshot_every_s", "snapshot-every-s", &o->snapshot_every_s,
          "with --journal: write a snapshot when this many seconds passed since the last and "
          "events were journaled (0 = not by time)");
-  l->Add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
-         "ask a trajectory for missing keyframes / encounters at most this often (s)");
-  l->Add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
-         "batch steps iterate until the largest step component is below this");
-  l->Add("smoother.formulation", "formulation", formulation,
-         "relative (anchors), global or global-moved (baselines)");
-  l->Add("smoother.batch_every_updates", "batch-every-updates", &s.smoother.batch_every_updates,
-         "batch step (relinearise, reorder) every N updates; between them the estimate carries "
-         "linearisation error");
-  l->Add("smoother.batch_when_fill_grows", "batch-when-fill-grows",
-         &s.smoother.batch_when_fill_grows, "batch step when nnz(R) grew by this factor (0 = off)");
-  l->Add("smoother.relinearize_threshold", "relinearize-threshold",
-         &s.smoother.relinearize_threshold,
-         "relinearise (partial step) the variables whose estimate moved this far from their "
-         "linearisation point (m / rad; 0 = off); with the correction on, only when it stalls");
-  l->Add("smoother.correction_tolerance", "correction-tolerance", &s.smoother.correction_tolerance,
-         "after each update, conjugate-gradient steps move the estimate until the predicted "
-         "decrease of chi2 is below this fraction of it (0 = off: relinearise on drift)");
-  l->Add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
-         "sigma of the gauge priors (m, rad)");
-  l->Add("table.max_held", "max-held-keyframes", &s.table.max_held,
-         "keyframes held per trajectory waiting for a missing sequence number");
-  l->Add("table.max_hold_s", "max-hold-s", &s.table.max_hold_s,
-         "a keyframe gap stays open this long (wall time online, data time offline) waiting for "
-         "the resend before it is bridged, the last resort (s)");
-  l->Add("table.gap_covariance_scale", "gap-covariance-scale", &s.table.gap_covariance_scale,
-         "bridged gap covariance = delta covariance x (missing + 1) x this");
-  l->Add("direct.max_wait_s", "encounter-max-wait-s", &s.direct.max_wait_s,
-         "longest wait (data time) for an encounter's keyframes or an unknown robot (s)");
-  l->Add("direct.max_time_offset_s", "encounter-max-time-offset-s", &s.direct.max_time_offset_s,
-         "an encounter's nearest keyframes must be this close in time (s)");
-  l->Add("direct.inflation_xy_base_m", "encounter-inflation-xy-base-m",
-         &s.direct.inflation.xy_base_m, "sigma added to an encounter for clock offsets (m)");
-  l->Add("direct.inflation_xy_per_m", "encounter-inflation-xy-per-m", &s.direct.inflation.xy_per_m,
-         "sigma added per metre of time correction");
-  l->Add("direct.inflation_theta_base_rad", "encounter-inflation-theta-base-rad",
-         &s.direct.inflation.theta_base_rad, "heading sigma added for clock offsets (rad)");
-  l->Add("loop.enabled", "loop-closures", &s.loop_closures,
-         "find loop closures within a trajectory by scan matching");
-  l->Add("loop.max_distance_m", "loop-max-distance-m", &s.loop.max_distance_m,
-         "a loop-closure candidate may lie this close to the keyframe (m)");
-  l->Add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
-         "a loop closure's match needs this fraction of points near the submap's walls");
-  l->Add("loop.submap_cache_mb", "loop-submap-cache-mb", &s.loop.submap_cache.budget_mb,
-         "loop closures: memory kept for built candidate submaps, least recently used dropped "
-         "beyond (MB, estimated)");
-  l->Add("scan.enabled", "scan-encounters", &s.scan_encounters,
-         "find encounters between trajectories by scan matching");
-  l->Add("match.workers", "match-workers", &s.match_workers,
-         "worker threads of the scan-matching sources (0: the server's thread)");
-  l->Add("match.lag_s", "match-lag-s", &s.match_schedule.lag_s,
-         "a match is used once the inputs reach its keyframe's time plus this (data time, s)");
-  l->Add("order.patience_s", "order-patience-s", &s.order.patience_s,
-         "a trajectory silent this long stops holding the others' inputs (s)");
   l->Add("release_budget_s", "release-budget-s", &o->release_budget_s,
          "online: wall time per 100 ms tick spent putting waiting inputs into the graph (s)");
-  l->Add("order.settle_s", "order-settle-s", &s.order.settle_s,
-         "online, an input waits this long after its arrival before it is ordered (s)");
-  l->Add("order.settle_offline", "order-settle-offline", &s.order.settle_offline,
-         "with --log: settle in data time too (the log is a recording of a bus, as the "
-         "online server heard it; false: the log's inputs are complete, released at once)");
-  l->Add("scan.near_distance_m", "scan-near-distance-m", &s.scan.near_distance_m,
-         "joined trajectories: window search when predicted this close (m)");
-  l->Add("scan.near_min_overlap", "scan-near-min-overlap", &s.scan.near_min_overlap,
-         "joined trajectories: a match needs this overlap");
-  l->Add("scan.global_every", "scan-global-every", &s.scan.global_every,
-         "unjoined trajectories: every N-th keyframe is searched globally");
-  l->Add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
-         &s.scan.max_global_per_keyframe,
-         "unjoined trajectories: submaps of each target searched per keyframe (taken in turn)");
-  l->Add("scan.max_global_groups_per_keyframe", "scan-max-global-groups-per-keyframe",
-         &s.scan.max_global_groups_per_keyframe,
-         "unjoined trajectories: other groups searched per keyframe (those searched least)");
-  l->Add("scan.global_searches_per_s", "scan-global-searches-per-s",
-         &s.scan.global_budget.searches_per_s,
-         "unjoined trajectories: global searches (submaps) per second of data, whole team");
-  l->Add("scan.global_burst", "scan-global-burst", &s.scan.global_budget.burst,
-         "unjoined trajectories: most global searches saved up");
-  l->Add("scan.submap_cache_mb", "scan-submap-cache-mb", &s.scan.submap_cache.budget_mb,
-         "scan encounters: memory kept for built submaps, least recently used dropped beyond "
-         "(MB, estimated)");
-  l->Add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
-  l->Add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
-         "cells per tile side");
-  l->Add("grid.max_ray_length_m", "grid-max-ray-m", &s.publish.grid.max_ray_length_m,
-         "beams are traced at most this far (m)");
-  l->Add("grid.no_return_as_free", "grid-no-return-as-free", &s.publish.grid.no_return_as_free,
-         "trace no-return beams as free space up to the ray limit");
 }
 
 // Loads the key file into `node` (with a warning when there is none).
@@ -409,23 +312,18 @@ int Main(int argc, char** argv) {
   // --log reads what a bus carried (a recording, a journal): settled in data time, so its
   // map is the live server's (online the wall clock settles).
   options.server.order.settle_offline = true;
-  std::string formulation = ToString(options.server.smoother.formulation);
   OptionsLoader loader(
       "anchormap-server",
       "[--lcm-url URL] [--config FILE] [options]\n   or: anchormap-server --log IN.lcmlog --output "
       "OUT.lcmlog [options]",
       "The anchormap mapping server: merges every robot's keyframes into one map with anchor\n"
       "nodes (one pose graph per trajectory, joined at encounters) and publishes it over LCM.");
-  Register(&loader, &options, &formulation);
+  RegisterNodeOptions(&loader, &options);
+  const MappingServerFlags server_flags(&loader, &options.server);
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
-  const auto parsed_formulation = ParseFormulation(formulation);
-  if (!parsed_formulation) {
-    return loader.UsageError(Status::Error("--formulation: '" + formulation +
-                                           "' is not relative, global or global-moved"));
-  }
-  options.server.smoother.formulation = *parsed_formulation;
-  Status valid = options.Validate();
+  Status valid = server_flags.Apply();
+  if (valid.ok()) valid = options.Validate();
   if (valid.ok()) valid = loader.StartLogging(options.log_level, "anchormap-server");
   if (!valid.ok()) return loader.UsageError(valid);
   return options.log_input.empty() ? RunOnline(options) : RunOffline(options);

@@ -22,6 +22,7 @@
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
+#include "server/node/mapping_server_flags.h"
 #include "server/node/server_node.h"
 
 namespace anchormap {
@@ -232,52 +233,22 @@ int Main(int argc, char** argv) {
              "agents' keyframe angle (rad)");
   loader.Add("scan_matching", "scan-matching", &options.scan_matching,
              "agents refine odometry by scan matching (false: raw odometry)");
-  loader.Add("publish.map_period_s", "publish-period-s",
-             &options.server.server.publish.map_period_s, "server map period (data time, s)");
-  loader.Add("publish.grid_period_s", "grid-period-s", &options.server.server.publish.grid_period_s,
-             "server grid period (data time, s)");
-  loader.Add("smoother.batch_every_updates", "batch-every-updates",
-             &options.server.server.smoother.batch_every_updates,
-             "server: batch step every N updates (1 = pure batch)");
-  loader.Add("smoother.relinearize_threshold", "relinearize-threshold",
-             &options.server.server.smoother.relinearize_threshold,
-             "server: relinearise (partial step) the variables whose estimate drifted this far "
-             "from their linearisation point (m / rad; 0 = off); with the correction on, only "
-             "when it stalls");
-  loader.Add("smoother.correction_tolerance", "correction-tolerance",
-             &options.server.server.smoother.correction_tolerance,
-             "server: after each update, conjugate-gradient steps move the estimate until the "
-             "predicted decrease of chi2 is below this fraction of it (0 = off)");
   loader.Add("update_times", "update-times", &options.update_times,
              "write every solver update's data time, cost (ms), kind and the process's CPU "
              "seconds to this CSV, as the replay goes (empty: none; "
              "tools/bench/scale_figures.sh reads it)");
   loader.Add("inputs_output", "inputs-output", &options.inputs_output,
              "also write the agents' keyframes and encounters to this LCM log (empty: none)");
-  loader.Add("loop.enabled", "loop-closures", &options.server.server.loop_closures,
-             "server: loop closures within a trajectory by scan matching");
-  loader.Add("match.workers", "match-workers", &options.server.server.match_workers,
-             "server: worker threads of the scan-matching sources (0: its own thread)");
-  loader.Add("match.lag_s", "match-lag-s", &options.server.server.match_schedule.lag_s,
-             "server: a match is used once the inputs reach its keyframe's time plus this "
-             "(data time, s)");
-  loader.Add("scan.enabled", "scan-encounters", &options.server.server.scan_encounters,
-             "server: encounters between trajectories by scan matching");
-  loader.Add("scan.global_searches_per_s", "scan-global-searches-per-s",
-             &options.server.server.scan.global_budget.searches_per_s,
-             "server: first-join (global) searches per second of data, whole team");
-  loader.Add("loop.submap_cache_mb", "loop-submap-cache-mb",
-             &options.server.server.loop.submap_cache.budget_mb,
-             "server: memory kept for built loop-candidate submaps (MB, estimated)");
-  loader.Add("scan.submap_cache_mb", "scan-submap-cache-mb",
-             &options.server.server.scan.submap_cache.budget_mb,
-             "server: memory kept for built scan-encounter submaps (MB, estimated)");
+  const MappingServerFlags server_flags(&loader, &options.server.server, "server: ");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
   if (!outcome.run) return outcome.exit_code;
   options.server.server.record_update_times = !options.update_times.empty();
-  Status valid = options.server.Validate();
-  if (options.input == options.output) valid = Status::Error("--output must differ from --log");
+  Status valid = server_flags.Apply();
+  if (valid.ok()) valid = options.server.Validate();
+  if (valid.ok() && options.input == options.output) {
+    valid = Status::Error("--output must differ from --log");
+  }
   if (valid.ok()) valid = loader.StartLogging(options.log_level, "anchormap-replay");
   if (!valid.ok()) return loader.UsageError(valid);
   return Run(options);
