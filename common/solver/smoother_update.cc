@@ -672,6 +672,14 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
       merge_pending_ = false;  // else the next update tries again
       merge_vars_.clear();
     }
+    // A periodic step relinearises once: one Gauss-Newton step from the estimate with this
+    // update's new factors in it, which can leave it farther from the optimum than the
+    // correction would (a loop closure); with R fresh the correction converges at once.
+    if (result.status.ok() && options_.correction_tolerance > 0 &&
+        !IteratesToConvergence(kind, options_) && !CorrectEstimate() &&
+        options_.relinearize_when_correction_stalls) {
+      RelinearizeUntilCorrected(&result);
+    }
   } else {
     // 2c. Givens updates, then relinearisation where estimates drifted.
     IncrementalStep(/*solve=*/true, &result);
