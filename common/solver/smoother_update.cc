@@ -154,6 +154,7 @@ void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
   // old or placed already.
   const int n = r_->size();
   std::vector<int> determining(n - first_new, -1);  // by new position: index in `ready`
+  std::vector<int> placing_order;                   // new positions, in grounding order
   int from = first_new;
   for (size_t k = 0; k < ready.size(); ++k) {
     const FactorRecord& f = factors_[ready[k]];
@@ -161,6 +162,7 @@ void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
       const int slot = vars_[f.vars[j]].position - first_new;
       if (slot < 0 || determining[slot] >= 0) continue;
       determining[slot] = static_cast<int>(k);
+      placing_order.push_back(slot);
       for (int i = 0; i < f.num_vars; ++i) from = std::min(from, vars_[f.vars[i]].position);
     }
   }
@@ -168,8 +170,7 @@ void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
   // last), so this is a few rows, not the map.
   std::vector<Eigen::Vector3d>& solution = tail_solution_;
   r_->BackSubstituteTail(from, &solution);
-  for (int slot = 0; slot < n - first_new; ++slot) {
-    if (determining[slot] < 0) continue;
+  for (int slot : placing_order) {
     const FactorRecord& f = factors_[ready[determining[slot]]];
     const LinearizedFactor& lin = jacobians[determining[slot]];
     // The new variable at R's solution relative to its neighbours', moved with their
