@@ -227,11 +227,12 @@ class Smoother::Impl {
   bool KeepsEstimate() const {
     return options_.correction_tolerance > 0 && options_.correction_cg_iterations > 0;
   }
-  // After IncrementalStep's solve: old variables back where they were, new ones placed
-  // relative to them by the factor that determines them.
-  void KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
-                              const std::vector<LinearizedFactor>& jacobians, int first_new,
-                              const std::vector<Eigen::Vector3d>& delta_before);
+  // Kept-estimate mode, after IncrementalStep's Givens updates (no back-substitution):
+  // each new variable (position >= first_new) is placed by the factor that determines it
+  // (`jacobians`, by factor of `ready`) relative to its neighbours' estimates, as R's
+  // solution places it relative to theirs.
+  void PlaceNewVariables(const std::vector<int64_t>& ready,
+                         const std::vector<LinearizedFactor>& jacobians, int first_new);
   // Sets the correction so that every variable in R is at `estimate` (by variable).
   void KeepEstimate(const std::vector<Pose2>& estimate);
   bool MergesByPartialStep() const {
@@ -322,6 +323,7 @@ class Smoother::Impl {
   std::vector<FactorLinearization> factor_lin_;    // by factor id
   std::vector<std::vector<int64_t>> var_factors_;  // by variable: ids of its factors
   std::vector<int64_t> factor_stamp_;              // PartialRelinearization's work space
+  std::vector<Eigen::Vector3d> tail_solution_;     // PlaceNewVariables' work space
   int64_t stamp_ = 0;
   std::vector<int64_t> pending_factors_;
   std::vector<int> pending_vars_;

@@ -129,8 +129,8 @@ struct SmootherOptions {
 
 // The mapping server's configuration: relinearise at 0.01 by partial steps, merge by
 // partial steps, no batch step on a clock; batch steps only when R's fill has grown
-// batch_when_fill_grows times since the last ordering (amortised: with a map that grows,
-// their number grows with the logarithm of its size), and the final one at the end of
+// batch_when_fill_grows (1.5) times since the last ordering (amortised: with a map that
+// grows, their number grows with the logarithm of its size), and the final one at the end of
 // input. Why relinearisation: the server publishes estimates and covariances after every
 // update, and pure iSAM let the demo's estimates wander 1.97 m from their linearisation
 // point (chi2 135 against an optimum of 78, an anchor sigma of 2.8 m against 3.9 m at

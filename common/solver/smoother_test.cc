@@ -181,6 +181,40 @@ TEST(SmootherTest, ConjugateGradientCorrectionReachesTheDenseOptimumAfterEveryUp
   EXPECT_EQ(smoother.stats().batch_steps, 0);
 }
 
+TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAddedIn) {
+  // The conjugate-gradient correction's mode places each new variable by the factor that
+  // determines it, relative to its neighbours' estimates: a pose added before its
+  // predecessor (so ordered before it in R) must still see the predecessor placed first.
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_cg_iterations = 50;
+  options.relinearize_when_correction_stalls = true;
+  Smoother ascending(options), descending(options);
+  const TrajectoryId t(0);
+  AddRandomTrajectory(&ascending, t, 30, 5, true);
+  AddRandomTrajectory(&descending, t, 30, 5, true);
+  const Pose2 step(0.5, 0.1, 0.05);
+  for (Smoother* smoother : {&ascending, &descending}) {
+    const Pose2 last = smoother->FramePose({t, 29});
+    for (int k = 0; k < 3; ++k) {
+      const int i = smoother == &ascending ? 30 + k : 32 - k;
+      // Initial values that the odometry does not agree with: the placement decides.
+      ASSERT_TRUE(smoother->AddPose({t, i}, last).ok());
+    }
+    for (int i = 30; i < 33; ++i)
+      ASSERT_TRUE(smoother->AddBetween({t, i - 1}, {t, i}, step, kCovariance).ok());
+    ASSERT_TRUE(smoother->Update().status.ok());
+  }
+  EXPECT_GT(ascending.stats().correction_steps, 0);
+  for (int i = 0; i < 33; ++i) {
+    EXPECT_LE(PoseError(ascending.Value(PoseKey{t, i}), descending.Value(PoseKey{t, i}))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-9)
+        << i;
+  }
+}
+
 TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   SmootherOptions options;
   options.convergence_step = 1e-13;  // R linearised at the estimate itself

@@ -66,28 +66,6 @@ void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
   pending_vars_.swap(vars);
 }
 
-namespace {
-
-// IncrementalStep with the estimate kept: a row of delta whose value moved less than this
-// does not make the rows that depend on it solve again.
-constexpr double kKeptDeltaChange = 1e-12;
-
-// A correction c with delta + c == offset in floating point where one is within a few
-// units in the last place of offset - delta: the estimate keeps its bits, so the
-// correction's cache of linearised factors (linearization_cache.h) stays valid for it.
-Eigen::Vector3d KeepingOffset(const Eigen::Vector3d& offset, const Eigen::Vector3d& delta) {
-  Eigen::Vector3d c = offset - delta;
-  for (int i = 0; i < 3; ++i) {
-    for (int k = 0; k < 4 && delta[i] + c[i] != offset[i]; ++k) {
-      const double toward = delta[i] + c[i] < offset[i] ? HUGE_VAL : -HUGE_VAL;
-      c[i] = std::nextafter(c[i], toward);
-    }
-  }
-  return c;
-}
-
-}  // namespace
-
 void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   // grounded[v] == (v is in R), kept between updates so that an update costs what it
   // touches: only new and pending variables need a fresh look (a batch step clears it).
@@ -101,8 +79,6 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   SparseR& R = MutableR();
   const int first_new = R.size();
   const bool keep_estimate = solve && KeepsEstimate();
-  const std::vector<Eigen::Vector3d> delta_before =
-      keep_estimate ? delta_ : std::vector<Eigen::Vector3d>();
   int appended = 0;
   for (int v : pending_vars_) {
     if (!grounded[v]) continue;
@@ -145,12 +121,12 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   TakeOutOfPending(ready);
 
   if (!solve) return;
-  // When the correction keeps the estimate, delta only has to solve R delta = d (the
-  // correction takes back what it moves): rows whose inputs moved less than rounding keep
-  // their value, as an update without a loop closure changes the old rows' solution only
-  // by rounding, and a full back-substitution there would cost the map.
-  if (keep_estimate && options_.backsubstitution_threshold == 0.0) {
-    result->rows_backsubstituted = R.BackSubstitutePartial(touched, kKeptDeltaChange, &delta_);
+  if (keep_estimate) {
+    // R only preconditions the correction and the old variables keep their estimate: R's
+    // new solution for them would only be taken back by their correction, so delta stays
+    // as it was (no longer R's solution; partial and batch steps solve again), and a
+    // back-substitution through the rows a loop closure changed (the map) is saved.
+    PlaceNewVariables(ready, new_jacobians, first_new);
   } else if (options_.backsubstitution_threshold == 0.0) {
     R.BackSubstitute(&delta_);
     result->rows_backsubstituted = R.size();
@@ -158,7 +134,6 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     result->rows_backsubstituted =
         R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
   }
-  if (keep_estimate) KeepEstimateAfterSolve(ready, new_jacobians, first_new, delta_before);
   if (options_.correction_tolerance > 0) {
     // The new factors at the new estimate: with a zero error at entry R's solution of the
     // old variables is unchanged, so these tell whether the gradient changed (a new
@@ -171,21 +146,50 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   }
 }
 
-void Smoother::Impl::KeepEstimateAfterSolve(const std::vector<int64_t>& ready,
-                                            const std::vector<LinearizedFactor>& jacobians,
-                                            int first_new,
-                                            const std::vector<Eigen::Vector3d>& delta_before) {
-  // The old variables stay where they were: what R's new solution moved, the correction
-  // takes back.
-  for (int p = 0; p < first_new; ++p) {
-    if (delta_[p] == delta_before[p]) continue;
-    Eigen::Vector3d& correction = correction_[position_to_var_[p]];
-    correction = KeepingOffset(delta_before[p] + correction, delta_[p]);
-  }
-  // A variable a new factor determines is placed by R relative to its neighbours' R
-  // solution.
+void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
+                                       const std::vector<LinearizedFactor>& jacobians,
+                                       int first_new) {
+  // Factors enter R in the order they ground their variables, so the first new factor on
+  // a new variable is the one that determines it: every other variable of that factor is
+  // old or placed already.
+  const int n = r_->size();
+  std::vector<int> determining(n - first_new, -1);  // by new position: index in `ready`
+  std::vector<int> placing_order;                   // new positions, in grounding order
+  int from = first_new;
   for (size_t k = 0; k < ready.size(); ++k) {
-    PlaceByNeighboursCorrection(factors_[ready[k]], jacobians[k], first_new);
+    const FactorRecord& f = factors_[ready[k]];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const int slot = vars_[f.vars[j]].position - first_new;
+      if (slot < 0 || determining[slot] >= 0) continue;
+      determining[slot] = static_cast<int>(k);
+      placing_order.push_back(slot);
+      for (int i = 0; i < f.num_vars; ++i) from = std::min(from, vars_[f.vars[i]].position);
+    }
+  }
+  // R's new solution there: rows near the end (a trajectory's newest pose is ordered
+  // last), so this is a few rows, not the map.
+  std::vector<Eigen::Vector3d>& solution = tail_solution_;
+  r_->BackSubstituteTail(from, &solution);
+  for (int slot : placing_order) {
+    const FactorRecord& f = factors_[ready[determining[slot]]];
+    const LinearizedFactor& lin = jacobians[determining[slot]];
+    // The new variable at R's solution relative to its neighbours', moved with their
+    // estimates' offset from that solution through the factor's Jacobians (the new ones
+    // placed before it included).
+    const int p = first_new + slot;
+    const int var = position_to_var_[p];
+    delta_[p] = solution[p];
+    Eigen::Vector3d pushed = Eigen::Vector3d::Zero();
+    int self = -1;
+    for (int i = 0; i < f.num_vars; ++i) {
+      const int q = vars_[f.vars[i]].position;
+      if (q == p) {
+        self = i;
+      } else {
+        pushed.noalias() += lin.jacobians[i] * (OffsetOf(f.vars[i]) - solution[q]);
+      }
+    }
+    correction_[var] = -lin.jacobians[self].partialPivLu().solve(pushed);
   }
 }
 
@@ -671,6 +675,14 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
     if (result.status.ok()) {
       merge_pending_ = false;  // else the next update tries again
       merge_vars_.clear();
+    }
+    // A periodic step relinearises once: one Gauss-Newton step from the estimate with this
+    // update's new factors in it, which can leave it farther from the optimum than the
+    // correction would (a loop closure); with R fresh the correction converges at once.
+    if (result.status.ok() && options_.correction_tolerance > 0 &&
+        !IteratesToConvergence(kind, options_) && !CorrectEstimate() &&
+        options_.relinearize_when_correction_stalls) {
+      RelinearizeUntilCorrected(&result);
     }
   } else {
     // 2c. Givens updates, then relinearisation where estimates drifted.

@@ -321,6 +321,11 @@ void SparseR::BackSubstitute(std::vector<Eigen::Vector3d>* delta) const {
   for (int p = size() - 1; p >= 0; --p) (*delta)[p] = SolveRow(p, *delta);
 }
 
+void SparseR::BackSubstituteTail(int from, std::vector<Eigen::Vector3d>* x) const {
+  x->resize(rows_.size());
+  for (int p = size() - 1; p >= from; --p) (*x)[p] = SolveRow(p, *x);
+}
+
 int SparseR::BackSubstitutePartial(const std::vector<int>& dirty, double threshold,
                                    std::vector<Eigen::Vector3d>* delta) {
   delta->resize(rows_.size(), Eigen::Vector3d::Zero());

@@ -74,6 +74,9 @@ class SparseR {
 
   // delta = R^-1 d by full back-substitution.
   void BackSubstitute(std::vector<Eigen::Vector3d>* delta) const;
+  // The same for the block rows from `from` to the end only (they reference no row before
+  // it); entries of `x` before `from` are neither read nor written.
+  void BackSubstituteTail(int from, std::vector<Eigen::Vector3d>* x) const;
   // Recomputes only block rows in `dirty` and, transitively, rows whose inputs changed by
   // more than `threshold` (max-abs); others keep their value. Returns rows recomputed.
   int BackSubstitutePartial(const std::vector<int>& dirty, double threshold,

@@ -168,6 +168,25 @@ TEST(SparseRTest, PartialBackSubstitutionWithZeroThresholdIsExact) {
   EXPECT_EQ(r.BackSubstitutePartial(touched, 1e9, &partial), 1);
 }
 
+TEST(SparseRTest, TailBackSubstitutionIsTheFullSolutionsTailAndLeavesTheRestAlone) {
+  std::mt19937 rng(7);
+  const int n = 30;
+  SparseR r;
+  r.Append(n);
+  for (const NewRows& row : RandomRows(n, 40, &rng)) {
+    std::vector<int> touched;
+    r.Eliminate(row, &touched);
+  }
+  std::vector<Eigen::Vector3d> full;
+  r.BackSubstitute(&full);
+  for (int from : {0, 12, n - 1}) {
+    std::vector<Eigen::Vector3d> tail(n, Eigen::Vector3d::Constant(7.0));
+    r.BackSubstituteTail(from, &tail);
+    for (int p = 0; p < from; ++p) EXPECT_EQ(tail[p], Eigen::Vector3d::Constant(7.0)) << p;
+    for (int p = from; p < n; ++p) EXPECT_EQ(tail[p], full[p]) << p;  // the same operations
+  }
+}
+
 TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
   std::mt19937 rng(2);
   SparseR r;

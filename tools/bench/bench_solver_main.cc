@@ -49,7 +49,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
                               chi2 excess of the step's estimate over it (0 = off)
-  --fill-factor F             batch when nnz(R) grows by F since the last one (default 4, 0 = off)
+  --fill-factor F             batch when nnz(R) grows by F since the last one (default 4,
+                              --server-mode 1.5; 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
                               protocol for iterations_to_1e-4) instead of relinearising once
   --break-chain ID            drop the odometry edge (ID-1, ID): pose ID starts a new

@@ -122,7 +122,8 @@ fi
 echo
 echo "The correction's work per update (the server's mode with the CG correction): gradient passes"
 echo "linearise only factors whose variables moved (the entry pass: the new factors); the Givens"
-echo "update's back-substitution solves only rows whose inputs moved; every 37th step checked (untimed):"
+echo "update does not back-substitute (R only preconditions; partial steps do); every 37th step"
+echo "checked (untimed):"
 echo
 echo "| graph | robots | CG iterations | gradient passes | factors linearised per pass | factors | rows back-substituted per update | worst checked step chi2 excess | chi2 at the end |"
 echo "|---|---|---|---|---|---|---|---|---|"
