@@ -22,10 +22,7 @@ std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, Pos
   if (a.trajectory == b.trajectory) {
     Eigen::Matrix3d J_a, J_b;
     out.T_a_b = Between(smoother->FramePose(a), smoother->FramePose(b), &J_a, &J_b);
-    const Eigen::MatrixXd joint = smoother->JointCovariance({a, b});
-    Eigen::Matrix<double, 3, 6> J;
-    J << J_a, J_b;
-    out.covariance = J * joint * J.transpose();
+    out.covariance = smoother->ProjectedCovariance({a, b}, {J_a, J_b});
     return out;
   }
   const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
@@ -38,10 +35,9 @@ std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, Pos
   const Pose2 global_b =
       Compose(smoother->Value(anchor_b), smoother->FramePose(b), &dgb_dA, &dgb_dx);
   out.T_a_b = Between(global_a, global_b, &dh_dga, &dh_dgb);
-  const Eigen::MatrixXd joint = smoother->JointCovariance({a, b, anchor_a, anchor_b});
-  Eigen::Matrix<double, 3, 12> J;
-  J << dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA;
-  out.covariance = J * joint * J.transpose();
+  out.covariance = smoother->ProjectedCovariance(
+      {a, b, anchor_a, anchor_b},
+      {dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA});
   return out;
 }
 

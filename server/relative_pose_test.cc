@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include <gtest/gtest.h>
+
+#include "common/solver/smoother_options.h"
 
 namespace anchormap {
 namespace {
@@ -109,6 +112,79 @@ TEST(PairwiseInconsistencyTest, OneValueBothWaysToFirstOrder) {
   EXPECT_LT(at_one_sigma, 0.02);
   EXPECT_LT(at_a_tenth, 0.002);
   EXPECT_LT(at_a_tenth, 0.2 * at_one_sigma);  // shrinks with the residual
+}
+
+// Four robots on noisy odometry meet every few poses: pairs (0, 1) and (2, 3) form two
+// groups that then merge (a partial step, in the server's configuration). After every update, the
+// predicted covariance of poses in one trajectory and across anchored trajectories (one sparse
+// solve, Smoother::ProjectedCovariance) equals J Sigma J^T built from the joint covariance blocks.
+TEST(PredictRelativePoseTest, CovarianceEqualsTheJointCovarianceProjectedAfterEveryUpdate) {
+  constexpr int kRobots = 4, kPoses = 40;
+  const int meetings[4][2] = {{0, 1}, {2, 3}, {1, 2}, {3, 0}};
+  Smoother smoother(ServerModeOptions());
+  std::mt19937 rng(17);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  const Eigen::Matrix3d odometry_covariance = Diagonal(0.02, 0.02, 0.02);
+  auto truth = [](int r, int i) {
+    const double angle = 0.15 * i + 2.0 * r;
+    return Pose2(4.0 * std::cos(angle) + r, 4.0 * std::sin(angle), angle + M_PI / 2);
+  };
+  double worst = 0.0;
+  int compared_across = 0, compared_within = 0;
+  for (int i = 0; i < kPoses; ++i) {
+    for (int r = 0; r < kRobots; ++r) {
+      const PoseKey key{TrajectoryId(r), i};
+      if (i == 0) {
+        ASSERT_TRUE(smoother.AddPose(key, Pose2()).ok());
+        continue;
+      }
+      Pose2 z = Between(truth(r, i - 1), truth(r, i));
+      z = Pose2(z.x() + noise(rng), z.y() + noise(rng), z.theta() + noise(rng));
+      ASSERT_TRUE(
+          smoother.AddPose(key, Compose(smoother.FramePose({TrajectoryId(r), i - 1}), z)).ok());
+      ASSERT_TRUE(smoother.AddBetween({TrajectoryId(r), i - 1}, key, z, odometry_covariance).ok());
+    }
+    if (i >= 4 && i % 3 == 1) {
+      const int a = meetings[(i - 4) / 3 % 4][0], b = meetings[(i - 4) / 3 % 4][1], j = i - 2;
+      ASSERT_TRUE(smoother
+                      .AddEncounter({TrajectoryId(a), i}, {TrajectoryId(b), j},
+                                    Between(truth(a, i), truth(b, j)), Diagonal(0.05, 0.05, 0.02))
+                      .ok());
+    }
+    ASSERT_TRUE(smoother.Update().status.ok());
+    for (int r = 0; r < kRobots; ++r) {
+      for (int s = 0; s < kRobots; ++s) {
+        const PoseKey a{TrajectoryId(r), i / 3}, b{TrajectoryId(s), i};
+        const std::optional<PredictedRelativePose> predicted = PredictRelativePose(&smoother, a, b);
+        if (!predicted) continue;
+        Eigen::Matrix3d expected;
+        if (r == s) {
+          Eigen::Matrix3d J_a, J_b;
+          Between(smoother.FramePose(a), smoother.FramePose(b), &J_a, &J_b);
+          Eigen::Matrix<double, 3, 6> J;
+          J << J_a, J_b;
+          expected = J * smoother.JointCovariance({a, b}) * J.transpose();
+          ++compared_within;
+        } else {
+          const AnchorKey A{a.trajectory}, B{b.trajectory};
+          Eigen::Matrix3d dga_dA, dga_dx, dgb_dB, dgb_dx, dh_dga, dh_dgb;
+          const Pose2 ga = Compose(smoother.Value(A), smoother.FramePose(a), &dga_dA, &dga_dx);
+          const Pose2 gb = Compose(smoother.Value(B), smoother.FramePose(b), &dgb_dB, &dgb_dx);
+          Between(ga, gb, &dh_dga, &dh_dgb);
+          Eigen::Matrix<double, 3, 12> J;
+          J << dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dB;
+          expected = J * smoother.JointCovariance({a, b, A, B}) * J.transpose();
+          ++compared_across;
+        }
+        worst = std::max(worst, (predicted->covariance - expected).cwiseAbs().maxCoeff() /
+                                    expected.cwiseAbs().maxCoeff());
+      }
+    }
+  }
+  EXPECT_GT(compared_within, 100);
+  EXPECT_GT(compared_across, 100);
+  EXPECT_LT(worst, 1e-10);
+  EXPECT_GT(smoother.stats().partial_merges, 0);
 }
 
 }  // namespace

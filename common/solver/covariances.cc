@@ -1,5 +1,6 @@
 #include "common/solver/covariances.h"
 
+#include <stdexcept>
 #include <utility>
 
 #include <Eigen/Dense>
@@ -99,6 +100,51 @@ Eigen::MatrixXd CovarianceRecovery::Joint(const std::vector<int>& positions) {
     }
   }
   return joint;
+}
+
+Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vector<int>& positions,
+                                              const std::vector<Eigen::Matrix3d>& jacobians) {
+  if (positions.size() != jacobians.size()) {
+    throw std::invalid_argument("CovarianceProjection: one Jacobian block per position");
+  }
+  const int n = r.size();
+  if (static_cast<int>(pending_.size()) < n) {
+    pending_.resize(n, Eigen::Matrix3d::Zero());
+    queued_.resize(n, 0);
+  }
+  for (int p : positions) {
+    if (p < 0 || p >= n) throw std::out_of_range("CovarianceProjection: position outside R");
+  }
+  for (size_t s = 0; s < positions.size(); ++s) {
+    const int p = positions[s];
+    pending_[p] += jacobians[s].transpose();
+    if (!queued_[p]) {
+      queued_[p] = 1;
+      queue_.push(p);
+    }
+  }
+  // Forward substitution on R^T, rows in ascending order; each solved row pushes its part
+  // into the rows its blocks reach (all later), so only ancestors are visited.
+  Eigen::Matrix3d result = Eigen::Matrix3d::Zero();
+  while (!queue_.empty()) {
+    const int p = queue_.top();
+    queue_.pop();
+    const RBlockRow& row = r.row(p);
+    // Y_p = R_pp^-T pending_p
+    const Eigen::Matrix3d y =
+        row.diagonal.transpose().triangularView<Eigen::Lower>().solve(pending_[p]);
+    pending_[p].setZero();
+    queued_[p] = 0;
+    result.noalias() += y.transpose() * y;
+    for (const auto& [q, block] : row.right) {
+      pending_[q].noalias() -= block.transpose() * y;
+      if (!queued_[q]) {
+        queued_[q] = 1;
+        queue_.push(q);
+      }
+    }
+  }
+  return 0.5 * (result + result.transpose());  // symmetric by construction; remove round-off
 }
 
 }  // namespace anchormap

@@ -11,7 +11,9 @@
 // snapshot can be queried off the solver's thread while the solver moves on.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <queue>
 #include <utility>
 #include <vector>
 
@@ -76,6 +78,33 @@ class CovarianceRecovery {
   // blocks one entry depends on.
   std::vector<std::pair<int, int>> stack_;
   std::vector<const Eigen::Matrix3d*> inputs_;
+};
+
+// J Sigma J^T for a few positions of R, without Sigma's blocks: with Sigma = R^-1 R^-T,
+//
+//   J Sigma J^T = Y^T Y,   Y = R^-T J^T   (R^T Y = J^T: one forward substitution),
+//
+// and Y is non-zero only on the ancestors of the positions in R's elimination tree. The
+// cost is the non-zeros of R on those rows times J's rows (3): linear in the size of the
+// dense corner that anchors and latest poses form at the bottom of R, where the block
+// recursion (CovarianceRecovery above) needs every pair of the corner's positions and costs its
+// cube. At 100 robots in one group that corner reached 300 positions, and the gates'
+// joint covariances took 85 % of the server's CPU (docs/ARCHITECTURE.md, "Server cost at
+// scale"). Exact; the round-off differs from the recursion's.
+class CovarianceProjection {
+ public:
+  // J Sigma J^T, J = [J_1 ... J_k] with J_s (3x3) acting on position positions[s]
+  // (positions may repeat: their J_s add up). Scratch space is kept between calls; `r` must
+  // not change during a call.
+  Eigen::Matrix3d Compute(const SparseR& r, const std::vector<int>& positions,
+                          const std::vector<Eigen::Matrix3d>& jacobians);
+
+ private:
+  // By position: the right-hand side still to solve (J^T's block minus what earlier rows
+  // pushed), and whether the position is in the queue.
+  std::vector<Eigen::Matrix3d> pending_;
+  std::vector<char> queued_;
+  std::priority_queue<int, std::vector<int>, std::greater<int>> queue_;
 };
 
 }  // namespace anchormap

@@ -1,7 +1,9 @@
 #include "common/solver/covariances.h"
 
+#include <algorithm>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -101,6 +103,61 @@ TEST(CovarianceRecoveryTest, BlocksSurviveTheMemoGrowing) {
           << i << "," << l;
     }
   }
+}
+
+// J Sigma J^T by one sparse solve equals the dense projection for any positions (repeated
+// ones too), in any order, and a refused call leaves nothing behind for the next one.
+TEST(CovarianceProjectionTest, EqualsTheDenseProjectionForAnyPositions) {
+  const int n = 60;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 25, 11);
+  std::mt19937 rng(3);
+  CovarianceProjection projected;
+  CovarianceRecovery recovery(r);
+  double worst_dense = 0.0, worst_recursion = 0.0;
+  for (int query = 0; query < 300; ++query) {
+    const int k = 1 + query % 4;
+    std::vector<int> positions;
+    std::vector<Eigen::Matrix3d> jacobians;
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(3, 3 * n);
+    for (int s = 0; s < k; ++s) {
+      positions.push_back(std::uniform_int_distribution<int>(0, n - 1)(rng));
+      jacobians.push_back(Eigen::Matrix3d::Random());
+      J.block<3, 3>(0, 3 * positions.back()) += jacobians.back();
+    }
+    const Eigen::Matrix3d expected = J * sigma * J.transpose();
+    const Eigen::Matrix3d actual = projected.Compute(*r, positions, jacobians);
+    const double scale = expected.cwiseAbs().maxCoeff();
+    worst_dense = std::max(worst_dense, (actual - expected).cwiseAbs().maxCoeff() / scale);
+    // The block recursion's answer for the same Jacobian.
+    Eigen::MatrixXd J_joint(3, 3 * k);
+    for (int s = 0; s < k; ++s) J_joint.block<3, 3>(0, 3 * s) = jacobians[s];
+    const Eigen::Matrix3d by_blocks = J_joint * recovery.Joint(positions) * J_joint.transpose();
+    worst_recursion = std::max(worst_recursion, (actual - by_blocks).cwiseAbs().maxCoeff() / scale);
+    EXPECT_EQ(actual, actual.transpose());
+  }
+  EXPECT_LT(worst_dense, 1e-9);
+  EXPECT_LT(worst_recursion, 1e-12);
+
+  EXPECT_THROW(
+      projected.Compute(*r, {3, n}, {Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity()}),
+      std::out_of_range);
+  EXPECT_THROW(projected.Compute(*r, {3}, {}), std::invalid_argument);
+  const Eigen::Matrix3d marginal = projected.Compute(*r, {3}, {Eigen::Matrix3d::Identity()});
+  const Eigen::Matrix3d expected_marginal = sigma.block(9, 9, 3, 3);
+  EXPECT_LT((marginal - expected_marginal).cwiseAbs().maxCoeff(),
+            1e-9 * expected_marginal.cwiseAbs().maxCoeff());
+}
+
+// The last position has no ancestor: its marginal is its own diagonal block's, which the
+// solve reaches without visiting any other row.
+TEST(CovarianceProjectionTest, TheLastPositionNeedsOnlyItsDiagonalBlock) {
+  const auto [r, sigma] = MakeChainWithLoopClosures(40, 10, 5);
+  CovarianceProjection projected;
+  const Eigen::Matrix3d R_ll = r->row(39).diagonal;
+  const Eigen::Matrix3d expected = (R_ll.transpose() * R_ll).inverse();
+  EXPECT_LT(
+      (projected.Compute(*r, {39}, {Eigen::Matrix3d::Identity()}) - expected).cwiseAbs().maxCoeff(),
+      1e-12 * expected.cwiseAbs().maxCoeff());
 }
 
 }  // namespace

@@ -210,8 +210,7 @@ double Smoother::Impl::MaxAbs(const std::vector<Eigen::Vector3d>& v) {
 
 // --- Queries ---------------------------------------------------------------------------
 
-Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
-  if (!covariances_) covariances_ = std::make_unique<CovarianceRecovery>(r_);
+std::vector<int> Smoother::Impl::SolvedPositions(const std::vector<Key>& keys) const {
   std::vector<int> positions;
   for (const Key& key : keys) {
     auto it = index_.find(key);
@@ -221,7 +220,18 @@ Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
     }
     positions.push_back(vars_[it->second].position);
   }
+  return positions;
+}
+
+Eigen::MatrixXd Smoother::Impl::JointCovariance(const std::vector<Key>& keys) {
+  const std::vector<int> positions = SolvedPositions(keys);
+  if (!covariances_) covariances_ = std::make_unique<CovarianceRecovery>(r_);
   return covariances_->Joint(positions);
+}
+
+Eigen::Matrix3d Smoother::Impl::ProjectedCovariance(const std::vector<Key>& keys,
+                                                    const std::vector<Eigen::Matrix3d>& jacobians) {
+  return projected_.Compute(*r_, SolvedPositions(keys), jacobians);
 }
 
 double Smoother::Impl::Chi2() const {
@@ -270,6 +280,10 @@ Eigen::Matrix3d Smoother::MarginalCovariance(const Key& key) {
 }
 Eigen::MatrixXd Smoother::JointCovariance(const std::vector<Key>& keys) {
   return impl_->JointCovariance(keys);
+}
+Eigen::Matrix3d Smoother::ProjectedCovariance(const std::vector<Key>& keys,
+                                              const std::vector<Eigen::Matrix3d>& jacobians) {
+  return impl_->ProjectedCovariance(keys, jacobians);
 }
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }

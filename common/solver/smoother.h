@@ -151,6 +151,12 @@ class Smoother {
   Eigen::Matrix3d MarginalCovariance(const Key& key);
   // Joint covariance of several variables, 3k x 3k, blocks in the order given.
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+  // J Sigma J^T of a 3-row Jacobian J = [J_1 ... J_k] of the variables `keys` (e.g. a
+  // relative pose's): one sparse solve, without the joint's blocks, so it costs what the
+  // variables' paths to the bottom of R hold, not that corner's cube
+  // (projected_covariance.h). Not memoised.
+  Eigen::Matrix3d ProjectedCovariance(const std::vector<Key>& keys,
+                                      const std::vector<Eigen::Matrix3d>& jacobians);
 
   // The current estimate of any variable (pose: local frame; anchor: T_global_local).
   Pose2 Value(const Key& key) const;

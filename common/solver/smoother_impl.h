@@ -120,6 +120,10 @@ class Smoother::Impl {
   }
   TrajectoryId GroupRoot(TrajectoryId t) const { return groups_.Contains(t) ? groups_.Root(t) : t; }
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
+  Eigen::Matrix3d ProjectedCovariance(const std::vector<Key>& keys,
+                                      const std::vector<Eigen::Matrix3d>& jacobians);
+  // Positions in R of solved variables; std::invalid_argument for any other.
+  std::vector<int> SolvedPositions(const std::vector<Key>& keys) const;
   double Chi2() const;
   const SmootherStats& stats() const { return stats_; }
   CorrectionWork correction_work() const {
@@ -341,6 +345,7 @@ class Smoother::Impl {
   std::vector<Pose2> estimate_scratch_;
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
+  CovarianceProjection projected_;  // work space only
   BatchFactorization batch_;
   AnchorGroups groups_;
   std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
