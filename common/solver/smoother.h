@@ -154,7 +154,7 @@ class Smoother {
   // J Sigma J^T of a 3-row Jacobian J = [J_1 ... J_k] of the variables `keys` (e.g. a
   // relative pose's): one sparse solve, without the joint's blocks, so it costs what the
   // variables' paths to the bottom of R hold, not that corner's cube
-  // (projected_covariance.h). Not memoised.
+  // (CovarianceProjection, covariances.h). Not memoised.
   Eigen::Matrix3d ProjectedCovariance(const std::vector<Key>& keys,
                                       const std::vector<Eigen::Matrix3d>& jacobians);
 
