@@ -6,7 +6,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
@@ -14,6 +13,7 @@
 
 #include "common/bus/codec.h"
 #include "common/bus/lcm_log.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 #include "tests/testing/straight_keyframes.h"
 
@@ -23,11 +23,6 @@ namespace {
 Keyframe MakeKeyframe(int32_t seq) {
   return testing::StraightKeyframe("R1", 7, seq, /*num_rays=*/21,
                                    /*first_utime=*/1'700'000'000'000'000);
-}
-
-std::string Slurp(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 TEST(CorruptLogTest, ServerNamesTheOffsetResynchronisesAndFails) {
@@ -46,7 +41,7 @@ TEST(CorruptLogTest, ServerNamesTheOffsetResynchronisesAndFails) {
               .ok());
     }
   }
-  std::string bytes = Slurp(input);
+  std::string bytes = ::anchormap::testing::FileContents(input);
   const size_t event = bytes.size() / 6;
   bytes[2 * event + 1] = 'X';  // event 2's sync word
   {
@@ -58,8 +53,8 @@ TEST(CorruptLogTest, ServerNamesTheOffsetResynchronisesAndFails) {
                               " > " + log.string() + " 2>&1";
   const int status = std::system(command.c_str());
   ASSERT_TRUE(WIFEXITED(status)) << command;
-  EXPECT_EQ(WEXITSTATUS(status), 3) << Slurp(log);
-  const std::string text = Slurp(log);
+  EXPECT_EQ(WEXITSTATUS(status), 3) << ::anchormap::testing::FileContents(log);
+  const std::string text = ::anchormap::testing::FileContents(log);
   EXPECT_NE(text.find("corrupt event at byte " + std::to_string(2 * event)), std::string::npos)
       << text;
   EXPECT_NE(text.find("next event at byte " + std::to_string(3 * event)), std::string::npos)

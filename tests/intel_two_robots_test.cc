@@ -9,8 +9,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include <sys/wait.h>
@@ -19,6 +17,7 @@
 
 #include "common/bus/lcm_log.h"
 #include "tests/testing/data_path.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
@@ -33,13 +32,6 @@ int RunTool(const std::string& tool, const std::string& arguments, const std::st
                               " >" + output + " 2>&1";
   const int status = std::system(command.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
 }
 
 // The number after "key": in the eval's JSON, from `from` on (NaN when absent).
@@ -80,11 +72,11 @@ TEST(IntelTwoRobotsTest, SimultaneousRobotsJoinRightFirstTime) {
   ASSERT_EQ(RunTool("anchormap-import-carmen",
                     clf + " --output " + imported + " --split 2 --simultaneous", text),
             0)
-      << ReadText(text);
+      << ::anchormap::testing::FileContents(text);
   CopyPrefix(imported, input, kPrefixS);
   ASSERT_EQ(RunTool("anchormap-replay", "--log " + input + " --output " + output, text), 0)
-      << ReadText(text);
-  const std::string replay = ReadText(text);
+      << ::anchormap::testing::FileContents(text);
+  const std::string replay = ::anchormap::testing::FileContents(text);
   const size_t summary = replay.find("server: robots");
   ASSERT_NE(summary, std::string::npos) << replay;
   std::printf("%s\n", replay.substr(summary, replay.find('\n', summary) - summary).c_str());
@@ -93,8 +85,8 @@ TEST(IntelTwoRobotsTest, SimultaneousRobotsJoinRightFirstTime) {
               "--map " + output + " --relations " + relations + " --odometry " + input + " --json",
               text),
       0)
-      << ReadText(text);
-  const std::string json = ReadText(text);
+      << ::anchormap::testing::FileContents(text);
+  const std::string json = ::anchormap::testing::FileContents(text);
   std::printf("%s\n", json.c_str());
   // Every relation within the prefix scored, in one frame (about half of the 2984: the rest
   // have an end after it).

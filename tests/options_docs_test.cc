@@ -4,20 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
-#include <fstream>
 #include <memory>
-#include <sstream>
 #include <string>
+#include "tests/testing/file_contents.h"
 
 namespace anchormap {
 namespace {
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 // stdout of `command`, or "" when it could not run.
 std::string Output(const std::string& command) {
@@ -47,8 +39,9 @@ TEST_P(OptionsDocsTest, DaemonsMdHoldsTheToolsOwnTable) {
       Output(std::string(ANCHORMAP_BINARY_DIR) + "/bin/" + tool + " --print-options-markdown");
   ASSERT_NE(table.find("| flag | config key | default | meaning |"), std::string::npos)
       << tool << " printed no table";
-  const std::string section =
-      Section(ReadFile(std::string(ANCHORMAP_SOURCE_DIR) + "/docs/DAEMONS.md"), tool);
+  const std::string section = Section(
+      ::anchormap::testing::FileContents(std::string(ANCHORMAP_SOURCE_DIR) + "/docs/DAEMONS.md"),
+      tool);
   ASSERT_FALSE(section.empty()) << "docs/DAEMONS.md has no '## " << tool << " options'";
   EXPECT_NE(section.find(table), std::string::npos)
       << "docs/DAEMONS.md's table for " << tool << " differs from `" << tool

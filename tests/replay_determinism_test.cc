@@ -5,8 +5,6 @@
 
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
@@ -14,15 +12,11 @@
 
 #include "common/types/constraint_kind.h"
 #include "tests/merged_map_log.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
 namespace {
-
-std::string ReadBytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 TEST(ReplayDeterminismTest, TwoReplaysOfOneSimulationWriteTheSameBytes) {
   const std::filesystem::path dir = ::anchormap::testing::ScratchDir();
@@ -41,9 +35,10 @@ TEST(ReplayDeterminismTest, TwoReplaysOfOneSimulationWriteTheSameBytes) {
                                " --output " + (dir / out).string() + " --log-level warning";
     ASSERT_EQ(std::system(replay.c_str()), 0) << replay;
   }
-  const std::string first = ReadBytes(dir / "out1.lcmlog");
+  const std::string first = ::anchormap::testing::FileContents(dir / "out1.lcmlog");
   ASSERT_GT(first.size(), 10000u);
-  EXPECT_TRUE(first == ReadBytes(dir / "out2.lcmlog")) << "the two replays' outputs differ";
+  EXPECT_TRUE(first == ::anchormap::testing::FileContents(dir / "out2.lcmlog"))
+      << "the two replays' outputs differ";
 
   // The run exercised what must be deterministic: both robots in one frame, joined by scan
   // encounters, with loop closures.

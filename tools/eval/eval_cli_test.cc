@@ -4,7 +4,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include <unistd.h>
 
@@ -14,6 +13,7 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "common/geometry/pose2.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
@@ -22,13 +22,6 @@ namespace {
 namespace fs = std::filesystem;
 
 using ::anchormap::testing::ScratchPath;
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 struct RunResult {
   int exit_code = -1;
@@ -41,7 +34,9 @@ RunResult RunEval(const std::string& arguments) {
   const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/anchormap-eval " +
                               arguments + " >" + out + " 2>" + err;
   const int status = std::system(command.c_str());
-  RunResult result{WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadText(out), ReadText(err)};
+  RunResult result{WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                   ::anchormap::testing::FileContents(out),
+                   ::anchormap::testing::FileContents(err)};
   fs::remove(out);
   fs::remove(err);
   return result;

@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 
 #include <unistd.h>
 
@@ -14,6 +13,7 @@
 #include "bot_core/pose_t.hpp"
 #include "common/bus/lcm_log.h"
 #include "tests/testing/data_path.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap {
@@ -27,13 +27,6 @@ struct RunResult {
   std::string err;
 };
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 using ::anchormap::testing::ScratchPath;
 
 RunResult RunImporter(const std::string& arguments) {
@@ -44,8 +37,8 @@ RunResult RunImporter(const std::string& arguments) {
   const int status = std::system(command.c_str());
   RunResult result;
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  result.out = ReadText(out);
-  result.err = ReadText(err);
+  result.out = ::anchormap::testing::FileContents(out);
+  result.err = ::anchormap::testing::FileContents(err);
   fs::remove(out);
   fs::remove(err);
   return result;

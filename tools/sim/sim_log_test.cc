@@ -2,25 +2,19 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <map>
 
 #include <gtest/gtest.h>
 
 #include "bot_core/planar_lidar_t.hpp"
 #include "common/bus/lcm_log.h"
+#include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
 
 namespace anchormap::sim {
 namespace {
 
 using ::anchormap::testing::ScratchPath;
-
-std::vector<char> FileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::vector<char>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 SimOptions ShortRun(uint64_t seed) {
   SimOptions options;
@@ -37,10 +31,10 @@ TEST(SimLogTest, SameSeedGivesIdenticalBytesAndOtherSeedsDiffer) {
   ASSERT_TRUE(WriteSimulationLog(ShortRun(7), a, nullptr).ok());
   ASSERT_TRUE(WriteSimulationLog(ShortRun(7), b, nullptr).ok());
   ASSERT_TRUE(WriteSimulationLog(ShortRun(8), c, nullptr).ok());
-  const std::vector<char> bytes_a = FileBytes(a);
+  const std::string bytes_a = ::anchormap::testing::FileContents(a);
   EXPECT_GT(bytes_a.size(), 1000000u);
-  EXPECT_TRUE(bytes_a == FileBytes(b));
-  EXPECT_FALSE(bytes_a == FileBytes(c));
+  EXPECT_TRUE(bytes_a == ::anchormap::testing::FileContents(b));
+  EXPECT_FALSE(bytes_a == ::anchormap::testing::FileContents(c));
 }
 
 TEST(SimLogTest, ChangingTheLaserDoesNotChangeTheOdometry) {
