@@ -280,12 +280,16 @@ void MappingServer::Flush() {
   receipt_.FlushHeld(&admitted);
   Enqueue(admitted);
   Release(/*at_end=*/true, 0);
+  SolvePending();  // the sources' last look reads a solved graph
   EncounterSourceOutput found;
   const GraphView graph{table_, smoother_, &smoother_};
   for (auto& source : sources_) source->Flush(graph, &found);
   Commit(found, false, "flush");
   // End of input: one batch step, so that the last map is the converged solution rather
   // than the incremental estimate (which relinearises only at batch steps).
+  // The batch step folds in what a period left pending.
+  solve_pending_ = false;
+  last_solve_utime_ = released_utime_;
   if (smoother_.stats().variables > 0) {
     const double cpu_start = ThreadCpuSeconds();
     const UpdateResult result = smoother_.BatchOptimize();
@@ -376,12 +380,11 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
 
 void MappingServer::Solve() {
   if (!deferring_) {
-    const double cpu_start = ThreadCpuSeconds();
-    const UpdateResult result = smoother_.Update();
-    CountUpdate(result, ThreadCpuSeconds() - cpu_start);
-    if (!result.status.ok()) {
-      ++stats_.solver_problems;
-      solver_log_.Log(LogLevel::kWarning, "solver", "solver update: " + result.status.message());
+    solve_pending_ = true;
+    if (SolveDue()) {
+      RunUpdate();
+    } else {
+      ++stats_.inputs_batched;
     }
     return;
   }
@@ -391,6 +394,30 @@ void MappingServer::Solve() {
   // Below 64 variables a batch step is as cheap as the updates it replaces.
   const int64_t variables = smoother_.stats().variables;
   if (variables >= 64 && variables >= 2 * variables_at_deferred_batch_) DeferredBatchStep();
+}
+
+bool MappingServer::SolveDue() const {
+  if (options_.solve_period_s <= 0) return true;
+  const double since_s = 1e-6 * static_cast<double>(released_utime_ - last_solve_utime_);
+  if (since_s >= options_.solve_period_s) return true;
+  // The sources read covariances between inputs: never across a frame R does not hold.
+  return smoother_.GroupChangePending() && !CanDeferUpdates();
+}
+
+void MappingServer::RunUpdate() {
+  solve_pending_ = false;
+  last_solve_utime_ = released_utime_;
+  const double cpu_start = ThreadCpuSeconds();
+  const UpdateResult result = smoother_.Update();
+  CountUpdate(result, ThreadCpuSeconds() - cpu_start);
+  if (!result.status.ok()) {
+    ++stats_.solver_problems;
+    solver_log_.Log(LogLevel::kWarning, "solver", "solver update: " + result.status.message());
+  }
+}
+
+void MappingServer::SolvePending() {
+  if (solve_pending_ && !deferring_) RunUpdate();
 }
 
 UpdateResult MappingServer::DeferredBatchStep() {
@@ -431,6 +458,7 @@ bool MappingServer::CanSnapshot() const {
 bool MappingServer::BeginDeferredUpdates() {
   if (deferring_) return true;
   if (!CanDeferUpdates()) return false;
+  SolvePending();
   deferring_ = true;
   unsolved_ = false;
   variables_at_deferred_batch_ = smoother_.stats().variables;
@@ -465,14 +493,17 @@ MergedMap MappingServer::BuildMergedMap() const {
 }
 
 AnchorCovariances MappingServer::BuildAnchorCovariances() {
+  SolvePending();
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
 std::vector<GridTile> MappingServer::BuildGridTiles() {
+  SolvePending();
   return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 
 std::vector<GridTile> MappingServer::BuildChangedGridTiles() {
+  SolvePending();
   return publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 

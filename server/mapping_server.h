@@ -82,6 +82,16 @@ struct MappingServerOptions {
   // estimate that has it (Intel, 1 robot: mean relation error 0.037 m at lag 0, 0.056 at
   // 0.5 s, 0.083 at 2 s); a lag lets the workers run ahead at that price.
   int match_workers = 2;
+  // The solver's period in data time (the released inputs' utime, so that an offline replay
+  // stays a function of its input): the inputs released within one period join the graph
+  // as they come, and one smoother update folds them all in once the period has elapsed
+  // since the last one, as iSAM is run at a rate rather than per measurement (100 robots
+  // send ~150 keyframes per second of data). Earlier when something must read a solved
+  // graph: an anchor or group merge pending while a source reads the estimate, a
+  // publication, a snapshot, the end of input (SolvePending). Sources examine a keyframe
+  // once it is solved, so they see it up to one period later. 0: one update per input
+  // (here, for tests and library users); the daemons' default is DaemonDefaults'.
+  double solve_period_s = 0.0;
   MatchSchedule match_schedule{0.0};
   MapPublisherOptions publish;
   DeliveryOptions delivery;
@@ -96,6 +106,9 @@ struct MappingServerOptions {
     if (Status e = scan.Validate(); !e.ok()) return e;
     if (match_workers < 0 || match_workers > 64) return Status::Error("match_workers: 0 to 64");
     if (!(match_schedule.lag_s >= 0)) return Status::Error("match lag must be >= 0");
+    if (!(solve_period_s >= 0 && solve_period_s <= 3600)) {
+      return Status::Error("solve_period_s: 0 to 3600");
+    }
     return publish.Validate();
   }
 };
@@ -107,7 +120,9 @@ struct MappingServerStats {
   // Added constraints by ConstraintKind (direct, scan encounter, loop closure).
   std::array<int64_t, kNumConstraintKinds> added_by_kind{};
   int64_t updates = 0;
-  // Of those, updates a journal replay deferred (counted, solved by one batch step later).
+  // Inputs that changed the graph and were left for the next update (solve_period_s).
+  int64_t inputs_batched = 0;
+  // Of the updates, updates a journal replay deferred (counted, solved by one batch step later).
   int64_t deferred_updates = 0;
   int64_t solver_problems = 0;  // updates whose status was not ok
   double last_update_ms = 0.0;
@@ -171,6 +186,11 @@ class MappingServer {
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).
   void Flush();
+  // Runs the update that solve_period_s left pending, if any: before anything reads the
+  // estimate from outside (publications, snapshots; the Build* methods call it).
+  void SolvePending();
+  // True when inputs changed the graph since the last update (solve_period_s).
+  bool solve_pending() const { return solve_pending_; }
   // Counts a refusal that happened before the logic (e.g. in the codec).
   void CountRejection(const Status& refusal, const std::string& context);
 
@@ -250,9 +270,15 @@ class MappingServer {
   void ApplyEncounter(const Encounter& encounter);
   // Counts (and records, if asked) one solver update.
   void CountUpdate(const UpdateResult& result, double cpu_seconds);
-  // Solves after an input changed the graph: one update, or (deferring) a count and a batch
-  // step when the graph has doubled.
+  // Solves after an input changed the graph: one update (at once, or once solve_period_s
+  // has elapsed: SolveDue), or (deferring) a count and a batch step when the graph has
+  // doubled.
   void Solve();
+  // True when the update cannot wait for the period's end: the period elapsed, or a
+  // source that reads the estimate would otherwise see anchors or merges R lacks.
+  bool SolveDue() const;
+  // One smoother update, counted; the period restarts.
+  void RunUpdate();
   // A batch step during a deferral; its problems counted and logged like an update's.
   UpdateResult DeferredBatchStep();
   // Adds admitted keyframes to the smoother and tells the sources.
@@ -295,6 +321,10 @@ class MappingServer {
   bool deferring_ = false;
   int64_t variables_at_deferred_batch_ = 0;  // the graph's size at the last batch step
   bool unsolved_ = false;                    // deferred updates since the last batch step
+  // solve_period_s: inputs changed the graph since the last update, and the data time of
+  // that update (released_utime_ then).
+  bool solve_pending_ = false;
+  int64_t last_solve_utime_ = 0;
 };
 
 }  // namespace anchormap

@@ -1,5 +1,6 @@
 #include "server/mapping_server.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -768,6 +769,79 @@ TEST_F(MappingServerTest, UpdatesAreNotDeferredWhenASourceReadsTheEstimate) {
   EXPECT_EQ(server.smoother().stats().updates, server.stats().updates);
   EXPECT_GT(server.stats().updates, 0);
   EXPECT_TRUE(server.EndDeferredUpdates().status.ok());  // nothing to end
+}
+
+// solve_period_s: the inputs of one period of data time join the graph and one update
+// folds them in. The batch step at the end reaches the same minimum as one update per
+// input; the updates fall by the inputs per period (3 robots x 2 keyframes per second:
+// 12 inputs per 2 s period, plus the encounters).
+TEST_F(MappingServerTest, ASolvePeriodFoldsAPeriodsInputsIntoOneUpdateAndEndsAtTheSameMap) {
+  const Scenario scenario(
+      60.0, {{5.0, 0, 1}, {12.0, 1, 2}, {20.0, 2, 0}, {33.0, 0, 1}, {41.0, 1, 2}, {52.0, 0, 2}});
+  MappingServerOptions options = ExactTieOptions();
+  options.smoother.convergence_step = 1e-12;  // the final batch step iterates to the minimum
+  MappingServer per_input(options);
+  options.solve_period_s = 2.0;
+  MappingServer periodic(options);
+  int64_t most_batched = 0;  // the longest run of inputs left for the next update
+  for (const auto& input : scenario.inputs) {
+    ASSERT_TRUE(Feed(&per_input, input));
+    const int64_t updates_before = periodic.stats().updates;
+    const int64_t batched_before = periodic.stats().inputs_batched;
+    ASSERT_TRUE(Feed(&periodic, input));
+    if (periodic.stats().updates == updates_before) {
+      most_batched = std::max(most_batched, periodic.stats().inputs_batched - batched_before);
+    }
+  }
+  // Inputs that changed the graph: 3 x 121 keyframes and 6 encounters.
+  const int64_t changes = per_input.stats().updates;
+  EXPECT_EQ(changes, 3 * 121 + 6);
+  EXPECT_EQ(per_input.stats().inputs_batched, 0);
+  EXPECT_EQ(periodic.stats().updates + periodic.stats().inputs_batched, changes);
+  // 60 s of data from t = 1 s: the first input, then one every 2 s (30).
+  EXPECT_GE(periodic.stats().updates, 30);
+  EXPECT_LE(periodic.stats().updates, 31);
+  EXPECT_EQ(periodic.smoother().stats().updates, periodic.stats().updates);
+  EXPECT_TRUE(periodic.solve_pending());
+  per_input.Flush();
+  periodic.Flush();
+  EXPECT_FALSE(periodic.solve_pending());
+  EXPECT_EQ(periodic.stats().solver_problems, 0);
+  EXPECT_EQ(periodic.stats().encounters_added, 6);
+  EXPECT_EQ(periodic.num_anchored(), 3);
+  EXPECT_LT(testing::LargestPoseDifference(per_input.BuildMergedMap(), periodic.BuildMergedMap()),
+            1e-9);
+  const AnchorCovariances a = per_input.BuildAnchorCovariances();
+  const AnchorCovariances b = periodic.BuildAnchorCovariances();
+  ASSERT_EQ(a.anchors.size(), b.anchors.size());
+  for (size_t i = 0; i < a.anchors.size(); ++i) {
+    EXPECT_LT((a.anchors[i].covariance - b.anchors[i].covariance).norm(),
+              1e-9 * a.anchors[i].covariance.norm());
+  }
+}
+
+// The scan sources read covariances between inputs; with a solve period an encounter that
+// creates an anchor or merges groups must not wait for the period's end: R would lack the
+// frame the sources then see (PredictRelativePose refuses such reads; this makes them rare).
+TEST_F(MappingServerTest, SourcesThatReadTheEstimateNeverSeeAGroupChangeTheSolverLacks) {
+  const Scenario scenario(30.0, {{4.0, 0, 1}, {9.0, 1, 2}, {14.0, 2, 0}, {22.0, 0, 1}});
+  MappingServerOptions options = ExactTieOptions();
+  options.loop_closures = true;
+  options.match_workers = 0;
+  options.solve_period_s = 5.0;
+  MappingServer server(options);
+  ASSERT_FALSE(server.CanDeferUpdates());
+  for (const auto& input : scenario.inputs) {
+    ASSERT_TRUE(Feed(&server, input));
+    EXPECT_FALSE(server.smoother().GroupChangePending()) << "at " << server.data_utime();
+  }
+  EXPECT_EQ(server.num_anchored(), 3);
+  EXPECT_GT(server.stats().inputs_batched, 100);
+  // The period's updates (31 s / 5 s, and the first input) and one per anchor-making encounter.
+  EXPECT_LE(server.stats().updates, 7 + 4);
+  server.Flush();
+  EXPECT_FALSE(server.solve_pending());
+  EXPECT_EQ(server.stats().solver_problems, 0);
 }
 
 }  // namespace

@@ -17,7 +17,9 @@ bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b) {
 
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b) {
   if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
-  if (!smoother->HasCovariance(a) || !smoother->HasCovariance(b)) return std::nullopt;
+  // Only from a solved graph: a covariance read across a pending merge or anchor would
+  // describe the graph before it (MappingServer solves before its sources see one).
+  if (!smoother->IsSolved(a) || !smoother->IsSolved(b)) return std::nullopt;
   PredictedRelativePose out;
   if (a.trajectory == b.trajectory) {
     Eigen::Matrix3d J_a, J_b;
@@ -26,7 +28,7 @@ std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, Pos
     return out;
   }
   const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
-  if (!smoother->HasCovariance(anchor_a) || !smoother->HasCovariance(anchor_b)) {
+  if (!smoother->IsSolved(anchor_a) || !smoother->IsSolved(anchor_b)) {
     return std::nullopt;
   }
   Eigen::Matrix3d dga_dA, dga_dx, dgb_dA, dgb_dx, dh_dga, dh_dgb;

@@ -187,5 +187,79 @@ TEST(PredictRelativePoseTest, CovarianceEqualsTheJointCovarianceProjectedAfterEv
   EXPECT_GT(smoother.stats().partial_merges, 0);
 }
 
+// Between updates (MappingServerOptions::solve_period_s) a merge joins two groups in the
+// smoother's bookkeeping at once, while R still holds them apart, each with its own gauge:
+// a prediction across them then would read a covariance of a graph that no longer exists.
+// It waits for the update; so does one involving a pose or anchor not yet in R.
+TEST(PredictRelativePoseTest, NothingIsPredictedFromAGraphChangeNotYetSolved) {
+  constexpr int kRobots = 4, kPoses = 8;
+  Smoother smoother(ServerModeOptions());
+  const Eigen::Matrix3d odometry_covariance = Diagonal(0.02, 0.02, 0.02);
+  const Pose2 step(1.0, 0.0, 0.1);
+  for (int r = 0; r < kRobots; ++r) {
+    for (int i = 0; i < kPoses; ++i) {
+      const PoseKey key{TrajectoryId(r), i};
+      if (i == 0) {
+        ASSERT_TRUE(smoother.AddPose(key, Pose2()).ok());
+        continue;
+      }
+      ASSERT_TRUE(
+          smoother.AddPose(key, Compose(smoother.FramePose({TrajectoryId(r), i - 1}), step)).ok());
+      ASSERT_TRUE(
+          smoother.AddBetween({TrajectoryId(r), i - 1}, key, step, odometry_covariance).ok());
+    }
+  }
+  const Eigen::Matrix3d encounter_covariance = Diagonal(0.05, 0.05, 0.02);
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(0), 3}, {TrajectoryId(1), 3}, Pose2(0, 2, 0),
+                                encounter_covariance)
+                  .ok());
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(2), 3}, {TrajectoryId(3), 3}, Pose2(0, 2, 0),
+                                encounter_covariance)
+                  .ok());
+  // New anchors, not yet in R.
+  EXPECT_TRUE(smoother.GroupChangePending());
+  EXPECT_FALSE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(1), 5}));
+  ASSERT_TRUE(smoother.Update().status.ok());
+  EXPECT_FALSE(smoother.GroupChangePending());
+  EXPECT_FALSE(smoother.HasPendingChanges());
+  ASSERT_TRUE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(1), 5}));
+  EXPECT_FALSE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(3), 5}));
+
+  // The merge of {0, 1} and {2, 3}: one frame in the bookkeeping, two in R.
+  ASSERT_TRUE(smoother
+                  .AddEncounter({TrajectoryId(1), 6}, {TrajectoryId(2), 6}, Pose2(0, 2, 0),
+                                encounter_covariance)
+                  .ok());
+  EXPECT_TRUE(InOneFrame(smoother, TrajectoryId(0), TrajectoryId(3)));
+  EXPECT_TRUE(smoother.HasCovariance(PoseKey{TrajectoryId(0), 5}));
+  EXPECT_TRUE(smoother.GroupChangePending());
+  EXPECT_TRUE(smoother.HasPendingChanges());
+  EXPECT_FALSE(smoother.IsSolved(PoseKey{TrajectoryId(0), 5}));
+  EXPECT_FALSE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(3), 5}));
+  EXPECT_FALSE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(1), 5}));
+  ASSERT_TRUE(smoother.Update().status.ok());
+  EXPECT_TRUE(smoother.IsSolved(PoseKey{TrajectoryId(0), 5}));
+  const std::optional<PredictedRelativePose> across =
+      PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(3), 5});
+  ASSERT_TRUE(across);
+  // Now the chain through both encounters: looser than either encounter alone.
+  EXPECT_GT(across->covariance(0, 0), encounter_covariance(0, 0));
+
+  // A pose added since the update has no covariance yet; the others keep theirs (only a
+  // group change makes every cross-frame covariance stale).
+  const PoseKey late{TrajectoryId(0), kPoses};
+  ASSERT_TRUE(
+      smoother.AddPose(late, Compose(smoother.FramePose({TrajectoryId(0), kPoses - 1}), step))
+          .ok());
+  ASSERT_TRUE(
+      smoother.AddBetween({TrajectoryId(0), kPoses - 1}, late, step, odometry_covariance).ok());
+  EXPECT_TRUE(smoother.HasPendingChanges());
+  EXPECT_FALSE(smoother.GroupChangePending());
+  EXPECT_FALSE(PredictRelativePose(&smoother, late, {TrajectoryId(3), 5}));
+  EXPECT_TRUE(PredictRelativePose(&smoother, {TrajectoryId(0), 5}, {TrajectoryId(3), 5}));
+}
+
 }  // namespace
 }  // namespace anchormap

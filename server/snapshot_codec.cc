@@ -498,6 +498,10 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   }
   if (r.failed()) return Corrupt("payload ends early");
   if (!r.at_end()) return Corrupt("bytes after the last section");
+  // The journal solves before it takes a snapshot (solve_period_s), so the period restarts
+  // at the snapshot's data time; a snapshot taken with inputs pending keeps them pending.
+  s->last_solve_utime_ = s->released_utime_;
+  s->solve_pending_ = s->smoother_.HasPendingChanges();
   // Version 2: the exact state, solved; the journal's tail is replayed as it ran live.
   if (!version1) return Status::Ok();
   // Version 1: unsolved, deferring: the journal's tail is replayed deferred and one batch

@@ -30,15 +30,19 @@ TEST(ReplayDeterminismTest, TwoReplaysOfOneSimulationWriteTheSameBytes) {
                           "anchormap-sim --robots 2 --duration-s 60 --seed 3 --quiet --output " +
                           (dir / "sim.lcmlog").string();
   ASSERT_EQ(std::system(sim.c_str()), 0) << sim;
-  for (const char* out : {"out1.lcmlog", "out2.lcmlog"}) {
-    const std::string replay = bin + "anchormap-replay --log " + (dir / "sim.lcmlog").string() +
-                               " --output " + (dir / out).string() + " --log-level warning";
-    ASSERT_EQ(std::system(replay.c_str()), 0) << replay;
+  // The server's default solve period, and one update per input (--solve-period-s 0).
+  for (const std::string period : {"", " --solve-period-s 0"}) {
+    for (const char* out : {"out1.lcmlog", "out2.lcmlog"}) {
+      const std::string replay = bin + "anchormap-replay --log " + (dir / "sim.lcmlog").string() +
+                                 " --output " + (dir / out).string() + " --log-level warning" +
+                                 period;
+      ASSERT_EQ(std::system(replay.c_str()), 0) << replay;
+    }
+    const std::string first = ::anchormap::testing::FileContents(dir / "out1.lcmlog");
+    ASSERT_GT(first.size(), 10000u);
+    EXPECT_TRUE(first == ::anchormap::testing::FileContents(dir / "out2.lcmlog"))
+        << "the two replays' outputs differ (" << period << ")";
   }
-  const std::string first = ::anchormap::testing::FileContents(dir / "out1.lcmlog");
-  ASSERT_GT(first.size(), 10000u);
-  EXPECT_TRUE(first == ::anchormap::testing::FileContents(dir / "out2.lcmlog"))
-      << "the two replays' outputs differ";
 
   // The run exercised what must be deterministic: both robots in one frame, joined by scan
   // encounters, with loop closures.

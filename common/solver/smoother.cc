@@ -289,6 +289,11 @@ double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
 bool Smoother::HasCovariance(const Key& key) const { return impl_->HasCovariance(key); }
+bool Smoother::IsSolved(const Key& key) const {
+  return impl_->HasCovariance(key) && !impl_->GroupChangePending();
+}
+bool Smoother::GroupChangePending() const { return impl_->GroupChangePending(); }
+bool Smoother::HasPendingChanges() const { return impl_->HasPendingChanges(); }
 std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactors(); }
 Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
   return impl_->LinearSystemForTesting();

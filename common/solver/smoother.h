@@ -146,6 +146,17 @@ class Smoother {
   // True when `key` is a variable already solved for (in R): a variable whose measurements
   // do not determine it yet has no covariance.
   bool HasCovariance(const Key& key) const;
+  // True when `key` is solved (HasCovariance) and no group change is pending
+  // (GroupChangePending): its covariance in R then describes the graph's groups. Between
+  // updates R holds the last update's graph; a pending merge already joined two groups
+  // here, but R still holds them apart (each with its own gauge prior), so a covariance
+  // across them read before Update() would describe a graph that no longer exists.
+  bool IsSolved(const Key& key) const;
+  // An anchor or a group merge added since the last Update(): trajectories' frames changed
+  // and R does not know it yet.
+  bool GroupChangePending() const;
+  // Anything added since the last Update() (variables or factors not yet in R).
+  bool HasPendingChanges() const;
   // Marginal 3x3 covariance of one variable, (x, y, theta) of the variable's own
   // coordinates. Memoised until the next Update().
   Eigen::Matrix3d MarginalCovariance(const Key& key);

@@ -109,6 +109,14 @@ class Smoother::Impl {
     auto it = index_.find(key);
     return it != index_.end() && vars_[it->second].position >= 0;
   }
+  bool GroupChangePending() const {
+    if (merge_pending_) return true;
+    return std::any_of(pending_vars_.begin(), pending_vars_.end(),
+                       [this](int v) { return vars_[v].key.is_anchor(); });
+  }
+  bool HasPendingChanges() const {
+    return merge_pending_ || !pending_vars_.empty() || ActivePending() > 0;
+  }
   bool IsAnchored(TrajectoryId t) const {
     auto it = trajectories_.find(t);
     return it != trajectories_.end() && it->second.anchored;

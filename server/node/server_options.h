@@ -106,6 +106,9 @@ inline ServerOptions DaemonDefaults() {
   ServerOptions options;
   options.server.loop_closures = true;
   options.server.scan_encounters = true;
+  // 100 robots send ~150 keyframes per second of data: one solver update per input was
+  // most of the server's CPU (docs/ARCHITECTURE.md, "Server cost at scale").
+  options.server.solve_period_s = 0.5;
   return options;
 }
 
