@@ -16,7 +16,8 @@
 # is the sum of the server's update times, whatever the agents do. Update times are the
 # server thread's CPU time per update (wall time when the replay predates that column).
 # SERVER_SOURCES=false turns the server's loop closures and scan encounters off (at 100 robots their global
-# searches of unjoined trajectories dominate the start of the run). After the table: the
+# searches of unjoined trajectories dominate the start of the run). SERVER_FLAGS="..." adds
+# flags to the replay (e.g. "--solve-period-s 0": one solver update per input). After the table: the
 # bytes of the server's outputs per channel for each run (tools/bench/log_bytes.py).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -88,7 +89,7 @@ for run in "${RUNS[@]}"; do
     --log "$log" --output "$WORK/out-$run.lcmlog" --update-times "$csv" --log-level info \
     --scan-matching "${AGENT_SCAN_MATCHING:-true}" \
     --loop-closures "${SERVER_SOURCES:-true}" --scan-encounters "${SERVER_SOURCES:-true}" \
-    >"$WORK/replay-$run.txt" 2>&1 ||
+    ${SERVER_FLAGS:-} >"$WORK/replay-$run.txt" 2>&1 ||
     { echo "scale_figures: replay of $run failed" >&2; tail "$WORK/replay-$run.txt" >&2; exit 1; }
   read -r wall user sys rss_kb <"$WORK/time-$run.txt"
   rss_mb=$((rss_kb / 1024))
