@@ -44,7 +44,8 @@ AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
   out.update = update;
   for (const TrajectoryRecord& record : table.records()) {
     const auto anchor = smoother->Anchor(record.solver_id);
-    if (!anchor || !smoother->HasCovariance(Key(AnchorKey{record.solver_id}))) continue;
+    // Between updates (solve_period_s) an anchor is published once solved.
+    if (!anchor || !smoother->IsSolved(Key(AnchorKey{record.solver_id}))) continue;
     AnchorCovariance a;
     a.robot = record.robot;
     a.trajectory_id = record.agent_trajectory_id;

@@ -422,6 +422,7 @@ void MappingServer::SolvePending() {
 
 UpdateResult MappingServer::DeferredBatchStep() {
   UpdateResult result = smoother_.BatchOptimize();
+  last_solve_utime_ = released_utime_;
   variables_at_deferred_batch_ = smoother_.stats().variables;
   unsolved_ = !result.status.ok();  // a failed step left everything pending: try again
   stats_.last_update_ms = 1e3 * result.seconds;
@@ -458,9 +459,10 @@ bool MappingServer::CanSnapshot() const {
 bool MappingServer::BeginDeferredUpdates() {
   if (deferring_) return true;
   if (!CanDeferUpdates()) return false;
-  SolvePending();
   deferring_ = true;
-  unsolved_ = false;
+  // Inputs a period left pending are solved by the deferral's batch step.
+  unsolved_ = solve_pending_;
+  solve_pending_ = false;
   variables_at_deferred_batch_ = smoother_.stats().variables;
   return true;
 }
@@ -493,17 +495,14 @@ MergedMap MappingServer::BuildMergedMap() const {
 }
 
 AnchorCovariances MappingServer::BuildAnchorCovariances() {
-  SolvePending();
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
 std::vector<GridTile> MappingServer::BuildGridTiles() {
-  SolvePending();
   return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 
 std::vector<GridTile> MappingServer::BuildChangedGridTiles() {
-  SolvePending();
   return publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 

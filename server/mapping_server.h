@@ -86,11 +86,15 @@ struct MappingServerOptions {
   // stays a function of its input): the inputs released within one period join the graph
   // as they come, and one smoother update folds them all in once the period has elapsed
   // since the last one, as iSAM is run at a rate rather than per measurement (100 robots
-  // send ~150 keyframes per second of data). Earlier when something must read a solved
-  // graph: an anchor or group merge pending while a source reads the estimate, a
-  // publication, a snapshot, the end of input (SolvePending). Sources examine a keyframe
-  // once it is solved, so they see it up to one period later. 0: one update per input
-  // (here, for tests and library users); the daemons' default is DaemonDefaults'.
+  // send ~150 keyframes per second of data). Earlier when a source must read a solved
+  // graph: an anchor or group merge pending while a source reads the estimate, and the end
+  // of input. Never on the wall clock (publications, snapshots): the sources' decisions
+  // depend on when the graph is solved, and an online server, restarted or not, must reach
+  // the map of `anchormap-server --log` on its inputs. A publication between updates shows
+  // the inputs since the last one at their initial guesses (the previous estimate and
+  // odometry); a snapshot holds the period's state. Sources examine a keyframe once it is
+  // solved, so they see it up to one period later. 0: one update per input (here, for
+  // tests and library users); the daemons' default is DaemonDefaults'.
   double solve_period_s = 0.0;
   MatchSchedule match_schedule{0.0};
   MapPublisherOptions publish;
@@ -186,8 +190,8 @@ class MappingServer {
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
   // encounters, updates, and finishes with a batch step (the converged solution).
   void Flush();
-  // Runs the update that solve_period_s left pending, if any: before anything reads the
-  // estimate from outside (publications, snapshots; the Build* methods call it).
+  // Runs the update that solve_period_s left pending, if any (Flush calls it; a caller
+  // that needs the solved estimate now may too, at the price of determinism online).
   void SolvePending();
   // True when inputs changed the graph since the last update (solve_period_s).
   bool solve_pending() const { return solve_pending_; }

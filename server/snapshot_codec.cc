@@ -54,6 +54,8 @@ void Get(Reader* r, LaserScan* s) {
 
 // Version 3 adds the count of relayed encounters a keyframe carries.
 constexpr uint32_t kRelayCountsVersion = 3;
+// Version 4 adds the solve period's state.
+constexpr uint32_t kSolvePeriodVersion = 4;
 
 void Put(Writer* w, const Keyframe& k, uint32_t version) {
   w->String(k.robot);
@@ -286,6 +288,10 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
                     s.encounters_given_up_}) {
     w.I64(v);
   }
+  if (version >= kSolvePeriodVersion) {
+    w.I64(s.last_solve_utime_);
+    w.Bool(s.solve_pending_);
+  }
   w.Size(static_cast<size_t>(ErrorCode::kNumCodes));
   for (int i = 0; i < static_cast<int>(ErrorCode::kNumCodes); ++i) {
     w.I64(s.rejects_.count(static_cast<ErrorCode>(i)));
@@ -393,6 +399,13 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
                      &s->encounters_given_up_}) {
     *v = r.I64();
   }
+  // Before version 4 every input was solved at once.
+  s->last_solve_utime_ = s->released_utime_;
+  s->solve_pending_ = false;
+  if (payload->version >= kSolvePeriodVersion) {
+    s->last_solve_utime_ = r.I64();
+    s->solve_pending_ = r.Bool();
+  }
   if (r.Count() != static_cast<size_t>(ErrorCode::kNumCodes)) return Corrupt("refusal reasons");
   for (int i = 0; i < static_cast<int>(ErrorCode::kNumCodes); ++i) {
     s->rejects_.Restore(static_cast<ErrorCode>(i), r.I64());
@@ -498,10 +511,6 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   }
   if (r.failed()) return Corrupt("payload ends early");
   if (!r.at_end()) return Corrupt("bytes after the last section");
-  // The journal solves before it takes a snapshot (solve_period_s), so the period restarts
-  // at the snapshot's data time; a snapshot taken with inputs pending keeps them pending.
-  s->last_solve_utime_ = s->released_utime_;
-  s->solve_pending_ = s->smoother_.HasPendingChanges();
   // Version 2: the exact state, solved; the journal's tail is replayed as it ran live.
   if (!version1) return Status::Ok();
   // Version 1: unsolved, deferring: the journal's tail is replayed deferred and one batch

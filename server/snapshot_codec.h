@@ -52,7 +52,9 @@ namespace anchormap {
 // encounter streams, the last admitted keyframe's count), and the weak flag of the loop
 // closures' kept wide hypotheses. Versions 1 and 2 are still read (every count 0: nothing
 // revealed, as the keyframes of that time carried none; no hypothesis weak, as none was).
-inline constexpr uint32_t kSnapshotVersion = 3;
+// Version 4 adds the solve period's state (MappingServerOptions::solve_period_s: the last
+// update's data time, inputs pending); older ones read as solved at their newest input.
+inline constexpr uint32_t kSnapshotVersion = 4;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

@@ -378,9 +378,11 @@ MappingServerOptions ScanServerOptions() {
 // (links, counters by kind, the sources' figures), and at the end the same state to the
 // bit, the smoother's and the sources' included (its snapshot is the same bytes), hence the
 // same map (0 difference, the brief's bound being 1e-9).
-TEST_F(SnapshotCodecTest, WithTheScanSourcesOnARestoredServerContinuesExactly) {
+// (The body of the two tests below, with one update per input or a solve period.)
+void ExpectARestoredServerToContinueExactly(double solve_period_s) {
   const std::vector<Delivery> mission = ScanMission();
-  const MappingServerOptions options = ScanServerOptions();
+  MappingServerOptions options = ScanServerOptions();
+  options.solve_period_s = solve_period_s;
   MappingServer live(options);
   const size_t n = mission.size();
   // Matches in flight and candidates kept by the sources now.
@@ -462,6 +464,20 @@ TEST_F(SnapshotCodecTest, WithTheScanSourcesOnARestoredServerContinuesExactly) {
     EXPECT_EQ(testing::LargestPoseDifference(live.BuildMergedMap(), restored.BuildMergedMap()),
               0.0);
   }
+  if (solve_period_s > 0) {
+    EXPECT_GT(live.stats().inputs_batched, 0);
+  }
+}
+
+TEST_F(SnapshotCodecTest, WithTheScanSourcesOnARestoredServerContinuesExactly) {
+  ExpectARestoredServerToContinueExactly(0.0);
+}
+
+// With a solve period a snapshot falls between updates as often as not: it holds the inputs
+// pending and the period's start (version 4), so the restored server solves when the
+// uninterrupted one does and reaches the same state to the bit.
+TEST_F(SnapshotCodecTest, WithASolvePeriodARestoredServerContinuesExactly) {
+  ExpectARestoredServerToContinueExactly(1.0);
 }
 
 class SnapshotRefusalTest : public SnapshotCodecTest {

@@ -37,7 +37,7 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "ask a trajectory for missing keyframes / encounters at most this often (s)");
   add("smoother.solve_period_s", "solve-period-s", &s.solve_period_s,
       "one solver update folds in the inputs of this much data time (s; 0 = an update per "
-      "input); sooner for publications, snapshots, new anchors and merges, the end");
+      "input); sooner for new anchors and merges, and at the end");
   add("smoother.convergence_step", "convergence-step", &s.smoother.convergence_step,
       "batch steps iterate until the largest step component is below this");
   add("smoother.formulation", "formulation", &formulation_,

@@ -154,8 +154,6 @@ void ServerJournal::SnapshotIfDue(const ServerOptions& options, ServerNode* node
   snapshot_time_ = now;  // also after a failure: retried at the next period, not at once
   // Encoded here, between two events (the state is the journal prefix's); written off the
   // loop. A write that fails leaves the previous snapshots (and the journal) in place.
-  // A snapshot holds a solved graph (solve_period_s): the restart resumes the period there.
-  node->server().SolvePending();
   const std::clock_t cpu_start = std::clock();
   Result<std::vector<uint8_t>> bytes = node->EncodeSnapshot(last_);
   const double encode_cpu = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;

@@ -309,7 +309,6 @@ void ServerNode::OnEncounter(const Encounter& encounter, const std::string& chan
 }
 
 void ServerNode::PublishMap(int64_t now_utime, bool full) {
-  server_->SolvePending();  // a published map is a solved one (solve_period_s)
   const MapChunker::Split split =
       server_->publisher().SplitMergedMap(server_->BuildMergedMap(), now_utime, full);
   for (const MergedMapChunk& chunk : split.chunks) {
@@ -333,13 +332,13 @@ void ServerNode::PublishDue(int64_t now_utime) {
   const int64_t update = server_->update_count();
   if (publisher.MapDue(now_utime, update)) {
     PublishMap(now_utime, /*full=*/false);
-    publisher.MarkMapPublished(now_utime, server_->update_count());
+    publisher.MarkMapPublished(now_utime, update);
     last_map_utime_ = now_utime;
   }
   if (publisher.GridDue(now_utime, update)) {
     const bool full = publisher.GridFullDue(now_utime);
     PublishGrid(full);
-    publisher.MarkGridPublished(now_utime, server_->update_count());
+    publisher.MarkGridPublished(now_utime, update);
     if (full) publisher.MarkGridFullPublished(now_utime);
   }
 }
