@@ -492,8 +492,9 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     place.max_keyframes = options_.wide_submap_max_keyframes;
     place.spacing_m = options_.wide_submap_spacing_m;
     place.spacing_rad = options_.wide_submap_spacing_rad;
-    by_place = DrawKeyframeSubmapNear(record, graph.smoother, candidate,
-                                      predicted.T_a_b.translation(), place, options_.max_range_m);
+    // Near the candidate's own estimate (the origin of its frame), not the prediction.
+    by_place = DrawKeyframeSubmapNear(record, graph.smoother, candidate, Eigen::Vector2d::Zero(),
+                                      place, options_.max_range_m);
   }
   const std::shared_ptr<const ScanReference> submap =
       by_place ? references_.Get(record, *by_place, kPlaceSubmapCacheKey)
