@@ -34,6 +34,28 @@ struct SubmapDrawing {
 SubmapDrawing DrawKeyframeSubmap(const TrajectoryRecord& record, const Smoother& smoother,
                                  PoseKey center, int half_width, double max_range_m);
 
+// The drawing of a submap chosen by place, not by index: the keyframes of `center`'s
+// trajectory up to `last_index` whose estimates lie within `radius_m` of `at` (a position in
+// the frame of `center`), nearest first, each kept unless a kept one stands within spacing_m
+// and spacing_rad of it (repeated passes add doubled walls, not views), at most
+// `max_keyframes`; in index order. A wide loop search's window (up to 12 m across) is wider
+// than the path a submap of 21 consecutive keyframes covers (on ACES the keyframes that saw
+// the query's place lay just outside the submap, by index, of the likeliest candidate).
+struct PlaceSubmapOptions {
+  // Keyframes [keep_first, keep_last] are kept first, whatever their place (none when
+  // keep_first > keep_last); max_keyframes and the spacing apply to the ones added by place.
+  int keep_first = 0;
+  int keep_last = -1;
+  double radius_m = 0.0;
+  int last_index = 0;
+  int max_keyframes = 0;
+  double spacing_m = 0.0;
+  double spacing_rad = 0.0;
+};
+SubmapDrawing DrawKeyframeSubmapNear(const TrajectoryRecord& record, const Smoother& smoother,
+                                     PoseKey center, const Eigen::Vector2d& at,
+                                     const PlaceSubmapOptions& options, double max_range_m);
+
 // The reference of a drawing of `record`'s keyframes; nullptr when it holds no point.
 std::unique_ptr<ScanReference> BuildKeyframeSubmap(const TrajectoryRecord& record,
                                                    const SubmapDrawing& drawing, double max_range_m,

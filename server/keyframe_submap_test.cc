@@ -1,6 +1,7 @@
 #include "server/keyframe_submap.h"
 
 #include <memory>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -79,6 +80,53 @@ TEST(KeyframeSubmapTest, AnEmptyDrawingBuildsNoReference) {
       DrawKeyframeSubmap(*record, server.smoother(), {TrajectoryId(0), 2}, 2, 15.0);
   EXPECT_EQ(drawing.num_points, 0u);
   EXPECT_EQ(BuildKeyframeSubmap(*record, drawing, 15.0, ScanReferenceOptions{}), nullptr);
+}
+
+// The indices of a drawing's keyframes, in its order.
+std::vector<int> Indices(const SubmapDrawing& drawing) {
+  std::vector<int> indices;
+  for (const auto& [index, pose] : drawing.T_center_keyframes) indices.push_back(index);
+  return indices;
+}
+
+TEST(KeyframeSubmapTest, ASubmapByPlaceAddsTheKeyframesNearestToAPlaceFarFromItsCentre) {
+  MappingServerOptions options;
+  options.loop_closures = false;
+  options.scan_encounters = false;
+  MappingServer server(options);
+  for (int32_t seq = 0; seq < 30; ++seq) {  // 1 m apart along x
+    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 60)).ok());
+  }
+  server.Flush();
+  const TrajectoryId t(0);
+  const TrajectoryRecord* record = server.table().FindBySolverId(t);
+  ASSERT_NE(record, nullptr);
+  const PoseKey center{t, 5};
+  PlaceSubmapOptions place;
+  place.keep_first = 4;
+  place.keep_last = 6;
+  place.radius_m = 3.5;  // keyframes 17-23 around x = 15 (keyframe 20) in the centre's frame
+  place.last_index = 25;
+  place.max_keyframes = 4;
+  const Eigen::Vector2d at(15.0, 0.0);
+  SubmapDrawing drawing =
+      DrawKeyframeSubmapNear(*record, server.smoother(), center, at, place, 15.0);
+  // The kept ones, then the 4 nearest to the place (on ties the lower index): 20, 19, 21, 18.
+  EXPECT_EQ(Indices(drawing), (std::vector<int>{4, 5, 6, 18, 19, 20, 21}));
+  EXPECT_NEAR(drawing.T_center_keyframes[3].second.x(), 13.0, 1e-6);
+  EXPECT_GT(drawing.num_points, 0u);
+
+  // Nothing past last_index (the query's own recent keyframes stand at the place too).
+  place.last_index = 19;
+  drawing = DrawKeyframeSubmapNear(*record, server.smoother(), center, at, place, 15.0);
+  EXPECT_EQ(Indices(drawing), (std::vector<int>{4, 5, 6, 17, 18, 19}));
+
+  // A keyframe within the spacing of a kept one (same heading) adds nothing: every second.
+  place.last_index = 25;
+  place.spacing_m = 1.5;
+  place.spacing_rad = 0.5;
+  drawing = DrawKeyframeSubmapNear(*record, server.smoother(), center, at, place, 15.0);
+  EXPECT_EQ(Indices(drawing), (std::vector<int>{4, 5, 6, 18, 20, 22}));
 }
 
 }  // namespace

@@ -40,6 +40,10 @@ Status LoopClosureOptions::Validate() const {
   if (!(drift_per_m >= 0) || !(drift_rad_per_m >= 0) || wide_quiet_keyframes < 0) {
     return Status::Error("loop drift model: per m >= 0, rad per m >= 0, quiet >= 0");
   }
+  if (wide_submap_max_keyframes < 1 || !(wide_submap_spacing_m >= 0) ||
+      !(wide_submap_spacing_rad >= 0)) {
+    return Status::Error("loop wide submap by place: max keyframes >= 1, spacings >= 0");
+  }
   if (wide_submap_half_width < 0 || wide_every_keyframes < 1 || wide_pair_min_gap < 1 ||
       wide_pair_max_gap < wide_pair_min_gap || wide_max_kept < 1) {
     return Status::Error(
@@ -61,6 +65,9 @@ Status LoopClosureOptions::Validate() const {
 }
 
 namespace {
+
+// The submap cache's key for wide submaps drawn by place (a half width by index is >= 0).
+constexpr int kPlaceSubmapCacheKey = -1;
 
 // Squared Mahalanobis distance of the offset t from the disc of radius r around 0.
 double DistanceFromDisc2(const Eigen::Vector2d& t, const Eigen::Matrix2d& covariance, double r) {
@@ -468,15 +475,35 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
                           const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
                           const GraphView& graph, const std::shared_ptr<const PointCloud>& query) {
   ++stats_.candidates;
+  // The wide window's half width (the branch and bound searches it around the prediction).
+  const double sigma_xy = LargestSigma(predicted.covariance.topLeftCorner<2, 2>());
+  const double sigma_theta = std::sqrt(std::max(0.0, predicted.covariance(2, 2)));
+  const double linear = std::clamp(options_.wide_sigmas * sigma_xy, options_.max_window_m,
+                                   options_.wide_max_window_m);
+  std::optional<SubmapDrawing> by_place;
+  if (wide && options_.wide_submap_by_place) {
+    PlaceSubmapOptions place;
+    if (options_.wide_submap_place_keeps_index) {
+      place.keep_first = candidate.index - options_.wide_submap_half_width;
+      place.keep_last = candidate.index + options_.wide_submap_half_width;
+    }
+    place.radius_m = linear + options_.max_distance_m;
+    place.last_index = key.index - options_.min_index_gap;
+    place.max_keyframes = options_.wide_submap_max_keyframes;
+    place.spacing_m = options_.wide_submap_spacing_m;
+    place.spacing_rad = options_.wide_submap_spacing_rad;
+    // Near the candidate's own estimate (the origin of its frame), not the prediction.
+    by_place = DrawKeyframeSubmapNear(record, graph.smoother, candidate, Eigen::Vector2d::Zero(),
+                                      place, options_.max_range_m);
+  }
   const std::shared_ptr<const ScanReference> submap =
-      Reference(record, graph, candidate,
-                wide ? options_.wide_submap_half_width : options_.submap_half_width);
+      by_place ? references_.Get(record, *by_place, kPlaceSubmapCacheKey)
+               : Reference(record, graph, candidate,
+                           wide ? options_.wide_submap_half_width : options_.submap_half_width);
   if (!submap) {
     ++stats_.no_match;
     return;
   }
-  const double sigma_xy = LargestSigma(predicted.covariance.topLeftCorner<2, 2>());
-  const double sigma_theta = std::sqrt(std::max(0.0, predicted.covariance(2, 2)));
   PendingMatch pending;
   pending.candidate = candidate;
   pending.key = key;
@@ -486,7 +513,11 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
   pending.predicted = predicted;
   pending.wide = wide;
   pending.drift = drift;
-  if (wide) {
+  if (by_place) {
+    pending.query = query;
+    pending.submap_poses.assign(by_place->T_center_keyframes.begin(),
+                                by_place->T_center_keyframes.end());
+  } else if (wide) {
     pending.query = query;
     const Pose2 T_local_candidate = graph.smoother.FramePose(candidate);
     const int32_t first = std::max(0, candidate.index - options_.wide_submap_half_width);
@@ -511,8 +542,6 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     const double angular =
         std::min(options_.wide_sigmas * sigma_theta, options_.wide_max_window_rad);
     window.half_angles = static_cast<int>(std::ceil(angular / window.angle_step_rad));
-    const double linear = std::clamp(options_.wide_sigmas * sigma_xy, options_.max_window_m,
-                                     options_.wide_max_window_m);
     window.half_cells_x = window.half_cells_y = static_cast<int>(std::ceil(linear / resolution));
     MatchOptions match = options_.match;
     match.min_score = std::max(match.min_score, options_.wide_min_score);

@@ -99,6 +99,13 @@ struct LoopClosureOptions {
   double wide_max_window_m = 12.0;
   double wide_max_window_rad = 0.8;
   int wide_submap_half_width = 10;
+  // EXPERIMENT: the wide submap by place (DrawKeyframeSubmapNear) instead of +-half width by
+  // index: the keyframes within the window (plus max_distance_m) of the predicted pose.
+  bool wide_submap_by_place = true;
+  bool wide_submap_place_keeps_index = true;  // the +-half width by index, then by place
+  int wide_submap_max_keyframes = 21;
+  double wide_submap_spacing_m = 0.5;
+  double wide_submap_spacing_rad = 0.5;
   int wide_refine_half_width = 2;  // the submap a wide match is refined against
   int wide_every_keyframes = 4;
   double wide_min_score = 0.6;

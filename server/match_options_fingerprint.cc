@@ -10,9 +10,9 @@ namespace {
 static_assert(sizeof(MatchOptions) == 32, "new MatchOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
-static_assert(sizeof(LoopClosureOptions) == 352,
+static_assert(sizeof(LoopClosureOptions) == 376,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 336,
+static_assert(sizeof(ScanEncounterOptions) == 376,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 104,
               "new SmootherOptions field: add it to the fingerprint");
@@ -77,6 +77,11 @@ void Add(Fnv1a* h, const LoopClosureOptions& o) {
   h->F(o.wide_max_window_m);
   h->F(o.wide_max_window_rad);
   h->I(o.wide_submap_half_width);
+  h->B(o.wide_submap_by_place);
+  h->B(o.wide_submap_place_keeps_index);
+  h->I(o.wide_submap_max_keyframes);
+  h->F(o.wide_submap_spacing_m);
+  h->F(o.wide_submap_spacing_rad);
   h->I(o.wide_refine_half_width);
   h->I(o.wide_every_keyframes);
   h->F(o.wide_min_score);
@@ -113,6 +118,11 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.first_join_max_sigma_m);
   h->F(o.first_join_max_sigma_rad);
   h->F(o.first_join_hold_s);
+  h->F(o.join_check_radius_m);
+  h->F(o.join_check_range_m);
+  h->F(o.join_max_conflict);
+  h->F(o.free_space.resolution_m);
+  h->F(o.free_space.wall_margin_m);
   h->F(o.near_distance_m);
   h->F(o.near_min_overlap);
   h->F(o.near_min_score);

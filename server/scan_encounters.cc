@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "common/scan_matching/point_cloud.h"
+#include "server/join_free_space.h"
 #include "server/keyframe_overlap.h"
 #include "server/keyframe_submap.h"
 #include "server/relative_pose.h"
@@ -42,6 +43,12 @@ Status ScanEncounterOptions::Validate() const {
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
   if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
     return Status::Error("scan first-join sigmas must be > 0");
+  if (!(join_check_radius_m >= 0) || !(join_check_range_m > 0))
+    return Status::Error("scan.join_check_radius_m must be >= 0 and join_check_range_m > 0");
+  if (!(join_max_conflict >= 0 && join_max_conflict <= 1))
+    return Status::Error("scan.join_max_conflict must be in [0, 1]");
+  if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
+    return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
   if (!(near_min_overlap >= 0 && near_min_overlap <= 1))
     return Status::Error("scan.near_min_overlap must be in [0, 1]");
@@ -92,9 +99,9 @@ void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
 }
 
 std::string ScanEncounters::StatsLine() const {
-  return stats_.Summary(name()) + " global_searches " + std::to_string(global_queue_.searches()) +
-         " global_replaced " + std::to_string(global_queue_.dropped()) + " " +
-         references_.stats().Summary(name());
+  return stats_.Summary(name()) + " joins_contradicted " + std::to_string(joins_contradicted_) +
+         " global_searches " + std::to_string(global_queue_.searches()) + " global_replaced " +
+         std::to_string(global_queue_.dropped()) + " " + references_.stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -529,6 +536,13 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
       }
       if (agrees) set.push_back(i);
     }
+    if (MapsContradict(kept, set, graph)) {
+      // Refused for good: its candidates stay kept (gated if the pair joins otherwise) but
+      // take no further part in a first join.
+      for (const size_t i : set) kept[i].localised = false;
+      ++joins_contradicted_;
+      continue;
+    }
     std::vector<bool> in_set(kept.size(), false);
     for (const size_t i : set) in_set[i] = true;
     std::deque<Kept> rest;
@@ -543,6 +557,37 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
     }
     kept = std::move(rest);
   }
+}
+
+bool ScanEncounters::MapsContradict(const std::deque<Kept>& kept, const std::vector<size_t>& set,
+                                    const GraphView& graph) const {
+  const TrajectoryRecord* record_a =
+      graph.table.FindBySolverId(kept[set.front()].candidate.a.trajectory);
+  const TrajectoryRecord* record_b =
+      graph.table.FindBySolverId(kept[set.front()].candidate.b.trajectory);
+  if (record_a == nullptr || record_b == nullptr) return false;
+  const Smoother& smoother = graph.smoother;
+  // Each place by its own match: between places 10-20 m apart each robot's estimate drifts
+  // by more than the margin (the simulator's LoopWorld, joined truly: 10 % of the points
+  // conflicted by the best match's pose alone, all at the far place's walls).
+  JoinConflict total;
+  for (const size_t i : set) {
+    const EncounterCandidate& c = kept[i].candidate;
+    const Pose2 T_a_frame_b_frame =
+        Compose(Compose(smoother.FramePose(c.a), c.T_a_b), smoother.FramePose(c.b).Inverse());
+    const JoinConflict conflict = MeasureJoinConflict(
+        KeyframeRaysNear(*record_a, smoother, {smoother.FramePose(c.a).translation()},
+                         options_.join_check_radius_m, Pose2(), options_.join_check_range_m),
+        KeyframeRaysNear(*record_b, smoother, {smoother.FramePose(c.b).translation()},
+                         options_.join_check_radius_m, T_a_frame_b_frame,
+                         options_.join_check_range_m),
+        options_.free_space);
+    total.a_in_b.seen += conflict.a_in_b.seen;
+    total.a_in_b.contradicts += conflict.a_in_b.contradicts;
+    total.b_in_a.seen += conflict.b_in_a.seen;
+    total.b_in_a.contradicts += conflict.b_in_a.contradicts;
+  }
+  return total.fraction() > options_.join_max_conflict;
 }
 
 void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* out) {

@@ -62,6 +62,10 @@ void Register(OptionsLoader* l, AgentNodeOptions* node) {
          "(false: keyframes carry raw odometry)");
   l->Add("scan_matching.min_points", "scan-matching-min-points", &o->scan_matching.min_points,
          "scans with fewer returns are not matched (odometry for them)");
+  l->Add("scan_matching.local_map.held_back_min_odometry_m", "scan-matching-held-back-m",
+         &o->scan_matching.local_map.held_back_min_odometry_m,
+         "a match is refused as held back when odometry drove at least this far since the local "
+         "map's newest scan while the match moved less than half as far (m; a corridor slide)");
   l->Add("max_pending_scans", "max-pending-scans", &o->max_pending_scans,
          "scans waiting for odometry to reach their time");
   l->Add("status_period_s", "status-period-s", &node->status_period_s,

@@ -17,6 +17,8 @@ Status LocalMapMatcherOptions::Validate() const {
   if (!(min_overlap >= 0.0 && min_overlap <= 1.0))
     return Status::Error("min_overlap must be in [0, 1]");
   if (!(min_score >= 0.0 && min_score <= 1.0)) return Status::Error("min_score must be in [0, 1]");
+  if (!(held_back_min_odometry_m > 0.0))
+    return Status::Error("held_back_min_odometry_m must be > 0");
   if (Status valid = reference.Validate(); !valid.ok()) return valid;
   return match.Validate();
 }
@@ -27,14 +29,22 @@ LocalMapMatcher::LocalMapMatcher(const LocalMapMatcherOptions& options) : option
   }
 }
 
-void LocalMapMatcher::AddKeyframe(const PointCloud& points, const Pose2& pose) {
-  keyframes_.push_back({pose, TransformPointCloud(points, pose)});
+void LocalMapMatcher::AddKeyframe(const PointCloud& points, const Pose2& pose,
+                                  const Pose2& odometry) {
+  keyframes_.push_back({pose, odometry, TransformPointCloud(points, pose)});
   while (static_cast<int>(keyframes_.size()) > options_.max_keyframes) keyframes_.pop_front();
   std::vector<PointCloud> scans;
   scans.reserve(keyframes_.size());
   for (const Keyframe& k : keyframes_) scans.push_back(k.points_local);
   reference_ = std::make_unique<ScanReference>(scans, options_.reference);
   ++stats_.keyframes;
+}
+
+bool LocalMapMatcher::HeldBack(const Pose2& matched, const Pose2& T_odom_body) const {
+  const Keyframe& newest = keyframes_.back();
+  const double by_odometry_m = Between(newest.odometry, T_odom_body).translation().norm();
+  const double by_match_m = Between(newest.pose, matched).translation().norm();
+  return by_odometry_m >= options_.held_back_min_odometry_m && by_match_m < 0.5 * by_odometry_m;
 }
 
 LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T_odom_body,
@@ -54,7 +64,7 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   if (reference_ == nullptr) {
     last_pose_ = update.pose;
     if (!near.empty()) {
-      AddKeyframe(near, update.pose);
+      AddKeyframe(near, update.pose, T_odom_body);
       update.keyframe = true;
     }
     return update;
@@ -72,6 +82,16 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   } else {
     ++stats_.rejected;
   }
+  bool held_back = false;
+  if (update.matched && HeldBack(update.pose, T_odom_body)) {
+    // Odometry from the map's newest scan, not from the last (possibly held back) pose.
+    const Keyframe& newest = keyframes_.back();
+    update.matched = false;
+    update.pose = Compose(newest.pose, Between(newest.odometry, T_odom_body));
+    --stats_.matched;
+    ++stats_.held_back;
+    held_back = true;
+  }
   last_pose_ = update.pose;
   const Pose2 since = Between(keyframes_.back().pose, update.pose);
   const bool moved = since.translation().norm() >= options_.keyframe_distance_m ||
@@ -87,13 +107,13 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     update.match->search = stats;
   }
   if (update.matched && moved) {
-    AddKeyframe(near, update.pose);
+    AddKeyframe(near, update.pose, T_odom_body);
     update.keyframe = true;
-  } else if (!update.matched && lost && !near.empty()) {
+  } else if (!update.matched && (lost || held_back) && !near.empty()) {
     // The map no longer matches where odometry took us: start a new one here rather than
     // keep matching against a stale map or adding unverified poses to it.
     keyframes_.clear();
-    AddKeyframe(near, update.pose);
+    AddKeyframe(near, update.pose, T_odom_body);
     update.keyframe = true;
     ++stats_.resets;
   }

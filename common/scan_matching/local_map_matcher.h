@@ -33,6 +33,12 @@ struct LocalMapMatcherOptions {
   double max_range_m = 15.0;         // points farther from the robot are not used
   double min_overlap = 0.6;          // a good match: overlap at least this ...
   double min_score = 0.45;           // ... and a lattice score at least this
+  // A good match is refused as held back when odometry drove at least this far since the
+  // map's newest scan while the match moved the robot less than half as far: along a corridor
+  // the match can hold the robot back while it drives on (ACES: 4.7 m of odometry in 8 s
+  // matched as 0.7 m). A true snap back onto the map corrects about one keyframe spacing once,
+  // and the next keyframe follows. The pose then follows odometry and the map restarts there.
+  double held_back_min_odometry_m = 1.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 4};  // 4 levels: blocks of 8 cells
   LocalMatchOptions match;                             // the window around the prediction
 
@@ -53,7 +59,8 @@ struct LocalMapStats {
   int64_t rejected = 0;  // a match was found but was not good (score or overlap)
   int64_t no_match = 0;  // nothing above the matcher's min_score, or an empty scan
   int64_t keyframes = 0;
-  int64_t resets = 0;  // unmatched scans far from the map restarted it
+  int64_t resets = 0;     // unmatched scans far from the map restarted it
+  int64_t held_back = 0;  // good matches refused as held back (each also restarts the map)
 };
 
 class LocalMapMatcher {
@@ -74,10 +81,12 @@ class LocalMapMatcher {
 
  private:
   struct Keyframe {
-    Pose2 pose;  // T_local_body
+    Pose2 pose;      // T_local_body
+    Pose2 odometry;  // T_odom_body at the scan's time
     PointCloud points_local;
   };
-  void AddKeyframe(const PointCloud& points, const Pose2& pose);
+  void AddKeyframe(const PointCloud& points, const Pose2& pose, const Pose2& odometry);
+  bool HeldBack(const Pose2& matched, const Pose2& T_odom_body) const;
 
   LocalMapMatcherOptions options_;
   std::deque<Keyframe> keyframes_;

@@ -99,5 +99,117 @@ TEST(LocalMapMatcherTest, FirstScanAnchorsAndEmptyScansFallBackToOdometry) {
   EXPECT_EQ(matcher.stats().no_match, 1);
 }
 
+// A corridor 2.4 m wide and 30 m long, closed at both ends, with pillars and alcoves of
+// different sizes at irregular places along its walls (a place is known by what is near it).
+SyntheticWorld Corridor() {
+  SyntheticWorld world;
+  auto wall = [&](double ax, double ay, double bx, double by) {
+    world.walls.push_back({Eigen::Vector2d(ax, ay), Eigen::Vector2d(bx, by)});
+  };
+  auto box = [&](double x0, double y0, double x1, double y1) {
+    wall(x0, y0, x1, y0);
+    wall(x1, y0, x1, y1);
+    wall(x1, y1, x0, y1);
+    wall(x0, y1, x0, y0);
+  };
+  wall(0.0, 0.0, 30.0, 0.0);
+  wall(0.0, 2.4, 30.0, 2.4);
+  wall(0.0, 0.0, 0.0, 2.4);
+  wall(30.0, 0.0, 30.0, 2.4);
+  const double south[][2] = {{1.7, 0.3},  {4.1, 0.5},  {5.3, 0.2},  {8.9, 0.4},  {12.2, 0.6},
+                             {14.0, 0.3}, {17.6, 0.5}, {20.3, 0.2}, {23.8, 0.4}, {26.1, 0.3}};
+  for (const auto& [x, w] : south) box(x, 0.0, x + w, 0.25);
+  const double north[][2] = {{2.8, 0.4},  {6.6, 0.3},  {9.9, 0.6},  {13.1, 0.2}, {15.5, 0.4},
+                             {19.0, 0.3}, {21.7, 0.5}, {25.0, 0.2}, {27.4, 0.6}};
+  for (const auto& [x, w] : north) box(x, 2.15, x + w, 2.4);
+  world.min_corner = Eigen::Vector2d(0.0, 0.0);
+  world.max_corner = Eigen::Vector2d(30.0, 2.4);
+  return world;
+}
+
+SyntheticLaser HalfCircleLaser() {
+  SyntheticLaser laser;
+  laser.beams = 181;
+  laser.fov_rad = 3.14159265358979323846;
+  return laser;
+}
+
+// In the corridor the scans say the robot stands still (every scan the one taken at the
+// start) while odometry drives on 0.1 m per scan, as ACES's corridors held the match back
+// (4.7 m of odometry in 8 s matched as 0.7 m). Unchecked, the map holds the robot where it
+// started; the held-back rule refuses the match once odometry has driven
+// held_back_min_odometry_m past the map's newest scan, and restarts the map there.
+TEST(LocalMapMatcherTest, AMatchHoldingTheRobotBackInACorridorIsRefused) {
+  const SyntheticWorld world = Corridor();
+  std::mt19937_64 rng(11);
+  const PointCloud points =
+      ScanToPointCloud(SimulateScan(world, HalfCircleLaser(), Pose2(3.0, 1.2, 0.0), &rng));
+  for (const bool rule : {true, false}) {
+    LocalMapMatcherOptions options;
+    if (!rule) options.held_back_min_odometry_m = 1e9;
+    LocalMapMatcher matcher(options);
+    Pose2 odometry;
+    double worst_lag = 0.0;
+    for (int i = 0; i < 50; ++i) {
+      odometry = Compose(odometry, Pose2(i == 0 ? 0.0 : 0.1, 0.0, 0.0));
+      const LocalMapUpdate update = matcher.AddScan(points, odometry);
+      worst_lag = std::max(worst_lag, (update.pose.translation() - odometry.translation()).norm());
+    }
+    const LocalMapStats& stats = matcher.stats();
+    std::printf("rule %d: worst lag behind odometry %.3f m, held back %lld, matched %lld of %lld\n",
+                rule ? 1 : 0, worst_lag, static_cast<long long>(stats.held_back),
+                static_cast<long long>(stats.matched), static_cast<long long>(stats.scans));
+    if (rule) {
+      // Less than held_back_min_odometry_m plus one scan's drive, then a restart.
+      EXPECT_LT(worst_lag, 1.15);
+      EXPECT_GE(stats.held_back, 4);
+      EXPECT_EQ(stats.resets, stats.held_back);
+    } else {
+      EXPECT_GT(worst_lag, 4.5);  // the map held the robot where it started
+      EXPECT_EQ(stats.held_back, 0);
+    }
+  }
+}
+
+// Driving down the same corridor with odometry 10 % long and one slip of 0.3 m (one keyframe
+// spacing of the map) at 2 m: the match snaps the pose back onto the map, and the rule lets
+// it (the snap corrects the slip once; the next keyframe follows the matched pose).
+TEST(LocalMapMatcherTest, ATrueSnapOfOneMapSpacingIsAccepted) {
+  const SyntheticWorld world = Corridor();
+  std::mt19937_64 rng(12);
+  LocalMapMatcher matcher(LocalMapMatcherOptions{});
+  Pose2 truth(1.0, 1.2, 0.0);
+  Pose2 odometry;
+  double worst_error = 0.0, slip_correction = 0.0, error_after_slip = 0.0;
+  for (int i = 0; i < 120; ++i) {
+    if (i > 0) {
+      truth = Compose(truth, Pose2(0.1, 0.0, 0.0));
+      odometry = Compose(odometry, Pose2(i == 20 ? 0.41 : 0.11, 0.0, 0.0));
+    }
+    const PointCloud points = ScanToPointCloud(SimulateScan(world, HalfCircleLaser(), truth, &rng));
+    const LocalMapUpdate update = matcher.AddScan(points, odometry);
+    // The local frame is the odometry frame of the first scan, which stood at (1.0, 1.2).
+    const double error =
+        (update.pose.translation() + Eigen::Vector2d(1.0, 1.2) - truth.translation()).norm();
+    worst_error = std::max(worst_error, error);
+    if (i == 20) {
+      slip_correction = (update.predicted.translation() - update.pose.translation()).norm();
+      error_after_slip = error;
+    }
+  }
+  const LocalMapStats& stats = matcher.stats();
+  std::printf(
+      "worst error %.3f m, slip corrected by %.3f m (error then %.3f m), held back %lld, "
+      "matched %lld of %lld\n",
+      worst_error, slip_correction, error_after_slip, static_cast<long long>(stats.held_back),
+      static_cast<long long>(stats.matched), static_cast<long long>(stats.scans));
+  EXPECT_EQ(stats.held_back, 0);
+  EXPECT_GE(stats.matched, 115);
+  EXPECT_NEAR(slip_correction, 0.3, 0.05);
+  EXPECT_LT(error_after_slip, 0.05);
+  // Scan-to-map drift over the 12 m, about 1 % (odometry ends 1.5 m off).
+  EXPECT_LT(worst_error, 0.15);
+}
+
 }  // namespace
 }  // namespace anchormap
