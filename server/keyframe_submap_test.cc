@@ -12,6 +12,22 @@ namespace anchormap {
 namespace {
 
 // True when the two references have the same grid and the same likelihood in every cell.
+// A server with neither loop closures nor scan encounters (the tests draw submaps by hand).
+MappingServerOptions WithoutScanSources() {
+  MappingServerOptions options;
+  options.loop_closures = false;
+  options.scan_encounters = false;
+  return options;
+}
+
+// `keyframes` keyframes of robot R1, 1 m apart along x with `num_rays` rays each, solved.
+void AddStraightTrack(MappingServer* server, int32_t keyframes, int num_rays) {
+  for (int32_t seq = 0; seq < keyframes; ++seq) {
+    ASSERT_TRUE(server->OnKeyframe(testing::StraightKeyframe("R1", 1, seq, num_rays)).ok());
+  }
+  server->Flush();
+}
+
 bool SameLikelihood(const ScanReference& a, const ScanReference& b) {
   const GridGeometry& ga = a.likelihood().geometry();
   const GridGeometry& gb = b.likelihood().geometry();
@@ -25,14 +41,8 @@ bool SameLikelihood(const ScanReference& a, const ScanReference& b) {
 }
 
 TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) {
-  MappingServerOptions options;
-  options.loop_closures = false;
-  options.scan_encounters = false;
-  MappingServer server(options);
-  for (int32_t seq = 0; seq < 20; ++seq) {
-    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 60)).ok());
-  }
-  server.Flush();
+  MappingServer server(WithoutScanSources());
+  AddStraightTrack(&server, 20, 60);
   const TrajectoryId t(0);
   const TrajectoryRecord* record = server.table().FindBySolverId(t);
   ASSERT_NE(record, nullptr);
@@ -66,14 +76,8 @@ TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) 
 }
 
 TEST(KeyframeSubmapTest, AnEmptyDrawingBuildsNoReference) {
-  MappingServerOptions options;
-  options.loop_closures = false;
-  options.scan_encounters = false;
-  MappingServer server(options);
-  for (int32_t seq = 0; seq < 5; ++seq) {
-    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 0)).ok());
-  }
-  server.Flush();
+  MappingServer server(WithoutScanSources());
+  AddStraightTrack(&server, 5, 0);
   const TrajectoryRecord* record = server.table().FindBySolverId(TrajectoryId(0));
   ASSERT_NE(record, nullptr);
   const SubmapDrawing drawing =
@@ -90,14 +94,8 @@ std::vector<int> Indices(const SubmapDrawing& drawing) {
 }
 
 TEST(KeyframeSubmapTest, ASubmapByPlaceAddsTheKeyframesNearestToAPlaceFarFromItsCentre) {
-  MappingServerOptions options;
-  options.loop_closures = false;
-  options.scan_encounters = false;
-  MappingServer server(options);
-  for (int32_t seq = 0; seq < 30; ++seq) {  // 1 m apart along x
-    ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 60)).ok());
-  }
-  server.Flush();
+  MappingServer server(WithoutScanSources());
+  AddStraightTrack(&server, 30, 60);
   const TrajectoryId t(0);
   const TrajectoryRecord* record = server.table().FindBySolverId(t);
   ASSERT_NE(record, nullptr);

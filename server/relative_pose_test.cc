@@ -44,6 +44,20 @@ BothWays TestBothWays(const PredictedRelativePose& a1_a2, const Pose2& c1,
 // join (309.8 s). In between the estimate of R3 110 -> 120 moved (0.05 m, 0.013 rad) and its
 // heading sigma shrank (0.0052 -> 0.0036 rad). With the logged values (diagonal
 // covariances, as logged), each time gives one value both ways; the two times differ.
+// Pose i of trajectory r: the first at its frame's origin, each later one placed by the
+// odometry step z from pose i - 1, with a between factor of that covariance.
+void AddOdometryPose(Smoother* smoother, int r, int i, const Pose2& z,
+                     const Eigen::Matrix3d& covariance) {
+  const PoseKey key{TrajectoryId(r), i};
+  if (i == 0) {
+    ASSERT_TRUE(smoother->AddPose(key, Pose2()).ok());
+    return;
+  }
+  const PoseKey previous{TrajectoryId(r), i - 1};
+  ASSERT_TRUE(smoother->AddPose(key, Compose(smoother->FramePose(previous), z)).ok());
+  ASSERT_TRUE(smoother->AddBetween(previous, key, z, covariance).ok());
+}
+
 TEST(PairwiseInconsistencyTest, TheLoggedAcesPairDiffersByTimeNotByOrder) {
   const Pose2 c1(4.14, 0.09, 2.884), c2(2.35, 0.24, -0.253);
   const Eigen::Matrix3d C1 = Diagonal(0.020, 0.029, 0.0052);
@@ -133,16 +147,12 @@ TEST(PredictRelativePoseTest, CovarianceEqualsTheJointCovarianceProjectedAfterEv
   int compared_across = 0, compared_within = 0;
   for (int i = 0; i < kPoses; ++i) {
     for (int r = 0; r < kRobots; ++r) {
-      const PoseKey key{TrajectoryId(r), i};
-      if (i == 0) {
-        ASSERT_TRUE(smoother.AddPose(key, Pose2()).ok());
-        continue;
+      Pose2 z;
+      if (i > 0) {
+        z = Between(truth(r, i - 1), truth(r, i));
+        z = Pose2(z.x() + noise(rng), z.y() + noise(rng), z.theta() + noise(rng));
       }
-      Pose2 z = Between(truth(r, i - 1), truth(r, i));
-      z = Pose2(z.x() + noise(rng), z.y() + noise(rng), z.theta() + noise(rng));
-      ASSERT_TRUE(
-          smoother.AddPose(key, Compose(smoother.FramePose({TrajectoryId(r), i - 1}), z)).ok());
-      ASSERT_TRUE(smoother.AddBetween({TrajectoryId(r), i - 1}, key, z, odometry_covariance).ok());
+      AddOdometryPose(&smoother, r, i, z, odometry_covariance);
     }
     if (i >= 4 && i % 3 == 1) {
       const int a = meetings[(i - 4) / 3 % 4][0], b = meetings[(i - 4) / 3 % 4][1], j = i - 2;
@@ -197,17 +207,7 @@ TEST(PredictRelativePoseTest, NothingIsPredictedFromAGraphChangeNotYetSolved) {
   const Eigen::Matrix3d odometry_covariance = Diagonal(0.02, 0.02, 0.02);
   const Pose2 step(1.0, 0.0, 0.1);
   for (int r = 0; r < kRobots; ++r) {
-    for (int i = 0; i < kPoses; ++i) {
-      const PoseKey key{TrajectoryId(r), i};
-      if (i == 0) {
-        ASSERT_TRUE(smoother.AddPose(key, Pose2()).ok());
-        continue;
-      }
-      ASSERT_TRUE(
-          smoother.AddPose(key, Compose(smoother.FramePose({TrajectoryId(r), i - 1}), step)).ok());
-      ASSERT_TRUE(
-          smoother.AddBetween({TrajectoryId(r), i - 1}, key, step, odometry_covariance).ok());
-    }
+    for (int i = 0; i < kPoses; ++i) AddOdometryPose(&smoother, r, i, step, odometry_covariance);
   }
   const Eigen::Matrix3d encounter_covariance = Diagonal(0.05, 0.05, 0.02);
   ASSERT_TRUE(smoother

@@ -18,6 +18,14 @@ using testing::SimulateScan;
 using testing::SyntheticLaser;
 using testing::SyntheticWorld;
 
+// 181 beams over half a circle, as the benchmark logs' SICK lasers.
+SyntheticLaser HalfCircleLaser() {
+  SyntheticLaser laser;
+  laser.beams = 181;
+  laser.fov_rad = 3.14159265358979323846;
+  return laser;
+}
+
 // A wandering path in free space: 0.1 m steps, turning away from walls.
 std::vector<Pose2> WanderingPath(const SyntheticWorld& world, int steps, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> turn(-0.08, 0.08);
@@ -37,9 +45,7 @@ TEST(LocalMapMatcherTest, RefinesDriftingOdometry) {
   // Two rooms, 150 steps each (15 m of travel), odometry with 3 % scale error, 1 degree per
   // metre of heading bias and random noise. The refined trajectory's error against the truth
   // (end pose relative to the start) must be a small fraction of odometry's.
-  SyntheticLaser laser;
-  laser.beams = 181;
-  laser.fov_rad = 3.14159265358979323846;
+  SyntheticLaser laser = HalfCircleLaser();
   laser.range_sigma_m = 0.01;
   for (uint64_t seed = 0; seed < 2; ++seed) {
     std::mt19937_64 rng(700 + seed);
@@ -106,32 +112,19 @@ SyntheticWorld Corridor() {
   auto wall = [&](double ax, double ay, double bx, double by) {
     world.walls.push_back({Eigen::Vector2d(ax, ay), Eigen::Vector2d(bx, by)});
   };
-  auto box = [&](double x0, double y0, double x1, double y1) {
-    wall(x0, y0, x1, y0);
-    wall(x1, y0, x1, y1);
-    wall(x1, y1, x0, y1);
-    wall(x0, y1, x0, y0);
-  };
   wall(0.0, 0.0, 30.0, 0.0);
   wall(0.0, 2.4, 30.0, 2.4);
   wall(0.0, 0.0, 0.0, 2.4);
   wall(30.0, 0.0, 30.0, 2.4);
   const double south[][2] = {{1.7, 0.3},  {4.1, 0.5},  {5.3, 0.2},  {8.9, 0.4},  {12.2, 0.6},
                              {14.0, 0.3}, {17.6, 0.5}, {20.3, 0.2}, {23.8, 0.4}, {26.1, 0.3}};
-  for (const auto& [x, w] : south) box(x, 0.0, x + w, 0.25);
+  for (const auto& [x, w] : south) world.AddBox(x, 0.0, x + w, 0.25);
   const double north[][2] = {{2.8, 0.4},  {6.6, 0.3},  {9.9, 0.6},  {13.1, 0.2}, {15.5, 0.4},
                              {19.0, 0.3}, {21.7, 0.5}, {25.0, 0.2}, {27.4, 0.6}};
-  for (const auto& [x, w] : north) box(x, 2.15, x + w, 2.4);
+  for (const auto& [x, w] : north) world.AddBox(x, 2.15, x + w, 2.4);
   world.min_corner = Eigen::Vector2d(0.0, 0.0);
   world.max_corner = Eigen::Vector2d(30.0, 2.4);
   return world;
-}
-
-SyntheticLaser HalfCircleLaser() {
-  SyntheticLaser laser;
-  laser.beams = 181;
-  laser.fov_rad = 3.14159265358979323846;
-  return laser;
 }
 
 // In the corridor the scans say the robot stands still (every scan the one taken at the

@@ -5,37 +5,25 @@
 
 namespace anchormap::testing {
 
-namespace {
-
-void AddBox(SyntheticWorld* world, double x0, double y0, double x1, double y1) {
-  const Eigen::Vector2d lo(x0, y0), c1(x1, y0), hi(x1, y1), c3(x0, y1);
-  world->walls.push_back({lo, c1});
-  world->walls.push_back({c1, hi});
-  world->walls.push_back({hi, c3});
-  world->walls.push_back({c3, lo});
-}
-
-}  // namespace
-
 SyntheticWorld LoopWorld() {
   SyntheticWorld world;
   // Outer walls, the block off-centre: a block centred in the room would make the room look
   // the same turned by 180 degrees (the pillars alone do not tell the two apart).
-  AddBox(&world, 0.0, 0.0, 23.0, 16.0);
-  AddBox(&world, 5.0, 4.0, 15.0, 10.0);  // the block the loop goes round
+  world.AddBox(0.0, 0.0, 23.0, 16.0);
+  world.AddBox(5.0, 4.0, 15.0, 10.0);  // the block the loop goes round
   // Pillars and alcove walls, each of its own size, near the walls.
-  AddBox(&world, 0.6, 2.5, 1.0, 3.1);
-  AddBox(&world, 0.5, 8.0, 1.3, 8.4);
-  AddBox(&world, 9.0, 0.4, 9.5, 1.2);
-  AddBox(&world, 13.0, 0.5, 14.2, 0.9);
-  AddBox(&world, 18.8, 5.5, 19.4, 6.0);
-  AddBox(&world, 18.5, 11.0, 19.0, 12.2);
-  AddBox(&world, 6.0, 13.0, 6.8, 13.5);
-  AddBox(&world, 15.5, 12.8, 16.0, 13.6);
-  AddBox(&world, 3.8, 6.5, 5.0, 6.8);      // a stub on the block's west side
-  AddBox(&world, 11.0, 10.0, 11.3, 10.9);  // on its north side
-  AddBox(&world, 15.0, 7.0, 15.6, 7.4);    // on its east side
-  AddBox(&world, 7.5, 3.4, 8.4, 4.0);      // on its south side
+  world.AddBox(0.6, 2.5, 1.0, 3.1);
+  world.AddBox(0.5, 8.0, 1.3, 8.4);
+  world.AddBox(9.0, 0.4, 9.5, 1.2);
+  world.AddBox(13.0, 0.5, 14.2, 0.9);
+  world.AddBox(18.8, 5.5, 19.4, 6.0);
+  world.AddBox(18.5, 11.0, 19.0, 12.2);
+  world.AddBox(6.0, 13.0, 6.8, 13.5);
+  world.AddBox(15.5, 12.8, 16.0, 13.6);
+  world.AddBox(3.8, 6.5, 5.0, 6.8);      // a stub on the block's west side
+  world.AddBox(11.0, 10.0, 11.3, 10.9);  // on its north side
+  world.AddBox(15.0, 7.0, 15.6, 7.4);    // on its east side
+  world.AddBox(7.5, 3.4, 8.4, 4.0);      // on its south side
   world.min_corner = {0.0, 0.0};
   world.max_corner = {23.0, 16.0};
   return world;
@@ -49,8 +37,8 @@ SyntheticWorld TwinCorridorWorld() {
     world.walls.push_back({{4.0, 3.0 + dy}, {20.0, 3.0 + dy}});
     world.walls.push_back({{20.0, 0.0 + dy}, {20.0, 3.0 + dy}});
     for (double x : {8.0, 12.5, 17.0}) {
-      AddBox(&world, x, 0.0 + dy, x + 0.4, 0.3 + dy);
-      AddBox(&world, x + 1.0, 2.7 + dy, x + 1.3, 3.0 + dy);
+      world.AddBox(x, 0.0 + dy, x + 0.4, 0.3 + dy);
+      world.AddBox(x + 1.0, 2.7 + dy, x + 1.3, 3.0 + dy);
     }
   }
   // The hall joining them: x in [0, 4], y in [0, 13], distinct pillars.
@@ -58,8 +46,8 @@ SyntheticWorld TwinCorridorWorld() {
   world.walls.push_back({{0.0, 13.0}, {4.0, 13.0}});
   world.walls.push_back({{0.0, 0.0}, {0.0, 13.0}});
   world.walls.push_back({{4.0, 3.0}, {4.0, 10.0}});
-  AddBox(&world, 1.0, 5.0, 1.6, 5.4);
-  AddBox(&world, 2.2, 8.3, 2.5, 9.2);
+  world.AddBox(1.0, 5.0, 1.6, 5.4);
+  world.AddBox(2.2, 8.3, 2.5, 9.2);
   world.min_corner = {0.0, 0.0};
   world.max_corner = {20.0, 13.0};
   return world;
@@ -67,11 +55,11 @@ SyntheticWorld TwinCorridorWorld() {
 
 SyntheticWorld PeriodicCorridorWorld() {
   SyntheticWorld world;
-  AddBox(&world, -10.0, 0.0, 50.0, 13.0);  // outer walls
-  AddBox(&world, -7.0, 3.0, 47.0, 10.0);   // the block the ring goes round
+  world.AddBox(-10.0, 0.0, 50.0, 13.0);  // outer walls
+  world.AddBox(-7.0, 3.0, 47.0, 10.0);   // the block the ring goes round
   for (double x = -8.0; x <= 48.0; x += 8.0) {
-    AddBox(&world, x, 0.0, x + 0.3, 0.4);
-    if (x + 3.0 < 47.0) AddBox(&world, x + 3.0, 2.6, x + 3.3, 3.0);
+    world.AddBox(x, 0.0, x + 0.3, 0.4);
+    if (x + 3.0 < 47.0) world.AddBox(x + 3.0, 2.6, x + 3.3, 3.0);
   }
   world.min_corner = {-10.0, 0.0};
   world.max_corner = {50.0, 13.0};

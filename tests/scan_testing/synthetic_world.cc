@@ -12,16 +12,16 @@ double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
 }
 
-void AddBox(SyntheticWorld* world, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
+}  // namespace
+
+void SyntheticWorld::AddBox(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
   const Eigen::Vector2d c1(hi.x(), lo.y());
   const Eigen::Vector2d c3(lo.x(), hi.y());
-  world->walls.push_back({lo, c1});
-  world->walls.push_back({c1, hi});
-  world->walls.push_back({hi, c3});
-  world->walls.push_back({c3, lo});
+  walls.push_back({lo, c1});
+  walls.push_back({c1, hi});
+  walls.push_back({hi, c3});
+  walls.push_back({c3, lo});
 }
-
-}  // namespace
 
 double SyntheticWorld::RayCast(const Eigen::Vector2d& origin, double angle) const {
   const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
@@ -56,7 +56,7 @@ SyntheticWorld RandomRoom(uint64_t seed) {
   const double h = 8.0 + 4.0 * unit(rng);
   world.min_corner = {0.0, 0.0};
   world.max_corner = {w, h};
-  AddBox(&world, world.min_corner, world.max_corner);
+  world.AddBox(world.min_corner, world.max_corner);
   const int pillars = 4 + static_cast<int>(unit(rng) * 4.0);
   for (int i = 0; i < pillars; ++i) {
     // One draw per statement: a call's argument order is unspecified (gcc's order kept).
@@ -66,7 +66,7 @@ SyntheticWorld RandomRoom(uint64_t seed) {
     const double lo_y = 1.0 + (h - 2.0 - size.y()) * unit(rng);
     const double lo_x = 1.0 + (w - 2.0 - size.x()) * unit(rng);
     const Eigen::Vector2d lo(lo_x, lo_y);
-    AddBox(&world, lo, lo + size);
+    world.AddBox(lo, lo + size);
   }
   const int partitions = 2 + static_cast<int>(unit(rng) * 3.0);
   for (int i = 0; i < partitions; ++i) {

@@ -24,6 +24,11 @@ struct SyntheticWorld {
   Eigen::Vector2d min_corner{0.0, 0.0};
   Eigen::Vector2d max_corner{0.0, 0.0};
 
+  // The four walls of the axis-aligned rectangle [lo, hi], counter-clockwise from lo.
+  void AddBox(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi);
+  void AddBox(double x0, double y0, double x1, double y1) {
+    AddBox(Eigen::Vector2d(x0, y0), Eigen::Vector2d(x1, y1));
+  }
   // Distance along the ray from `origin` at `angle` to the first wall; +inf when none.
   double RayCast(const Eigen::Vector2d& origin, double angle) const;
   double DistanceToNearestWall(const Eigen::Vector2d& p) const;
