@@ -10,8 +10,9 @@
 # and started again at once with the same options (its trajectory id is drawn anew). The
 # server is paused (SIGSTOP) for the last 2 s of the replay; right after the replay every
 # agent gets SIGINT while it holds unacknowledged keyframes, and the server resumes
-# (SIGCONT) 1.5 s later: each agent must wait for the server's acknowledgements
-# (anchormap-agent --exit-ack-wait-s), say that everything was acknowledged, and exit 0. Then the server stops, and its final map is compared with
+# (SIGCONT) once every agent has said so: each agent must wait for the server's
+# acknowledgements (anchormap-agent --exit-ack-wait-s), say that everything was
+# acknowledged, and exit 0. Then the server stops, and its final map is compared with
 # anchormap-server --log agents.lcmlog (the same keyframes and encounters, in order):
 # the same keyframes and encounters of both R2 trajectories, none missing or doubled,
 # poses within 1e-9, no gap bridged, 4 trajectories, all anchored. The agents run with a
@@ -32,7 +33,7 @@ ROBOTS=3
 DURATION_S=60
 SPEED=3
 KILL_AT_S=${ANCHORMAP_RESTART_KILL_AT_S:-11}
-PAUSE_AT_S=7  # after the kill: the server is paused from here to 1.5 s after the replay
+PAUSE_AT_S=7  # after the kill: the server is paused from here until the agents stop
 URL="udpm://239.255.76.70:7670?ttl=0"
 CONVERGENCE=1e-12
 SOURCES=${SOURCES-"--loop-closures false --scan-encounters false"}
@@ -46,6 +47,42 @@ start_agent() {
   # are read back when resent (issue 13: nothing lost while the agent runs).
   "$BIN/anchormap-agent" --robot "$robot" --lcm-url "$URL" --status-period-s 1 \
     --outbox-max-bytes 4096 --outbox-spill-dir "$work" >"$work/$log" 2>&1 &
+}
+
+# Resumes the paused server once every agent has said how it stops (waiting for
+# acknowledgements, or nothing left to wait for), or after 30 s. A fixed pause raced a loaded
+# machine: an agent still working through up to 256 queued scans saw SIGINT only after the
+# server had resumed and acknowledged everything, so it never waited.
+resume_when_agents_stopping() {
+  local work=$1 server=$2 tries=0 f all
+  while [ $tries -lt 300 ]; do
+    all=1
+    for f in "$work"/agent_R*.log; do
+      grep -qE 'waiting up to|everything published was acknowledged|exiting with' "$f" || all=0
+    done
+    [ $all = 1 ] && break
+    sleep 0.1
+    tries=$((tries + 1))
+  done
+  kill -CONT "$server"
+}
+
+# Waits (at most MAX_S seconds) until every agent's last status line shows messages the
+# paused server has not acknowledged. On a loaded machine an agent can lag its input by
+# seconds; stopped before it published anything after the pause, it would have nothing to
+# wait for.
+wait_for_unacknowledged() {
+  local work=$1 max_s=$2 tries=0 f all
+  while [ $tries -lt $((max_s * 10)) ]; do
+    all=1
+    for f in "$work"/agent_R*.log; do
+      grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -qE 'outbox [1-9][0-9]* \(' || all=0
+    done
+    [ $all = 1 ] && return 0
+    sleep 0.1
+    tries=$((tries + 1))
+  done
+  log "an agent still showed an empty outbox $max_s s after the replay"
 }
 
 inside_namespace() {
@@ -82,11 +119,12 @@ inside_namespace() {
   log "R2's agent killed and started again"
   # The server stops answering (SIGSTOP) shortly before the replay ends, so the agents are
   # stopped while holding unacknowledged keyframes: each must wait for the server, which
-  # resumes (SIGCONT) a little later and acknowledges them.
+  # resumes (SIGCONT) when they have said so and acknowledges them.
   sleep "$PAUSE_AT_S"
   kill -STOP "$server"
   wait "$player" || { log "lcm-logplayer failed"; return 1; }
-  stop_run --after-agents "sleep 1.5; kill -CONT $server" --settle 1 "${agents[@]}" -- "$server" \
+  wait_for_unacknowledged "$work" 15
+  stop_run --after-agents "resume_when_agents_stopping '$work' $server" --settle 1 "${agents[@]}" -- "$server" \
     -- "$logger_agents" "$logger_out"
 }
 
@@ -97,7 +135,8 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace stop_run start_agent log
+  export -f inside_namespace stop_run start_agent log resume_when_agents_stopping \
+    wait_for_unacknowledged
   export BIN URL ROBOTS DURATION_S SPEED KILL_AT_S PAUSE_AT_S CONVERGENCE TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
