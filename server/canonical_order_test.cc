@@ -194,13 +194,9 @@ struct Inputs {
 
 const Inputs& TwoRobotInputs() {
   static const Inputs inputs = [] {
-    auto lap = [](size_t first, size_t count) {
-      const std::vector<Pose2> laps = testing::RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 2.0);
-      return std::vector<Pose2>(laps.begin() + static_cast<long>(first),
-                                laps.begin() + static_cast<long>(first + count));
-    };
     const testing::SyntheticWorld world = testing::LoopWorld();
-    const std::vector<Pose2> path1 = lap(0, 70), path2 = lap(50, 70);
+    const std::vector<Pose2> path1 = testing::LoopWorldLap(0, 70),
+                             path2 = testing::LoopWorldLap(50, 70);
     Inputs in;
     in.r1 = testing::DriveKeyframes(world, path1, "R1", 1, 1'000'000,
                                     testing::OdometryNoise{0.01, 0.005}, 3);

@@ -143,16 +143,10 @@ TeamRun RunTeam(const SyntheticWorld& world, const std::vector<Pose2>& path1,
   return run;
 }
 
-// LoopWorld: R1 laps the block from its south-west corner, R2 from the north-east one.
-std::vector<Pose2> Lap(size_t first, size_t count) {
-  const std::vector<Pose2> laps = testing::RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 2.0);
-  return std::vector<Pose2>(laps.begin() + static_cast<long>(first),
-                            laps.begin() + static_cast<long>(first + count));
-}
-
 // R1 from the south-west corner, R2 from the north-east one (computed once: ~10 s).
 const TeamRun& CleanRun() {
-  static const TeamRun run = RunTeam(testing::LoopWorld(), Lap(0, 110), Lap(50, 110), 0.0, 1);
+  static const TeamRun run = RunTeam(testing::LoopWorld(), testing::LoopWorldLap(0, 110),
+                                     testing::LoopWorldLap(50, 110), 0.0, 1);
   return run;
 }
 
@@ -168,7 +162,8 @@ TEST(ScanEncountersTest, TwoRobotsJoinByScanMatching) {
 
 TEST(ScanEncountersTest, FalseCandidatesDoNotCorruptTheMap) {
   const TeamRun& clean = CleanRun();
-  const TeamRun dirty = RunTeam(testing::LoopWorld(), Lap(0, 110), Lap(50, 110), 0.2, 1);
+  const TeamRun dirty = RunTeam(testing::LoopWorld(), testing::LoopWorldLap(0, 110),
+                                testing::LoopWorldLap(50, 110), 0.2, 1);
   std::printf("clean mean %.3f m; with false candidates (%d offered) mean %.3f max %.3f m; %s\n",
               clean.mean_error_m, dirty.false_offered, dirty.mean_error_m, dirty.max_error_m,
               dirty.scan.Summary("scan").c_str());
@@ -181,8 +176,10 @@ TEST(ScanEncountersTest, FalseCandidatesDoNotCorruptTheMap) {
 
 TEST(ScanEncountersTest, SameInputSameMap) {
   // Offline runs must be byte-deterministic: matching runs in input order on one thread.
-  const TeamRun first = RunTeam(testing::LoopWorld(), Lap(0, 50), Lap(50, 50), 0.2, 5);
-  const TeamRun second = RunTeam(testing::LoopWorld(), Lap(0, 50), Lap(50, 50), 0.2, 5);
+  const TeamRun first = RunTeam(testing::LoopWorld(), testing::LoopWorldLap(0, 50),
+                                testing::LoopWorldLap(50, 50), 0.2, 5);
+  const TeamRun second = RunTeam(testing::LoopWorld(), testing::LoopWorldLap(0, 50),
+                                 testing::LoopWorldLap(50, 50), 0.2, 5);
   ASSERT_TRUE(first.joined);
   ASSERT_EQ(first.final_poses.size(), second.final_poses.size());
   for (size_t i = 0; i < first.final_poses.size(); ++i) {
@@ -413,7 +410,7 @@ TEST_F(SharedViewFirstJoinTest, OnePlaceSeenTwiceDoesNotJoin) {
 TEST_F(SharedViewFirstJoinTest, TwoIndependentPlacesJoin) {
   // R1 laps LoopWorld from its south-west corner, R2 from the north-east one: the two
   // candidates lie on opposite sides of the block.
-  Drive(testing::LoopWorld(), Lap(0, 60), Lap(50, 60));
+  Drive(testing::LoopWorld(), testing::LoopWorldLap(0, 60), testing::LoopWorldLap(50, 60));
   const double shared_1 = SharedView(TrajectoryId(0), 5, 35);
   const double shared_2 = SharedView(TrajectoryId(1), 5, 35);
   std::printf("two places: shared views R1 %.2f R2 %.2f\n", shared_1, shared_2);

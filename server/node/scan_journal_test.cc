@@ -42,17 +42,12 @@ struct Step {
 // R1 and R2 lap the LoopWorld block from opposite corners, keyframes interleaved, each
 // received 0.1 s after its time, a tick after each pair.
 std::vector<Step> Session() {
-  const std::vector<Pose2> laps = testing::RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 2.0);
-  const auto lap = [&](size_t first, size_t count) {
-    return std::vector<Pose2>(laps.begin() + static_cast<long>(first),
-                              laps.begin() + static_cast<long>(first + count));
-  };
   const testing::SyntheticWorld world = testing::LoopWorld();
   const testing::OdometryNoise noise{0.01, 0.005};
   const std::vector<Keyframe> k1 =
-      testing::DriveKeyframes(world, lap(0, 115), "R1", 1, 1'000'000, noise, 1);
-  const std::vector<Keyframe> k2 =
-      testing::DriveKeyframes(world, lap(50, 115), "R2", 2, 1'000'000, noise, 101);
+      testing::DriveKeyframes(world, testing::LoopWorldLap(0, 115), "R1", 1, 1'000'000, noise, 1);
+  const std::vector<Keyframe> k2 = testing::DriveKeyframes(world, testing::LoopWorldLap(50, 115),
+                                                           "R2", 2, 1'000'000, noise, 101);
   std::vector<Step> steps;
   for (size_t i = 0; i < k1.size(); ++i) {
     for (const Keyframe& k : {k1[i], k2[i]})

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 namespace anchormap::testing {
 
@@ -87,6 +88,13 @@ std::vector<Pose2> RectanglePath(const Eigen::Vector2d& lo, const Eigen::Vector2
     }
   }
   return path;
+}
+
+std::vector<Pose2> LoopWorldLap(size_t first, size_t count) {
+  const std::vector<Pose2> laps = RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 2.0);
+  if (first + count > laps.size()) throw std::out_of_range("LoopWorldLap: past two laps");
+  return std::vector<Pose2>(laps.begin() + static_cast<long>(first),
+                            laps.begin() + static_cast<long>(first + count));
 }
 
 std::vector<Pose2> StraightPath(const Eigen::Vector2d& from, const Eigen::Vector2d& to,

@@ -33,6 +33,11 @@ SyntheticWorld PeriodicCorridorWorld();
 std::vector<Pose2> RectanglePath(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
                                  double step_m, double laps);
 
+// `count` poses of two counter-clockwise laps around LoopWorld's block at 0.5 m steps, from
+// pose `first` (0: the south-west corner; 50: near the north-east one). Two robots given
+// different `first` lap the block from opposite corners.
+std::vector<Pose2> LoopWorldLap(size_t first, size_t count);
+
 // Poses every `step_m` from `from` to `to` (heading along the segment).
 std::vector<Pose2> StraightPath(const Eigen::Vector2d& from, const Eigen::Vector2d& to,
                                 double step_m);
