@@ -1,6 +1,8 @@
 #include "server/map_publisher.h"
 
+#include <algorithm>
 #include <map>
+#include <optional>
 #include <unordered_set>
 
 namespace anchormap {
@@ -86,27 +88,47 @@ uint64_t GridKey(TrajectoryId trajectory, size_t index) {
 }  // namespace
 
 MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
-                                                  const TrajectoryTable& table) {
+                                                  const TrajectoryTable& table, bool complete) {
   GridChange change;
   std::unordered_set<uint64_t> current;
+  // Placed keyframes that moved past the tolerance: (displacement, key, scan, pose).
+  struct Moved {
+    double displacement;
+    uint64_t key;
+    const LaserScan* scan;
+    Pose2 pose;
+  };
+  std::vector<Moved> moved;
   for (TrajectoryId id : GridTrajectories(smoother, table)) {
     const TrajectoryRecord* record = table.FindBySolverId(id);
     const std::vector<Pose2> poses = smoother.GlobalTrajectory(id);
     for (size_t i = 0; i < poses.size() && i < record->scans.size(); ++i) {
       const uint64_t key = GridKey(id, i);
       current.insert(key);
-      switch (grid_.Place(key, record->scans[i], poses[i])) {
-        case KeyframeGrid::Placement::kInserted:
-          ++change.inserted;
-          break;
-        case KeyframeGrid::Placement::kMoved:
-          ++change.moved;
-          break;
-        case KeyframeGrid::Placement::kUnchanged:
-          break;
+      const std::optional<double> displacement = grid_.Displacement(key, poses[i]);
+      if (!displacement) {
+        grid_.Place(key, record->scans[i], poses[i]);
+        ++change.inserted;
+      } else if (*displacement > grid_.move_tolerance_m()) {
+        moved.push_back({*displacement, key, &record->scans[i], poses[i]});
       }
     }
   }
+  // The farthest moved first; ties by key (trajectory, index): deterministic.
+  size_t take = moved.size();
+  if (!complete && options_.grid_max_moved > 0) {
+    take = std::min(take, static_cast<size_t>(options_.grid_max_moved));
+    std::stable_sort(moved.begin(), moved.end(), [](const Moved& a, const Moved& b) {
+      return a.displacement > b.displacement;
+    });
+  }
+  for (size_t n = 0; n < take; ++n) {
+    if (grid_.Place(moved[n].key, *moved[n].scan, moved[n].pose) ==
+        KeyframeGrid::Placement::kMoved) {
+      ++change.moved;
+    }
+  }
+  change.deferred = static_cast<int64_t>(moved.size() - take);
   // Keyframes of trajectories that left the grid's group (the largest group changed).
   std::vector<uint64_t> gone;
   for (const auto& [key, pose] : grid_.placed()) {
@@ -126,8 +148,8 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
 
 std::vector<GridTile> MapPublisher::BuildGridTiles(const Smoother& smoother,
                                                    const TrajectoryTable& table, int64_t utime,
-                                                   int64_t update) {
-  UpdateGrid(smoother, table);
+                                                   int64_t update, bool complete) {
+  UpdateGrid(smoother, table, complete);
   grid_.ForgetChanges();
   return grid_.Tiles(utime, update);
 }

@@ -166,6 +166,48 @@ TEST_F(MapPublisherTest, GridIsUpdatedByWhatMovedAndSendsOnlyChangedTiles) {
   for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
 }
 
+// A bounded publication traces again at most grid_max_moved of the keyframes that moved, the
+// farthest first; the next publications (or a complete one) catch up with the rest.
+TEST_F(MapPublisherTest, GridTracesAgainAtMostMaxMovedFarthestFirst) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  options.grid_max_moved = 1;
+  MapPublisher publisher(options);
+  EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
+  // A loop closure that bends A: its last keyframe 0.6 m to the side of its first's
+  // heading, the ones between pulled less.
+  ASSERT_TRUE(smoother_
+                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
+                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
+                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
+                  .ok());
+  ASSERT_TRUE(smoother_.Update().status.ok());
+  const auto key = [](int index) { return static_cast<uint64_t>(index); };  // trajectory 0
+  const Pose2 before_1 = publisher.grid().placed().at(key(1));
+  const MapPublisher::GridChange first = publisher.UpdateGrid(smoother_, table_);
+  EXPECT_EQ(first.moved, 1);
+  EXPECT_EQ(first.deferred, 2);  // keyframes 1 and 2 (0 holds the gauge and did not move)
+  const std::vector<Pose2> estimate = smoother_.GlobalTrajectory(TrajectoryId(0));
+  EXPECT_EQ(publisher.grid().placed().at(key(kKeyframes - 1)).y(), estimate.back().y());
+  EXPECT_EQ(publisher.grid().placed().at(key(1)).y(), before_1.y());
+  EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).moved, 1);  // then keyframe 2
+  EXPECT_EQ(publisher.grid().placed().at(key(2)).y(), estimate[2].y());
+  // A complete grid takes the rest at once: every keyframe within the tolerance of the
+  // estimate, and the grid equal to one built from scratch at the poses it holds.
+  EXPECT_EQ(publisher.UpdateGrid(smoother_, table_, /*complete=*/true).deferred, 0);
+  KeyframeGrid scratch(options.grid);
+  for (int i = 0; i < kKeyframes; ++i) {
+    const Pose2 placed = publisher.grid().placed().at(key(i));
+    EXPECT_LE(std::abs(placed.y() - estimate[static_cast<size_t>(i)].y()), 1e-9);
+    scratch.Place(key(i), table_.FindBySolverId(TrajectoryId(0))->scans[static_cast<size_t>(i)],
+                  placed);
+  }
+  const std::vector<GridTile> expected = scratch.Tiles(3, 3),
+                              actual = publisher.BuildGridTiles(smoother_, table_, 3, 3);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
+}
+
 TEST(MapPublisherRateTest, MapAfterEachNewUpdateAtMostOncePerPeriodGridOnItsOwnPeriod) {
   MapPublisherOptions options;
   options.map_period_s = 1.0;

@@ -498,8 +498,8 @@ AnchorCovariances MappingServer::BuildAnchorCovariances() {
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
-std::vector<GridTile> MappingServer::BuildGridTiles() {
-  return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates);
+std::vector<GridTile> MappingServer::BuildGridTiles(bool complete) {
+  return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
 }
 
 std::vector<GridTile> MappingServer::BuildChangedGridTiles() {

@@ -231,8 +231,9 @@ class MappingServer {
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;
   AnchorCovariances BuildAnchorCovariances();
-  // Every tile of the grid, or only the tiles changed since the last grid (MapPublisher).
-  std::vector<GridTile> BuildGridTiles();
+  // Every tile of the grid, or only the tiles changed since the last grid (MapPublisher;
+  // `complete`: every moved keyframe traced again, not only grid_max_moved of them).
+  std::vector<GridTile> BuildGridTiles(bool complete = false);
   std::vector<GridTile> BuildChangedGridTiles();
   ServerStatus BuildStatus() const;
   // One line: robots, trajectories, anchored, keyframes, encounters, updates, last update

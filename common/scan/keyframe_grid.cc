@@ -43,13 +43,20 @@ KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
     return Placement::kInserted;
   }
   const Pose2& old = it->second;
-  const double moved = (T_map_body.translation() - old.translation()).norm() +
-                       std::abs(AngleDifference(T_map_body.theta(), old.theta())) * reach_m_[key];
+  const double moved = *Displacement(key, T_map_body);
   if (!(moved > move_tolerance_m_)) return Placement::kUnchanged;
   Trace(scan, old, -1);
   Trace(scan, T_map_body, +1);
   it->second = T_map_body;
   return Placement::kMoved;
+}
+
+std::optional<double> KeyframeGrid::Displacement(uint64_t key, const Pose2& T_map_body) const {
+  const auto it = placed_pose_.find(key);
+  if (it == placed_pose_.end()) return std::nullopt;
+  const Pose2& old = it->second;
+  return (T_map_body.translation() - old.translation()).norm() +
+         std::abs(AngleDifference(T_map_body.theta(), old.theta())) * reach_m_.at(key);
 }
 
 bool KeyframeGrid::Remove(uint64_t key, const LaserScan& scan) {

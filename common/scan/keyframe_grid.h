@@ -40,6 +40,10 @@ class KeyframeGrid {
   // in at the new one when it moved past the tolerance, else left where it is. `scan` must
   // be the same scan at every call for one key (it is not stored).
   Placement Place(uint64_t key, const LaserScan& scan, const Pose2& T_map_body);
+  // How far keyframe `key`'s far beam ends would move if placed at T_map_body (the measure
+  // Place compares with the tolerance); nullopt when it is not placed.
+  std::optional<double> Displacement(uint64_t key, const Pose2& T_map_body) const;
+  double move_tolerance_m() const { return move_tolerance_m_; }
   // Takes keyframe `key` out (`scan`: the one it was placed with); false when not placed.
   bool Remove(uint64_t key, const LaserScan& scan);
   // The pose each placed keyframe was traced at.

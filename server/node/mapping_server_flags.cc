@@ -33,6 +33,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("publish.grid_full_period_s", "grid-full-period-s", &s.publish.grid_full_period_s,
       "every grid tile at most this often; the grids between carry the changed tiles (s; 0 = "
       "every tile each time)");
+  add("publish.grid_max_moved", "grid-max-moved", &s.publish.grid_max_moved,
+      "keyframes traced again per grid publication at most, the farthest moved first; the "
+      "rest at the next ones (0 = no limit)");
   add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
       "ask a trajectory for missing keyframes / encounters at most this often (s)");
   add("smoother.solve_period_s", "solve-period-s", &s.solve_period_s,

@@ -320,8 +320,9 @@ void ServerNode::PublishMap(int64_t now_utime, bool full) {
   ++published_maps_;
 }
 
-void ServerNode::PublishGrid(bool full) {
-  for (const GridTile& tile : full ? server_->BuildGridTiles() : server_->BuildChangedGridTiles()) {
+void ServerNode::PublishGrid(bool full, bool complete) {
+  for (const GridTile& tile :
+       full ? server_->BuildGridTiles(complete) : server_->BuildChangedGridTiles()) {
     publish_(options_.channels.grid_tiles, EncodeGridTile(tile));
   }
   ++published_grids_;
@@ -373,7 +374,7 @@ void ServerNode::PublishResendRequests() {
 
 void ServerNode::PublishAll() {
   PublishMap(clock_(), /*full=*/true);
-  PublishGrid(/*full=*/true);
+  PublishGrid(/*full=*/true, /*complete=*/true);
   PublishStatus();
 }
 

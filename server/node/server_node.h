@@ -151,7 +151,8 @@ class ServerNode {
   // covariances; `now_utime` on the caller's clock (the full map's period).
   void PublishMap(int64_t now_utime, bool full);
   // Every tile (`full`), or the tiles changed since the last grid.
-  void PublishGrid(bool full);
+  // `complete`: the grid brought all the way to the estimate (MapPublisher::UpdateGrid).
+  void PublishGrid(bool full, bool complete = false);
   // Decodes and hands on a keyframe or encounter (`data` already out of its envelope);
   // `replaying`: from the journal (checked when it was journaled, not journaled again).
   void Dispatch(const std::string& channel, const uint8_t* data, size_t size, bool replaying);
