@@ -28,18 +28,6 @@ void AddStraightTrack(MappingServer* server, int32_t keyframes, int num_rays) {
   server->Flush();
 }
 
-bool SameLikelihood(const ScanReference& a, const ScanReference& b) {
-  const GridGeometry& ga = a.likelihood().geometry();
-  const GridGeometry& gb = b.likelihood().geometry();
-  if (ga.width != gb.width || ga.height != gb.height || ga.origin != gb.origin) return false;
-  for (int iy = 0; iy < ga.height; ++iy) {
-    for (int ix = 0; ix < ga.width; ++ix) {
-      if (a.likelihood().Value(ix, iy) != b.likelihood().Value(ix, iy)) return false;
-    }
-  }
-  return true;
-}
-
 TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) {
   MappingServer server(WithoutScanSources());
   AddStraightTrack(&server, 20, 60);
@@ -56,7 +44,7 @@ TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) 
   const std::unique_ptr<ScanReference> drawn =
       BuildKeyframeSubmap(*record, drawing, 15.0, reference_options);
   ASSERT_TRUE(at_once && drawn);
-  EXPECT_TRUE(SameLikelihood(*at_once, *drawn));
+  EXPECT_TRUE(at_once->likelihood().SameCells(drawn->likelihood()));
 
   // A closure that bends the trajectory (keyframe 15 seen 1 m aside of where odometry puts
   // it): the submap's keyframes move, the drawing keeps their poses of its time.
@@ -71,8 +59,8 @@ TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) 
   const std::unique_ptr<ScanReference> redrawn =
       BuildKeyframeSubmap(*record, server.smoother(), center, 5, 15.0, reference_options);
   ASSERT_TRUE(later && redrawn);
-  EXPECT_TRUE(SameLikelihood(*drawn, *later));
-  EXPECT_FALSE(SameLikelihood(*drawn, *redrawn));  // the estimate did move
+  EXPECT_TRUE(drawn->likelihood().SameCells(later->likelihood()));
+  EXPECT_FALSE(drawn->likelihood().SameCells(redrawn->likelihood()));  // the estimate did move
 }
 
 TEST(KeyframeSubmapTest, AnEmptyDrawingBuildsNoReference) {

@@ -25,6 +25,12 @@ class LikelihoodGrid {
   float Value(int ix, int iy) const {
     return geometry_.Contains(ix, iy) ? values_[geometry_.Index(ix, iy)] : 0.0f;
   }
+  // The same cells (extent and origin) holding the same values, exactly: a reference built
+  // again from the same drawing equals the first.
+  bool SameCells(const LikelihoodGrid& other) const {
+    return geometry_.width == other.geometry_.width && geometry_.height == other.geometry_.height &&
+           geometry_.origin == other.geometry_.origin && values_ == other.values_;
+  }
 
  private:
   GridGeometry geometry_;
