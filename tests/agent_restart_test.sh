@@ -54,35 +54,8 @@ start_agent() {
 # machine: an agent still working through up to 256 queued scans saw SIGINT only after the
 # server had resumed and acknowledged everything, so it never waited.
 resume_when_agents_stopping() {
-  local work=$1 server=$2 tries=0 f all
-  while [ $tries -lt 300 ]; do
-    all=1
-    for f in "$work"/agent_R*.log; do
-      grep -qE 'waiting up to|everything published was acknowledged|exiting with' "$f" || all=0
-    done
-    [ $all = 1 ] && break
-    sleep 0.1
-    tries=$((tries + 1))
-  done
-  kill -CONT "$server"
-}
-
-# Waits (at most MAX_S seconds) until every agent's last status line shows messages the
-# paused server has not acknowledged. On a loaded machine an agent can lag its input by
-# seconds; stopped before it published anything after the pause, it would have nothing to
-# wait for.
-wait_for_unacknowledged() {
-  local work=$1 max_s=$2 tries=0 f all
-  while [ $tries -lt $((max_s * 10)) ]; do
-    all=1
-    for f in "$work"/agent_R*.log; do
-      grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -qE 'outbox [1-9][0-9]* \(' || all=0
-    done
-    [ $all = 1 ] && return 0
-    sleep 0.1
-    tries=$((tries + 1))
-  done
-  log "an agent still showed an empty outbox $max_s s after the replay"
+  poll_until 30 every_agent_said "$1" 'waiting up to|everything published was acknowledged|exiting with'
+  kill -CONT "$2"
 }
 
 inside_namespace() {
@@ -123,7 +96,11 @@ inside_namespace() {
   sleep "$PAUSE_AT_S"
   kill -STOP "$server"
   wait "$player" || { log "lcm-logplayer failed"; return 1; }
-  wait_for_unacknowledged "$work" 15
+  # Each agent must hold messages the paused server has not acknowledged when it is stopped:
+  # on a loaded machine an agent can lag its input by seconds, and stopped before it
+  # published anything after the pause it would have nothing to wait for.
+  poll_until 15 outboxes_show "$work" '[1-9][0-9]*' ||
+    log "an agent still showed an empty outbox 15 s after the replay"
   stop_run --after-agents "resume_when_agents_stopping '$work' $server" --settle 1 "${agents[@]}" -- "$server" \
     -- "$logger_agents" "$logger_out"
 }
@@ -135,8 +112,8 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace stop_run start_agent log resume_when_agents_stopping \
-    wait_for_unacknowledged
+  export -f inside_namespace stop_run start_agent log resume_when_agents_stopping poll_until \
+    every_agent_said outboxes_show
   export BIN URL ROBOTS DURATION_S SPEED KILL_AT_S PAUSE_AT_S CONVERGENCE TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

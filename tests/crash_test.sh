@@ -159,7 +159,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
+  export -f inside_namespace stop_run outboxes_show outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
     wait_until_listening log
   export BIN URL ROBOTS DURATION_S SPEED KILLS CONVERGENCE MAX_WAIT_S SEED TEST_NAME MODE SOURCES \
     LIFE_MIN_MS LIFE_SPAN_MS \

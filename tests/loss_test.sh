@@ -73,7 +73,7 @@ main() {
   local work=$WORK
   simulate $ROBOTS $DURATION_S
 
-  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes log
+  export -f inside_namespace stop_run outboxes_show outboxes_empty wait_for_outboxes log
   export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

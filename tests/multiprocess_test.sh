@@ -86,7 +86,7 @@ main() {
     exit $SKIP
   fi
 
-  export -f inside_namespace stop_run outboxes_empty wait_for_outboxes log
+  export -f inside_namespace stop_run outboxes_show outboxes_empty wait_for_outboxes log
   export BIN URL ROBOTS DURATION_S SPEED TEST_NAME MAX_WAIT_S SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?

@@ -46,12 +46,35 @@ require_player_and_netns() {
   fi
 }
 
-# True when every agent's last status line (WORK_DIR/agent_R*.log) shows an empty outbox:
-# everything it published was acknowledged by the server.
-outboxes_empty() {
+# outboxes_show WORK_DIR COUNT: true when every agent's last status line
+# (WORK_DIR/agent_R*.log) shows an outbox of COUNT messages (a grep -E pattern).
+outboxes_show() {
   local f
   for f in "$1"/agent_R*.log; do
-    grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -q 'outbox 0 (' || return 1
+    grep -E 'outbox [0-9]+ \(' "$f" | tail -1 | grep -qE "outbox ($2) \\(" || return 1
+  done
+}
+
+# True when every agent's outbox is empty: everything it published was acknowledged.
+outboxes_empty() { outboxes_show "$1" 0; }
+
+# True when every agent's log (WORK_DIR/agent_R*.log) has a line matching PATTERN (grep -E).
+every_agent_said() {
+  local f
+  for f in "$1"/agent_R*.log; do
+    grep -qE "$2" "$f" || return 1
+  done
+}
+
+# poll_until MAX_S COMMAND...: runs COMMAND every 0.1 s until it succeeds (returns 0) or
+# MAX_S seconds have passed (returns 1).
+poll_until() {
+  local tries=0 max=$(($1 * 10))
+  shift
+  until "$@"; do
+    [ $tries -lt $max ] || return 1
+    sleep 0.1
+    tries=$((tries + 1))
   done
 }
 
