@@ -18,69 +18,6 @@ using codec_internal::PoseToArray;
 using codec_internal::SafeDecode;
 using codec_internal::Success;
 
-std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
-  anchormap::merged_map_t m;
-  m.utime = map.utime;
-  m.update = map.update;
-  m.num_trajectories = static_cast<int32_t>(map.trajectories.size());
-  for (const MergedTrajectory& t : map.trajectories) {
-    anchormap::trajectory_t out;
-    out.robot = t.robot;
-    out.trajectory_id = t.trajectory_id;
-    out.anchored = t.anchored;
-    PoseToArray(t.T_global_local, out.anchor);
-    out.num_poses = static_cast<int32_t>(t.poses.size());
-    out.pose_utimes = t.pose_utimes;
-    out.pose_utimes.resize(t.poses.size(), 0);
-    out.poses.resize(t.poses.size());
-    for (size_t i = 0; i < t.poses.size(); ++i) {
-      out.poses[i] = {t.poses[i].x(), t.poses[i].y(), t.poses[i].theta()};
-    }
-    m.trajectories.push_back(std::move(out));
-  }
-  m.num_encounters = static_cast<int32_t>(map.encounters.size());
-  for (const EncounterLink& link : map.encounters) {
-    anchormap::encounter_link_t out;
-    out.robot_a = link.robot_a;
-    out.robot_b = link.robot_b;
-    out.trajectory_a = link.trajectory_a;
-    out.index_a = link.index_a;
-    out.trajectory_b = link.trajectory_b;
-    out.index_b = link.index_b;
-    out.kind = static_cast<int8_t>(link.kind);
-    m.encounters.push_back(out);
-  }
-  return Encode(m);
-}
-
-Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
-  anchormap::merged_map_t m;
-  if (Status p = SafeDecode(data, size, CheckMergedMapWire, &m); !p.ok()) return p;
-  MergedMap map;
-  map.utime = m.utime;
-  map.update = m.update;
-  for (const anchormap::trajectory_t& t : m.trajectories) {
-    MergedTrajectory out;
-    out.robot = t.robot;
-    out.trajectory_id = t.trajectory_id;
-    out.anchored = t.anchored;
-    out.T_global_local = PoseFromArray(t.anchor);
-    out.pose_utimes = t.pose_utimes;
-    for (const auto& p : t.poses) out.poses.emplace_back(p[0], p[1], p[2]);
-    map.trajectories.push_back(std::move(out));
-  }
-  for (const anchormap::encounter_link_t& link : m.encounters) {
-    if (!IsValidConstraintKind(link.kind)) {
-      return Status::Error(ErrorCode::kInvalidValue,
-                           "encounter link kind " + std::to_string(link.kind) + " unknown");
-    }
-    map.encounters.push_back({link.robot_a, link.trajectory_a, link.index_a, link.robot_b,
-                              link.trajectory_b, link.index_b,
-                              static_cast<ConstraintKind>(link.kind)});
-  }
-  return Success(std::move(map));
-}
-
 namespace {
 
 anchormap::encounter_link_t LinkToMessage(const EncounterLink& link) {
@@ -109,12 +46,74 @@ Result<EncounterLink> LinkFromMessage(const anchormap::encounter_link_t& link) {
                        static_cast<ConstraintKind>(link.kind)};
 }
 
+// Poses as the messages' rows of (x, y, theta), and back (the wire check saw the row sizes).
+template <typename Rows>
+void PosesToRows(const std::vector<Pose2>& poses, Rows* rows) {
+  rows->clear();
+  rows->reserve(poses.size());
+  for (const Pose2& p : poses) rows->push_back({p.x(), p.y(), p.theta()});
+}
+
+template <typename Rows>
+std::vector<Pose2> PosesFromRows(const Rows& rows) {
+  std::vector<Pose2> poses;
+  poses.reserve(rows.size());
+  for (const auto& row : rows) poses.emplace_back(row[0], row[1], row[2]);
+  return poses;
+}
+
 // Chunks a trajectory of `poses` poses has at `chunk_poses` a chunk.
 int64_t NumChunks(int64_t poses, int64_t chunk_poses) {
   return chunk_poses > 0 ? (poses + chunk_poses - 1) / chunk_poses : 0;
 }
 
 }  // namespace
+
+std::vector<uint8_t> EncodeMergedMap(const MergedMap& map) {
+  anchormap::merged_map_t m;
+  m.utime = map.utime;
+  m.update = map.update;
+  m.num_trajectories = static_cast<int32_t>(map.trajectories.size());
+  for (const MergedTrajectory& t : map.trajectories) {
+    anchormap::trajectory_t out;
+    out.robot = t.robot;
+    out.trajectory_id = t.trajectory_id;
+    out.anchored = t.anchored;
+    PoseToArray(t.T_global_local, out.anchor);
+    out.num_poses = static_cast<int32_t>(t.poses.size());
+    out.pose_utimes = t.pose_utimes;
+    out.pose_utimes.resize(t.poses.size(), 0);
+    PosesToRows(t.poses, &out.poses);
+    m.trajectories.push_back(std::move(out));
+  }
+  m.num_encounters = static_cast<int32_t>(map.encounters.size());
+  for (const EncounterLink& link : map.encounters) m.encounters.push_back(LinkToMessage(link));
+  return Encode(m);
+}
+
+Result<MergedMap> DecodeMergedMap(const void* data, size_t size) {
+  anchormap::merged_map_t m;
+  if (Status p = SafeDecode(data, size, CheckMergedMapWire, &m); !p.ok()) return p;
+  MergedMap map;
+  map.utime = m.utime;
+  map.update = m.update;
+  for (const anchormap::trajectory_t& t : m.trajectories) {
+    MergedTrajectory out;
+    out.robot = t.robot;
+    out.trajectory_id = t.trajectory_id;
+    out.anchored = t.anchored;
+    out.T_global_local = PoseFromArray(t.anchor);
+    out.pose_utimes = t.pose_utimes;
+    out.poses = PosesFromRows(t.poses);
+    map.trajectories.push_back(std::move(out));
+  }
+  for (const anchormap::encounter_link_t& message : m.encounters) {
+    Result<EncounterLink> link = LinkFromMessage(message);
+    if (!link.ok()) return link.status();
+    map.encounters.push_back(*link);
+  }
+  return Success(std::move(map));
+}
 
 std::vector<uint8_t> EncodeMergedMapHeader(const MergedMapHeader& header) {
   anchormap::merged_map_header_t m;
@@ -188,7 +187,7 @@ std::vector<uint8_t> EncodeMergedMapChunk(const MergedMapChunk& chunk) {
   m.num_poses = static_cast<int32_t>(chunk.local_poses.size());
   m.pose_utimes = chunk.pose_utimes;
   m.pose_utimes.resize(chunk.local_poses.size(), 0);
-  for (const Pose2& p : chunk.local_poses) m.local_poses.push_back({p.x(), p.y(), p.theta()});
+  PosesToRows(chunk.local_poses, &m.local_poses);
   m.num_encounters = static_cast<int32_t>(chunk.encounters.size());
   for (const EncounterLink& link : chunk.encounters) m.encounters.push_back(LinkToMessage(link));
   m.encounter_positions = chunk.encounter_positions;
@@ -209,7 +208,7 @@ Result<MergedMapChunk> DecodeMergedMapChunk(const void* data, size_t size) {
   chunk.trajectory_id = m.trajectory_id;
   chunk.chunk_index = m.chunk_index;
   chunk.pose_utimes = m.pose_utimes;
-  for (const auto& p : m.local_poses) chunk.local_poses.emplace_back(p[0], p[1], p[2]);
+  chunk.local_poses = PosesFromRows(m.local_poses);
   for (size_t i = 0; i < m.encounters.size(); ++i) {
     Result<EncounterLink> link = LinkFromMessage(m.encounters[i]);
     if (!link.ok()) return link.status();
