@@ -12,7 +12,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 376,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 376,
+static_assert(sizeof(ScanEncounterOptions) == 400,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 104,
               "new SmootherOptions field: add it to the fingerprint");
@@ -134,6 +134,10 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.max_window_m);
   h->F(o.min_window_rad);
   h->F(o.max_window_rad);
+  h->F(o.near_wide_max_window_m);
+  h->I(o.near_pair_min_gap);
+  h->I(o.near_pair_max_gap);
+  h->I(o.near_max_held);
   h->F(o.floor_sigma_m);
   h->F(o.floor_sigma_rad);
   h->I(o.max_waiting);

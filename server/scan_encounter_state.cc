@@ -28,7 +28,8 @@ ScanEncounterState ScanEncounters::ExportState() const {
   ScanEncounterState s;
   for (const PendingMatch& m : matches_) {
     // Waits for a match in flight.
-    s.matches.push_back({m.due_utime, m.key, m.center, m.global, m.key_utime, m.result.get()});
+    s.matches.push_back(
+        {m.due_utime, m.key, m.center, m.global, m.wide, m.key_utime, m.result.get()});
   }
   s.waiting.assign(waiting_.begin(), waiting_.end());
   for (const auto& [trajectory, submaps] : submaps_) {
@@ -49,6 +50,10 @@ ScanEncounterState ScanEncounters::ExportState() const {
                                 entry.merges};
   }
   s.stats = stats_;
+  for (const auto& [pair, held] : near_held_) {
+    auto& out = s.near_held[pair];
+    for (const EncounterCandidate& c : held) out.push_back(ToState(c));
+  }
   return s;
 }
 
@@ -60,6 +65,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
     pending.key = m.key;
     pending.center = m.center;
     pending.global = m.global;
+    pending.wide = m.wide;
     pending.key_utime = m.key_utime;
     pending.result = ReadyMatch(m.result);
     matches_.push_back(std::move(pending));
@@ -91,6 +97,11 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
     out.merges = entry.merges;
   }
   stats_ = s.stats;
+  near_held_.clear();
+  for (const auto& [pair, held] : s.near_held) {
+    std::deque<EncounterCandidate>& out = near_held_[pair];
+    for (const ScanEncounterCandidateState& c : held) out.push_back(FromState(c));
+  }
 }
 
 }  // namespace anchormap

@@ -43,6 +43,7 @@ struct ScanEncounterState {
     PoseKey key;
     PoseKey center;
     bool global = false;
+    bool wide = false;  // a near search's wide window (snapshot version 5)
     int64_t key_utime = 0;
     std::optional<MatchResult> result;
   };
@@ -69,6 +70,8 @@ struct ScanEncounterState {
   std::map<Pair, int32_t> near_quiet_until;
   std::map<TrajectoryId, NearIndex> near_index;
   CandidateStats stats;
+  // Wide near matches waiting for a second one (snapshot version 5), keyed (query, other).
+  std::map<Pair, std::vector<ScanEncounterCandidateState>> near_held;
 };
 
 }  // namespace anchormap

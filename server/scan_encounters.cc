@@ -60,6 +60,12 @@ Status ScanEncounterOptions::Validate() const {
     return Status::Error("scan window: 0 < min_window_m <= max_window_m");
   if (!(min_window_rad > 0) || !(max_window_rad >= min_window_rad))
     return Status::Error("scan window: 0 < min_window_rad <= max_window_rad");
+  if (!(near_wide_max_window_m >= 0) || near_pair_min_gap < 1 ||
+      near_pair_max_gap < near_pair_min_gap || near_max_held < 1) {
+    return Status::Error(
+        "scan wide near search: near_wide_max_window_m >= 0, 1 <= near_pair_min_gap <= "
+        "near_pair_max_gap, near_max_held >= 1");
+  }
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
     return Status::Error("scan covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
@@ -252,7 +258,8 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
     ++cursor;
     std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
     if (!reference) continue;
-    Submit(key, submap.center, /*global=*/true, record->utimes[static_cast<size_t>(key.index)],
+    Submit(key, submap.center, /*global=*/true, /*wide=*/false,
+           record->utimes[static_cast<size_t>(key.index)],
            [reference, query, search] { return GlobalSearch(*reference, *query, search); });
     ++submitted;
   }
@@ -297,9 +304,14 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   LocalMatchOptions window;
   window.match = options_.match;
+  const double three_sigma = 3.0 * LargestSigma(predicted->covariance.topLeftCorner<2, 2>());
+  const bool wide = three_sigma > options_.max_window_m &&
+                    options_.near_wide_max_window_m > options_.max_window_m;
   window.linear_window_m =
-      std::clamp(3.0 * LargestSigma(predicted->covariance.topLeftCorner<2, 2>()),
-                 options_.min_window_m, options_.max_window_m);
+      wide ? std::min(three_sigma, options_.near_wide_max_window_m)
+           : std::clamp(three_sigma, options_.min_window_m, options_.max_window_m);
+  // The acceptance bar prunes the branch and bound of a wide window.
+  if (wide) window.match.min_score = std::max(window.match.min_score, options_.near_min_score);
   window.angular_window_rad =
       std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
                  options_.min_window_rad, options_.max_window_rad);
@@ -307,7 +319,7 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
   Submit(
-      key, nearest->center, /*global=*/false, record->utimes[static_cast<size_t>(key.index)],
+      key, nearest->center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
       [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
 }
 
@@ -332,12 +344,13 @@ const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphVi
   return entry.index;
 }
 
-void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, int64_t key_utime,
+void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
                             MatchPool::Job job) {
   PendingMatch pending;
   pending.key = key;
   pending.center = center;
   pending.global = global;
+  pending.wide = wide;
   pending.key_utime = key_utime;
   pending.due_utime = pool_ ? schedule_.DueUtime(key_utime) : std::numeric_limits<int64_t>::min();
   pending.result =
@@ -383,10 +396,58 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
       if (!out->constraints.empty() && out->constraints.back().b == pending.key) {
         joined = std::make_pair(pending.key, pending.center.trajectory);
       }
+    } else if (pending.wide) {
+      OfferWideNear(candidate, graph, out);
     } else if (GateAndEmit(candidate, graph, out)) {
       near_quiet_until_[{pending.key.trajectory, pending.center.trajectory}] =
           pending.key.index + 1 + options_.near_cooldown_keyframes;
     }
+  }
+}
+
+void ScanEncounters::OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
+                                   EncounterSourceOutput* out) {
+  const std::optional<PredictedRelativePose> predicted =
+      PredictRelativePose(graph.covariances, candidate.a, candidate.b);
+  if (!predicted) {
+    ++stats_.gate_rejected;
+    return;
+  }
+  // Widened in every direction by the largest sigma: the estimate of two drifted-apart
+  // trajectories is off along axes its covariance does not know.
+  Eigen::Matrix3d widened = predicted->covariance;
+  const double sigma = LargestSigma(widened.topLeftCorner<2, 2>());
+  widened.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
+  if (Mahalanobis2(predicted->T_a_b, candidate.T_a_b, widened + candidate.covariance) >
+      options_.gate_chi2) {
+    ++stats_.gate_rejected;
+    return;
+  }
+  const Pair key{candidate.b.trajectory, candidate.a.trajectory};
+  std::deque<EncounterCandidate>& held = near_held_[key];
+  while (!held.empty() && candidate.b.index - held.front().b.index > options_.near_pair_max_gap) {
+    held.pop_front();
+    --stats_.kept;
+    ++stats_.unconfirmed;
+  }
+  for (auto it = held.rbegin(); it != held.rend(); ++it) {
+    if (candidate.b.index - it->b.index < options_.near_pair_min_gap) continue;
+    if (!Consistent(*it, candidate, graph)) continue;
+    const EncounterCandidate first = *it;
+    stats_.kept -= static_cast<int64_t>(held.size());
+    held.clear();
+    stats_.accepted += 2;
+    Emit(first, out);
+    Emit(candidate, out);
+    near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
+    return;
+  }
+  held.push_back(candidate);
+  ++stats_.kept;
+  if (static_cast<int>(held.size()) > options_.near_max_held) {
+    held.pop_front();
+    --stats_.kept;
+    ++stats_.unconfirmed;
   }
 }
 

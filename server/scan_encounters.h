@@ -139,6 +139,20 @@ struct ScanEncounterOptions {
   double gate_chi2 = 11.34;  // 3 dof, 99 %
   double min_window_m = 0.4;
   double max_window_m = 2.0;
+  // Joined trajectories whose estimate drifted apart: when 3 sigma of the prediction exceeds
+  // max_window_m, the window grows to 3 sigma up to near_wide_max_window_m (0: never) and
+  // its match is gated with the prediction's covariance widened in every direction by its
+  // largest translational sigma (ACES 2 robots simultaneous: the true matches of a place
+  // R1 saw at 683 s and R2 at 1181 s lay 1.6 m and 3.9 m off along axes of 1-sigma 1.5 and
+  // 0.64 m, chi-square 54-63 against the estimate itself). Such a match is held until a
+  // second one of the same pair of trajectories, near_pair_min_gap or more query keyframes
+  // away (at most near_pair_max_gap), agrees with it through both trajectories' estimates
+  // (the pairwise test, pcm_chi2); then both enter. A lone wide match (a wrong place the
+  // wider window and gate let through) enters nothing.
+  double near_wide_max_window_m = 6.0;
+  int near_pair_min_gap = 2;
+  int near_pair_max_gap = 60;
+  int near_max_held = 8;  // wide matches held per pair of trajectories
   double min_window_rad = 0.2;
   double max_window_rad = 0.6;
   // Added to the matcher's covariance: submaps are drawn at estimated poses.
@@ -200,6 +214,11 @@ class ScanEncounters : public EncounterSource {
   // path as a matched one (pairwise consistency when unjoined, the gate when joined).
   void OfferCandidate(const EncounterCandidate& candidate, const GraphView& graph,
                       EncounterSourceOutput* out);
+  // A match of a near search whose window was wide, a the other's submap, b the query (tests
+  // offer hand-made ones): gated with the widened covariance, then held until a second one
+  // agrees (both enter then).
+  void OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
+                     EncounterSourceOutput* out);
 
  private:
   // Drawn when its keyframes are solved, built when a search uses it (references_: the
@@ -224,7 +243,9 @@ class ScanEncounters : public EncounterSource {
   void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
                   EncounterSourceOutput* out);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
-  void Submit(PoseKey key, PoseKey center, bool global, int64_t key_utime, MatchPool::Job job);
+  void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
+              MatchPool::Job job);
+
   // Uses the matches due now (all when `all`), in the order they were made.
   void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
   // Kept candidates of pairs that came into one frame: gated against the estimate.
@@ -249,6 +270,7 @@ class ScanEncounters : public EncounterSource {
     PoseKey key;     // the query keyframe
     PoseKey center;  // the other trajectory's submap
     bool global = false;
+    bool wide = false;  // a near search's window wider than max_window_m
     int64_t key_utime = 0;
     std::shared_future<std::optional<MatchResult>> result;
   };
@@ -279,7 +301,8 @@ class ScanEncounters : public EncounterSource {
   std::map<Pair, std::deque<Kept>> kept_;
   std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
   int64_t now_utime_ = 0;
-  std::map<Pair, int32_t> near_quiet_until_;  // keyed (examined trajectory, other)
+  std::map<Pair, int32_t> near_quiet_until_;                  // keyed (examined trajectory, other)
+  std::map<Pair, std::deque<EncounterCandidate>> near_held_;  // keyed as near_quiet_until_
   // Per trajectory, its submaps' centres in its frame (items: positions in submaps_).
   struct SubmapIndex {
     PositionIndex index{4.0};

@@ -463,6 +463,111 @@ TEST_F(SharedViewFirstJoinTest, AnAliasedCorridorWhoseSurroundingsDisagreeDoesNo
 }
 
 // Eight robots that never meet, keyframes 1 s apart: how many global searches they cost.
+// The wide near search's acceptance on hand-made matches. R1 and R2 drive parallel tracks
+// 3 m apart (keyframe i of each at x = i m), joined by R1 seeing R2 at their start: R2[j]
+// seen from R1[i] is (j - i, 3, 0), known to about 0.1 m at keyframe 20.
+class WideNearTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    MappingServerOptions options;
+    options.loop_closures = false;
+    options.scan_encounters = false;
+    server_ = std::make_unique<MappingServer>(options);
+    for (int32_t seq = 0; seq < 40; ++seq) {
+      ASSERT_TRUE(server_->OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 0)).ok());
+      ASSERT_TRUE(server_->OnKeyframe(testing::StraightKeyframe("R2", 2, seq, 0)).ok());
+      if (seq == 0) {
+        Encounter seen;
+        seen.utime = 1'000'000;
+        seen.observer = "R1";
+        seen.observer_trajectory_id = 1;
+        seen.observed = "R2";
+        seen.T_observer_observed = Pose2(0.0, 3.0, 0.0);
+        seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+        ASSERT_TRUE(server_->OnEncounter(seen).ok());
+      }
+    }
+    server_->Flush();
+    ASSERT_TRUE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
+  }
+
+  // R2[j] (the query) matched in R1[i]'s submap, `shift` off the truth across the tracks.
+  static EncounterCandidate Match(int32_t i, int32_t j, double shift_m = 0.0) {
+    EncounterCandidate c;
+    c.a = {TrajectoryId(0), i};
+    c.b = {TrajectoryId(1), j};
+    c.T_a_b = Pose2(j - i, 3.0 + shift_m, 0.0);
+    c.covariance = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+    c.utime = 1'000'000 + 1'000'000 * int64_t{j};
+    return c;
+  }
+
+  // What the source emits for the offers, as wide near matches or through the plain gate.
+  std::vector<EncounterConstraint> Offer(const std::vector<EncounterCandidate>& matches,
+                                         bool wide = true) {
+    ScanEncounters source;
+    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
+    EncounterSourceOutput out;
+    for (const EncounterCandidate& c : matches) {
+      if (wide) {
+        source.OfferWideNear(c, graph, &out);
+      } else {
+        source.OfferCandidate(c, graph, &out);
+      }
+    }
+    source.Flush(graph, &out);
+    stats_ = source.stats();
+    return out.constraints;
+  }
+
+  std::unique_ptr<MappingServer> server_;
+  CandidateStats stats_;
+};
+
+TEST_F(WideNearTest, ALoneMatchEntersNothing) {
+  EXPECT_TRUE(Offer({Match(20, 20)}).empty());
+  EXPECT_EQ(stats_.kept, 1);
+  EXPECT_EQ(stats_.accepted, 0);
+}
+
+TEST_F(WideNearTest, TwoMatchesThatAgreeEnterTogether) {
+  const std::vector<EncounterConstraint> entered = Offer({Match(20, 20), Match(20, 23)});
+  ASSERT_EQ(entered.size(), 2u);
+  EXPECT_EQ(entered[0].b.index, 20);
+  EXPECT_EQ(entered[1].b.index, 23);
+  EXPECT_EQ(entered[0].kind, ConstraintKind::kScanEncounter);
+  EXPECT_EQ(stats_.accepted, 2);
+  EXPECT_EQ(stats_.kept, 0);
+}
+
+TEST_F(WideNearTest, TheNextKeyframeIsNoSecondOpinion) {
+  EXPECT_TRUE(Offer({Match(20, 20), Match(20, 21)}).empty());
+  EXPECT_EQ(stats_.kept, 2);
+}
+
+TEST_F(WideNearTest, AMatchThatDisagreesConfirmsNothing) {
+  // 0.3 m across the tracks: within the widened gate, but not the same transform as the
+  // first match through three keyframes of odometry (a few centimetres).
+  EXPECT_TRUE(Offer({Match(20, 20), Match(20, 23, 0.3)}).empty());
+  EXPECT_EQ(stats_.kept, 2);
+  EXPECT_EQ(stats_.gate_rejected, 0);
+}
+
+TEST_F(WideNearTest, AMatchFarOffTheEstimateIsRefused) {
+  EXPECT_TRUE(Offer({Match(20, 20, 2.0), Match(20, 23, 2.0)}).empty());
+  EXPECT_EQ(stats_.gate_rejected, 2);
+  EXPECT_EQ(stats_.kept, 0);
+}
+
+TEST_F(WideNearTest, TwoMatchesThatAgreeOffTheEstimateEnterWhereThePlainGateRefuses) {
+  // Both 0.45 m across (the estimate drifted): the plain gate refuses each, the widened one
+  // holds the first and the second confirms it.
+  EXPECT_TRUE(Offer({Match(20, 20, 0.45), Match(20, 23, 0.45)}, /*wide=*/false).empty());
+  EXPECT_EQ(stats_.gate_rejected, 2);
+  EXPECT_EQ(Offer({Match(20, 20, 0.45), Match(20, 23, 0.45)}).size(), 2u);
+  EXPECT_EQ(stats_.accepted, 2);
+}
+
 struct BudgetRun {
   int64_t searches = 0;
   int64_t fewest_by_one = 0;  // searches of the trajectory searched least

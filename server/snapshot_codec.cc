@@ -351,7 +351,7 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
     } else {
       const auto& scan = dynamic_cast<const ScanEncounters&>(*s.sources_[i]);
       w.U8(static_cast<uint8_t>(SourceKind::kScanEncounters));
-      PutScanEncounterState(&w, scan.ExportState());
+      PutScanEncounterState(&w, version, scan.ExportState());
     }
   }
 
@@ -502,7 +502,7 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
         loop->ImportState(state);
       } else if (kind == SourceKind::kScanEncounters && scan != nullptr) {
         ScanEncounterState state;
-        GetScanEncounterState(&r, &state);
+        GetScanEncounterState(&r, payload->version, &state);
         scan->ImportState(state);
       } else {
         return Corrupt("source " + std::to_string(i) + " is not the server's");

@@ -54,7 +54,9 @@ namespace anchormap {
 // revealed, as the keyframes of that time carried none; no hypothesis weak, as none was).
 // Version 4 adds the solve period's state (MappingServerOptions::solve_period_s: the last
 // update's data time, inputs pending); older ones read as solved at their newest input.
-inline constexpr uint32_t kSnapshotVersion = 4;
+// Version 5 adds the scan encounters' wide near matches (in flight and held); older ones
+// read as having none.
+inline constexpr uint32_t kSnapshotVersion = 5;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

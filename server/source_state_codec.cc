@@ -111,6 +111,24 @@ void Get(ByteReader* r, CandidateStats* s) {
 }
 static_assert(sizeof(CandidateStats) == 8 * 8, "CandidateStats changed: update the codec");
 
+void PutCandidate(ByteWriter* w, const ScanEncounterCandidateState& c) {
+  Put(w, c.a);
+  Put(w, c.b);
+  w->Pose(c.T_a_b);
+  w->Matrix(c.covariance);
+  w->I64(c.utime);
+  w->Bool(c.a_is_query);
+}
+
+void GetCandidate(ByteReader* r, ScanEncounterCandidateState* c) {
+  Get(r, &c->a);
+  Get(r, &c->b);
+  c->T_a_b = r->Pose();
+  c->covariance = r->Matrix();
+  c->utime = r->I64();
+  c->a_is_query = r->Bool();
+}
+
 }  // namespace
 
 void PutLoopClosureState(ByteWriter* w, uint32_t snapshot_version, const LoopClosureState& s) {
@@ -228,13 +246,14 @@ void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureSt
   s->ambiguous = r->I64();
 }
 
-void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& s) {
+void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanEncounterState& s) {
   w->Size(s.matches.size());
   for (const ScanEncounterState::Match& m : s.matches) {
     w->I64(m.due_utime);
     Put(w, m.key);
     Put(w, m.center);
     w->Bool(m.global);
+    if (snapshot_version >= 5) w->Bool(m.wide);  // before version 5 none was wide
     w->I64(m.key_utime);
     PutResult(w, m.result);
   }
@@ -273,12 +292,7 @@ void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& s) {
     Put(w, pair);
     w->Size(kept.size());
     for (const ScanEncounterState::Kept& k : kept) {
-      Put(w, k.candidate.a);
-      Put(w, k.candidate.b);
-      w->Pose(k.candidate.T_a_b);
-      w->Matrix(k.candidate.covariance);
-      w->I64(k.candidate.utime);
-      w->Bool(k.candidate.a_is_query);
+      PutCandidate(w, k.candidate);
       w->I32(k.support);
       w->Bool(k.localised);
     }
@@ -300,15 +314,23 @@ void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& s) {
     w->I64(index.merges);
   }
   Put(w, s.stats);
+  if (snapshot_version < 5) return;
+  w->Size(s.near_held.size());
+  for (const auto& [pair, held] : s.near_held) {
+    Put(w, pair);
+    w->Size(held.size());
+    for (const ScanEncounterCandidateState& c : held) PutCandidate(w, c);
+  }
 }
 
-void GetScanEncounterState(ByteReader* r, ScanEncounterState* s) {
+void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* s) {
   s->matches.resize(r->Count(8));
   for (ScanEncounterState::Match& m : s->matches) {
     m.due_utime = r->I64();
     Get(r, &m.key);
     Get(r, &m.center);
     m.global = r->Bool();
+    m.wide = snapshot_version >= 5 && r->Bool();  // before version 5 none was wide
     m.key_utime = r->I64();
     GetResult(r, &m.result);
   }
@@ -356,12 +378,7 @@ void GetScanEncounterState(ByteReader* r, ScanEncounterState* s) {
     auto& kept = s->kept[pair];
     kept.resize(r->Count(8));
     for (ScanEncounterState::Kept& k : kept) {
-      Get(r, &k.candidate.a);
-      Get(r, &k.candidate.b);
-      k.candidate.T_a_b = r->Pose();
-      k.candidate.covariance = r->Matrix();
-      k.candidate.utime = r->I64();
-      k.candidate.a_is_query = r->Bool();
+      GetCandidate(r, &k.candidate);
       k.support = r->I32();
       k.localised = r->Bool();
     }
@@ -385,6 +402,15 @@ void GetScanEncounterState(ByteReader* r, ScanEncounterState* s) {
     index.merges = r->I64();
   }
   Get(r, &s->stats);
+  s->near_held.clear();
+  if (snapshot_version < 5) return;
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    Pair pair{TrajectoryId(0), TrajectoryId(0)};
+    Get(r, &pair);
+    auto& held = s->near_held[pair];
+    held.resize(r->Count(8));
+    for (ScanEncounterCandidateState& c : held) GetCandidate(r, &c);
+  }
 }
 
 }  // namespace anchormap

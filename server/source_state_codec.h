@@ -14,10 +14,11 @@ namespace anchormap {
 // The loop-closure state in the snapshot format `snapshot_version` (server/snapshot_codec.h:
 // 2 or later; older formats for the compatibility tests).
 void PutLoopClosureState(ByteWriter* w, uint32_t snapshot_version, const LoopClosureState& state);
-void PutScanEncounterState(ByteWriter* w, const ScanEncounterState& state);
+void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version,
+                           const ScanEncounterState& state);
 // A failed read latches in `r` (the caller checks r->failed()). The loop-closure state as
 // the snapshot's format `snapshot_version` wrote it.
 void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* state);
-void GetScanEncounterState(ByteReader* r, ScanEncounterState* state);
+void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* state);
 
 }  // namespace anchormap

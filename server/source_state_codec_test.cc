@@ -1,6 +1,7 @@
 // The scan-matching sources' state codec: a kept wide hypothesis's weak flag is written
 // (a restored server must pair it as the uninterrupted one would), and a version-2
-// snapshot's state, written before the flag existed, is read with none weak.
+// snapshot's state, written before the flag existed, is read with none weak; the scan
+// encounters' wide near matches (in flight and held) likewise from version 5.
 
 #include "server/source_state_codec.h"
 
@@ -86,6 +87,74 @@ TEST(SourceStateCodecTest, AVersionTwoStateIsReadWithNoneWeak) {
   EXPECT_EQ(out.wide_searches, 7);
   // Read as the current version, the same bytes end early.
   Decode(version2, kSnapshotVersion, &complete);
+  EXPECT_FALSE(complete);
+}
+
+ScanEncounterState StateWithAWideNearMatch() {
+  ScanEncounterState state;
+  state.now_utime = 3'000'000;
+  ScanEncounterState::Match match;
+  match.due_utime = 3'500'000;
+  match.key = PoseKey{TrajectoryId(1), 320};
+  match.center = PoseKey{TrajectoryId(0), 245};
+  match.wide = true;
+  match.key_utime = 2'900'000;
+  state.matches.push_back(match);
+  ScanEncounterCandidateState held;
+  held.a = PoseKey{TrajectoryId(0), 245};
+  held.b = PoseKey{TrajectoryId(1), 319};
+  held.T_a_b = Pose2(-1.12, -2.32, 1.622);
+  held.covariance = Eigen::Vector3d(4e-4, 5e-4, 3e-5).asDiagonal();
+  held.utime = 2'800'000;
+  state.near_held[{TrajectoryId(1), TrajectoryId(0)}].push_back(held);
+  state.stats.kept = 1;
+  return state;
+}
+
+std::vector<uint8_t> Encode(const ScanEncounterState& state, uint32_t version) {
+  ByteWriter w;
+  PutScanEncounterState(&w, version, state);
+  return w.Take();
+}
+
+ScanEncounterState DecodeScan(const std::vector<uint8_t>& bytes, uint32_t version, bool* complete) {
+  ByteReader r(bytes.data(), bytes.size());
+  ScanEncounterState state;
+  GetScanEncounterState(&r, version, &state);
+  *complete = !r.failed() && r.at_end();
+  return state;
+}
+
+TEST(SourceStateCodecTest, WideNearMatchesInFlightAndHeldAreKept) {
+  bool complete = false;
+  const ScanEncounterState out =
+      DecodeScan(Encode(StateWithAWideNearMatch(), kSnapshotVersion), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(out.matches.size(), 1u);
+  EXPECT_TRUE(out.matches.front().wide);
+  EXPECT_EQ(out.matches.front().key.index, 320);
+  const std::pair<TrajectoryId, TrajectoryId> pair{TrajectoryId(1), TrajectoryId(0)};
+  ASSERT_EQ(out.near_held.count(pair), 1u);
+  ASSERT_EQ(out.near_held.at(pair).size(), 1u);
+  const ScanEncounterCandidateState& held = out.near_held.at(pair).front();
+  EXPECT_EQ(held.b.index, 319);
+  EXPECT_EQ(held.T_a_b.theta(), 1.622);
+  EXPECT_EQ(held.covariance(1, 1), 5e-4);
+  EXPECT_EQ(held.utime, 2'800'000);
+  EXPECT_EQ(out.stats.kept, 1);
+}
+
+// A version-4 snapshot knew no wide near search: its state reads with none (the match in
+// flight a plain near one), and reading it as version 5 fails rather than misreads.
+TEST(SourceStateCodecTest, AVersionFourStateIsReadWithNoWideNearMatches) {
+  const std::vector<uint8_t> version4 = Encode(StateWithAWideNearMatch(), 4);
+  bool complete = false;
+  const ScanEncounterState out = DecodeScan(version4, 4, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(out.matches.size(), 1u);
+  EXPECT_FALSE(out.matches.front().wide);
+  EXPECT_TRUE(out.near_held.empty());
+  DecodeScan(version4, kSnapshotVersion, &complete);
   EXPECT_FALSE(complete);
 }
 
