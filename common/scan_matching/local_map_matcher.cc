@@ -1,8 +1,6 @@
 #include "common/scan_matching/local_map_matcher.h"
 
-#include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <stdexcept>
 #include <vector>
 
@@ -21,41 +19,9 @@ Status LocalMapMatcherOptions::Validate() const {
   if (!(min_score >= 0.0 && min_score <= 1.0)) return Status::Error("min_score must be in [0, 1]");
   if (!(held_back_min_odometry_m > 0.0))
     return Status::Error("held_back_min_odometry_m must be > 0");
-  if (!(near_linear_window_m >= 0.0) || !(near_angular_window_rad >= 0.0) ||
-      !(window_growth >= 0.0) || !std::isfinite(window_growth)) {
-    return Status::Error(
-        "near_linear_window_m, near_angular_window_rad and window_growth must be >= 0");
-  }
   if (Status valid = reference.Validate(); !valid.ok()) return valid;
   return match.Validate();
 }
-
-LocalMatchOptions LocalMapMatcher::NearWindow() const {
-  LocalMatchOptions near = options_.match;
-  const double growth = options_.window_growth;
-  near.linear_window_m = std::min(options_.match.linear_window_m,
-                                  options_.near_linear_window_m + growth * unmatched_distance_m_);
-  near.angular_window_rad = std::min(
-      options_.match.angular_window_rad,
-      options_.near_angular_window_rad + growth * (unmatched_angle_rad_ + unmatched_distance_m_));
-  return near;
-}
-
-bool LocalMapMatcher::GoodMatch(const std::optional<MatchResult>& match) const {
-  return match && match->score >= options_.min_score && match->overlap >= options_.min_overlap;
-}
-
-namespace {
-
-// The best lattice pose lies on the window's boundary: the score may still rise beyond it.
-bool OnWindowEdge(const MatchResult& match) {
-  const SearchWindow& w = match.window;
-  const LatticePose& l = match.lattice;
-  return std::abs(l.k) >= w.half_angles || std::abs(l.dx) >= w.half_cells_x ||
-         std::abs(l.dy) >= w.half_cells_y;
-}
-
-}  // namespace
 
 LocalMapMatcher::LocalMapMatcher(const LocalMapMatcherOptions& options) : options_(options) {
   if (const Status valid = options.Validate(); !valid.ok()) {
@@ -94,16 +60,9 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   update.predicted =
       last_odometry_ ? Compose(last_pose_, Between(*last_odometry_, T_odom_body)) : T_odom_body;
   update.pose = update.predicted;
-  if (last_odometry_) {
-    const Pose2 step = Between(*last_odometry_, T_odom_body);
-    unmatched_distance_m_ += step.translation().norm();
-    unmatched_angle_rad_ += std::abs(step.theta());
-  }
   last_odometry_ = T_odom_body;
   if (reference_ == nullptr) {
     last_pose_ = update.pose;
-    unmatched_distance_m_ = 0.0;
-    unmatched_angle_rad_ = 0.0;
     if (!near.empty()) {
       AddKeyframe(near, update.pose, T_odom_body);
       update.keyframe = true;
@@ -112,18 +71,11 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   }
   LocalMatchOptions search = options_.match;
   if (needs_covariance) search.match.covariance = false;
-  LocalMatchOptions near_search = NearWindow();
-  near_search.match = search.match;
-  const bool narrower = near_search.linear_window_m < search.linear_window_m ||
-                        near_search.angular_window_rad < search.angular_window_rad;
-  update.match = MatchLocal(*reference_, near, update.predicted, narrower ? near_search : search);
-  if (narrower && (!GoodMatch(update.match) || OnWindowEdge(*update.match))) {
-    update.match = MatchLocal(*reference_, near, update.predicted, search);
-    ++stats_.widened;
-  }
+  update.match = MatchLocal(*reference_, near, update.predicted, search);
   if (!update.match) {
     ++stats_.no_match;
-  } else if (GoodMatch(update.match)) {
+  } else if (update.match->score >= options_.min_score &&
+             update.match->overlap >= options_.min_overlap) {
     update.matched = true;
     update.pose = update.match->pose;
     ++stats_.matched;
@@ -141,10 +93,6 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     held_back = true;
   }
   last_pose_ = update.pose;
-  if (update.matched) {
-    unmatched_distance_m_ = 0.0;
-    unmatched_angle_rad_ = 0.0;
-  }
   const Pose2 since = Between(keyframes_.back().pose, update.pose);
   const bool moved = since.translation().norm() >= options_.keyframe_distance_m ||
                      std::abs(since.theta()) >= options_.keyframe_angle_rad;
@@ -165,8 +113,6 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     // The map no longer matches where odometry took us: start a new one here rather than
     // keep matching against a stale map or adding unverified poses to it.
     keyframes_.clear();
-    unmatched_distance_m_ = 0.0;
-    unmatched_angle_rad_ = 0.0;
     AddKeyframe(near, update.pose, T_odom_body);
     update.keyframe = true;
     ++stats_.resets;

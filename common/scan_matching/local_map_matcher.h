@@ -40,16 +40,7 @@ struct LocalMapMatcherOptions {
   // and the next keyframe follows. The pose then follows odometry and the map restarts there.
   double held_back_min_odometry_m = 1.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 4};  // 4 levels: blocks of 8 cells
-  LocalMatchOptions match;                             // the widest window around the prediction
-  // The window is first sized to what odometry can have got wrong since the last match: these
-  // half-widths, grown by window_growth times the odometry travelled (m, and rad turned) since
-  // then, up to `match`'s. Between two scans odometry errs by millimetres, and the lattice
-  // search's cost is the window's volume (the full one costs ~30x the near one). The full
-  // window is searched again when the near one finds no good match or its best lattice pose
-  // lies on the near window's edge (the optimum may be beyond it).
-  double near_linear_window_m = 0.1;
-  double near_angular_window_rad = 0.05;
-  double window_growth = 0.5;
+  LocalMatchOptions match;                             // the window around the prediction
 
   Status Validate() const;
 };
@@ -70,7 +61,6 @@ struct LocalMapStats {
   int64_t keyframes = 0;
   int64_t resets = 0;     // unmatched scans far from the map restarted it
   int64_t held_back = 0;  // good matches refused as held back (each also restarts the map)
-  int64_t widened = 0;    // scans searched again in the full window after the near one
 };
 
 class LocalMapMatcher {
@@ -97,18 +87,12 @@ class LocalMapMatcher {
   };
   void AddKeyframe(const PointCloud& points, const Pose2& pose, const Pose2& odometry);
   bool HeldBack(const Pose2& matched, const Pose2& T_odom_body) const;
-  // The near window (see near_linear_window_m), clamped to the full one.
-  LocalMatchOptions NearWindow() const;
-  bool GoodMatch(const std::optional<MatchResult>& match) const;
 
   LocalMapMatcherOptions options_;
   std::deque<Keyframe> keyframes_;
   std::unique_ptr<ScanReference> reference_;
   std::optional<Pose2> last_odometry_;
   Pose2 last_pose_;
-  // Odometry travelled and turned since the last good match (or the map's start).
-  double unmatched_distance_m_ = 0.0;
-  double unmatched_angle_rad_ = 0.0;
   LocalMapStats stats_;
 };
 
