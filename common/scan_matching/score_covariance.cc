@@ -1,6 +1,7 @@
 #include "common/scan_matching/score_covariance.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <unordered_map>
 #include <vector>
@@ -59,26 +60,22 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   const Eigen::Matrix3d L = laplace.llt().matrixL();
 
   const AnchoredCost anchored_cost(field, query, pose, options.cutoff_m);
-  // Samples at -3, -1.5, 0, 1.5, 3 standard deviations per axis: a Gaussian sampled every 1.5
-  // sigma keeps its second moment to 1e-4 (the aliasing term is exp(-2 pi^2 / 1.5^2)), at
-  // 125 cost evaluations instead of the 343 of unit steps.
-  constexpr int kHalf = 2;
-  constexpr double kStep = 1.5;
-  constexpr int kSamples = (2 * kHalf + 1) * (2 * kHalf + 1) * (2 * kHalf + 1);
-  std::vector<Eigen::Vector3d> offsets;
+  constexpr int kHalf = 3;
+  std::vector<std::array<int, 3>> offsets;
   std::vector<double> log_weights;
-  offsets.reserve(kSamples);
-  log_weights.reserve(kSamples);
+  offsets.reserve(343);
+  log_weights.reserve(343);
   const Eigen::Vector3d centre = pose.vector();
-  const Eigen::Matrix3d prior_in_samples = L.transpose() * (information - hessian / var) * L;
   for (int a = -kHalf; a <= kHalf; ++a) {
     for (int b = -kHalf; b <= kHalf; ++b) {
       for (int c = -kHalf; c <= kHalf; ++c) {
-        const Eigen::Vector3d z = kStep * Eigen::Vector3d(a, b, c);
-        const double cost = anchored_cost(Pose2::FromVector(centre + L * z));
+        const Eigen::Vector3d xi = centre + L * Eigen::Vector3d(a, b, c);
+        const double cost = anchored_cost(Pose2::FromVector(xi));
         // The window prior is part of the distribution as well.
-        const double prior = 0.5 * z.dot(prior_in_samples * z);
-        offsets.push_back(z);
+        const double prior =
+            0.5 * Eigen::Vector3d(a, b, c).dot(L.transpose() * (information - hessian / var) * L *
+                                               Eigen::Vector3d(a, b, c));
+        offsets.push_back({a, b, c});
         log_weights.push_back(-0.5 * cost / var - prior);
       }
     }
@@ -89,7 +86,7 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
   for (size_t i = 0; i < offsets.size(); ++i) {
     const double w = std::exp(log_weights[i] - max_log);
-    const Eigen::Vector3d& z = offsets[i];
+    const Eigen::Vector3d z(offsets[i][0], offsets[i][1], offsets[i][2]);
     total += w;
     mean += w * z;
     second += w * z * z.transpose();
