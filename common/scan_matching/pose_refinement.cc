@@ -19,10 +19,8 @@ bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double
   Eigen::Matrix2d J;
   if (!field.Interpolate(q, &v, &J) || v.squaredNorm() > cutoff_sq) return false;
   const Eigen::Vector2i cell = field.geometry().CellOf(q);
-  int a = 0;
-  int b = 0;
   Eigen::Vector2d n;
-  if (field.NearestPrimitive(cell.x(), cell.y(), &a, &b) && field.PrimitiveNormal(a, b, &n)) {
+  if (field.NearestNormal(cell.x(), cell.y(), &n)) {
     *rows = 1;
     (*e)(0) = -n.dot(v);
     de_dq->row(0) = n.transpose();
@@ -105,10 +103,7 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
     a.inlier = true;
     a.surface = q + v;
     const Eigen::Vector2i cell = field.geometry().CellOf(q);
-    int ia = 0;
-    int ib = 0;
-    a.has_normal = field.NearestPrimitive(cell.x(), cell.y(), &ia, &ib) &&
-                   field.PrimitiveNormal(ia, ib, &a.normal);
+    a.has_normal = field.NearestNormal(cell.x(), cell.y(), &a.normal);
   }
 }
 

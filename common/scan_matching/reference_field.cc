@@ -66,6 +66,7 @@ ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
   const double gap_sq = options.max_join_gap_m * options.max_join_gap_m;
   vertices_.reserve(num_points_);
   normals_.reserve(num_points_);
+  start_normals_.reserve(num_points_);
   std::vector<uint8_t> joined;
   for (const PointCloud& scan : scans) {
     const int first = static_cast<int>(vertices_.size());
@@ -95,6 +96,12 @@ ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
         normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
       }
       normals_.push_back(normal);
+    }
+    for (size_t i = 0; i < scan.size(); ++i) {
+      const int a = first + static_cast<int>(i);
+      Eigen::Vector2d n = Eigen::Vector2d::Zero();
+      if (!PrimitiveNormal(a, joined[i] ? a + 1 : a, &n)) n.setZero();
+      start_normals_.push_back(n);
     }
   }
 }
@@ -143,6 +150,16 @@ bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
   return true;
 }
 
+bool ReferenceField::NearestNormal(int ix, int iy, Eigen::Vector2d* n) const {
+  if (!geometry_.Contains(ix, iy)) return false;
+  const int a = primitive_a_[geometry_.Index(ix, iy)];
+  if (a < 0) return false;
+  const Eigen::Vector2d& normal = start_normals_[a];
+  if (normal.x() == 0.0 && normal.y() == 0.0) return false;  // a unit normal is never zero
+  *n = normal;
+  return true;
+}
+
 bool ReferenceField::PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const {
   const Eigen::Vector2d& na = normals_[a];
   const Eigen::Vector2d& nb = normals_[b];
@@ -170,11 +187,18 @@ bool ReferenceField::Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
   const int iy = static_cast<int>(fy);
   const double tx = ux - fx;
   const double ty = uy - fy;
-  Eigen::Vector2d v00, v10, v01, v11;
-  if (!NearestVector(ix, iy, &v00) || !NearestVector(ix + 1, iy, &v10) ||
-      !NearestVector(ix, iy + 1, &v01) || !NearestVector(ix + 1, iy + 1, &v11)) {
+  // The four cells are inside the grid (checked above): read them without NearestVector's
+  // bounds checks (this runs for every point of every pose the refinement and covariance try).
+  const int i00 = geometry_.Index(ix, iy);
+  const int i01 = i00 + geometry_.width;
+  if (std::isnan(vx_[i00]) || std::isnan(vx_[i00 + 1]) || std::isnan(vx_[i01]) ||
+      std::isnan(vx_[i01 + 1])) {
     return false;
   }
+  const Eigen::Vector2d v00(vx_[i00], vy_[i00]);
+  const Eigen::Vector2d v10(vx_[i00 + 1], vy_[i00 + 1]);
+  const Eigen::Vector2d v01(vx_[i01], vy_[i01]);
+  const Eigen::Vector2d v11(vx_[i01 + 1], vy_[i01 + 1]);
   *v = (1 - tx) * (1 - ty) * v00 + tx * (1 - ty) * v10 + (1 - tx) * ty * v01 + tx * ty * v11;
   if (dv_dp != nullptr) {
     dv_dp->col(0) = ((1 - ty) * (v10 - v00) + ty * (v11 - v01)) / r;

@@ -64,6 +64,9 @@ class ReferenceField {
   bool PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const;
   // A vertex's own normal (zero for a lone return).
   const Eigen::Vector2d& vertex_normal(int i) const { return normals_[i]; }
+  // NearestPrimitive followed by PrimitiveNormal, the same normal, from a table built with the
+  // field: the refinement and the covariance's samples ask it for every point of every pose.
+  bool NearestNormal(int ix, int iy, Eigen::Vector2d* n) const;
 
  private:
   void AddPrimitive(int a, int b, std::vector<float>* best_sq);
@@ -77,6 +80,9 @@ class ReferenceField {
   std::vector<int32_t> primitive_b_;
   std::vector<Eigen::Vector2d> vertices_;
   std::vector<Eigen::Vector2d> normals_;  // zero where a vertex has no joined neighbour
+  // Per vertex a, PrimitiveNormal(a, b) of the one primitive that starts at a (b = a or a + 1),
+  // zero when it has none (a lone return).
+  std::vector<Eigen::Vector2d> start_normals_;
 };
 
 // Closest point to p on the segment [a, b] (a == b allowed).
