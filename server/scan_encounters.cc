@@ -407,22 +407,7 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
 
 void ScanEncounters::OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
                                    EncounterSourceOutput* out) {
-  const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, candidate.a, candidate.b);
-  if (!predicted) {
-    ++stats_.gate_rejected;
-    return;
-  }
-  // Widened in every direction by the largest sigma: the estimate of two drifted-apart
-  // trajectories is off along axes its covariance does not know.
-  Eigen::Matrix3d widened = predicted->covariance;
-  const double sigma = LargestSigma(widened.topLeftCorner<2, 2>());
-  widened.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
-  if (Mahalanobis2(predicted->T_a_b, candidate.T_a_b, widened + candidate.covariance) >
-      options_.gate_chi2) {
-    ++stats_.gate_rejected;
-    return;
-  }
+  if (!PassesGate(candidate, graph, /*widened=*/true)) return;
   const Pair key{candidate.b.trajectory, candidate.a.trajectory};
   std::deque<EncounterCandidate>& held = near_held_[key];
   while (!held.empty() && candidate.b.index - held.front().b.index > options_.near_pair_max_gap) {
@@ -665,16 +650,32 @@ void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* 
   }
 }
 
-bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
-                                 EncounterSourceOutput* out) {
+bool ScanEncounters::PassesGate(const EncounterCandidate& candidate, const GraphView& graph,
+                                bool widened) {
   const std::optional<PredictedRelativePose> predicted =
       PredictRelativePose(graph.covariances, candidate.a, candidate.b);
-  if (!predicted ||
-      Mahalanobis2(predicted->T_a_b, candidate.T_a_b,
-                   predicted->covariance + candidate.covariance) > options_.gate_chi2) {
+  if (!predicted) {
     ++stats_.gate_rejected;
     return false;
   }
+  Eigen::Matrix3d covariance = predicted->covariance;
+  if (widened) {
+    // In every direction by the largest sigma: the estimate of two drifted-apart
+    // trajectories is off along axes its covariance does not know.
+    const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
+    covariance.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
+  }
+  if (Mahalanobis2(predicted->T_a_b, candidate.T_a_b, covariance + candidate.covariance) >
+      options_.gate_chi2) {
+    ++stats_.gate_rejected;
+    return false;
+  }
+  return true;
+}
+
+bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
+                                 EncounterSourceOutput* out) {
+  if (!PassesGate(candidate, graph, /*widened=*/false)) return false;
   ++stats_.accepted;
   Emit(candidate, out);
   return true;

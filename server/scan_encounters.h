@@ -252,6 +252,10 @@ class ScanEncounters : public EncounterSource {
   void ResolveKept(const GraphView& graph, EncounterSourceOutput* out);
   // Joins the qualified pairs whose hold ran out (all of them when `flush`).
   void JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out);
+  // True when the chi-square gate against the estimate accepts `candidate` (a refusal is
+  // counted); `widened`: the prediction's covariance widened in every direction by its largest
+  // translational sigma (the wide near search's matches).
+  bool PassesGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened);
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
