@@ -15,8 +15,8 @@ struct CandidateStats {
   int64_t no_match = 0;       // no pose above the matcher's min score
   int64_t weak_match = 0;     // a pose, but score or overlap below the bars
   int64_t gate_rejected = 0;  // disagreed with the estimate beyond the chi-square gate
-  int64_t kept = 0;           // first-encounter candidates waiting for a consistent second
-  int64_t unconfirmed = 0;    // given up at the end of input (no consistent second)
+  int64_t kept = 0;           // waiting for a consistent second (server/held_matches.h)
+  int64_t unconfirmed = 0;    // given up without one (too old, too many, end of input)
   int64_t repeated = 0;       // the pair this source had already joined: not entered twice
 
   int64_t rejected() const { return no_match + weak_match + gate_rejected + unconfirmed; }

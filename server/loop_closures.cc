@@ -12,6 +12,7 @@
 
 #include "common/scan_matching/point_cloud.h"
 #include "common/util/log.h"
+#include "server/held_matches.h"
 #include "server/keyframe_submap.h"
 #include "server/relative_pose.h"
 
@@ -100,6 +101,8 @@ void LoopClosures::Poll(int64_t now_utime, const GraphView& graph, EncounterSour
 void LoopClosures::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
   UseMatches(now_utime_, /*all=*/true, graph, out);
+  for (auto& [trajectory, kept] : kept_) GiveUpHeld(&kept, &stats_);
+  kept_.clear();
 }
 
 void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
@@ -298,12 +301,9 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
                              EncounterSourceOutput* out) {
   std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
   // Hypotheses too old to pair with this one (or any later one) are given up.
-  while (!kept.empty() &&
-         hypothesis.key.index - kept.front().key.index > options_.wide_pair_max_gap) {
-    kept.pop_front();
-    --stats_.kept;
-    ++stats_.unconfirmed;
-  }
+  GiveUpHeldOlderThan(
+      hypothesis.key.index, options_.wide_pair_max_gap,
+      [](const Hypothesis& h) { return h.key.index; }, &kept, &stats_);
   if (graph.covariances != nullptr) {
     // The newest agreeing hypothesis: the two views of the loop's far end are different
     // places (the query moved on), so an aliased spot cannot vouch for itself.
@@ -327,8 +327,7 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
       const Hypothesis first = *it;
       // Both enter; the others are dropped: the graph changes and they were made against
       // the old estimate.
-      stats_.kept -= static_cast<int64_t>(kept.size());
-      kept.clear();
+      DropHeld(&kept, &stats_);
       Emit(first, out);
       Emit(hypothesis, out);
       LogDebug("loop: wide closure pair " + Key(first.candidate).ToString() + "-" +
@@ -337,13 +336,7 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
       return;
     }
   }
-  kept.push_back(hypothesis);
-  ++stats_.kept;
-  if (static_cast<int>(kept.size()) > options_.wide_max_kept) {
-    kept.pop_front();
-    --stats_.kept;
-    ++stats_.unconfirmed;
-  }
+  Hold(hypothesis, options_.wide_max_kept, &kept, &stats_);
 }
 
 void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {

@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "common/scan_matching/point_cloud.h"
+#include "server/held_matches.h"
 #include "server/join_free_space.h"
 #include "server/keyframe_overlap.h"
 #include "server/keyframe_submap.h"
@@ -121,11 +122,10 @@ void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
   if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   JoinQualified(/*flush=*/true, graph, out);
-  for (auto& [pair, kept] : kept_) {
-    stats_.unconfirmed += static_cast<int64_t>(kept.size());
-    stats_.kept -= static_cast<int64_t>(kept.size());
-  }
+  for (auto& [pair, kept] : kept_) GiveUpHeld(&kept, &stats_);
   kept_.clear();
+  for (auto& [pair, held] : near_held_) GiveUpHeld(&held, &stats_);
+  near_held_.clear();
 }
 
 void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out) {
@@ -410,30 +410,21 @@ void ScanEncounters::OfferWideNear(const EncounterCandidate& candidate, const Gr
   if (!PassesGate(candidate, graph, /*widened=*/true)) return;
   const Pair key{candidate.b.trajectory, candidate.a.trajectory};
   std::deque<EncounterCandidate>& held = near_held_[key];
-  while (!held.empty() && candidate.b.index - held.front().b.index > options_.near_pair_max_gap) {
-    held.pop_front();
-    --stats_.kept;
-    ++stats_.unconfirmed;
-  }
+  GiveUpHeldOlderThan(
+      candidate.b.index, options_.near_pair_max_gap,
+      [](const EncounterCandidate& c) { return c.b.index; }, &held, &stats_);
   for (auto it = held.rbegin(); it != held.rend(); ++it) {
     if (candidate.b.index - it->b.index < options_.near_pair_min_gap) continue;
     if (!Consistent(*it, candidate, graph)) continue;
     const EncounterCandidate first = *it;
-    stats_.kept -= static_cast<int64_t>(held.size());
-    held.clear();
+    DropHeld(&held, &stats_);
     stats_.accepted += 2;
     Emit(first, out);
     Emit(candidate, out);
     near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
     return;
   }
-  held.push_back(candidate);
-  ++stats_.kept;
-  if (static_cast<int>(held.size()) > options_.near_max_held) {
-    held.pop_front();
-    --stats_.kept;
-    ++stats_.unconfirmed;
-  }
+  Hold(candidate, options_.near_max_held, &held, &stats_);
 }
 
 void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const GraphView& graph,

@@ -101,6 +101,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "joined trajectories: window search when predicted this close (m)");
   add("scan.near_min_overlap", "scan-near-min-overlap", &s.scan.near_min_overlap,
       "joined trajectories: a match needs this overlap");
+  add("scan.near_wide_max_window_m", "scan-near-wide-max-window-m", &s.scan.near_wide_max_window_m,
+      "joined trajectories whose estimate drifted apart: the window grows to 3 sigma up to "
+      "this (m; 0 = off); such a match enters only with a second one of the pair that agrees");
   add("scan.global_every", "scan-global-every", &s.scan.global_every,
       "unjoined trajectories: every N-th keyframe is searched globally");
   add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
