@@ -27,21 +27,27 @@ int FlatR::Refresh(const SparseR& r) {
     source_revision_ = r.revision();
     return 0;
   }
-  const int64_t kept_blocks = from == 0 ? 0 : row_start_[from];
-  diagonals_.resize(from);
-  row_start_.resize(from);
-  columns_.resize(kept_blocks);
-  blocks_.resize(kept_blocks);
+  // Sized first, then filled: the source rows are scattered, the copy need not be.
+  int64_t blocks = from == 0 ? 0 : row_start_[from];
+  diagonals_.resize(n);
+  row_start_.resize(n + 1);
+  for (int p = from; p < n; ++p) {
+    row_start_[p] = blocks;
+    blocks += static_cast<int64_t>(r.row(p).right.size());
+  }
+  row_start_[n] = blocks;
+  columns_.resize(blocks);
+  blocks_.resize(blocks);
   for (int p = from; p < n; ++p) {
     const RBlockRow& row = r.row(p);
-    diagonals_.push_back(row.diagonal);
-    row_start_.push_back(static_cast<int64_t>(columns_.size()));
+    diagonals_[p] = row.diagonal;
+    int64_t k = row_start_[p];
     for (const auto& [q, block] : row.right) {
-      columns_.push_back(q);
-      blocks_.push_back(block);
+      columns_[k] = q;
+      blocks_[k] = block;
+      ++k;
     }
   }
-  row_start_.push_back(static_cast<int64_t>(columns_.size()));
   source_id_ = r.instance_id();
   source_revision_ = r.revision();
   return n - from;

@@ -100,6 +100,8 @@ class SparseR {
   // gets a new one), so a copy knows whether it was taken from this object.
   uint64_t instance_id() const { return instance_id_.value; }
   uint64_t revision() const { return revision_; }
+  // The revision of block row p's last change.
+  uint64_t row_revision(int p) const { return row_revision_[p]; }
   // The first block row changed after `revision` (size() if none).
   int FirstRowChangedAfter(uint64_t revision) const;
 
