@@ -18,29 +18,6 @@ namespace {
 
 using Vectors = std::vector<Eigen::Vector3d>;
 
-// v <- R^-T v by block forward substitution; returns |R^-T v|^2.
-double SolveTransposedInPlace(const SparseR& R, Vectors* v) {
-  double norm2 = 0.0;
-  for (int p = 0; p < R.size(); ++p) {
-    const RBlockRow& row = R.row(p);
-    Eigen::Vector3d& x = (*v)[p];
-    x = row.diagonal.transpose().triangularView<Eigen::Lower>().solve(x);
-    for (const auto& [q, block] : row.right) (*v)[q].noalias() -= block.transpose() * x;
-    norm2 += x.squaredNorm();
-  }
-  return norm2;
-}
-
-// v <- R^-1 v by block back-substitution.
-void SolveInPlace(const SparseR& R, Vectors* v) {
-  for (int p = R.size() - 1; p >= 0; --p) {
-    const RBlockRow& row = R.row(p);
-    Eigen::Vector3d x = (*v)[p];
-    for (const auto& [q, block] : row.right) x.noalias() -= block * (*v)[q];
-    (*v)[p] = row.diagonal.triangularView<Eigen::Upper>().solve(x);
-  }
-}
-
 }  // namespace
 
 bool Smoother::Impl::CorrectEstimate() {
@@ -52,6 +29,7 @@ bool Smoother::Impl::CorrectEstimate() {
     return true;
   }
   const auto start = std::chrono::steady_clock::now();
+  flat_r_.Refresh(*r_);
   const bool converged = options_.correction_cg_iterations > 0 ? CorrectByConjugateGradients()
                                                                : CorrectByFixedPointSteps();
   if (!converged) ++stats_.correction_stalls;
@@ -90,7 +68,7 @@ double Smoother::Impl::GradientAtEstimate(Vectors* g, std::vector<LinearizedInR>
 
 bool Smoother::Impl::CorrectByFixedPointSteps() {
   const int n = r_->size();
-  const SparseR& R = *r_;
+  const FlatR& R = flat_r_;
   Vectors g(n), step(n);
   double previous_chi2 = std::numeric_limits<double>::infinity();
   for (int it = 0;; ++it) {
@@ -101,13 +79,13 @@ bool Smoother::Impl::CorrectByFixedPointSteps() {
     }
     previous_chi2 = chi2;
     // y = R^-T g; the predicted decrease of chi2 by the step -(R^T R)^-1 g is |y|^2.
-    const double decrease = SolveTransposedInPlace(R, &g);
+    const double decrease = R.SolveTransposedInPlace(&g);
     last_chi2_ = chi2;
     if (decrease <= options_.correction_tolerance * std::max(chi2, 1e-12)) return true;
     if (it == options_.correction_iterations) return false;
     // step = R^-1 y; the estimate moves by -step.
     step = g;
-    SolveInPlace(R, &step);
+    R.SolveInPlace(&step);
     for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] -= step[p];
     ++stats_.correction_steps;
   }
@@ -115,7 +93,7 @@ bool Smoother::Impl::CorrectByFixedPointSteps() {
 
 bool Smoother::Impl::CorrectByConjugateGradients() {
   const int n = r_->size();
-  const SparseR& R = *r_;
+  const FlatR& R = flat_r_;
   const double tolerance = options_.correction_tolerance;
   // The factors in R, linearised at the estimate: J(x) by blocks, applied factor by
   // factor (J^T J is never formed).
@@ -146,14 +124,14 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     // that R^T R predicts for the whole step.
     for (int k = 0; k < n; ++k) r[k] = -g[k];
     z = r;
-    double rz = SolveTransposedInPlace(R, &z);
+    double rz = R.SolveTransposedInPlace(&z);
     const double stop = tolerance * std::max(chi2, 1e-12);
     if (rz <= stop) return true;
     if (outer == options_.correction_iterations ||
         cg_iterations >= options_.correction_cg_iterations) {
       return false;
     }
-    SolveInPlace(R, &z);
+    R.SolveInPlace(&z);
     p = z;
     std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
     while (cg_iterations < options_.correction_cg_iterations) {
@@ -177,9 +155,9 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
         r[k] -= alpha * q[k];
       }
       z = r;
-      const double rz_next = SolveTransposedInPlace(R, &z);
+      const double rz_next = R.SolveTransposedInPlace(&z);
       if (rz_next <= stop) break;
-      SolveInPlace(R, &z);
+      R.SolveInPlace(&z);
       const double beta = rz_next / rz;
       rz = rz_next;
       for (int k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];

@@ -23,6 +23,7 @@
 #include "common/solver/batch_policy.h"
 #include "common/solver/covariances.h"
 #include "common/solver/factor.h"
+#include "common/solver/flat_r.h"
 #include "common/solver/linearization_cache.h"
 #include "common/solver/smoother.h"
 #include "common/solver/smoother_state.h"
@@ -351,6 +352,7 @@ class Smoother::Impl {
   // Work space of GradientAtEstimate (not in the state: a function of the estimate).
   LinearizationCache linearized_at_estimate_;
   std::vector<Pose2> estimate_scratch_;
+  FlatR flat_r_;  // the correction's copy of R (not in the state: rebuilt from r_)
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
   CovarianceProjection projected_;  // work space only

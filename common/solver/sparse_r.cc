@@ -1,6 +1,7 @@
 #include "common/solver/sparse_r.h"
 
 #include <algorithm>
+#include <atomic>
 #include <iterator>
 #include <limits>
 
@@ -16,13 +17,29 @@ constexpr int64_t kBlockNonZeros = 9;
 
 }  // namespace
 
+uint64_t SparseR::InstanceId::Next() {
+  static std::atomic<uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+int SparseR::FirstRowChangedAfter(uint64_t revision) const {
+  for (int p = 0; p < size(); ++p) {
+    if (row_revision_[p] > revision) return p;
+  }
+  return size();
+}
+
 void SparseR::Append(int count) {
+  BeginChange();
   rows_.resize(rows_.size() + count);
   column_rows_.resize(rows_.size());
+  row_revision_.resize(rows_.size(), revision_);
 }
 
 void SparseR::Assign(std::vector<RBlockRow> rows) {
+  BeginChange();
   rows_ = std::move(rows);
+  StampAll();
   column_rows_.assign(rows_.size(), {});
   nonzeros_ = 0;
   for (int p = 0; p < size(); ++p) {
@@ -38,6 +55,7 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
 }
 
 double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) {
+  BeginChange();
   // Each measurement starts as its own carry: a row-major panel by sorted column (a key
   // repeated within one measurement has its blocks summed).
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
@@ -81,6 +99,7 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
       }
     }
     RBlockRow& row = rows_[c];
+    Stamp(c);
     if (touched) touched->push_back(c);
     const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
 
@@ -236,8 +255,12 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
 void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
                           const std::vector<int>& kept, std::vector<RBlockRow> rows,
                           const std::vector<std::pair<int, Eigen::Vector3d>>& rhs) {
+  BeginChange();
   const int n = size();
-  for (const auto& [p, value] : rhs) rows_[p].rhs = value;
+  for (const auto& [p, value] : rhs) {
+    rows_[p].rhs = value;
+    Stamp(p);
+  }
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
   auto renumber = [&](RBlockRow* row) {
     // Entries before p0 keep their (sorted) place; the tail's are renumbered and sorted.
@@ -260,7 +283,10 @@ void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
     }
   }
   std::sort(head_rows.begin(), head_rows.end());
-  for (int r : head_rows) renumber(&rows_[r]);
+  for (int r : head_rows) {
+    renumber(&rows_[r]);
+    Stamp(r);
+  }
 
   std::vector<RBlockRow> tail;
   tail.reserve(n - p0);
@@ -277,6 +303,7 @@ void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
     nonzeros_ += kDiagonalNonZeros + kBlockNonZeros * static_cast<int64_t>(row.right.size());
     rows_.push_back(std::move(row));
   }
+  for (int p = p0; p < n; ++p) Stamp(p);
   for (int q = p0; q < n; ++q) column_rows_[q].clear();
   for (int r : head_rows) {
     for (const auto& [q, block] : rows_[r].right) {
@@ -301,7 +328,9 @@ bool SparseR::ImportState(State state) {
       if (q < 0 || q >= n) return false;
     }
   }
+  BeginChange();
   rows_ = std::move(state.rows);
+  StampAll();
   column_rows_ = std::move(state.column_rows);
   nonzeros_ = state.nonzeros;
   eliminated_block_rows_ = state.eliminated_block_rows;

@@ -95,7 +95,33 @@ class SparseR {
   // Smallest |diagonal entry| of R: near zero means an unconstrained variable.
   double MinAbsDiagonal() const;
 
+  // Change tracking for copies of R (FlatR): every mutating call draws a new revision
+  // and stamps the block rows it changed with it. The id is unique per object (a copy
+  // gets a new one), so a copy knows whether it was taken from this object.
+  uint64_t instance_id() const { return instance_id_.value; }
+  uint64_t revision() const { return revision_; }
+  // The revision of block row p's last change.
+  uint64_t row_revision(int p) const { return row_revision_[p]; }
+  // The first block row changed after `revision` (size() if none).
+  int FirstRowChangedAfter(uint64_t revision) const;
+
  private:
+  // A process-wide unique id, renewed by copies and moves.
+  struct InstanceId {
+    InstanceId() : value(Next()) {}
+    InstanceId(const InstanceId&) : value(Next()) {}
+    InstanceId& operator=(const InstanceId&) {
+      value = Next();
+      return *this;
+    }
+    static uint64_t Next();
+    uint64_t value;
+  };
+  // Starts a mutating call: a new revision for its stamps.
+  void BeginChange() { ++revision_; }
+  void Stamp(int p) { row_revision_[p] = revision_; }
+  void StampAll() { row_revision_.assign(rows_.size(), revision_); }
+
   Eigen::Vector3d SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const;
 
   std::vector<RBlockRow> rows_;
@@ -118,6 +144,9 @@ class SparseR {
   std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
   std::vector<int> meeting_;       // carries whose leading column is the current row
   std::vector<char> scratch_dirty_;
+  InstanceId instance_id_;
+  uint64_t revision_ = 0;
+  std::vector<uint64_t> row_revision_;  // by block row: revision of its last change
   int64_t nonzeros_ = 0;
   int64_t eliminated_block_rows_ = 0;
   int64_t eliminated_block_columns_ = 0;

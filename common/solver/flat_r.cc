@@ -1,0 +1,116 @@
+#include "common/solver/flat_r.h"
+
+#include <algorithm>
+
+namespace anchormap {
+namespace {
+
+static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double) &&
+                  sizeof(Eigen::Matrix3d) == 9 * sizeof(double),
+              "the solves read vectors and blocks as plain arrays of doubles");
+
+double* Doubles(std::vector<Eigen::Vector3d>* v) { return reinterpret_cast<double*>(v->data()); }
+const double* Doubles(const std::vector<Eigen::Matrix3d>& m) {
+  return reinterpret_cast<const double*>(m.data());
+}
+
+}  // namespace
+
+int FlatR::Refresh(const SparseR& r) {
+  int from = 0;
+  if (r.instance_id() == source_id_) {
+    from = std::min(size(), r.FirstRowChangedAfter(source_revision_));
+  }
+  const int n = r.size();
+  from = std::min(from, n);
+  if (from == size() && n == size()) {
+    source_revision_ = r.revision();
+    return 0;
+  }
+  // Sized first, then filled: the source rows are scattered, the copy need not be.
+  int64_t blocks = from == 0 ? 0 : row_start_[from];
+  diagonals_.resize(n);
+  row_start_.resize(n + 1);
+  for (int p = from; p < n; ++p) {
+    row_start_[p] = blocks;
+    blocks += static_cast<int64_t>(r.row(p).right.size());
+  }
+  row_start_[n] = blocks;
+  columns_.resize(blocks);
+  blocks_.resize(blocks);
+  for (int p = from; p < n; ++p) {
+    const RBlockRow& row = r.row(p);
+    diagonals_[p] = row.diagonal;
+    int64_t k = row_start_[p];
+    for (const auto& [q, block] : row.right) {
+      columns_[k] = q;
+      blocks_[k] = block;
+      ++k;
+    }
+  }
+  source_id_ = r.instance_id();
+  source_revision_ = r.revision();
+  return n - from;
+}
+
+// Both solves keep the vector's entries being worked on in locals: through the vector
+// itself, the compiler must assume every store may alias the next load (and Eigen's
+// 3-vector solve stored and reloaded x_p piecewise, stalling store forwarding). Blocks
+// are column-major: b[i + 3 * j] is entry (i, j).
+double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
+  double* x = Doubles(v);
+  const int n = size();
+  const int* column = columns_.data();
+  const double* block = Doubles(blocks_);
+  double norm2 = 0.0;
+  for (int p = 0; p < n; ++p) {
+    // R_pp^T is lower triangular: forward substitution.
+    const double* d = diagonals_[p].data();
+    double* xp = x + 3 * p;
+    const double y0 = xp[0] / d[0];
+    const double y1 = (xp[1] - d[3] * y0) / d[4];
+    const double y2 = (xp[2] - d[6] * y0 - d[7] * y1) / d[8];
+    xp[0] = y0;
+    xp[1] = y1;
+    xp[2] = y2;
+    // x_q -= R_pq^T y for the blocks right of the diagonal.
+    const int64_t end = row_start_[p + 1];
+    for (int64_t k = row_start_[p]; k < end; ++k) {
+      const double* b = block + 9 * k;
+      double* xq = x + 3 * column[k];
+      xq[0] -= b[0] * y0 + b[1] * y1 + b[2] * y2;
+      xq[1] -= b[3] * y0 + b[4] * y1 + b[5] * y2;
+      xq[2] -= b[6] * y0 + b[7] * y1 + b[8] * y2;
+    }
+    norm2 += y0 * y0 + y1 * y1 + y2 * y2;
+  }
+  return norm2;
+}
+
+void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
+  double* x = Doubles(v);
+  const int* column = columns_.data();
+  const double* block = Doubles(blocks_);
+  for (int p = size() - 1; p >= 0; --p) {
+    double* xp = x + 3 * p;
+    double s0 = xp[0], s1 = xp[1], s2 = xp[2];
+    // s -= R_pq x_q for the blocks right of the diagonal (already solved).
+    const int64_t end = row_start_[p + 1];
+    for (int64_t k = row_start_[p]; k < end; ++k) {
+      const double* b = block + 9 * k;
+      const double* xq = x + 3 * column[k];
+      s0 -= b[0] * xq[0] + b[3] * xq[1] + b[6] * xq[2];
+      s1 -= b[1] * xq[0] + b[4] * xq[1] + b[7] * xq[2];
+      s2 -= b[2] * xq[0] + b[5] * xq[1] + b[8] * xq[2];
+    }
+    // R_pp is upper triangular: back substitution.
+    const double* d = diagonals_[p].data();
+    const double y2 = s2 / d[8];
+    const double y1 = (s1 - d[7] * y2) / d[4];
+    xp[2] = y2;
+    xp[1] = y1;
+    xp[0] = (s0 - d[3] * y1 - d[6] * y2) / d[0];
+  }
+}
+
+}  // namespace anchormap

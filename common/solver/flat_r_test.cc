@@ -1,0 +1,116 @@
+#include "common/solver/flat_r.h"
+
+#include <algorithm>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+namespace anchormap {
+namespace {
+
+Eigen::MatrixXd Dense(const SparseR& r) {
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * r.size(), 3 * r.size());
+  for (int p = 0; p < r.size(); ++p) {
+    R.block<3, 3>(3 * p, 3 * p) = r.row(p).diagonal;
+    for (const auto& [q, block] : r.row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
+  }
+  return R;
+}
+
+std::vector<Eigen::Vector3d> Split(const Eigen::VectorXd& v) {
+  std::vector<Eigen::Vector3d> out(v.size() / 3);
+  for (size_t p = 0; p < out.size(); ++p) out[p] = v.segment<3>(3 * p);
+  return out;
+}
+
+Eigen::VectorXd Join(const std::vector<Eigen::Vector3d>& v) {
+  Eigen::VectorXd out(3 * v.size());
+  for (size_t p = 0; p < v.size(); ++p) out.segment<3>(3 * p) = v[p];
+  return out;
+}
+
+// One measurement between two variables (a loop closure when they are far apart).
+NewRows Between(int a, int b, std::mt19937* rng) {
+  std::normal_distribution<double> g;
+  NewRows rows;
+  Eigen::Matrix3d ja, jb;
+  for (int i = 0; i < 9; ++i) ja(i) = g(*rng);
+  for (int i = 0; i < 9; ++i) jb(i) = g(*rng);
+  rows.blocks.emplace_back(a, ja + 3 * Eigen::Matrix3d::Identity());
+  if (b >= 0) rows.blocks.emplace_back(b, jb);
+  rows.rhs = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
+  return rows;
+}
+
+// Both solves against dense triangular solves with R, and R^-T's squared norm.
+void ExpectSolvesMatchDense(const FlatR& flat, const SparseR& r, std::mt19937* rng) {
+  ASSERT_EQ(flat.size(), r.size());
+  const Eigen::MatrixXd R = Dense(r);
+  std::normal_distribution<double> g;
+  Eigen::VectorXd v(3 * r.size());
+  for (int i = 0; i < v.size(); ++i) v(i) = g(*rng);
+
+  std::vector<Eigen::Vector3d> x = Split(v);
+  const double norm2 = flat.SolveTransposedInPlace(&x);
+  const Eigen::VectorXd y = R.transpose().triangularView<Eigen::Lower>().solve(v);
+  EXPECT_LT((Join(x) - y).cwiseAbs().maxCoeff(), 1e-9 * (1 + y.cwiseAbs().maxCoeff()));
+  EXPECT_NEAR(norm2, y.squaredNorm(), 1e-9 * y.squaredNorm());
+
+  x = Split(v);
+  flat.SolveInPlace(&x);
+  const Eigen::VectorXd z = R.triangularView<Eigen::Upper>().solve(v);
+  EXPECT_LT((Join(x) - z).cwiseAbs().maxCoeff(), 1e-9 * (1 + z.cwiseAbs().maxCoeff()));
+}
+
+TEST(FlatRTest, RefreshCopiesOnlyTheRowsFromTheFirstChangeAndSolvesStayExact) {
+  std::mt19937 rng(7);
+  constexpr int kChain = 40;
+  SparseR r;
+  r.Append(kChain);
+  for (int p = 0; p < kChain; ++p) r.Eliminate(Between(p, p - 1, &rng), nullptr);
+  FlatR flat;
+  EXPECT_EQ(flat.Refresh(r), kChain);
+  ExpectSolvesMatchDense(flat, r, &rng);
+  EXPECT_EQ(flat.Refresh(r), 0);  // nothing changed
+
+  // A closure from variable 30 to the last one changes rows 30 on only.
+  std::vector<int> touched;
+  r.Eliminate(Between(kChain - 1, 30, &rng), &touched);
+  EXPECT_EQ(*std::min_element(touched.begin(), touched.end()), 30);
+  EXPECT_EQ(flat.Refresh(r), kChain - 30);
+  ExpectSolvesMatchDense(flat, r, &rng);
+
+  // New variables: the appended rows, and those a measurement on them changed.
+  r.Append(2);
+  r.Eliminate(Between(kChain, kChain - 1, &rng), nullptr);
+  r.Eliminate(Between(kChain + 1, kChain, &rng), nullptr);
+  EXPECT_EQ(flat.Refresh(r), 3);
+  ExpectSolvesMatchDense(flat, r, &rng);
+
+  // A closure reaching far back changes nearly all of R.
+  r.Eliminate(Between(kChain + 1, 2, &rng), nullptr);
+  EXPECT_EQ(flat.Refresh(r), kChain + 2 - 2);
+  ExpectSolvesMatchDense(flat, r, &rng);
+}
+
+TEST(FlatRTest, ACopyOfRIsCopiedWhole) {
+  std::mt19937 rng(11);
+  SparseR r;
+  r.Append(10);
+  for (int p = 0; p < 10; ++p) r.Eliminate(Between(p, p - 1, &rng), nullptr);
+  FlatR flat;
+  flat.Refresh(r);
+  // A snapshot's R restored in place of the current one: another object, whatever its
+  // revisions say.
+  SparseR older = r;
+  r.Eliminate(Between(9, 0, &rng), nullptr);
+  EXPECT_EQ(flat.Refresh(r), 10);
+  EXPECT_EQ(flat.Refresh(older), 10);
+  ExpectSolvesMatchDense(flat, older, &rng);
+  EXPECT_EQ(flat.Refresh(r), 10);
+  ExpectSolvesMatchDense(flat, r, &rng);
+}
+
+}  // namespace
+}  // namespace anchormap
