@@ -195,13 +195,13 @@ TEST(CorrelativeMatcherTest, CovarianceIsConsistent) {
   // 95 % probability (Bar-Shalom, Li and Kirubarajan, "Estimation with applications to
   // tracking and navigation", 5.4.2).
   //
-  // Measured: 4.04, i.e. the covariance is about 35 % too small in variance (16 % in standard
-  // deviation); the whole distribution is shifted (median NEES about 3.0 against chi2_3's
-  // 2.37), not a few outliers. With a noise-free reference the matcher gave 2.6-2.9. Not
-  // modelled yet: each point's noise along the surface normal depends on its incidence angle
-  // (sigma cos(alpha)); the model uses one sigma for all points. Until that is modelled the
-  // upper bound below is the chi-square bound times 1.25 (stated, not hidden: 4.19, so a
-  // regression of a few percent fails); the lower bound is the strict one (a covariance
+  // Measured: 4.00 (4.04 with the former 7x7x7 sample lattice), i.e. the covariance is about
+  // 33 % too small in variance (16 % in standard deviation); the whole distribution is shifted
+  // (median NEES about 3.0 against chi2_3's 2.37), not a few outliers. With a noise-free reference
+  // the matcher gave 2.6-2.9. Not modelled yet: each point's noise along the surface normal depends
+  // on its incidence angle (sigma cos(alpha)); the model uses one sigma for all points. Until that
+  // is modelled the upper bound below is the chi-square bound times 1.25 (stated, not hidden: 4.19,
+  // so a regression of a few percent fails); the lower bound is the strict one (a covariance
   // inflated to be safe fails it).
   const double sigma = 0.02;
   const SyntheticLaser laser = MountedLaser(360, 2.0 * kPi, sigma);

@@ -111,13 +111,20 @@ double AnchoredCost::operator()(const Pose2& pose) const {
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
   double cost = 0.0;
-  int rows = 0;
-  Eigen::Vector2d e;
-  Eigen::Matrix2d de_dq;
   for (size_t j = 0; j < query_.size(); ++j) {
     const Eigen::Vector2d q = R * query_[j] + t;
-    if (PointResidual(field_, q, cutoff_sq_, &rows, &e, &de_dq)) {
-      cost += (rows == 1 ? e(0) * e(0) : e.squaredNorm());
+    // PointResidual's cost without its Jacobian (the same bits: only the value is needed
+    // here, at every point of every sample of the score distribution).
+    Eigen::Vector2d v;
+    if (field_.Interpolate(q, &v) && v.squaredNorm() <= cutoff_sq_) {
+      const Eigen::Vector2i cell = field_.geometry().CellOf(q);
+      Eigen::Vector2d n;
+      if (field_.NearestNormal(cell.x(), cell.y(), &n)) {
+        const double along_normal = -n.dot(v);
+        cost += along_normal * along_normal;
+      } else {
+        cost += v.squaredNorm();
+      }
       continue;
     }
     const Association& a = associations_[j];

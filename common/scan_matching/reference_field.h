@@ -10,6 +10,7 @@
 // is exact there: Interpolate gives a point-to-line residual with its Jacobian at any point,
 // which the refinement and the covariance use; the likelihood grid uses the cell values.
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -84,6 +85,55 @@ class ReferenceField {
   // zero when it has none (a lone return).
   std::vector<Eigen::Vector2d> start_normals_;
 };
+
+// Inline: the refinement and the score distribution call these two for every point of every
+// pose they try (perf, 100 robots x 60 s: Interpolate 9 % and NearestNormal 2.4 % of the
+// replay's samples as out-of-line calls).
+inline bool ReferenceField::Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
+                                        Eigen::Matrix2d* dv_dp) const {
+  // Cell centres are at origin + (i + 0.5) r: the four around p start at floor(u - 0.5).
+  const double r = geometry_.resolution;
+  const double ux = (p.x() - geometry_.origin.x()) / r - 0.5;
+  const double uy = (p.y() - geometry_.origin.y()) / r - 0.5;
+  if (!std::isfinite(ux) || !std::isfinite(uy)) return false;
+  const double fx = std::floor(ux);
+  const double fy = std::floor(uy);
+  if (fx < 0.0 || fy < 0.0 || fx + 1.0 >= geometry_.width || fy + 1.0 >= geometry_.height) {
+    return false;
+  }
+  const int ix = static_cast<int>(fx);
+  const int iy = static_cast<int>(fy);
+  const double tx = ux - fx;
+  const double ty = uy - fy;
+  // The four cells are inside the grid (checked above): read them without NearestVector's
+  // bounds checks (this runs for every point of every pose the refinement and covariance try).
+  const int i00 = geometry_.Index(ix, iy);
+  const int i01 = i00 + geometry_.width;
+  if (std::isnan(vx_[i00]) || std::isnan(vx_[i00 + 1]) || std::isnan(vx_[i01]) ||
+      std::isnan(vx_[i01 + 1])) {
+    return false;
+  }
+  const Eigen::Vector2d v00(vx_[i00], vy_[i00]);
+  const Eigen::Vector2d v10(vx_[i00 + 1], vy_[i00 + 1]);
+  const Eigen::Vector2d v01(vx_[i01], vy_[i01]);
+  const Eigen::Vector2d v11(vx_[i01 + 1], vy_[i01 + 1]);
+  *v = (1 - tx) * (1 - ty) * v00 + tx * (1 - ty) * v10 + (1 - tx) * ty * v01 + tx * ty * v11;
+  if (dv_dp != nullptr) {
+    dv_dp->col(0) = ((1 - ty) * (v10 - v00) + ty * (v11 - v01)) / r;
+    dv_dp->col(1) = ((1 - tx) * (v01 - v00) + tx * (v11 - v10)) / r;
+  }
+  return true;
+}
+
+inline bool ReferenceField::NearestNormal(int ix, int iy, Eigen::Vector2d* n) const {
+  if (!geometry_.Contains(ix, iy)) return false;
+  const int a = primitive_a_[geometry_.Index(ix, iy)];
+  if (a < 0) return false;
+  const Eigen::Vector2d& normal = start_normals_[a];
+  if (normal.x() == 0.0 && normal.y() == 0.0) return false;  // a unit normal is never zero
+  *n = normal;
+  return true;
+}
 
 // Closest point to p on the segment [a, b] (a == b allowed).
 Eigen::Vector2d ClosestPointOnSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,

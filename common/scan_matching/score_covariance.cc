@@ -60,23 +60,27 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   const Eigen::Matrix3d L = laplace.llt().matrixL();
 
   const AnchoredCost anchored_cost(field, query, pose, options.cutoff_m);
-  constexpr int kHalf = 3;
-  std::vector<std::array<int, 3>> offsets;
-  std::vector<double> log_weights;
-  offsets.reserve(343);
-  log_weights.reserve(343);
+  // 5 samples per axis, 1.5 standard deviations apart, reach the same +-3 sigma as 7 at one
+  // sigma with 125 evaluations of the cost instead of 343 (the cost is most of a match's):
+  // on a Gaussian the lattice's moment is 0.994 of the variance against 0.996.
+  constexpr int kHalf = 2;
+  constexpr double kStep = 1.5;
+  constexpr int kSide = 2 * kHalf + 1;
+  const Eigen::Matrix3d prior_only = L.transpose() * (information - hessian / var) * L;
+  std::array<Eigen::Vector3d, kSide * kSide * kSide> offsets;
+  std::array<double, kSide * kSide * kSide> log_weights;
   const Eigen::Vector3d centre = pose.vector();
+  size_t count = 0;
   for (int a = -kHalf; a <= kHalf; ++a) {
     for (int b = -kHalf; b <= kHalf; ++b) {
       for (int c = -kHalf; c <= kHalf; ++c) {
-        const Eigen::Vector3d xi = centre + L * Eigen::Vector3d(a, b, c);
-        const double cost = anchored_cost(Pose2::FromVector(xi));
+        const Eigen::Vector3d z = kStep * Eigen::Vector3d(a, b, c);
+        const double cost = anchored_cost(Pose2::FromVector(centre + L * z));
         // The window prior is part of the distribution as well.
-        const double prior =
-            0.5 * Eigen::Vector3d(a, b, c).dot(L.transpose() * (information - hessian / var) * L *
-                                               Eigen::Vector3d(a, b, c));
-        offsets.push_back({a, b, c});
-        log_weights.push_back(-0.5 * cost / var - prior);
+        const double prior = 0.5 * z.dot(prior_only * z);
+        offsets[count] = z;
+        log_weights[count] = -0.5 * cost / var - prior;
+        ++count;
       }
     }
   }
@@ -84,9 +88,9 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   double total = 0.0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < offsets.size(); ++i) {
+  for (size_t i = 0; i < count; ++i) {
     const double w = std::exp(log_weights[i] - max_log);
-    const Eigen::Vector3d z(offsets[i][0], offsets[i][1], offsets[i][2]);
+    const Eigen::Vector3d& z = offsets[i];
     total += w;
     mean += w * z;
     second += w * z * z.transpose();

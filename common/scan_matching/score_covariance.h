@@ -4,13 +4,13 @@
 // log-likelihood of the query under a Gaussian point-to-surface model with standard deviation
 // point_sigma_m, truncated at cutoff_m (outliers): log p(xi) = -cost(xi) / (2 sigma^2),
 // cost as AnchoredCost (pose_refinement.h). Instead of the search lattice, whose cells (5 cm,
-// 0.1-0.3 degree) are coarser than a good match's uncertainty, the distribution is sampled on a 7 x
-// 7 x 7 lattice along the principal axes of the Gauss-Newton covariance (steps of one standard
-// deviation, a window prior bounding it): where the likelihood is Gaussian the moment reproduces
-// it, where it is not (a corridor, a truncation edge, a second nearby optimum) the moment follows
-// the samples. Directions the geometry leaves unconstrained (DegeneracyFiltered) are not sampled
-// for their spread (the samples there follow the walls' noise): they get the window prior's
-// variance. The result is symmetrised and a floor is added, so it is always SPD.
+// 0.1-0.3 degree) are coarser than a good match's uncertainty, the distribution is sampled on a 5 x
+// 5 x 5 lattice along the principal axes of the Gauss-Newton covariance (steps of 1.5 standard
+// deviations to +-3, a window prior bounding it): where the likelihood is Gaussian the moment
+// reproduces it, where it is not (a corridor, a truncation edge, a second nearby optimum) the
+// moment follows the samples. Directions the geometry leaves unconstrained (DegeneracyFiltered) are
+// not sampled for their spread (the samples there follow the walls' noise): they get the window
+// prior's variance. The result is symmetrised and a floor is added, so it is always SPD.
 
 #include <Eigen/Core>
 
