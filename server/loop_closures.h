@@ -196,6 +196,8 @@ class LoopClosures : public EncounterSource {
   void SubmitWide(PoseKey key, const GraphView& graph, const TrajectoryRecord& record,
                   const std::shared_ptr<const PointCloud>& query);
   bool NeedsWideWindow(const Eigen::Matrix3d& covariance) const;
+  // The drift model's covariance for a path of `path_m` (drift_per_m, drift_rad_per_m).
+  Eigen::Matrix3d DriftCovariance(double path_m) const;
 
   // A wide match waiting for a consistent second.
   struct Hypothesis {
