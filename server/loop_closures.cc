@@ -306,6 +306,21 @@ bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, dou
          strong.sigma_m <= options.wide_weak_partner_max_sigma_m;
 }
 
+Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options) {
+  const double m = options.drift_per_m * path_m, rad = options.drift_rad_per_m * path_m;
+  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
+}
+
+double WidePairInconsistency2(const PredictedRelativePose& candidates, const Pose2& first,
+                              const Eigen::Matrix3d& first_covariance,
+                              PredictedRelativePose queries, const Pose2& second,
+                              const Eigen::Matrix3d& second_covariance, double query_path_m,
+                              const LoopClosureOptions& options) {
+  queries.covariance += WideDriftCovariance(query_path_m, options);
+  return PairwiseInconsistency2(candidates, first, first_covariance, queries, second,
+                                second_covariance);
+}
+
 void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
                              EncounterSourceOutput* out) {
   std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
@@ -321,24 +336,16 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
     // places (the query moved on), so an aliased spot cannot vouch for itself.
     for (auto it = kept.rbegin(); it != kept.rend(); ++it) {
       if (hypothesis.key.index - it->key.index < options_.wide_pair_min_gap) continue;
-      std::optional<PredictedRelativePose> candidates =
+      const std::optional<PredictedRelativePose> candidates =
           PredictRelativePose(graph.covariances, it->candidate, hypothesis.candidate);
-      std::optional<PredictedRelativePose> keys =
+      const std::optional<PredictedRelativePose> keys =
           PredictRelativePose(graph.covariances, it->key, hypothesis.key);
       if (!candidates || !keys) continue;
-      // The estimate between the two candidates (and between the two queries) may have
-      // drifted as the wide search assumes: two true closures of one open loop disagree
-      // through it by that drift (ACES, the third robot: the 1268 s pass closed on the
-      // 1012 s pass and the 1284 s pass on the 1109 s pass, 2.95 m apart through an estimate
-      // whose 1-sigma there was 0.13 m; chi-square 1075).
-      candidates->covariance +=
-          DriftCovariance(EstimatedPath(graph.smoother, hypothesis.key.trajectory,
-                                        it->candidate.index, hypothesis.candidate.index));
-      keys->covariance += DriftCovariance(EstimatedPath(graph.smoother, hypothesis.key.trajectory,
-                                                        it->key.index, hypothesis.key.index));
-      if (PairwiseInconsistency2(*candidates, it->measured, it->covariance, *keys,
-                                 hypothesis.measured,
-                                 hypothesis.covariance) > options_.wide_pair_chi2) {
+      const double query_path_m = EstimatedPath(graph.smoother, hypothesis.key.trajectory,
+                                                it->key.index, hypothesis.key.index);
+      if (WidePairInconsistency2(*candidates, it->measured, it->covariance, *keys,
+                                 hypothesis.measured, hypothesis.covariance, query_path_m,
+                                 options_) > options_.wide_pair_chi2) {
         continue;
       }
       if (!WidePairMayEnter({it->weak, LargestTranslationSigma(it->covariance)},
@@ -426,11 +433,6 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   if (options_.wide_search) SubmitWide(key, graph, *record, query);
 }
 
-Eigen::Matrix3d LoopClosures::DriftCovariance(double path_m) const {
-  const double m = options_.drift_per_m * path_m, rad = options_.drift_rad_per_m * path_m;
-  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
-}
-
 bool LoopClosures::NeedsWideWindow(const Eigen::Matrix3d& covariance) const {
   return 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>()) > options_.max_window_m ||
          3.0 * std::sqrt(std::max(0.0, covariance(2, 2))) > options_.max_window_rad;
@@ -459,7 +461,7 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
             : 0.0;
     along[static_cast<size_t>(i)] = along[static_cast<size_t>(i) + 1] + step;
   }
-  auto drift = [&](int j) { return DriftCovariance(along[static_cast<size_t>(j)]); };
+  auto drift = [&](int j) { return WideDriftCovariance(along[static_cast<size_t>(j)], options_); };
   const Pose2 T_local_key = smoother->FramePose(key);
   // The candidate the estimate and the drift make likeliest within reach (nearest on ties).
   int best = -1;
