@@ -85,6 +85,18 @@ double LargestSigma(const Eigen::Matrix2d& covariance) {
   return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
 }
 
+// The path the estimate drives between two keyframes of one trajectory (steps between
+// keyframes without an estimate count 0).
+double EstimatedPath(const Smoother& smoother, TrajectoryId trajectory, int32_t a, int32_t b) {
+  double path = 0.0;
+  for (int32_t i = std::min(a, b); i < std::max(a, b); ++i) {
+    const PoseKey from{trajectory, i}, to{trajectory, i + 1};
+    if (!smoother.HasPose(from) || !smoother.HasPose(to)) continue;
+    path += (smoother.FramePose(from).translation() - smoother.FramePose(to).translation()).norm();
+  }
+  return path;
+}
+
 }  // namespace
 
 void LoopClosures::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
@@ -297,6 +309,22 @@ bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, dou
          strong.sigma_m <= options.wide_weak_partner_max_sigma_m;
 }
 
+Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options) {
+  const double m = options.drift_per_m * path_m, rad = options.drift_rad_per_m * path_m;
+  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
+}
+
+double WidePairInconsistency2(const PredictedRelativePose& candidates, const Pose2& first,
+                              const Eigen::Matrix3d& first_covariance,
+                              PredictedRelativePose queries, const Pose2& second,
+                              const Eigen::Matrix3d& second_covariance, double query_path_m,
+                              const LoopClosureOptions& options) {
+  // Rotation only: widened in translation too, intel-1 went 0.0239 -> 0.0245 m.
+  queries.covariance(2, 2) += WideDriftCovariance(query_path_m, options)(2, 2);
+  return PairwiseInconsistency2(candidates, first, first_covariance, queries, second,
+                                second_covariance);
+}
+
 void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& graph,
                              EncounterSourceOutput* out) {
   std::deque<Hypothesis>& kept = kept_[hypothesis.key.trajectory];
@@ -314,9 +342,11 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
       const std::optional<PredictedRelativePose> keys =
           PredictRelativePose(graph.covariances, it->key, hypothesis.key);
       if (!candidates || !keys) continue;
-      if (PairwiseInconsistency2(*candidates, it->measured, it->covariance, *keys,
-                                 hypothesis.measured,
-                                 hypothesis.covariance) > options_.wide_pair_chi2) {
+      const double query_path_m = EstimatedPath(graph.smoother, hypothesis.key.trajectory,
+                                                it->key.index, hypothesis.key.index);
+      if (WidePairInconsistency2(*candidates, it->measured, it->covariance, *keys,
+                                 hypothesis.measured, hypothesis.covariance, query_path_m,
+                                 options_) > options_.wide_pair_chi2) {
         continue;
       }
       if (!WidePairMayEnter({it->weak, LargestTranslationSigma(it->covariance)},
@@ -425,11 +455,7 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
             : 0.0;
     along[static_cast<size_t>(i)] = along[static_cast<size_t>(i) + 1] + step;
   }
-  auto drift = [&](int j) {
-    const double path = along[static_cast<size_t>(j)];
-    const double m = options_.drift_per_m * path, rad = options_.drift_rad_per_m * path;
-    return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
-  };
+  auto drift = [&](int j) { return WideDriftCovariance(along[static_cast<size_t>(j)], options_); };
   const Pose2 T_local_key = smoother->FramePose(key);
   // The candidate the estimate and the drift make likeliest within reach (nearest on ties).
   int best = -1;

@@ -301,6 +301,39 @@ TEST(LoopClosuresTest, AWeakMatchsPartnerMustPinThePlaceInEveryDirection) {
   EXPECT_TRUE(WidePairMayEnter({false, 0.5}, {false, 0.02}, 4.13, options));
 }
 
+// Two true wide closures of one open loop disagree through the estimate of the stretch the
+// robot drove between their queries, which that loop has bent (ACES, the third robot: 0.037
+// rad after 10.6 m between the queries, against an estimate of a few mrad: chi-square 14.8,
+// above the 11.34 gate, and the loop stayed open). The drift model's rotation for the
+// queries' path widens that stretch's heading; it does not make closures of different places
+// agree.
+TEST(LoopClosuresTest, AWidePairAllowsTheQueriesPathToHaveDrifted) {
+  const LoopClosureOptions options;
+  const Eigen::Matrix3d estimate = Eigen::Vector3d(9e-4, 9e-4, 2.5e-5).asDiagonal();
+  const Eigen::Matrix3d match = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();  // floors
+  const PredictedRelativePose candidates{Pose2(5.0, 0.0, 0.0), estimate};
+  const PredictedRelativePose queries{Pose2(5.0, 0.0, 0.0), estimate};
+  const Pose2 first(1.0, 0.0, 0.0);
+  const Pose2 turned(1.0, 0.0, 0.037);  // the second closure, 0.037 rad off the first
+  const double no_path =
+      WidePairInconsistency2(candidates, first, match, queries, turned, match, 0.0, options);
+  EXPECT_GT(no_path, options.wide_pair_chi2);  // the check as it was: refused
+  EXPECT_NEAR(no_path, 14.7, 0.1);
+  // 20 m driven between the queries: a heading drift of 0.04 rad (1 sigma).
+  const double drifted =
+      WidePairInconsistency2(candidates, first, match, queries, turned, match, 20.0, options);
+  EXPECT_LT(drifted, 1.0);
+  // Closures of different places stay apart: 2.95 m (ACES, the third robot's 1012 s and
+  // 1109 s passes, both true but through an estimate the queries' path does not explain) and
+  // 7 m (a pair that entered on aces-1 when the candidates' path was widened too).
+  for (const double apart : {2.95, 7.0}) {
+    EXPECT_GT(WidePairInconsistency2(candidates, first, match, queries,
+                                     Pose2(1.0 + apart, 0.0, 0.0), match, 20.0, options),
+              options.wide_pair_chi2)
+        << apart;
+  }
+}
+
 TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
   LoopClosureOptions options;
   EXPECT_TRUE(options.Validate().ok());
