@@ -29,7 +29,10 @@
 // so and bent the map). A wide
 // match is refined against the keyframes near where the query looks (refine_look_ahead_m in
 // front of it), not where it stands: with a 180-degree laser the keyframe nearest to the
-// query's position may have passed it facing the other way. A wide window can hold a look-alike of
+// query's position may have passed it facing the other way; of the keyframes looking there
+// (refine_choice_radius_m), the one whose own scan the query matches best: the place submap draws
+// every pass at its estimate, and an open loop draws two passes of a place metres apart.
+// A wide window can hold a look-alike of
 // the place (the simulator's offices repeat every 8 m: a window of 3 sigma of the drift model
 // reached the copy, and two queries agreed on it): the query is also matched in the local window
 // around the prediction (the "rival"), and when that match agrees with the estimate's own
@@ -120,8 +123,11 @@ struct LoopClosureOptions {
   int wide_pair_max_gap = 60;           // ... and at most (older hypotheses are given up)
   int wide_max_kept = 8;                // hypotheses kept per trajectory
   double wide_weak_min_overlap = 0.65;  // a weak hypothesis from here (see the top)
-  double wide_pair_min_separation_m = 1.0;     // between the queries of a pair with a weak one
-  double refine_look_ahead_m = 2.0;            // the point the refinement's keyframe is chosen by
+  double wide_pair_min_separation_m = 1.0;  // between the queries of a pair with a weak one
+  double refine_look_ahead_m = 2.0;         // the point the refinement's keyframe is chosen by
+  // Of the keyframes looking within this of that point, the one whose scan the query matches
+  // best (0: the nearest one).
+  double refine_choice_radius_m = 2.0;
   double wide_weak_partner_max_sigma_m = 0.1;  // a weak one's partner pins the place this well
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
   // The candidates' submaps, kept for the next keyframes (which mostly have the same
@@ -131,6 +137,19 @@ struct LoopClosureOptions {
 
   Status Validate() const;
 };
+
+// A keyframe of a place submap: its index, its pose in the submap's frame, its scan's reference.
+struct SeenKeyframe {
+  int32_t index = 0;
+  Pose2 T_submap_keyframe;
+  std::shared_ptr<const ScanReference> scan;
+};
+// The keyframe whose own scan `query` matches best (MatchLocal in `window` around the pose the
+// submap's drawing gives, T_submap_query); -1 when none matches. A place submap draws every
+// pass of the place at its estimate: where an open loop drew two passes apart, a query matched
+// on one lies, by the drawing, just as near to keyframes of the other (see RefineWide).
+int32_t BestSeenKeyframe(const std::vector<SeenKeyframe>& keyframes, const PointCloud& query,
+                         const Pose2& T_submap_query, const LocalMatchOptions& window);
 
 // What a wide hypothesis brings to a pair.
 struct WideEvidence {

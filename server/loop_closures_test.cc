@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <optional>
+#include <random>
 #include <set>
 #include <utility>
 #include <vector>
@@ -9,8 +10,10 @@
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
 
+#include "common/scan_matching/point_cloud.h"
 #include "server/mapping_server.h"
 #include "tests/scan_testing/scan_scenarios.h"
+#include "tests/scan_testing/synthetic_world.h"
 
 namespace anchormap {
 namespace {
@@ -334,6 +337,63 @@ TEST(LoopClosuresTest, AWidePairAllowsTheQueriesPathToHaveDrifted) {
   }
 }
 
+// An open loop draws two passes of one place 3 m apart in the place submap: the query, matched
+// on the first pass, lies by the drawing at the second pass's keyframe. The keyframe chosen for
+// the refinement is the one whose own scan the query matches, the first pass's.
+TEST(LoopClosuresTest, TheRefinementKeyframeIsThePassTheQueryMatched) {
+  const testing::SyntheticWorld world = testing::RandomRoom(5);
+  std::mt19937_64 rng(11);
+  testing::SyntheticLaser laser;  // 180 degrees, as on the benchmark's robots
+  laser.beams = 181;
+  laser.fov_rad = kPi;
+  const Eigen::Vector2d drift(3.0, 0.0);  // how far the drawing put the second pass
+  Pose2 first_pass, query, second_pass, second_drawn;
+  for (int attempt = 0;; ++attempt) {
+    ASSERT_LT(attempt, 1000);
+    first_pass = testing::RandomFreePose(world, 0.8, &rng);
+    query = Compose(first_pass, Pose2(0.4, 0.1, 0.05));
+    second_drawn = Compose(query, Pose2(0.1, 0.0, 0.3));
+    second_pass =
+        Pose2(second_drawn.x() - drift.x(), second_drawn.y() - drift.y(), second_drawn.theta());
+    const auto free = [&](const Pose2& pose) {
+      const Eigen::Vector2d p = pose.translation();
+      return p.x() > world.min_corner.x() && p.y() > world.min_corner.y() &&
+             p.x() < world.max_corner.x() && p.y() < world.max_corner.y() &&
+             world.DistanceToNearestWall(p) > 0.8;
+    };
+    if (free(query) && free(second_pass)) break;
+  }
+  const LoopClosureOptions options;
+  auto reference = [&](const Pose2& at) {
+    const PointCloud scan = ScanToPointCloud(testing::SimulateScan(world, laser, at, &rng));
+    return std::shared_ptr<const ScanReference>(
+        std::make_shared<ScanReference>(std::vector<PointCloud>{scan}, options.reference));
+  };
+  const PointCloud seen = ScanToPointCloud(testing::SimulateScan(world, laser, query, &rng));
+  // The submap's frame is the first pass's drawing (the world's, here).
+  const std::vector<SeenKeyframe> keyframes{{7, first_pass, reference(first_pass)},
+                                            {76, second_drawn, reference(second_pass)}};
+  ASSERT_LT((second_drawn.translation() - query.translation()).norm(),
+            (first_pass.translation() - query.translation()).norm());
+  LocalMatchOptions window;
+  window.match = options.match;
+  window.linear_window_m = 0.5 * options.min_window_m;
+  window.angular_window_rad = 0.5 * options.min_window_rad;
+  EXPECT_EQ(BestSeenKeyframe(keyframes, seen, query, window), 7);
+  // Where the drawing puts it, the second pass's scan does not hold the query (no match, or a
+  // weak one), and with no first pass nothing is chosen that scores above it.
+  const std::optional<MatchResult> second =
+      MatchLocal(*keyframes[1].scan, seen, Between(second_drawn, query), window);
+  const std::optional<MatchResult> first =
+      MatchLocal(*keyframes[0].scan, seen, Between(first_pass, query), window);
+  ASSERT_TRUE(first.has_value());
+  EXPECT_GT(first->score, options.min_score);
+  if (second) {
+    EXPECT_LT(second->score, first->score);
+  }
+  EXPECT_EQ(BestSeenKeyframe({}, seen, query, window), -1);
+}
+
 TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
   LoopClosureOptions options;
   EXPECT_TRUE(options.Validate().ok());
@@ -341,6 +401,9 @@ TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
   EXPECT_FALSE(options.Validate().ok());
   options = LoopClosureOptions{};
   options.refine_look_ahead_m = -0.5;
+  EXPECT_FALSE(options.Validate().ok());
+  options = LoopClosureOptions{};
+  options.refine_choice_radius_m = -1.0;
   EXPECT_FALSE(options.Validate().ok());
   options = LoopClosureOptions{};
   options.wide_weak_partner_max_sigma_m = 0.0;

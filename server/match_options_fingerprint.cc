@@ -10,7 +10,7 @@ namespace {
 static_assert(sizeof(MatchOptions) == 32, "new MatchOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
-static_assert(sizeof(LoopClosureOptions) == 376,
+static_assert(sizeof(LoopClosureOptions) == 384,
               "new LoopClosureOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanEncounterOptions) == 400,
               "new ScanEncounterOptions field: add it to the fingerprint");
@@ -93,6 +93,7 @@ void Add(Fnv1a* h, const LoopClosureOptions& o) {
   h->F(o.wide_weak_min_overlap);
   h->F(o.wide_pair_min_separation_m);
   h->F(o.refine_look_ahead_m);
+  h->F(o.refine_choice_radius_m);
   h->F(o.wide_weak_partner_max_sigma_m);
   Add(h, o.reference);
   Add(h, o.match);

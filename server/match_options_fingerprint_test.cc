@@ -29,6 +29,7 @@ TEST(MatchOptionsFingerprintTest, ChangesWithTheOptionsThatChangeResults) {
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_max_window_m = 10.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_weak_min_overlap = 0.7; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.refine_look_ahead_m = 1.0; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.refine_choice_radius_m = 0.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_pair_min_separation_m = 2.0; }));
   EXPECT_TRUE(
       changed([](MappingServerOptions* o) { o->loop.wide_weak_partner_max_sigma_m = 0.2; }));
