@@ -150,6 +150,14 @@ struct ScanEncounterOptions {
   // (the pairwise test, pcm_chi2); then both enter. A lone wide match (a wrong place the
   // wider window and gate let through) enters nothing.
   double near_wide_max_window_m = 6.0;
+  // Joined trajectories drift apart with the path both robots drove since the nearest
+  // constraint that ties them (TrajectoryTies::ShortestDrive, through a third trajectory
+  // too): the smoother's covariance trusts scan-matched odometry too much. This drift is
+  // added to the prediction's covariance (translation and heading) for the window, and a
+  // match the plain gate refuses but the drifted one accepts is held for the pair rule above,
+  // like a wide one (0 and 0: no drift term).
+  double near_drift_per_m = 0.01;
+  double near_drift_rad_per_m = 0.001;
   int near_pair_min_gap = 2;
   int near_pair_max_gap = 60;
   int near_max_held = 8;  // wide matches held per pair of trajectories
@@ -219,6 +227,13 @@ class ScanEncounters : public EncounterSource {
   // agrees (both enter then).
   void OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
                      EncounterSourceOutput* out);
+  // A match of a near search whose window was not wide: entered at once when the plain gate
+  // accepts it; else, when the gate with the drift term accepts it, held as a wide one is.
+  void OfferNear(const EncounterCandidate& candidate, const GraphView& graph,
+                 EncounterSourceOutput* out);
+  // The drift term of the relative pose of keyframe b seen from keyframe a, two joined
+  // trajectories (zero without the graph's ties, or when none connects them).
+  Eigen::Matrix3d NearDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
   // Drawn when its keyframes are solved, built when a search uses it (references_: the
@@ -256,6 +271,15 @@ class ScanEncounters : public EncounterSource {
   // counted); `widened`: the prediction's covariance widened in every direction by its largest
   // translational sigma (the wide near search's matches).
   bool PassesGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened);
+  // The same test, not counted; `drift` is added to the prediction's covariance.
+  bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
+                  const Eigen::Matrix3d& drift) const;
+  // A near match (wide: its window was): entered, held for the pair rule, or refused.
+  void OfferNearMatch(const EncounterCandidate& candidate, bool wide, const GraphView& graph,
+                      EncounterSourceOutput* out);
+  // Holds a match accepted only by a widened gate until a second one agrees; both enter then.
+  void HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
+                   EncounterSourceOutput* out);
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
@@ -317,6 +341,9 @@ class ScanEncounters : public EncounterSource {
   // The index of `other`'s submaps, refreshed when due.
   const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
   std::map<TrajectoryId, SubmapIndex> near_index_;
+  // Per trajectory, the path its odometry drove from its first keyframe to each keyframe
+  // (extended as keyframes come; a function of the table, so not in snapshots).
+  std::map<TrajectoryId, std::vector<double>> driven_;
   CandidateStats stats_;
 };
 
