@@ -138,6 +138,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.near_wide_max_window_m);
   h->F(o.near_drift_per_m);
   h->F(o.near_drift_rad_per_m);
+  h->I(o.near_catch_up_every);
   h->I(o.near_pair_min_gap);
   h->I(o.near_pair_max_gap);
   h->I(o.near_max_held);

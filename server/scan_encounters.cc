@@ -67,6 +67,7 @@ Status ScanEncounterOptions::Validate() const {
         "scan wide near search: near_wide_max_window_m >= 0, 1 <= near_pair_min_gap <= "
         "near_pair_max_gap, near_max_held >= 1");
   }
+  if (near_catch_up_every < 0) return Status::Error("scan.near_catch_up_every must be >= 0");
   if (!(near_drift_per_m >= 0) || !(near_drift_rad_per_m >= 0))
     return Status::Error("scan near drift: near_drift_per_m and near_drift_rad_per_m >= 0");
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
@@ -134,6 +135,7 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   BuildSubmaps(graph);
+  CatchUpJoined(graph, out);
   std::deque<PoseKey> still_waiting;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
@@ -190,6 +192,33 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
     global_queue_.Enqueue(key);
     ServeGlobalQueue(graph);
   }
+}
+
+void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out) {
+  const std::deque<TrajectoryRecord>& records = graph.table.records();
+  std::set<std::pair<int64_t, int32_t>> waiting;
+  for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
+  for (size_t i = 0; i < records.size(); ++i) {
+    for (size_t j = i + 1; j < records.size(); ++j) {
+      const TrajectoryId a = std::min(records[i].solver_id, records[j].solver_id);
+      const TrajectoryId b = std::max(records[i].solver_id, records[j].solver_id);
+      if (!InOneFrame(graph.smoother, a, b) || !near_joined_.insert({a, b}).second) continue;
+      if (!near_joined_known_ || options_.near_catch_up_every < 1) continue;
+      for (const auto& [from, to] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+        const TrajectoryRecord* record = graph.table.FindBySolverId(from);
+        for (int32_t k = 0; k < record->num_keyframes(); k += options_.near_catch_up_every) {
+          const PoseKey key{from, k};
+          // Waiting keyframes are examined next, as joined ones.
+          if (waiting.count({from.value(), k}) > 0 || !graph.covariances->HasCovariance(key) ||
+              record->scans[static_cast<size_t>(k)].ranges.empty()) {
+            continue;
+          }
+          SearchNear(key, to, graph, out);
+        }
+      }
+    }
+  }
+  near_joined_known_ = true;
 }
 
 void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {

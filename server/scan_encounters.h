@@ -38,6 +38,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -158,6 +159,11 @@ struct ScanEncounterOptions {
   // like a wide one (0 and 0: no drift term).
   double near_drift_per_m = 0.01;
   double near_drift_rad_per_m = 0.001;
+  // When two trajectories come into one frame, their keyframes examined before are
+  // near-searched against each other once (every near_catch_up_every-th; 0: never): a place
+  // both passed before the join is otherwise never matched (ACES 2 robots simultaneous: R1
+  // 456-511 s and R2's 1041-1080 s pass, joined at R1's 650 s, 2 m apart in the map).
+  int near_catch_up_every = 1;
   int near_pair_min_gap = 2;
   int near_pair_max_gap = 60;
   int near_max_held = 8;  // wide matches held per pair of trajectories
@@ -257,6 +263,8 @@ class ScanEncounters : public EncounterSource {
   int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
   void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
                   EncounterSourceOutput* out);
+  // Near-searches the keyframes examined before a pair came into one frame (once per pair).
+  void CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
   void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
               MatchPool::Job job);
@@ -344,6 +352,10 @@ class ScanEncounters : public EncounterSource {
   // Per trajectory, the path its odometry drove from its first keyframe to each keyframe
   // (extended as keyframes come; a function of the table, so not in snapshots).
   std::map<TrajectoryId, std::vector<double>> driven_;
+  // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
+  // that held none: the pairs in one frame then are taken as caught up.
+  std::set<Pair> near_joined_;
+  bool near_joined_known_ = true;
   CandidateStats stats_;
 };
 
