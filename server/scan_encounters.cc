@@ -102,6 +102,23 @@ EncounterCandidate Reversed(const EncounterCandidate& c) {
 
 }  // namespace
 
+LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
+                                   const ScanEncounterOptions& options, bool* wide) {
+  LocalMatchOptions window;
+  window.match = options.match;
+  const double three_sigma = 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>());
+  *wide =
+      three_sigma > options.max_window_m && options.near_wide_max_window_m > options.max_window_m;
+  window.linear_window_m =
+      *wide ? std::min(three_sigma, options.near_wide_max_window_m)
+            : std::clamp(three_sigma, options.min_window_m, options.max_window_m);
+  // The acceptance bar prunes the branch and bound of a wide window.
+  if (*wide) window.match.min_score = std::max(window.match.min_score, options.near_min_score);
+  window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, covariance(2, 2))),
+                                         options.min_window_rad, options.max_window_rad);
+  return window;
+}
+
 void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
                                      EncounterSourceOutput* /*out*/) {
   waiting_.push_back(key);
@@ -333,19 +350,9 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
-  LocalMatchOptions window;
-  window.match = options_.match;
-  const Eigen::Matrix3d covariance = predicted->covariance + NearDrift(nearest->center, key, graph);
-  const double three_sigma = 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>());
-  const bool wide = three_sigma > options_.max_window_m &&
-                    options_.near_wide_max_window_m > options_.max_window_m;
-  window.linear_window_m =
-      wide ? std::min(three_sigma, options_.near_wide_max_window_m)
-           : std::clamp(three_sigma, options_.min_window_m, options_.max_window_m);
-  // The acceptance bar prunes the branch and bound of a wide window.
-  if (wide) window.match.min_score = std::max(window.match.min_score, options_.near_min_score);
-  window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, covariance(2, 2))),
-                                         options_.min_window_rad, options_.max_window_rad);
+  bool wide = false;
+  const LocalMatchOptions window = NearSearchWindow(
+      predicted->covariance + NearDrift(nearest->center, key, graph), options_, &wide);
   std::shared_ptr<const ScanReference> reference = Reference(*nearest, graph);
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;

@@ -182,6 +182,12 @@ struct ScanEncounterOptions {
   Status Validate() const;
 };
 
+// The near search's window around a prediction of covariance `covariance` (the drift term
+// included): 3 sigma within [min_window, max_window], or, when 3 sigma exceeds max_window_m,
+// up to near_wide_max_window_m (`wide`, with the acceptance bar as the lattice's bar).
+LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
+                                   const ScanEncounterOptions& options, bool* wide);
+
 // A candidate encounter: keyframe b measured in the frame of keyframe a.
 struct EncounterCandidate {
   PoseKey a;

@@ -12,6 +12,7 @@
 
 #include "server/keyframe_overlap.h"
 #include "server/mapping_server.h"
+#include "server/relative_pose.h"
 #include "tests/scan_testing/scan_scenarios.h"
 #include "tests/testing/straight_keyframes.h"
 
@@ -657,6 +658,36 @@ TEST_F(NearDriftTest, AMatchBeyondTheDriftIsRefused) {
   EXPECT_TRUE(Offer({Match(20, 20, 0.2), Match(20, 23, 0.2)}).empty());
   EXPECT_EQ(stats_.gate_rejected, 2);
   EXPECT_EQ(stats_.kept, 0);
+}
+
+// ACES 3 robots simultaneous, R1 at 474-487 s against R3's 1071 s pass: the estimate's 1-sigma
+// was 0.33 m and 0.0177 rad, the true match 1.62 m and 0.093 rad off it, about 135 m of both
+// robots' drive from the nearest tie. Without the drift term the window (1 m) did not hold it
+// and the plain gate refused its heading (chi-square 28 against 11.34).
+TEST(NearSearchWindowTest, TheDriftTermReachesWhereTheEstimateDrifted) {
+  const ScanEncounterOptions options;
+  const Eigen::Matrix3d estimate =
+      Eigen::Vector3d(0.33 * 0.33, 0.33 * 0.33, 0.0177 * 0.0177).asDiagonal();
+  const Eigen::Vector3d offset(-0.53, -1.53, 0.093);
+  bool wide = true;
+  const LocalMatchOptions before = NearSearchWindow(estimate, options, &wide);
+  EXPECT_FALSE(wide);
+  EXPECT_LT(before.linear_window_m, std::abs(offset.y()));
+  const double drive_m = 135.0;
+  const double m = options.near_drift_per_m * drive_m, rad = options.near_drift_rad_per_m * drive_m;
+  const Eigen::Matrix3d drifted =
+      estimate + Eigen::Matrix3d(Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal());
+  const LocalMatchOptions after = NearSearchWindow(drifted, options, &wide);
+  EXPECT_TRUE(wide);  // 3 x 1.39 m: searched by branch and bound, held for the pair rule
+  EXPECT_GT(after.linear_window_m, std::abs(offset.y()));
+  EXPECT_LE(after.linear_window_m, options.near_wide_max_window_m);
+  EXPECT_GT(after.angular_window_rad, offset.z());
+  EXPECT_GE(after.match.min_score, options.near_min_score);
+  // And the gate: the plain one refuses the match, the drifted one accepts it.
+  const Eigen::Matrix3d match = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+  const Pose2 measured(offset.x(), offset.y(), offset.z());
+  EXPECT_GT(Mahalanobis2(Pose2(), measured, estimate + match), options.gate_chi2);
+  EXPECT_LT(Mahalanobis2(Pose2(), measured, drifted + match), options.gate_chi2);
 }
 
 // Eight robots that never meet, keyframes 1 s apart: how many global searches they cost.
