@@ -29,7 +29,11 @@
 // - against a trajectory of its group: when the predicted distance to one of the other's
 //   submap centres is below near_distance_m (the thesis' 4 m), a window search around
 //   the prediction; accepted with overlap >= near_min_overlap (85 %) and a chi-square
-//   gate against the estimate and the joint covariance.
+//   gate against the estimate and the joint covariance. The window and a second gate add
+//   a drift term for the path both robots drove since the nearest tie between them
+//   (near_drift_*): a match only that gate accepts enters with a second one that agrees.
+//   When a pair first comes into one frame, the keyframes examined before are searched
+//   so once (near_catch_up_every).
 // The matches run on the MatchPool's workers (or on the caller's thread without a pool);
 // their results are used when the canonical input reaches the keyframe's time plus the
 // schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
