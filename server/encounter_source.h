@@ -18,6 +18,7 @@
 #include "common/types/encounter.h"
 #include "common/util/status.h"
 #include "server/trajectory_table.h"
+#include "server/trajectory_ties.h"
 
 namespace anchormap {
 
@@ -49,6 +50,9 @@ struct GraphView {
   // The same smoother for covariance queries (memoised, hence not const); null when the
   // caller offers none (sources that need covariances then do nothing).
   Smoother* covariances = nullptr;
+  // The constraints between trajectories in the graph (null when the caller keeps none: the
+  // near search then adds no drift for the path since them).
+  const TrajectoryTies* ties = nullptr;
 };
 
 class EncounterSource {

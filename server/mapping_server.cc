@@ -190,14 +190,14 @@ void MappingServer::ApplyKeyframe(Keyframe keyframe) {
   table_.FlushHeld(&admitted);
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
-  const GraphView graph{table_, smoother_, &smoother_};
+  const GraphView graph{table_, smoother_, &smoother_, &ties_};
   for (auto& source : sources_) source->Poll(released_utime_, graph, &found);
   Commit(found, !admitted.empty(), "keyframe");
 }
 
 void MappingServer::ApplyEncounter(const Encounter& encounter) {
   EncounterSourceOutput found;
-  const GraphView graph{table_, smoother_, &smoother_};
+  const GraphView graph{table_, smoother_, &smoother_, &ties_};
   for (auto& source : sources_) {
     source->OnEncounterMessage(encounter, graph, &found);
     source->Poll(released_utime_, graph, &found);
@@ -282,7 +282,7 @@ void MappingServer::Flush() {
   Release(/*at_end=*/true, 0);
   SolvePending();  // the sources' last look reads a solved graph
   EncounterSourceOutput found;
-  const GraphView graph{table_, smoother_, &smoother_};
+  const GraphView graph{table_, smoother_, &smoother_, &ties_};
   for (auto& source : sources_) source->Flush(graph, &found);
   Commit(found, false, "flush");
   // End of input: one batch step, so that the last map is the converged solution rather
@@ -341,7 +341,7 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
       rejects_.Count(ErrorCode::kSolverRejected, "keyframe", status.message());
       continue;
     }
-    const GraphView graph{table_, smoother_, &smoother_};
+    const GraphView graph{table_, smoother_, &smoother_, &ties_};
     for (auto& source : sources_) source->OnKeyframeAdded(a.key, graph, found);
   }
 }
@@ -362,6 +362,7 @@ void MappingServer::Commit(const EncounterSourceOutput& found, bool changed,
     }
     graph_edits_.push_back({within ? GraphEdit::Kind::kBetween : GraphEdit::Kind::kEncounter, c.a,
                             c.b, c.measured_T_a_b, c.covariance});
+    if (!within) ties_.Add(c.a, c.b);
     changed = true;
     ++stats_.encounters_added;
     ++stats_.added_by_kind[static_cast<int>(c.kind)];

@@ -253,6 +253,9 @@ class MappingServer {
   const CanonicalOrderStats& order_stats() const { return order_.stats(); }
   const RejectCounter& rejects() const { return rejects_; }
   const std::vector<EncounterLink>& encounter_links() const { return links_; }
+  // The encounters in the graph (of every kind), by the keyframes they tie; rebuilt from the
+  // graph edits on a restore.
+  const TrajectoryTies& ties() const { return ties_; }
   MapPublisher& publisher() { return publisher_; }
   // The scan-matching sources' workers; their results are journaled and reused on a
   // restart through it (MatchPool::SetRecorder, Preload).
@@ -308,6 +311,7 @@ class MappingServer {
   std::vector<std::unique_ptr<EncounterSource>> sources_;
   std::vector<EncounterLink> links_;
   std::vector<GraphEdit> graph_edits_;  // every successful smoother Add*, in order
+  TrajectoryTies ties_;                 // the kEncounter edits' keyframes
   RejectCounter rejects_;
   OncePerKindLog solver_log_;
   MappingServerStats stats_;

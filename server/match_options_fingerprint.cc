@@ -12,7 +12,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 384,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 400,
+static_assert(sizeof(ScanEncounterOptions) == 416,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 104,
               "new SmootherOptions field: add it to the fingerprint");
@@ -136,6 +136,9 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.min_window_rad);
   h->F(o.max_window_rad);
   h->F(o.near_wide_max_window_m);
+  h->F(o.near_drift_per_m);
+  h->F(o.near_drift_rad_per_m);
+  h->I(o.near_catch_up_every);
   h->I(o.near_pair_min_gap);
   h->I(o.near_pair_max_gap);
   h->I(o.near_max_held);

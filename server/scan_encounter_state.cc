@@ -54,6 +54,8 @@ ScanEncounterState ScanEncounters::ExportState() const {
     auto& out = s.near_held[pair];
     for (const EncounterCandidate& c : held) out.push_back(ToState(c));
   }
+  s.near_joined = near_joined_;
+  s.near_joined_known = near_joined_known_;
   return s;
 }
 
@@ -102,6 +104,8 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
     std::deque<EncounterCandidate>& out = near_held_[pair];
     for (const ScanEncounterCandidateState& c : held) out.push_back(FromState(c));
   }
+  near_joined_ = s.near_joined;
+  near_joined_known_ = s.near_joined_known;
 }
 
 }  // namespace anchormap

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -72,6 +73,10 @@ struct ScanEncounterState {
   CandidateStats stats;
   // Wide near matches waiting for a second one (snapshot version 5), keyed (query, other).
   std::map<Pair, std::vector<ScanEncounterCandidateState>> near_held;
+  // The pairs of trajectories seen in one frame, whose earlier keyframes were near-searched
+  // (snapshot version 6); near_joined_known false when read from an older one.
+  std::set<Pair> near_joined;
+  bool near_joined_known = true;
 };
 
 }  // namespace anchormap

@@ -67,6 +67,9 @@ Status ScanEncounterOptions::Validate() const {
         "scan wide near search: near_wide_max_window_m >= 0, 1 <= near_pair_min_gap <= "
         "near_pair_max_gap, near_max_held >= 1");
   }
+  if (near_catch_up_every < 0) return Status::Error("scan.near_catch_up_every must be >= 0");
+  if (!(near_drift_per_m >= 0) || !(near_drift_rad_per_m >= 0))
+    return Status::Error("scan near drift: near_drift_per_m and near_drift_rad_per_m >= 0");
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
     return Status::Error("scan covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
@@ -98,6 +101,23 @@ EncounterCandidate Reversed(const EncounterCandidate& c) {
 }
 
 }  // namespace
+
+LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
+                                   const ScanEncounterOptions& options, bool* wide) {
+  LocalMatchOptions window;
+  window.match = options.match;
+  const double three_sigma = 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>());
+  *wide =
+      three_sigma > options.max_window_m && options.near_wide_max_window_m > options.max_window_m;
+  window.linear_window_m =
+      *wide ? std::min(three_sigma, options.near_wide_max_window_m)
+            : std::clamp(three_sigma, options.min_window_m, options.max_window_m);
+  // The acceptance bar prunes the branch and bound of a wide window.
+  if (*wide) window.match.min_score = std::max(window.match.min_score, options.near_min_score);
+  window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, covariance(2, 2))),
+                                         options.min_window_rad, options.max_window_rad);
+  return window;
+}
 
 void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
                                      EncounterSourceOutput* /*out*/) {
@@ -132,6 +152,7 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   BuildSubmaps(graph);
+  CatchUpJoined(graph, out);
   std::deque<PoseKey> still_waiting;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
@@ -188,6 +209,33 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
     global_queue_.Enqueue(key);
     ServeGlobalQueue(graph);
   }
+}
+
+void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out) {
+  const std::deque<TrajectoryRecord>& records = graph.table.records();
+  std::set<std::pair<int64_t, int32_t>> waiting;
+  for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
+  for (size_t i = 0; i < records.size(); ++i) {
+    for (size_t j = i + 1; j < records.size(); ++j) {
+      const TrajectoryId a = std::min(records[i].solver_id, records[j].solver_id);
+      const TrajectoryId b = std::max(records[i].solver_id, records[j].solver_id);
+      if (!InOneFrame(graph.smoother, a, b) || !near_joined_.insert({a, b}).second) continue;
+      if (!near_joined_known_ || options_.near_catch_up_every < 1) continue;
+      for (const auto& [from, to] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+        const TrajectoryRecord* record = graph.table.FindBySolverId(from);
+        for (int32_t k = 0; k < record->num_keyframes(); k += options_.near_catch_up_every) {
+          const PoseKey key{from, k};
+          // Waiting keyframes are examined next, as joined ones.
+          if (waiting.count({from.value(), k}) > 0 || !graph.covariances->HasCovariance(key) ||
+              record->scans[static_cast<size_t>(k)].ranges.empty()) {
+            continue;
+          }
+          SearchNear(key, to, graph, out);
+        }
+      }
+    }
+  }
+  near_joined_known_ = true;
 }
 
 void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
@@ -302,19 +350,9 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
-  LocalMatchOptions window;
-  window.match = options_.match;
-  const double three_sigma = 3.0 * LargestSigma(predicted->covariance.topLeftCorner<2, 2>());
-  const bool wide = three_sigma > options_.max_window_m &&
-                    options_.near_wide_max_window_m > options_.max_window_m;
-  window.linear_window_m =
-      wide ? std::min(three_sigma, options_.near_wide_max_window_m)
-           : std::clamp(three_sigma, options_.min_window_m, options_.max_window_m);
-  // The acceptance bar prunes the branch and bound of a wide window.
-  if (wide) window.match.min_score = std::max(window.match.min_score, options_.near_min_score);
-  window.angular_window_rad =
-      std::clamp(3.0 * std::sqrt(std::max(0.0, predicted->covariance(2, 2))),
-                 options_.min_window_rad, options_.max_window_rad);
+  bool wide = false;
+  const LocalMatchOptions window = NearSearchWindow(
+      predicted->covariance + NearDrift(nearest->center, key, graph), options_, &wide);
   std::shared_ptr<const ScanReference> reference = Reference(*nearest, graph);
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
@@ -396,18 +434,69 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
       if (!out->constraints.empty() && out->constraints.back().b == pending.key) {
         joined = std::make_pair(pending.key, pending.center.trajectory);
       }
-    } else if (pending.wide) {
-      OfferWideNear(candidate, graph, out);
-    } else if (GateAndEmit(candidate, graph, out)) {
-      near_quiet_until_[{pending.key.trajectory, pending.center.trajectory}] =
-          pending.key.index + 1 + options_.near_cooldown_keyframes;
+    } else {
+      OfferNearMatch(candidate, pending.wide, graph, out);
     }
   }
 }
 
 void ScanEncounters::OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
                                    EncounterSourceOutput* out) {
-  if (!PassesGate(candidate, graph, /*widened=*/true)) return;
+  OfferNearMatch(candidate, /*wide=*/true, graph, out);
+}
+
+void ScanEncounters::OfferNear(const EncounterCandidate& candidate, const GraphView& graph,
+                               EncounterSourceOutput* out) {
+  OfferNearMatch(candidate, /*wide=*/false, graph, out);
+}
+
+Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView& graph) {
+  if (graph.ties == nullptr ||
+      (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {
+    return Eigen::Matrix3d::Zero();
+  }
+  for (const TrajectoryRecord& record : graph.table.records()) {
+    std::vector<double>& driven = driven_[record.solver_id];
+    for (size_t i = driven.size(); i < record.odometry_poses.size(); ++i) {
+      driven.push_back(i == 0 ? 0.0
+                              : driven.back() + (record.odometry_poses[i].translation() -
+                                                 record.odometry_poses[i - 1].translation())
+                                                    .norm());
+    }
+  }
+  const auto driven_to = [this](PoseKey key) {
+    const std::vector<double>& driven = driven_[key.trajectory];
+    if (driven.empty()) return 0.0;
+    return driven[static_cast<size_t>(
+        std::clamp<int32_t>(key.index, 0, static_cast<int32_t>(driven.size()) - 1))];
+  };
+  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
+  if (!drive) return Eigen::Matrix3d::Zero();
+  const double m = options_.near_drift_per_m * *drive;
+  const double rad = options_.near_drift_rad_per_m * *drive;
+  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
+}
+
+void ScanEncounters::OfferNearMatch(const EncounterCandidate& candidate, bool wide,
+                                    const GraphView& graph, EncounterSourceOutput* out) {
+  const Pair key{candidate.b.trajectory, candidate.a.trajectory};
+  const Eigen::Matrix3d drift = NearDrift(candidate.a, candidate.b, graph);
+  // Within the estimate's own covariance: enters at once.
+  if (!wide && WithinGate(candidate, graph, /*widened=*/false, Eigen::Matrix3d::Zero())) {
+    ++stats_.accepted;
+    Emit(candidate, out);
+    near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
+    return;
+  }
+  if ((!wide && drift.isZero()) || !WithinGate(candidate, graph, wide, drift)) {
+    ++stats_.gate_rejected;
+    return;
+  }
+  HoldForPair(candidate, graph, out);
+}
+
+void ScanEncounters::HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
+                                 EncounterSourceOutput* out) {
   const Pair key{candidate.b.trajectory, candidate.a.trajectory};
   std::deque<EncounterCandidate>& held = near_held_[key];
   GiveUpHeldOlderThan(
@@ -643,12 +732,16 @@ void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* 
 
 bool ScanEncounters::PassesGate(const EncounterCandidate& candidate, const GraphView& graph,
                                 bool widened) {
+  if (WithinGate(candidate, graph, widened, Eigen::Matrix3d::Zero())) return true;
+  ++stats_.gate_rejected;
+  return false;
+}
+
+bool ScanEncounters::WithinGate(const EncounterCandidate& candidate, const GraphView& graph,
+                                bool widened, const Eigen::Matrix3d& drift) const {
   const std::optional<PredictedRelativePose> predicted =
       PredictRelativePose(graph.covariances, candidate.a, candidate.b);
-  if (!predicted) {
-    ++stats_.gate_rejected;
-    return false;
-  }
+  if (!predicted) return false;
   Eigen::Matrix3d covariance = predicted->covariance;
   if (widened) {
     // In every direction by the largest sigma: the estimate of two drifted-apart
@@ -656,12 +749,8 @@ bool ScanEncounters::PassesGate(const EncounterCandidate& candidate, const Graph
     const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
     covariance.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
   }
-  if (Mahalanobis2(predicted->T_a_b, candidate.T_a_b, covariance + candidate.covariance) >
-      options_.gate_chi2) {
-    ++stats_.gate_rejected;
-    return false;
-  }
-  return true;
+  return Mahalanobis2(predicted->T_a_b, candidate.T_a_b,
+                      covariance + drift + candidate.covariance) <= options_.gate_chi2;
 }
 
 bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,

@@ -29,7 +29,11 @@
 // - against a trajectory of its group: when the predicted distance to one of the other's
 //   submap centres is below near_distance_m (the thesis' 4 m), a window search around
 //   the prediction; accepted with overlap >= near_min_overlap (85 %) and a chi-square
-//   gate against the estimate and the joint covariance.
+//   gate against the estimate and the joint covariance. The window and a second gate add
+//   a drift term for the path both robots drove since the nearest tie between them
+//   (near_drift_*): a match only that gate accepts enters with a second one that agrees.
+//   When a pair first comes into one frame, the keyframes examined before are searched
+//   so once (near_catch_up_every).
 // The matches run on the MatchPool's workers (or on the caller's thread without a pool);
 // their results are used when the canonical input reaches the keyframe's time plus the
 // schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
@@ -38,6 +42,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -150,6 +155,19 @@ struct ScanEncounterOptions {
   // (the pairwise test, pcm_chi2); then both enter. A lone wide match (a wrong place the
   // wider window and gate let through) enters nothing.
   double near_wide_max_window_m = 6.0;
+  // Joined trajectories drift apart with the path both robots drove since the nearest
+  // constraint that ties them (TrajectoryTies::ShortestDrive, through a third trajectory
+  // too): the smoother's covariance trusts scan-matched odometry too much. This drift is
+  // added to the prediction's covariance (translation and heading) for the window, and a
+  // match the plain gate refuses but the drifted one accepts is held for the pair rule above,
+  // like a wide one (0 and 0: no drift term).
+  double near_drift_per_m = 0.01;
+  double near_drift_rad_per_m = 0.001;
+  // When two trajectories come into one frame, their keyframes examined before are
+  // near-searched against each other once (every near_catch_up_every-th; 0: never): a place
+  // both passed before the join is otherwise never matched (ACES 2 robots simultaneous: R1
+  // 456-511 s and R2's 1041-1080 s pass, joined at R1's 650 s, 2 m apart in the map).
+  int near_catch_up_every = 1;
   int near_pair_min_gap = 2;
   int near_pair_max_gap = 60;
   int near_max_held = 8;  // wide matches held per pair of trajectories
@@ -167,6 +185,12 @@ struct ScanEncounterOptions {
 
   Status Validate() const;
 };
+
+// The near search's window around a prediction of covariance `covariance` (the drift term
+// included): 3 sigma within [min_window, max_window], or, when 3 sigma exceeds max_window_m,
+// up to near_wide_max_window_m (`wide`, with the acceptance bar as the lattice's bar).
+LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
+                                   const ScanEncounterOptions& options, bool* wide);
 
 // A candidate encounter: keyframe b measured in the frame of keyframe a.
 struct EncounterCandidate {
@@ -219,6 +243,13 @@ class ScanEncounters : public EncounterSource {
   // agrees (both enter then).
   void OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
                      EncounterSourceOutput* out);
+  // A match of a near search whose window was not wide: entered at once when the plain gate
+  // accepts it; else, when the gate with the drift term accepts it, held as a wide one is.
+  void OfferNear(const EncounterCandidate& candidate, const GraphView& graph,
+                 EncounterSourceOutput* out);
+  // The drift term of the relative pose of keyframe b seen from keyframe a, two joined
+  // trajectories (zero without the graph's ties, or when none connects them).
+  Eigen::Matrix3d NearDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
   // Drawn when its keyframes are solved, built when a search uses it (references_: the
@@ -242,6 +273,8 @@ class ScanEncounters : public EncounterSource {
   int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
   void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
                   EncounterSourceOutput* out);
+  // Near-searches the keyframes examined before a pair came into one frame (once per pair).
+  void CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
   void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
               MatchPool::Job job);
@@ -256,6 +289,15 @@ class ScanEncounters : public EncounterSource {
   // counted); `widened`: the prediction's covariance widened in every direction by its largest
   // translational sigma (the wide near search's matches).
   bool PassesGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened);
+  // The same test, not counted; `drift` is added to the prediction's covariance.
+  bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
+                  const Eigen::Matrix3d& drift) const;
+  // A near match (wide: its window was): entered, held for the pair rule, or refused.
+  void OfferNearMatch(const EncounterCandidate& candidate, bool wide, const GraphView& graph,
+                      EncounterSourceOutput* out);
+  // Holds a match accepted only by a widened gate until a second one agrees; both enter then.
+  void HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
+                   EncounterSourceOutput* out);
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
@@ -317,6 +359,13 @@ class ScanEncounters : public EncounterSource {
   // The index of `other`'s submaps, refreshed when due.
   const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
   std::map<TrajectoryId, SubmapIndex> near_index_;
+  // Per trajectory, the path its odometry drove from its first keyframe to each keyframe
+  // (extended as keyframes come; a function of the table, so not in snapshots).
+  std::map<TrajectoryId, std::vector<double>> driven_;
+  // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
+  // that held none: the pairs in one frame then are taken as caught up.
+  std::set<Pair> near_joined_;
+  bool near_joined_known_ = true;
   CandidateStats stats_;
 };
 

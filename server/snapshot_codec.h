@@ -55,8 +55,10 @@ namespace anchormap {
 // Version 4 adds the solve period's state (MappingServerOptions::solve_period_s: the last
 // update's data time, inputs pending); older ones read as solved at their newest input.
 // Version 5 adds the scan encounters' wide near matches (in flight and held); older ones
-// read as having none.
-inline constexpr uint32_t kSnapshotVersion = 5;
+// read as having none. Version 6 adds the scan encounters' pairs of trajectories caught up
+// (near-searched after they came into one frame); older ones read as every pair in one frame
+// caught up.
+inline constexpr uint32_t kSnapshotVersion = 6;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

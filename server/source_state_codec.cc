@@ -321,9 +321,17 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
     w->Size(held.size());
     for (const ScanEncounterCandidateState& c : held) PutCandidate(w, c);
   }
+  if (snapshot_version < 6) return;
+  w->Bool(s.near_joined_known);
+  w->Size(s.near_joined.size());
+  for (const auto& pair : s.near_joined) Put(w, pair);
 }
 
 void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* s) {
+  // Before version 6 no pair was caught up: the pairs in one frame then are taken as caught
+  // up (the source finds them at its next look).
+  s->near_joined.clear();
+  s->near_joined_known = false;
   s->matches.resize(r->Count(8));
   for (ScanEncounterState::Match& m : s->matches) {
     m.due_utime = r->I64();
@@ -410,6 +418,13 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
     auto& held = s->near_held[pair];
     held.resize(r->Count(8));
     for (ScanEncounterCandidateState& c : held) GetCandidate(r, &c);
+  }
+  if (snapshot_version < 6) return;
+  s->near_joined_known = r->Bool();
+  for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
+    Pair pair{TrajectoryId(0), TrajectoryId(0)};
+    Get(r, &pair);
+    s->near_joined.insert(pair);
   }
 }
 

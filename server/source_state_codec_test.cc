@@ -158,5 +158,22 @@ TEST(SourceStateCodecTest, AVersionFourStateIsReadWithNoWideNearMatches) {
   EXPECT_FALSE(complete);
 }
 
+// The pairs caught up after coming into one frame (version 6) are kept; a version-5 state
+// reads as not knowing them (the restored source takes the pairs in one frame as caught up).
+TEST(SourceStateCodecTest, CaughtUpPairsAreKeptFromVersionSix) {
+  ScanEncounterState state = StateWithAWideNearMatch();
+  state.near_joined.insert({TrajectoryId(0), TrajectoryId(2)});
+  bool complete = false;
+  const ScanEncounterState out =
+      DecodeScan(Encode(state, kSnapshotVersion), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  EXPECT_TRUE(out.near_joined_known);
+  EXPECT_EQ(out.near_joined, state.near_joined);
+  const ScanEncounterState old = DecodeScan(Encode(state, 5), 5, &complete);
+  EXPECT_TRUE(complete);
+  EXPECT_FALSE(old.near_joined_known);
+  EXPECT_TRUE(old.near_joined.empty());
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -1,0 +1,39 @@
+#pragma once
+// The constraints that tie one trajectory to another (encounters of every kind), kept by the
+// server as they enter the graph. A near search between joined trajectories asks how far the
+// two robots drove since the nearest tie: the estimate of two trajectories is exact where a
+// constraint ties them and drifts apart with the path driven away from it, in both (or
+// through a third trajectory both are tied to).
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "common/solver/keys.h"
+
+namespace anchormap {
+
+class TrajectoryTies {
+ public:
+  // Keyframe a of one trajectory tied to keyframe b of another (a loop closure, within one
+  // trajectory, is no tie: ignored).
+  void Add(PoseKey a, PoseKey b);
+  void Clear() { ends_.clear(); }
+  int64_t size() const { return size_; }
+
+  // The shortest drive from `from` to `to`: along each trajectory (`driven(key)`, the path
+  // driven from the trajectory's start to that keyframe, nondecreasing in the index),
+  // crossing from one trajectory to another only where they are tied (a tie costs nothing).
+  // nullopt when no chain of ties connects the two trajectories.
+  std::optional<double> ShortestDrive(PoseKey from, PoseKey to,
+                                      const std::function<double(PoseKey)>& driven) const;
+
+ private:
+  // Per trajectory: its tied keyframes, by index, each with the keyframes tied to it.
+  std::map<TrajectoryId, std::map<int32_t, std::vector<PoseKey>>> ends_;
+  int64_t size_ = 0;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,44 @@
+#include "server/trajectory_ties.h"
+
+#include <gtest/gtest.h>
+
+namespace anchormap {
+namespace {
+
+const TrajectoryId kA(0), kB(1), kC(2);
+
+// Every keyframe 1 m further than the one before, in every trajectory.
+double OneMetreEach(PoseKey key) { return key.index; }
+
+TEST(TrajectoryTiesTest, UntiedTrajectoriesHaveNoDrive) {
+  TrajectoryTies ties;
+  EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kB, 4}, OneMetreEach));
+  ties.Add({kA, 0}, {kA, 9});  // a loop closure ties nothing
+  EXPECT_EQ(ties.size(), 0);
+  EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kB, 4}, OneMetreEach));
+}
+
+TEST(TrajectoryTiesTest, TheNearestTieOfThePairCounts) {
+  TrajectoryTies ties;
+  ties.Add({kA, 10}, {kB, 50});
+  ties.Add({kB, 20}, {kA, 40});  // either way round
+  // A[42] to B[25]: 2 m to A[40], then 5 m from B[20]; through the other tie 32 + 25.
+  ASSERT_TRUE(ties.ShortestDrive({kA, 42}, {kB, 25}, OneMetreEach));
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 42}, {kB, 25}, OneMetreEach), 7.0);
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kB, 25}, {kA, 42}, OneMetreEach), 7.0);
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 10}, {kB, 50}, OneMetreEach), 0.0);
+}
+
+TEST(TrajectoryTiesTest, AChainThroughAThirdTrajectoryCounts) {
+  TrajectoryTies ties;
+  ties.Add({kA, 5}, {kC, 100});
+  ties.Add({kC, 104}, {kB, 30});
+  ties.Add({kA, 90}, {kB, 90});
+  // A[8] to B[33]: 3 (A 8->5) + 4 (C 100->104) + 3 (B 30->33) = 10, not 82 + 57.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 8}, {kB, 33}, OneMetreEach), 10.0);
+  // Near the direct tie, the direct tie: 1 + 2.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 89}, {kB, 92}, OneMetreEach), 3.0);
+}
+
+}  // namespace
+}  // namespace anchormap
