@@ -29,6 +29,11 @@ class LinearizationCache {
   void Skip(int64_t id);
   void Clear();
 
+  // Factor `id`'s entry as the last At() left it.
+  const LinearizedFactor& entry(int64_t id) const { return factors_[id]; }
+  // By variable: whether its value differs from the previous pass (every one on the first).
+  const std::vector<char>& moved() const { return moved_; }
+
   // Work counters: passes and factors linearised by them (cache misses).
   int64_t passes() const { return passes_; }
   int64_t linearized() const { return linearized_; }
