@@ -14,6 +14,16 @@ const double* Doubles(const std::vector<Eigen::Matrix3d>& m) {
   return reinterpret_cast<const double*>(m.data());
 }
 
+// The inverse of an upper triangular 3x3 block (column-major: d[i + 3 * j] is (i, j)).
+std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
+  const double* d = m.data();
+  const double i00 = 1.0 / d[0], i11 = 1.0 / d[4], i22 = 1.0 / d[8];
+  const double i01 = -d[3] * i00 * i11;
+  const double i12 = -d[7] * i11 * i22;
+  const double i02 = -(d[3] * i12 + d[6] * i22) * i00;
+  return {i00, i01, i02, i11, i12, i22};
+}
+
 }  // namespace
 
 int FlatR::Refresh(const SparseR& r) {
@@ -29,7 +39,7 @@ int FlatR::Refresh(const SparseR& r) {
   }
   // Sized first, then filled: the source rows are scattered, the copy need not be.
   int64_t blocks = from == 0 ? 0 : row_start_[from];
-  diagonals_.resize(n);
+  inverse_diagonals_.resize(n);
   row_start_.resize(n + 1);
   for (int p = from; p < n; ++p) {
     row_start_[p] = blocks;
@@ -40,7 +50,7 @@ int FlatR::Refresh(const SparseR& r) {
   blocks_.resize(blocks);
   for (int p = from; p < n; ++p) {
     const RBlockRow& row = r.row(p);
-    diagonals_[p] = row.diagonal;
+    inverse_diagonals_[p] = InverseUpper(row.diagonal);
     int64_t k = row_start_[p];
     for (const auto& [q, block] : row.right) {
       columns_[k] = q;
@@ -64,12 +74,12 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
   const double* block = Doubles(blocks_);
   double norm2 = 0.0;
   for (int p = 0; p < n; ++p) {
-    // R_pp^T is lower triangular: forward substitution.
-    const double* d = diagonals_[p].data();
+    // y = R_pp^-T x_p.
+    const double* i = inverse_diagonals_[p].data();
     double* xp = x + 3 * p;
-    const double y0 = xp[0] / d[0];
-    const double y1 = (xp[1] - d[3] * y0) / d[4];
-    const double y2 = (xp[2] - d[6] * y0 - d[7] * y1) / d[8];
+    const double y0 = i[0] * xp[0];
+    const double y1 = i[1] * xp[0] + i[3] * xp[1];
+    const double y2 = i[2] * xp[0] + i[4] * xp[1] + i[5] * xp[2];
     xp[0] = y0;
     xp[1] = y1;
     xp[2] = y2;
@@ -103,13 +113,11 @@ void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
       s1 -= b[1] * xq[0] + b[4] * xq[1] + b[7] * xq[2];
       s2 -= b[2] * xq[0] + b[5] * xq[1] + b[8] * xq[2];
     }
-    // R_pp is upper triangular: back substitution.
-    const double* d = diagonals_[p].data();
-    const double y2 = s2 / d[8];
-    const double y1 = (s1 - d[7] * y2) / d[4];
-    xp[2] = y2;
-    xp[1] = y1;
-    xp[0] = (s0 - d[3] * y1 - d[6] * y2) / d[0];
+    // x_p = R_pp^-1 s.
+    const double* i = inverse_diagonals_[p].data();
+    xp[0] = i[0] * s0 + i[1] * s1 + i[2] * s2;
+    xp[1] = i[3] * s1 + i[4] * s2;
+    xp[2] = i[5] * s2;
   }
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 // The factors of a smoother linearised at its current estimate, kept between gradient
-// passes of the correction (smoother_correction.cc). An entry is recomputed only when one
+// passes of the correction (incremental_gradient.h). An entry is recomputed only when one
 // of its variables' values differs in any bit from the value it was last computed at, so
 // the cache is a pure function of the estimate: a smoother rebuilt from a snapshot (which
 // starts with an empty cache) computes the same bits, and a pass costs the factors whose
@@ -28,6 +28,11 @@ class LinearizationCache {
   // unseen before it is back).
   void Skip(int64_t id);
   void Clear();
+
+  // Factor `id`'s entry as the last At() left it.
+  const LinearizedFactor& entry(int64_t id) const { return factors_[id]; }
+  // By variable: whether its value differs from the previous pass (every one on the first).
+  const std::vector<char>& moved() const { return moved_; }
 
   // Work counters: passes and factors linearised by them (cache misses).
   int64_t passes() const { return passes_; }

@@ -35,6 +35,7 @@ int64_t Smoother::Impl::AddFactor(Factor factor) {
   }
   factors_.push_back(std::move(record));
   factor_lin_.emplace_back();
+  counted_in_gradient_.push_back(0);
   pending_factors_.push_back(static_cast<int64_t>(factors_.size()) - 1);
   ++stats_.factors;
   return static_cast<int64_t>(factors_.size()) - 1;
@@ -176,6 +177,7 @@ Status Smoother::Impl::AddEncounter(PoseKey a, PoseKey b, const Pose2& z,
     const std::vector<TrajectoryId> members_b = GroupMembers(root_b);
     const AnchorGroups::Merge merge = groups_.MergeGroups(a.trajectory, b.trajectory);
     factors_[merge.absorbed_prior_id].active = false;
+    counted_in_gradient_[merge.absorbed_prior_id] = 0;
     merge_pending_ = true;
     if (MergesByPartialStep()) merge_vars_.push_back(factors_[merge.absorbed_prior_id].vars[0]);
     if (options_.formulation != Formulation::kGlobal) {

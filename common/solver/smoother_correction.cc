@@ -39,31 +39,11 @@ bool Smoother::Impl::CorrectEstimate() {
   return converged;
 }
 
-double Smoother::Impl::GradientAtEstimate(Vectors* g, std::vector<LinearizedInR>* linearized) {
-  if (linearized != nullptr) linearized->clear();
-  std::fill(g->begin(), g->end(), Eigen::Vector3d::Zero());
+double Smoother::Impl::GradientAtEstimate() {
   estimate_scratch_.resize(vars_.size());
   for (size_t v = 0; v < vars_.size(); ++v) estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
-  LinearizationCache& cache = linearized_at_estimate_;
-  cache.BeginPass(estimate_scratch_, static_cast<int64_t>(factors_.size()));
-  double chi2 = 0.0;
-  for (size_t id = 0; id < factors_.size(); ++id) {
-    const FactorRecord& f = factors_[id];
-    if (!f.active || !factor_lin_[id].in_r) {
-      cache.Skip(static_cast<int64_t>(id));
-      continue;
-    }
-    const LinearizedFactor& lin =
-        cache.At(static_cast<int64_t>(id), f.factor, f.vars.data(), f.num_vars);
-    chi2 += lin.whitened_error.squaredNorm();
-    std::array<int, kMaxFactorKeys> positions;
-    for (int j = 0; j < f.num_vars; ++j) {
-      positions[j] = vars_[f.vars[j]].position;
-      (*g)[positions[j]].noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
-    }
-    if (linearized != nullptr) linearized->push_back({positions, &lin});
-  }
-  return chi2;
+  return gradient_.Pass(estimate_scratch_, position_to_var_, factors_, counted_in_gradient_,
+                        var_factors_);
 }
 
 bool Smoother::Impl::CorrectByFixedPointSteps() {
@@ -72,7 +52,8 @@ bool Smoother::Impl::CorrectByFixedPointSteps() {
   Vectors g(n), step(n);
   double previous_chi2 = std::numeric_limits<double>::infinity();
   for (int it = 0;; ++it) {
-    const double chi2 = GradientAtEstimate(&g, nullptr);
+    const double chi2 = GradientAtEstimate();
+    g = gradient_.g();
     if (chi2 > previous_chi2) {  // R is too stale to be a preconditioner here: undo
       for (int p = 0; p < n; ++p) correction_[position_to_var_[p]] += step[p];
       return false;
@@ -97,15 +78,16 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
   const double tolerance = options_.correction_tolerance;
   // The factors in R, linearised at the estimate: J(x) by blocks, applied factor by
   // factor (J^T J is never formed).
-  std::vector<LinearizedInR> factors;
+  std::vector<IncrementalGradient::PositionedFactor> factors;
   factors.reserve(factors_.size());
-  Vectors g(n), r(n), z(n), p(n), q(n), h(n);
+  const Vectors& g = gradient_.g();
+  Vectors r(n), z(n), p(n), q(n), h(n);
   double previous_chi2 = std::numeric_limits<double>::infinity();
   int cg_iterations = 0;
   int halvings = 0;
   for (int outer = 0;; ++outer) {
     // Gradient of chi2 / 2 at the estimate, and the Jacobians there.
-    const double chi2 = GradientAtEstimate(&g, &factors);
+    const double chi2 = GradientAtEstimate();
     if (chi2 > previous_chi2) {
       // The Gauss-Newton step overshot (the model is poor this far): halve it, at most
       // three times, then give up.
@@ -131,6 +113,8 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
         cg_iterations >= options_.correction_cg_iterations) {
       return false;
     }
+    // Only now the Jacobians, by position: most passes end above.
+    gradient_.CountedFactors(&factors);
     R.SolveInPlace(&z);
     p = z;
     std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
@@ -138,7 +122,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
       // q = J^T J p.
       std::fill(q.begin(), q.end(), Eigen::Vector3d::Zero());
       double pq = 0.0;
-      for (const LinearizedInR& l : factors) {
+      for (const IncrementalGradient::PositionedFactor& l : factors) {
         Eigen::Vector3d jp = Eigen::Vector3d::Zero();
         for (int j = 0; j < l.lin->num_keys; ++j)
           jp.noalias() += l.lin->jacobians[j] * p[l.positions[j]];

@@ -23,8 +23,9 @@
 #include "common/solver/batch_policy.h"
 #include "common/solver/covariances.h"
 #include "common/solver/factor.h"
+#include "common/solver/factor_record.h"
 #include "common/solver/flat_r.h"
-#include "common/solver/linearization_cache.h"
+#include "common/solver/incremental_gradient.h"
 #include "common/solver/smoother.h"
 #include "common/solver/smoother_state.h"
 #include "common/solver/sparse_r.h"
@@ -38,13 +39,6 @@ struct Variable {
   Key key;
   Pose2 linearization;
   int position = -1;  // elimination position; -1 while pending (not yet in R)
-};
-
-struct FactorRecord {
-  Factor factor;
-  std::array<int, kMaxFactorKeys> vars{};
-  int num_vars = 0;
-  bool active = true;  // false once removed (a gauge prior dropped at a merge)
 };
 
 // Where a factor's rows in R were linearised: J(x - theta) = J (at - theta) - e(at).
@@ -135,9 +129,7 @@ class Smoother::Impl {
   std::vector<int> SolvedPositions(const std::vector<Key>& keys) const;
   double Chi2() const;
   const SmootherStats& stats() const { return stats_; }
-  CorrectionWork correction_work() const {
-    return {linearized_at_estimate_.passes(), linearized_at_estimate_.linearized()};
-  }
+  CorrectionWork correction_work() const { return {gradient_.passes(), gradient_.linearized()}; }
   Smoother::LinearSystem LinearSystemForTesting() const {
     Smoother::LinearSystem out;
     for (int var : position_to_var_) {
@@ -182,6 +174,17 @@ class Smoother::Impl {
   void MarkInR(int64_t id, const std::array<Pose2, kMaxFactorKeys>& at) {
     factor_lin_[id].at = at;
     factor_lin_[id].in_r = true;
+    counted_in_gradient_[id] = factors_[id].active ? 1 : 0;
+  }
+  void TakeOutOfR(int64_t id) {
+    factor_lin_[id].in_r = false;
+    counted_in_gradient_[id] = 0;
+  }
+  // counted_in_gradient_ again from factors_ and factor_lin_ (after they were replaced).
+  void RecountFactorsInR() {
+    counted_in_gradient_.resize(factors_.size());
+    for (size_t f = 0; f < factors_.size(); ++f)
+      counted_in_gradient_[f] = factors_[f].active && factor_lin_[f].in_r ? 1 : 0;
   }
   Eigen::Matrix3d GaugeSqrtInformation() const {
     return Eigen::Matrix3d::Identity() / options_.gauge_prior_sigma;
@@ -217,18 +220,11 @@ class Smoother::Impl {
   // neighbours' corrections imply through the factor's Jacobians `lin`.
   void PlaceByNeighboursCorrection(const FactorRecord& f, const LinearizedFactor& lin,
                                    int first_new);
-  // A factor in R linearised at the estimate (held by linearized_at_estimate_ until the
-  // next pass), with its variables' positions in R.
-  struct LinearizedInR {
-    std::array<int, kMaxFactorKeys> positions;
-    const LinearizedFactor* lin;
-  };
-  // chi2 at the estimate over the factors in R, and its half-gradient g (by position in R,
-  // overwritten); the linearised factors too when `linearized` is not null (replaced).
-  // Only factors whose variables moved since the last pass are linearised again; the sums
-  // run over every factor in id order, so they are the bits a full pass gives.
-  double GradientAtEstimate(std::vector<Eigen::Vector3d>* g,
-                            std::vector<LinearizedInR>* linearized);
+  // chi2 at the estimate over the factors in R; its half-gradient g by position in R is
+  // gradient_.g(), and gradient_.CountedFactors() the factors linearised there. Only what
+  // the estimate's moves since the last pass changed is computed again, with the bits a
+  // full pass gives (incremental_gradient.h).
+  double GradientAtEstimate();
   // The drift check: a partial step (or a batch step) on the variables whose estimate
   // moved more than relinearize_threshold from their linearisation point; false if none.
   bool RelinearizeDrifted(UpdateResult* result);
@@ -293,6 +289,7 @@ class Smoother::Impl {
     delta_ = std::move(s.delta);
     correction_ = std::move(s.correction);
     r_ = std::move(s.r);
+    RecountFactorsInR();
     updates_since_batch_ = s.updates_since_batch;
     nonzeros_after_batch_ = s.nonzeros_after_batch;
   }
@@ -333,7 +330,10 @@ class Smoother::Impl {
   std::vector<Variable> vars_;
   std::unordered_map<Key, int, KeyHash> index_;
   std::vector<FactorRecord> factors_;
-  std::vector<FactorLinearization> factor_lin_;    // by factor id
+  std::vector<FactorLinearization> factor_lin_;  // by factor id
+  // By factor id: active and its rows in R (what the gradient passes count), kept in step
+  // with factors_ and factor_lin_ so that a pass need not read them all.
+  std::vector<char> counted_in_gradient_;
   std::vector<std::vector<int64_t>> var_factors_;  // by variable: ids of its factors
   std::vector<int64_t> factor_stamp_;              // PartialRelinearization's work space
   std::vector<Eigen::Vector3d> tail_solution_;     // PlaceNewVariables' work space
@@ -350,7 +350,7 @@ class Smoother::Impl {
   double last_chi2_ = 0.0;             // chi2 at its last gradient evaluation
   double innovation_ = 0.0;            // new factors' chi2 at entry since then
   // Work space of GradientAtEstimate (not in the state: a function of the estimate).
-  LinearizationCache linearized_at_estimate_;
+  IncrementalGradient gradient_;
   std::vector<Pose2> estimate_scratch_;
   FlatR flat_r_;  // the correction's copy of R (not in the state: rebuilt from r_)
   std::shared_ptr<SparseR> r_;

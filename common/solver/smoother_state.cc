@@ -95,7 +95,8 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   correction_converged_ = s.correction_converged;
   last_chi2_ = s.last_chi2;
   innovation_ = s.innovation;
-  linearized_at_estimate_.Clear();  // a function of the estimate: rebuilt by the next pass
+  RecountFactorsInR();
+  gradient_.Clear();  // a function of the estimate: rebuilt by the next pass
   r_ = std::move(r);
   covariances_.reset();
   // Work space only: a partial step compares stamps with a fresh one.

@@ -444,7 +444,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   for (const LocalFactor& lf : local_factors) {
     if (lf.relinearize) MarkInR(lf.id, relinearized_at[next_relinearized++]);
   }
-  for (int64_t f : leaving) factor_lin_[f].in_r = false;
+  for (int64_t f : leaving) TakeOutOfR(f);
   std::vector<Eigen::Vector3d> old_delta(delta_.begin() + p0, delta_.end());
   for (int p : drifted_positions) {
     Variable& v = vars_[position_to_var_[p]];
@@ -585,7 +585,7 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
     correction_[var].setZero();
   }
   // Start from scratch: every active factor is pending, grounding starts at the priors.
-  for (FactorLinearization& lin : factor_lin_) lin.in_r = false;
+  for (size_t f = 0; f < factor_lin_.size(); ++f) TakeOutOfR(static_cast<int64_t>(f));
   pending_factors_.clear();
   for (size_t f = 0; f < factors_.size(); ++f) {
     if (factors_[f].active) pending_factors_.push_back(static_cast<int64_t>(f));

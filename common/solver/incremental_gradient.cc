@@ -1,0 +1,171 @@
+#include "common/solver/incremental_gradient.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace anchormap {
+namespace {
+
+// Eight flags at once: most of a pass's factors did not change.
+uint64_t Word(const char* bytes) {
+  uint64_t w;
+  std::memcpy(&w, bytes, sizeof(w));
+  return w;
+}
+
+}  // namespace
+
+double IncrementalGradient::Pass(const std::vector<Pose2>& values,
+                                 const std::vector<int>& position_to_var,
+                                 const std::vector<smoother_internal::FactorRecord>& factors,
+                                 const std::vector<char>& counted,
+                                 const std::vector<std::vector<int64_t>>& var_factors) {
+  const int64_t num_factors = static_cast<int64_t>(factors.size());
+  const int num_vars = static_cast<int>(values.size());
+  const int n = static_cast<int>(position_to_var.size());
+  if (num_factors < static_cast<int64_t>(counted_.size()) ||
+      num_vars < static_cast<int>(position_.size())) {
+    Clear();  // not a continuation of the last pass's graph
+  }
+  cache_.BeginPass(values, num_factors);
+
+  // New factors: their variables never change.
+  const int64_t known = static_cast<int64_t>(counted_.size());
+  factor_vars_.resize(num_factors);
+  factor_num_vars_.resize(num_factors);
+  counted_.resize(num_factors, 0);
+  stale_.resize(num_factors, 0);
+  terms_.resize(num_factors);
+  squared_.resize(num_factors, 0.0);
+  chi2_prefix_.resize(num_factors, 0.0);
+  for (int64_t id = known; id < num_factors; ++id) {
+    factor_vars_[id] = factors[id].vars;
+    factor_num_vars_[id] = factors[id].num_vars;
+  }
+
+  // Positions: variables appended to R keep the others' places; anything else (a
+  // reordering) adds every sum again.
+  dirty_.resize(num_vars, 0);
+  const bool extends = order_.size() <= position_to_var.size() &&
+                       std::equal(order_.begin(), order_.end(), position_to_var.begin());
+  const int first_new_position = extends ? static_cast<int>(order_.size()) : 0;
+  if (!extends) position_.assign(num_vars, -1);
+  position_.resize(num_vars, -1);
+  for (int p = first_new_position; p < n; ++p) position_[position_to_var[p]] = p;
+  order_.assign(position_to_var.begin(), position_to_var.end());
+  auto mark = [this](int var) {
+    if (position_[var] >= 0 && !dirty_[var]) {
+      dirty_[var] = 1;
+      dirty_vars_.push_back(var);
+    }
+  };
+  for (int p = first_new_position; p < n; ++p) mark(position_to_var[p]);
+
+  // Factors of moved variables, and factors counted now and not before or the reverse.
+  // Few moved (after an update): through their factor lists; many (after a step): by
+  // looking at every factor's variables, sequentially, rather than chasing the lists.
+  const std::vector<char>& moved = cache_.moved();
+  const int num_moved = static_cast<int>(std::count(moved.begin(), moved.end(), 1));
+  if (num_moved <= num_vars / 8) {
+    for (int var = 0; var < num_vars; ++var) {
+      if (!moved[var]) continue;
+      for (int64_t f : var_factors[var]) stale_[f] = 1;
+    }
+  } else {
+    for (int64_t id = 0; id < num_factors; ++id) {
+      char any = 0;
+      for (int j = 0; j < factor_num_vars_[id]; ++j) any |= moved[factor_vars_[id][j]];
+      stale_[id] = any;
+    }
+  }
+  int64_t first_changed = known;
+  const char* now = counted.data();
+  for (int64_t id = 0; id < num_factors; ++id) {
+    if (id + 8 <= num_factors && (id & 7) == 0 &&
+        ((Word(now + id) ^ Word(counted_.data() + id)) | Word(stale_.data() + id)) == 0) {
+      id += 7;
+      continue;
+    }
+    const bool counts = now[id] != 0;
+    if (!stale_[id] && counts == (counted_[id] != 0)) continue;
+    stale_[id] = 0;
+    if (counts) {
+      const smoother_internal::FactorRecord& f = factors[id];
+      const LinearizedFactor& lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
+      for (int j = 0; j < f.num_vars; ++j)
+        terms_[id][j].noalias() = lin.jacobians[j].transpose() * lin.whitened_error;
+      squared_[id] = lin.whitened_error.squaredNorm();
+    } else {
+      cache_.Skip(id);  // its variables may move unseen before it counts again
+    }
+    if (counts || counted_[id]) {
+      for (int j = 0; j < factor_num_vars_[id]; ++j) mark(factor_vars_[id][j]);
+      first_changed = std::min(first_changed, id);
+    }
+    counted_[id] = counts ? 1 : 0;
+  }
+
+  // chi2 from the first changed factor on.
+  double chi2 = first_changed > 0 ? chi2_prefix_[first_changed - 1] : 0.0;
+  for (int64_t id = first_changed; id < num_factors; ++id) {
+    if (counted_[id]) chi2 += squared_[id];
+    chi2_prefix_[id] = chi2;
+  }
+
+  // g where a term changed: by variable when few did, else by scattering every term (the
+  // same additions in the same order).
+  g_.resize(n);
+  if (!extends || static_cast<int>(dirty_vars_.size()) > n / 4) {
+    std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
+    for (int64_t id = 0; id < num_factors; ++id) {
+      if (!counted_[id]) continue;
+      for (int j = 0; j < factor_num_vars_[id]; ++j)
+        g_[position_[factor_vars_[id][j]]] += terms_[id][j];
+    }
+  } else {
+    for (int var : dirty_vars_) SumAt(var, var_factors);
+  }
+  for (int var : dirty_vars_) dirty_[var] = 0;
+  dirty_vars_.clear();
+  return chi2;
+}
+
+void IncrementalGradient::SumAt(int var, const std::vector<std::vector<int64_t>>& var_factors) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int64_t f : var_factors[var]) {
+    if (!counted_[f]) continue;
+    for (int j = 0; j < factor_num_vars_[f]; ++j) {
+      if (factor_vars_[f][j] == var) sum += terms_[f][j];
+    }
+  }
+  g_[position_[var]] = sum;
+}
+
+void IncrementalGradient::CountedFactors(std::vector<PositionedFactor>* out) const {
+  out->clear();
+  for (size_t id = 0; id < counted_.size(); ++id) {
+    if (!counted_[id]) continue;
+    PositionedFactor pf;
+    for (int j = 0; j < factor_num_vars_[id]; ++j) pf.positions[j] = position_[factor_vars_[id][j]];
+    pf.lin = &cache_.entry(static_cast<int64_t>(id));
+    out->push_back(pf);
+  }
+}
+
+void IncrementalGradient::Clear() {
+  cache_.Clear();
+  factor_vars_.clear();
+  factor_num_vars_.clear();
+  counted_.clear();
+  stale_.clear();
+  terms_.clear();
+  squared_.clear();
+  chi2_prefix_.clear();
+  position_.clear();
+  dirty_.clear();
+  dirty_vars_.clear();
+  order_.clear();
+  g_.clear();
+}
+
+}  // namespace anchormap

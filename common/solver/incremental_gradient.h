@@ -1,0 +1,77 @@
+#pragma once
+// The correction's chi2 and half-gradient g = sum_k J_k^T e_k at the estimate
+// (smoother_correction.cc), kept between passes. A pass linearises only the factors one of
+// whose variables moved (LinearizationCache), and adds again only the sums those factors
+// feed: g at each of their variables, and chi2 from the first of them on. Right after an
+// update only the new factors are new, so its first pass costs them, not the map.
+//
+// The sums are the bits of a full pass: g at a variable adds its factors' terms J_k^T e_k
+// in factor id order starting from zero, chi2 adds the factors' squared errors in id order
+// (kept as a prefix by factor id). So a pass is a pure function of the values and the
+// factors, whatever the passes before it: a smoother restored from a snapshot (which
+// starts with an empty one) continues bit for bit.
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/solver/factor.h"
+#include "common/solver/factor_record.h"
+#include "common/solver/linearization_cache.h"
+
+namespace anchormap {
+
+class IncrementalGradient {
+ public:
+  // A factor counted by the last pass, linearised there, with its variables' positions.
+  struct PositionedFactor {
+    std::array<int, kMaxFactorKeys> positions;
+    const LinearizedFactor* lin;
+  };
+
+  // One pass at `values` (by variable). g is ordered by `position_to_var` (the variables
+  // in R); `counted` (by factor id) says which of `factors` count (active, rows in R; all
+  // their variables are in R); `var_factors` lists each variable's factor ids ascending.
+  // Returns chi2; g() holds the half-gradient by position until the next pass.
+  double Pass(const std::vector<Pose2>& values, const std::vector<int>& position_to_var,
+              const std::vector<smoother_internal::FactorRecord>& factors,
+              const std::vector<char>& counted,
+              const std::vector<std::vector<int64_t>>& var_factors);
+  const std::vector<Eigen::Vector3d>& g() const { return g_; }
+  // The factors the last pass counted, in id order (replaces `out`); valid until the
+  // next pass.
+  void CountedFactors(std::vector<PositionedFactor>* out) const;
+  // Forgets everything: the next pass is a full one.
+  void Clear();
+
+  // Work counters: passes and factors linearised by them.
+  int64_t passes() const { return cache_.passes(); }
+  int64_t linearized() const { return cache_.linearized(); }
+
+ private:
+  using Terms = std::array<Eigen::Vector3d, kMaxFactorKeys>;
+  // g at `position` again from the terms of its variable's counted factors.
+  void SumAt(int var, const std::vector<std::vector<int64_t>>& var_factors);
+
+  LinearizationCache cache_;
+  // By factor id.
+  std::vector<std::array<int, kMaxFactorKeys>> factor_vars_;
+  std::vector<int> factor_num_vars_;
+  std::vector<char> counted_;        // counted by the last pass
+  std::vector<char> stale_;          // work space: a variable of it moved in this pass
+  std::vector<Terms> terms_;         // J_k^T e by key, at the last pass's values
+  std::vector<double> squared_;      // |e|^2, same
+  std::vector<double> chi2_prefix_;  // sum of the counted |e|^2 up to and including it
+  // By variable.
+  std::vector<int> position_;  // in g, -1 outside R (as of the last pass)
+  std::vector<char> dirty_;    // work space: its g must be added again
+  std::vector<int> dirty_vars_;
+  // By position.
+  std::vector<int> order_;  // position_to_var of the last pass
+  std::vector<Eigen::Vector3d> g_;
+};
+
+}  // namespace anchormap
