@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace anchormap {
 
@@ -20,6 +25,9 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
                                    const GridGeometry& geometry)
     : half_angles_(window.half_angles), num_points_(query.size()) {
   cells_.resize(2 * window.half_angles + 1);
+  boxes_.resize(cells_.size());
+  xs_.resize(cells_.size());
+  ys_.resize(cells_.size());
   for (int k = -window.half_angles; k <= window.half_angles; ++k) {
     const Pose2 pose(window.center.x(), window.center.y(),
                      window.center.theta() + k * window.angle_step_rad);
@@ -27,17 +35,175 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
     const Eigen::Vector2d t = pose.translation();
     std::vector<Eigen::Vector2i>& cells = cells_[k + half_angles_];
     cells.reserve(query.size());
-    for (const Eigen::Vector2d& p : query) cells.push_back(geometry.CellOf(R * p + t));
+    Box& box = boxes_[k + half_angles_];
+    box.min.setConstant(std::numeric_limits<int>::max());
+    box.max.setConstant(std::numeric_limits<int>::min());
+    for (const Eigen::Vector2d& p : query) {
+      cells.push_back(geometry.CellOf(R * p + t));
+      box.min = box.min.cwiseMin(cells.back());
+      box.max = box.max.cwiseMax(cells.back());
+    }
+    std::vector<int32_t>& xs = xs_[k + half_angles_];
+    std::vector<int32_t>& ys = ys_[k + half_angles_];
+    xs.reserve(cells.size());
+    ys.reserve(cells.size());
+    for (const Eigen::Vector2i& c : cells) {
+      xs.push_back(c.x());
+      ys.push_back(c.y());
+    }
   }
 }
 
 double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
                     int dx, int dy) {
+  return ScoreOnLevelAbove(grids, level, query, k, dx, dy,
+                           -std::numeric_limits<double>::infinity());
+}
+
+namespace {
+
+// Points summed between two looks at whether the rest can still lift the mean above the floor.
+constexpr size_t kChunk = 32;
+
+// The sum of the level's values at cells[begin, end) shifted by (x0, y0) in stored indices:
+// `Inside` when every shifted cell lies within the stored level (no bounds checks), `Exact`
+// when the values' sums are exact in any order (MaxGridPyramid::exact_sums: four independent
+// sums, the same double), in order otherwise (the same rounding as one running sum).
+#if defined(__x86_64__) && defined(__GNUC__)
+#define ANCHORMAP_HAS_AVX2_SUM 1
+// SumCells for exact sums, eight points at a time by AVX2 gathers (the order of the additions
+// does not matter there: every partial sum is exact). Cells outside the level read nothing
+// and add 0.
+template <bool Inside>
+__attribute__((target("avx2"))) double SumCellsAvx2(const MaxGridPyramid::LevelView& l,
+                                                    const int32_t* xs, const int32_t* ys,
+                                                    size_t begin, size_t end, int x0, int y0,
+                                                    double sum) {
+  const __m256i shift_x = _mm256_set1_epi32(x0);
+  const __m256i shift_y = _mm256_set1_epi32(y0);
+  const __m256i width = _mm256_set1_epi32(l.width);
+  // Unsigned "x < width" as a signed compare of both sides with the sign bit flipped.
+  const __m256i sign = _mm256_set1_epi32(static_cast<int>(0x80000000u));
+  const __m256i width_flipped = _mm256_xor_si256(width, sign);
+  const __m256i height_flipped = _mm256_xor_si256(_mm256_set1_epi32(l.height), sign);
+  __m256d low = _mm256_setzero_pd();
+  __m256d high = _mm256_setzero_pd();
+  size_t i = begin;
+  for (; i + 8 <= end; i += 8) {
+    const __m256i x =
+        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(xs + i)), shift_x);
+    const __m256i y =
+        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(ys + i)), shift_y);
+    const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(y, width), x);
+    __m256 v;
+    if (Inside) {
+      v = _mm256_i32gather_ps(l.values, index, 4);
+    } else {
+      const __m256i in_x = _mm256_cmpgt_epi32(width_flipped, _mm256_xor_si256(x, sign));
+      const __m256i in_y = _mm256_cmpgt_epi32(height_flipped, _mm256_xor_si256(y, sign));
+      const __m256 mask = _mm256_castsi256_ps(_mm256_and_si256(in_x, in_y));
+      v = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), l.values, index, mask, 4);
+    }
+    low = _mm256_add_pd(low, _mm256_cvtps_pd(_mm256_castps256_ps128(v)));
+    high = _mm256_add_pd(high, _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
+  }
+  alignas(32) double lanes[4];
+  _mm256_store_pd(lanes, _mm256_add_pd(low, high));
+  sum += (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+  for (; i < end; ++i) {
+    const int x = xs[i] + x0;
+    const int y = ys[i] + y0;
+    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
+                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
+      continue;
+    }
+    sum += l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
+  }
+  return sum;
+}
+bool HasAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has;
+}
+#endif
+
+template <bool Inside, bool Exact>
+double SumCells(const MaxGridPyramid::LevelView& l, const Eigen::Vector2i* cells, size_t begin,
+                size_t end, int x0, int y0, double sum) {
+  auto value = [&l, x0, y0](const Eigen::Vector2i& c) -> double {
+    const int x = c.x() + x0;
+    const int y = c.y() + y0;
+    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
+                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
+      return 0.0;
+    }
+    return l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
+  };
+  size_t i = begin;
+  if (Exact) {
+    double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    for (; i + 4 <= end; i += 4) {
+      sum += value(cells[i]);
+      s1 += value(cells[i + 1]);
+      s2 += value(cells[i + 2]);
+      s3 += value(cells[i + 3]);
+    }
+    sum += (s1 + s2) + s3;
+  }
+  for (; i < end; ++i) sum += value(cells[i]);
+  return sum;
+}
+
+template <bool Inside, bool Exact>
+double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& query, int k, int x0,
+                 int y0, double floor, double max_value) {
+  const std::vector<Eigen::Vector2i>& cells = query.cells(k);
+  const size_t n = cells.size();
+  const double count = static_cast<double>(n);
+  // The points left add at most max_value each; a margin far above the sums' rounding keeps
+  // the stop exact (a mean that would be above the floor is always finished).
+  const double stop = floor * count - 1e-9 * count * std::max(1.0, max_value);
+  double sum = 0.0;
+  for (size_t begin = 0; begin < n; begin += kChunk) {
+    const size_t end = std::min(n, begin + kChunk);
+#ifdef ANCHORMAP_HAS_AVX2_SUM
+    if (Exact && HasAvx2()) {
+      sum = SumCellsAvx2<Inside>(l, query.xs(k), query.ys(k), begin, end, x0, y0, sum);
+    } else {
+      sum = SumCells<Inside, Exact>(l, cells.data(), begin, end, x0, y0, sum);
+    }
+#else
+    sum = SumCells<Inside, Exact>(l, cells.data(), begin, end, x0, y0, sum);
+#endif
+    const double most = sum + static_cast<double>(n - end) * max_value;
+    if (end < n && most < stop) return std::min(floor, most / count);
+  }
+  return sum / count;
+}
+
+}  // namespace
+
+double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
+                         int k, int dx, int dy, double floor) {
   const std::vector<Eigen::Vector2i>& cells = query.cells(k);
   if (cells.empty()) return 0.0;
-  double sum = 0.0;
-  for (const Eigen::Vector2i& c : cells) sum += grids.Value(level, c.x() + dx, c.y() + dy);
-  return sum / static_cast<double>(cells.size());
+  const MaxGridPyramid::LevelView l = grids.level(level);
+  const int x0 = dx + l.offset;
+  const int y0 = dy + l.offset;
+  const DiscretisedQuery::Box& box = query.box(k);
+  const bool inside = box.min.x() + x0 >= 0 && box.min.y() + y0 >= 0 &&
+                      box.max.x() + x0 < l.width && box.max.y() + y0 < l.height;
+  const double max_value = grids.max_value();
+  // Below 2^22 points a sum of values <= 1 stays below 2^22 (exact_sums' condition).
+  if (grids.exact_sums() && cells.size() < (size_t{1} << 22)) {
+    return inside ? MeanAbove<true, true>(l, query, k, x0, y0, floor, max_value)
+                  : MeanAbove<false, true>(l, query, k, x0, y0, floor, max_value);
+  }
+  return inside ? MeanAbove<true, false>(l, query, k, x0, y0, floor, max_value)
+                : MeanAbove<false, false>(l, query, k, x0, y0, floor, max_value);
 }
 
 std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
@@ -100,7 +266,9 @@ class BranchAndBoundSearch {
       ++stats_->scored_nodes;
       if (level == 0) ++stats_->leaves;
     }
-    return ScoreOnLevel(grids_, level, query_, k, dx, dy);
+    // Only whether a node beats the best leaf so far matters (a node at or below it is never
+    // expanded): its score is finished only when it does.
+    return ScoreOnLevelAbove(grids_, level, query_, k, dx, dy, best_score_);
   }
 
   // Nodes of `level`, each a block of 2^level x 2^level translations (cut at the window).

@@ -58,6 +58,67 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearch) {
   EXPECT_LT(leaves_bnb, leaves_all / 2);
 }
 
+// The mean of the level's values at the query's shifted cells, one bounds-checked lookup at a
+// time in the query's order: what ScoreOnLevel computed before its fast paths.
+double NaiveScore(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
+                  int dx, int dy) {
+  double sum = 0.0;
+  for (const Eigen::Vector2i& c : query.cells(k)) sum += grids.Value(level, c.x() + dx, c.y() + dy);
+  return sum / static_cast<double>(query.cells(k).size());
+}
+
+TEST(LatticeSearchTest, FastScoresEqualTheNaiveSumToTheBit) {
+  // Grids whose sums are exact in any order (values 0 or in [2^-7, 1], as a likelihood grid's:
+  // the vectorised path) and grids with any values (the running sum): every level, shifts that
+  // keep the query inside the grid and shifts that put it partly or wholly outside.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> within(0.3, 2.2);  // small shifts keep it inside
+  std::uniform_real_distribution<double> beyond(-2.0, 5.0);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int trial = 0; trial < 10; ++trial) {
+    std::uniform_real_distribution<double>& coord = trial % 4 < 2 ? within : beyond;
+    const bool exact = trial % 2 == 0;
+    GridGeometry g;
+    g.resolution = 0.1;
+    g.width = 35;
+    g.height = 28;
+    std::vector<float> values(g.num_cells());
+    for (float& v : values) {
+      const float u = unit(rng);
+      v = unit(rng) < 0.3f ? (exact ? std::max(u, 1.0f / 128.0f) : u * 1e-3f) : 0.0f;
+    }
+    const MaxGridPyramid pyramid(LikelihoodGrid(g, values), 4);
+    EXPECT_EQ(pyramid.exact_sums(), exact);
+    PointCloud query;
+    for (int i = 0; i < 5 + 37 * trial; ++i) query.push_back({coord(rng), coord(rng)});
+    SearchWindow window;
+    window.center = Pose2(0.5, 0.4, 0.1 * trial);
+    window.angle_step_rad = 0.03;
+    window.half_angles = 1;
+    const DiscretisedQuery discretised(query, window, g);
+    for (int level = 0; level < 4; ++level) {
+      for (int k = -1; k <= 1; ++k) {
+        for (int dy = -40; dy <= 40; dy += 6) {
+          for (int dx = -45; dx <= 45; dx += 7) {
+            const double naive = NaiveScore(pyramid, level, discretised, k, dx, dy);
+            ASSERT_EQ(ScoreOnLevel(pyramid, level, discretised, k, dx, dy), naive)
+                << "trial " << trial << " level " << level << " k " << k << " " << dx << "," << dy;
+            // Above a floor the score is finished; at or below it, the answer stays there.
+            for (const double floor : {0.0, 0.5 * naive, naive, 0.2}) {
+              const double above = ScoreOnLevelAbove(pyramid, level, discretised, k, dx, dy, floor);
+              if (naive > floor) {
+                ASSERT_EQ(above, naive);
+              } else {
+                ASSERT_LE(above, floor);
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(LatticeSearchTest, FindsAPlantedPatternAndNothingAboveAnImpossibleScore) {
   GridGeometry g;
   g.resolution = 0.1;
