@@ -157,17 +157,24 @@ double SumCells(const MaxGridPyramid::LevelView& l, const Eigen::Vector2i* cells
   return sum;
 }
 
+// The points' sums are taken in chunks; after each, whether the rest can still lift the mean
+// above `floor`. The rest is bounded by max_value per point, or, given the node's parent in the
+// branch and bound (`parent_sums`: its running sums at the chunk ends), by the parent's sum over
+// the same points: a parent's block of translations holds its children's, so its max-grid value
+// at every point is at least theirs. `sums` (optional) receives this node's running sums, for
+// its children. A margin far above the sums' rounding keeps the stop exact: a mean above the
+// floor is always finished.
 template <bool Inside, bool Exact>
 double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& query, int k, int x0,
-                 int y0, double floor, double max_value) {
+                 int y0, double floor, double max_value, const double* parent_sums, double* sums) {
   const std::vector<Eigen::Vector2i>& cells = query.cells(k);
   const size_t n = cells.size();
   const double count = static_cast<double>(n);
-  // The points left add at most max_value each; a margin far above the sums' rounding keeps
-  // the stop exact (a mean that would be above the floor is always finished).
   const double stop = floor * count - 1e-9 * count * std::max(1.0, max_value);
+  const size_t chunks = (n + kChunk - 1) / kChunk;
   double sum = 0.0;
-  for (size_t begin = 0; begin < n; begin += kChunk) {
+  for (size_t chunk = 0; chunk < chunks; ++chunk) {
+    const size_t begin = chunk * kChunk;
     const size_t end = std::min(n, begin + kChunk);
 #ifdef ANCHORMAP_HAS_AVX2_SUM
     if (Exact && HasAvx2()) {
@@ -178,16 +185,22 @@ double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& que
 #else
     sum = SumCells<Inside, Exact>(l, cells.data(), begin, end, x0, y0, sum);
 #endif
-    const double most = sum + static_cast<double>(n - end) * max_value;
-    if (end < n && most < stop) return std::min(floor, most / count);
+    if (sums != nullptr) sums[chunk] = sum;
+    if (end == n) break;
+    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
+                                               : static_cast<double>(n - end) * max_value;
+    const double most = sum + rest;
+    if (most < stop) return std::min(floor, most / count);
   }
   return sum / count;
 }
 
-}  // namespace
+size_t NumChunks(const DiscretisedQuery& query) {
+  return (query.num_points() + kChunk - 1) / kChunk;
+}
 
-double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
-                         int k, int dx, int dy, double floor) {
+double ScoreWithParent(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
+                       int dx, int dy, double floor, const double* parent_sums, double* sums) {
   const std::vector<Eigen::Vector2i>& cells = query.cells(k);
   if (cells.empty()) return 0.0;
   const MaxGridPyramid::LevelView l = grids.level(level);
@@ -199,11 +212,19 @@ double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const Discretis
   const double max_value = grids.max_value();
   // Below 2^22 points a sum of values <= 1 stays below 2^22 (exact_sums' condition).
   if (grids.exact_sums() && cells.size() < (size_t{1} << 22)) {
-    return inside ? MeanAbove<true, true>(l, query, k, x0, y0, floor, max_value)
-                  : MeanAbove<false, true>(l, query, k, x0, y0, floor, max_value);
+    return inside
+               ? MeanAbove<true, true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
+               : MeanAbove<false, true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
   }
-  return inside ? MeanAbove<true, false>(l, query, k, x0, y0, floor, max_value)
-                : MeanAbove<false, false>(l, query, k, x0, y0, floor, max_value);
+  return inside ? MeanAbove<true, false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
+                : MeanAbove<false, false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
+}
+
+}  // namespace
+
+double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
+                         int k, int dx, int dy, double floor) {
+  return ScoreWithParent(grids, level, query, k, dx, dy, floor, nullptr, nullptr);
 }
 
 std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
@@ -237,13 +258,19 @@ struct Node {
   int dx;  // lower corner of the block of translations
   int dy;
   double bound;
+  int slot;  // where its running sums are kept (see Descend)
 };
 
 class BranchAndBoundSearch {
  public:
   BranchAndBoundSearch(const MaxGridPyramid& grids, const DiscretisedQuery& query,
                        const SearchWindow& window, double min_score, LatticeSearchStats* stats)
-      : grids_(grids), query_(query), window_(window), best_score_(min_score), stats_(stats) {}
+      : grids_(grids),
+        query_(query),
+        window_(window),
+        best_score_(min_score),
+        stats_(stats),
+        chunks_(NumChunks(query)) {}
 
   std::optional<LatticePose> Run() {
     const int top = grids_.num_levels() - 1;
@@ -252,23 +279,35 @@ class BranchAndBoundSearch {
     for (int k = -window_.half_angles; k <= window_.half_angles; ++k) {
       for (int dy = -window_.half_cells_y; dy <= window_.half_cells_y; dy += step) {
         for (int dx = -window_.half_cells_x; dx <= window_.half_cells_x; dx += step) {
-          roots.push_back(Node{k, dx, dy, Score(top, k, dx, dy)});
+          roots.push_back(Node{k, dx, dy, 0.0, static_cast<int>(roots.size())});
         }
       }
+    }
+    // Running sums per level: the roots', then at each lower level those of the (at most 4)
+    // children being descended (one set per level at a time: the descent is depth first).
+    sums_.resize(grids_.num_levels());
+    sums_[top].resize(roots.size() * chunks_);
+    for (int level = 0; level < top; ++level) sums_[level].resize(4 * chunks_);
+    for (Node& root : roots) {
+      root.bound = Score(top, root.k, root.dx, root.dy, nullptr, Sums(top, root.slot));
     }
     Descend(top, &roots);
     return best_;
   }
 
  private:
-  double Score(int level, int k, int dx, int dy) {
+  double* Sums(int level, int slot) {
+    return sums_[level].data() + static_cast<size_t>(slot) * chunks_;
+  }
+
+  double Score(int level, int k, int dx, int dy, const double* parent_sums, double* sums) {
     if (stats_ != nullptr) {
       ++stats_->scored_nodes;
       if (level == 0) ++stats_->leaves;
     }
     // Only whether a node beats the best leaf so far matters (a node at or below it is never
     // expanded): its score is finished only when it does.
-    return ScoreOnLevelAbove(grids_, level, query_, k, dx, dy, best_score_);
+    return ScoreWithParent(grids_, level, query_, k, dx, dy, best_score_, parent_sums, sums);
   }
 
   // Nodes of `level`, each a block of 2^level x 2^level translations (cut at the window).
@@ -285,12 +324,17 @@ class BranchAndBoundSearch {
       const int half = 1 << (level - 1);
       std::vector<Node> children;
       children.reserve(4);
+      const double* parent_sums = Sums(level, node.slot);
       for (int oy = 0; oy <= half; oy += half) {
         for (int ox = 0; ox <= half; ox += half) {
           const int dx = node.dx + ox;
           const int dy = node.dy + oy;
           if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
-          children.push_back(Node{node.k, dx, dy, Score(level - 1, node.k, dx, dy)});
+          const int slot = static_cast<int>(children.size());
+          // Leaves need no sums (nothing descends from them).
+          double* sums = level - 1 > 0 ? Sums(level - 1, slot) : nullptr;
+          children.push_back(
+              Node{node.k, dx, dy, Score(level - 1, node.k, dx, dy, parent_sums, sums), slot});
         }
       }
       Descend(level - 1, &children);
@@ -303,6 +347,8 @@ class BranchAndBoundSearch {
   double best_score_;
   LatticeSearchStats* stats_;
   std::optional<LatticePose> best_;
+  size_t chunks_;
+  std::vector<std::vector<double>> sums_;
 };
 
 }  // namespace

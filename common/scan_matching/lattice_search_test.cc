@@ -9,14 +9,18 @@
 namespace anchormap {
 namespace {
 
-LikelihoodGrid RandomGrid(int width, int height, std::mt19937_64* rng) {
+// `exact`: values 0 or in [2^-7, 1] (sums exact in any order: the vectorised path).
+LikelihoodGrid RandomGrid(int width, int height, std::mt19937_64* rng, bool exact = false) {
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   GridGeometry g;
   g.resolution = 0.1;
   g.width = width;
   g.height = height;
   std::vector<float> values(g.num_cells());
-  for (float& v : values) v = unit(*rng) < 0.2f ? unit(*rng) : 0.0f;
+  for (float& v : values) {
+    v = unit(*rng) < 0.2f ? unit(*rng) : 0.0f;
+    if (exact && v > 0.0f) v = std::max(v, 1.0f / 128.0f);
+  }
   return LikelihoodGrid(g, values);
 }
 
@@ -116,6 +120,35 @@ TEST(LatticeSearchTest, FastScoresEqualTheNaiveSumToTheBit) {
         }
       }
     }
+  }
+}
+
+TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearchOnExactGrids) {
+  // Grids whose sums are exact (the vectorised sums; a node's children are cut short by its
+  // own running sums) and queries of more than one chunk of the sums (32 points): the same
+  // best lattice pose as the exhaustive search, to the bit.
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> coord(0.0, 3.0);
+  for (int trial = 0; trial < 24; ++trial) {
+    const LikelihoodGrid grid = RandomGrid(30, 25, &rng, /*exact=*/true);
+    const MaxGridPyramid pyramid(grid, 1 + trial % 5);
+    ASSERT_TRUE(pyramid.exact_sums());
+    PointCloud query;
+    for (int i = 0; i < 20 + 9 * trial; ++i) query.push_back({coord(rng) - 1.5, coord(rng) - 1.5});
+    SearchWindow window;
+    window.center = Pose2(1.5, 1.2, 0.3 * trial);
+    window.angle_step_rad = 0.05;
+    window.half_angles = trial % 3;
+    window.half_cells_x = 3 + trial % 7;
+    window.half_cells_y = 2 + trial % 5;
+    const DiscretisedQuery discretised(query, window, grid.geometry());
+    const double min_score = trial % 3 == 0 ? 0.1 : 0.0;
+    const auto all = ExhaustiveSearch(pyramid, discretised, window, min_score);
+    const auto bnb = BranchAndBound(pyramid, discretised, window, min_score);
+    ASSERT_EQ(all.has_value(), bnb.has_value()) << "trial " << trial;
+    if (!all) continue;
+    EXPECT_EQ(all->score, bnb->score) << "trial " << trial;
+    EXPECT_EQ(ScoreOnLevel(pyramid, 0, discretised, bnb->k, bnb->dx, bnb->dy), bnb->score);
   }
 }
 
