@@ -6,6 +6,8 @@
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
 #endif
 
 namespace anchormap {
@@ -24,32 +26,44 @@ double AngleStepForRange(double resolution_m, double max_range_m) {
 DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& window,
                                    const GridGeometry& geometry)
     : half_angles_(window.half_angles), num_points_(query.size()) {
-  cells_.resize(2 * window.half_angles + 1);
-  boxes_.resize(cells_.size());
-  xs_.resize(cells_.size());
-  ys_.resize(cells_.size());
+  const size_t headings = static_cast<size_t>(2 * window.half_angles + 1);
+  boxes_.resize(headings);
+  xs_.resize(headings);
+  ys_.resize(headings);
+#if defined(__SSE2__)
+  const __m128d origin = _mm_set_pd(geometry.origin.y(), geometry.origin.x());
+  const __m128d resolution = _mm_set1_pd(geometry.resolution);
+#endif
   for (int k = -window.half_angles; k <= window.half_angles; ++k) {
     const Pose2 pose(window.center.x(), window.center.y(),
                      window.center.theta() + k * window.angle_step_rad);
     const Eigen::Matrix2d R = pose.rotation();
     const Eigen::Vector2d t = pose.translation();
-    std::vector<Eigen::Vector2i>& cells = cells_[k + half_angles_];
-    cells.reserve(query.size());
+    std::vector<int32_t>& xs = xs_[k + half_angles_];
+    std::vector<int32_t>& ys = ys_[k + half_angles_];
+    xs.resize(query.size());
+    ys.resize(query.size());
     Box& box = boxes_[k + half_angles_];
     box.min.setConstant(std::numeric_limits<int>::max());
     box.max.setConstant(std::numeric_limits<int>::min());
-    for (const Eigen::Vector2d& p : query) {
-      cells.push_back(geometry.CellOf(R * p + t));
-      box.min = box.min.cwiseMin(cells.back());
-      box.max = box.max.cwiseMax(cells.back());
-    }
-    std::vector<int32_t>& xs = xs_[k + half_angles_];
-    std::vector<int32_t>& ys = ys_[k + half_angles_];
-    xs.reserve(cells.size());
-    ys.reserve(cells.size());
-    for (const Eigen::Vector2i& c : cells) {
-      xs.push_back(c.x());
-      ys.push_back(c.y());
+    for (size_t i = 0; i < query.size(); ++i) {
+      const Eigen::Vector2d q = R * query[i] + t;
+#if defined(__SSE2__)
+      // GridGeometry::CellOf, both axes in one division (the same IEEE quotients) and floor by
+      // truncation corrected below zero (exact for cells within +-2^31).
+      const __m128d u = _mm_div_pd(_mm_sub_pd(_mm_set_pd(q.y(), q.x()), origin), resolution);
+      const __m128i truncated = _mm_cvttpd_epi32(u);
+      const __m128d above = _mm_cmpgt_pd(_mm_cvtepi32_pd(truncated), u);
+      const __m128i minus_one = _mm_shuffle_epi32(_mm_castpd_si128(above), _MM_SHUFFLE(2, 0, 2, 0));
+      const __m128i cell = _mm_add_epi32(truncated, minus_one);
+      const Eigen::Vector2i c(_mm_cvtsi128_si32(cell), _mm_cvtsi128_si32(_mm_srli_si128(cell, 4)));
+#else
+      const Eigen::Vector2i c = geometry.CellOf(q);
+#endif
+      xs[i] = c.x();
+      ys[i] = c.y();
+      box.min = box.min.cwiseMin(c);
+      box.max = box.max.cwiseMax(c);
     }
   }
 }
@@ -131,11 +145,11 @@ bool HasAvx2() {
 #endif
 
 template <bool Inside, bool Exact>
-double SumCells(const MaxGridPyramid::LevelView& l, const Eigen::Vector2i* cells, size_t begin,
-                size_t end, int x0, int y0, double sum) {
-  auto value = [&l, x0, y0](const Eigen::Vector2i& c) -> double {
-    const int x = c.x() + x0;
-    const int y = c.y() + y0;
+double SumCells(const MaxGridPyramid::LevelView& l, const int32_t* xs, const int32_t* ys,
+                size_t begin, size_t end, int x0, int y0, double sum) {
+  auto value = [&l, xs, ys, x0, y0](size_t i) -> double {
+    const int x = xs[i] + x0;
+    const int y = ys[i] + y0;
     if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
                     static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
       return 0.0;
@@ -146,14 +160,14 @@ double SumCells(const MaxGridPyramid::LevelView& l, const Eigen::Vector2i* cells
   if (Exact) {
     double s1 = 0.0, s2 = 0.0, s3 = 0.0;
     for (; i + 4 <= end; i += 4) {
-      sum += value(cells[i]);
-      s1 += value(cells[i + 1]);
-      s2 += value(cells[i + 2]);
-      s3 += value(cells[i + 3]);
+      sum += value(i);
+      s1 += value(i + 1);
+      s2 += value(i + 2);
+      s3 += value(i + 3);
     }
     sum += (s1 + s2) + s3;
   }
-  for (; i < end; ++i) sum += value(cells[i]);
+  for (; i < end; ++i) sum += value(i);
   return sum;
 }
 
@@ -167,8 +181,7 @@ double SumCells(const MaxGridPyramid::LevelView& l, const Eigen::Vector2i* cells
 template <bool Inside, bool Exact>
 double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& query, int k, int x0,
                  int y0, double floor, double max_value, const double* parent_sums, double* sums) {
-  const std::vector<Eigen::Vector2i>& cells = query.cells(k);
-  const size_t n = cells.size();
+  const size_t n = query.num_points();
   const double count = static_cast<double>(n);
   const double stop = floor * count - 1e-9 * count * std::max(1.0, max_value);
   const size_t chunks = (n + kChunk - 1) / kChunk;
@@ -180,10 +193,10 @@ double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& que
     if (Exact && HasAvx2()) {
       sum = SumCellsAvx2<Inside>(l, query.xs(k), query.ys(k), begin, end, x0, y0, sum);
     } else {
-      sum = SumCells<Inside, Exact>(l, cells.data(), begin, end, x0, y0, sum);
+      sum = SumCells<Inside, Exact>(l, query.xs(k), query.ys(k), begin, end, x0, y0, sum);
     }
 #else
-    sum = SumCells<Inside, Exact>(l, cells.data(), begin, end, x0, y0, sum);
+    sum = SumCells<Inside, Exact>(l, query.xs(k), query.ys(k), begin, end, x0, y0, sum);
 #endif
     if (sums != nullptr) sums[chunk] = sum;
     if (end == n) break;
@@ -201,8 +214,7 @@ size_t NumChunks(const DiscretisedQuery& query) {
 
 double ScoreWithParent(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
                        int dx, int dy, double floor, const double* parent_sums, double* sums) {
-  const std::vector<Eigen::Vector2i>& cells = query.cells(k);
-  if (cells.empty()) return 0.0;
+  if (query.num_points() == 0) return 0.0;
   const MaxGridPyramid::LevelView l = grids.level(level);
   const int x0 = dx + l.offset;
   const int y0 = dy + l.offset;
@@ -211,7 +223,7 @@ double ScoreWithParent(const MaxGridPyramid& grids, int level, const Discretised
                       box.max.x() + x0 < l.width && box.max.y() + y0 < l.height;
   const double max_value = grids.max_value();
   // Below 2^22 points a sum of values <= 1 stays below 2^22 (exact_sums' condition).
-  if (grids.exact_sums() && cells.size() < (size_t{1} << 22)) {
+  if (grids.exact_sums() && query.num_points() < (size_t{1} << 22)) {
     return inside
                ? MeanAbove<true, true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
                : MeanAbove<false, true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);

@@ -48,7 +48,6 @@ class DiscretisedQuery {
  public:
   DiscretisedQuery(const PointCloud& query, const SearchWindow& window,
                    const GridGeometry& geometry);
-  const std::vector<Eigen::Vector2i>& cells(int k) const { return cells_[k + half_angles_]; }
   size_t num_points() const { return num_points_; }
   // The cells' bounding box at heading k (empty query: min > max).
   struct Box {
@@ -56,14 +55,14 @@ class DiscretisedQuery {
     Eigen::Vector2i max;
   };
   const Box& box(int k) const { return boxes_[k + half_angles_]; }
-  // The same cells' x and y apart (the vectorised scoring loads eight of each at once).
+  // The cells of the points at heading k, x and y apart (the vectorised scoring loads eight of
+  // each at once), in the query's order.
   const int32_t* xs(int k) const { return xs_[k + half_angles_].data(); }
   const int32_t* ys(int k) const { return ys_[k + half_angles_].data(); }
 
  private:
   int half_angles_ = 0;
   size_t num_points_ = 0;
-  std::vector<std::vector<Eigen::Vector2i>> cells_;
   std::vector<std::vector<int32_t>> xs_;
   std::vector<std::vector<int32_t>> ys_;
   std::vector<Box> boxes_;

@@ -67,8 +67,10 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearch) {
 double NaiveScore(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
                   int dx, int dy) {
   double sum = 0.0;
-  for (const Eigen::Vector2i& c : query.cells(k)) sum += grids.Value(level, c.x() + dx, c.y() + dy);
-  return sum / static_cast<double>(query.cells(k).size());
+  for (size_t i = 0; i < query.num_points(); ++i) {
+    sum += grids.Value(level, query.xs(k)[i] + dx, query.ys(k)[i] + dy);
+  }
+  return sum / static_cast<double>(query.num_points());
 }
 
 TEST(LatticeSearchTest, FastScoresEqualTheNaiveSumToTheBit) {
