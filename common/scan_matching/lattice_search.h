@@ -9,6 +9,7 @@
 // translation in the block (Hess et al. 2016): blocks are visited best first, depth first, and
 // a block whose bound is not above the best leaf so far is skipped with all it contains.
 
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -47,19 +48,35 @@ class DiscretisedQuery {
  public:
   DiscretisedQuery(const PointCloud& query, const SearchWindow& window,
                    const GridGeometry& geometry);
-  const std::vector<Eigen::Vector2i>& cells(int k) const { return cells_[k + half_angles_]; }
   size_t num_points() const { return num_points_; }
+  // The cells' bounding box at heading k (empty query: min > max).
+  struct Box {
+    Eigen::Vector2i min;
+    Eigen::Vector2i max;
+  };
+  const Box& box(int k) const { return boxes_[k + half_angles_]; }
+  // The cells of the points at heading k, x and y apart (the vectorised scoring loads eight of
+  // each at once), in the query's order.
+  const int32_t* xs(int k) const { return xs_[k + half_angles_].data(); }
+  const int32_t* ys(int k) const { return ys_[k + half_angles_].data(); }
 
  private:
   int half_angles_ = 0;
   size_t num_points_ = 0;
-  std::vector<std::vector<Eigen::Vector2i>> cells_;
+  std::vector<std::vector<int32_t>> xs_;
+  std::vector<std::vector<int32_t>> ys_;
+  std::vector<Box> boxes_;
 };
 
 // Mean over the query's points of the level's value at their cells shifted by (dx, dy); 0 for
 // an empty query.
 double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query, int k,
                     int dx, int dy);
+// ScoreOnLevel when that is above `floor`; otherwise a value at most `floor` (the scoring stops
+// once the points left cannot lift the mean above it). Branch and bound asks every node only
+// whether it beats the best leaf so far.
+double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
+                         int k, int dx, int dy, double floor);
 
 struct LatticeSearchStats {
   int64_t scored_nodes = 0;  // scores computed (any level)

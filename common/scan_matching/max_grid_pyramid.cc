@@ -16,9 +16,13 @@ MaxGridPyramid::MaxGridPyramid(const LikelihoodGrid& grid, int num_levels)
   base.width = geometry_.width;
   base.height = geometry_.height;
   base.values.reset(new float[geometry_.num_cells()]);
+  constexpr float kExactFloor = 1.0f / 128.0f;  // 2^-7
   for (int iy = 0; iy < geometry_.height; ++iy) {
     for (int ix = 0; ix < geometry_.width; ++ix) {
-      base.values[geometry_.Index(ix, iy)] = grid.Value(ix, iy);
+      const float value = grid.Value(ix, iy);
+      base.values[geometry_.Index(ix, iy)] = value;
+      max_value_ = std::max(max_value_, value);
+      if (!(value == 0.0f || (value >= kExactFloor && value <= 1.0f))) exact_sums_ = false;
     }
   }
   for (int h = 1; h < num_levels; ++h) BuildLevel(h);

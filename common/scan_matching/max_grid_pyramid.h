@@ -24,6 +24,25 @@ class MaxGridPyramid {
 
   int num_levels() const { return static_cast<int>(levels_.size()); }
   const GridGeometry& geometry() const { return geometry_; }
+  // One level's storage: Value(level, ix, iy) is values[(iy + offset) * width + ix + offset]
+  // inside [0, width) x [0, height) of the stored indices, 0 outside (the search's inner loop
+  // reads it directly).
+  struct LevelView {
+    int offset;
+    int width;
+    int height;
+    const float* values;
+  };
+  LevelView level(int h) const {
+    const Level& l = levels_[h];
+    return {l.offset, l.width, l.height, l.values.get()};
+  }
+  // The largest value of the grid (of every level): no query point scores more.
+  float max_value() const { return max_value_; }
+  // True when every value is 0 or in [2^-7, 1]: each is then a whole multiple of 2^-30 (a
+  // float's last bit there is 2^-30 or more), so that a double sum of fewer than 2^23 of them
+  // is exact in any order. A likelihood grid cut at 3 sigma (values >= exp(-4.5)) qualifies.
+  bool exact_sums() const { return exact_sums_; }
   // Max over the block [ix, ix + 2^level) x [iy, iy + 2^level); 0 when it misses the grid.
   float Value(int level, int ix, int iy) const {
     const Level& l = levels_[level];
@@ -46,6 +65,8 @@ class MaxGridPyramid {
 
   GridGeometry geometry_;
   std::vector<Level> levels_;
+  float max_value_ = 0.0f;
+  bool exact_sums_ = true;
 };
 
 }  // namespace anchormap
