@@ -147,9 +147,6 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->I(o.max_waiting);
   Add(h, o.reference);
   Add(h, o.match);
-  // The global search's own setting (its options are built from these and this default):
-  // results from before the query was thinned out are not reused.
-  h->F(GlobalSearchOptions{}.query_spacing_m);
 }
 
 void Add(Fnv1a* h, const SmootherOptions& s) {

@@ -92,23 +92,6 @@ TEST(GlobalSearchTest, BranchAndBoundEqualsExhaustiveSearchOnScans) {
   }
 }
 
-TEST(GlobalSearchTest, ThinOutQueryKeepsPointsTheSpacingApartInOrder) {
-  // A wall sampled every 2 cm, then a lone point 5 cm on: kept every 10-12 cm from the first
-  // (a sum of 2 cm steps may land a hair below 10 cm).
-  PointCloud wall;
-  for (int i = 0; i <= 50; ++i) wall.push_back({1.0 + 0.02 * i, 2.0});
-  wall.push_back({2.0, 2.05});
-  const PointCloud thin = ThinOutQuery(wall, 0.1);
-  ASSERT_GE(thin.size(), 9u);
-  ASSERT_LE(thin.size(), 11u);
-  EXPECT_EQ(thin.front(), wall.front());
-  for (size_t i = 1; i < thin.size(); ++i) {
-    EXPECT_GE((thin[i] - thin[i - 1]).norm(), 0.1 - 1e-12);
-    EXPECT_LT((thin[i] - thin[i - 1]).norm(), 0.1 + 0.02 + 1e-12);
-  }
-  EXPECT_EQ(ThinOutQuery(wall, 0.0).size(), wall.size());
-}
-
 TEST(GlobalSearchTest, EmptyInputsFindNothing) {
   const ScanReference empty({}, ScanReferenceOptions{});
   EXPECT_FALSE(GlobalSearch(empty, {{1.0, 0.0}}, GlobalSearchOptions{}).has_value());
