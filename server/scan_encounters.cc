@@ -440,16 +440,6 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
   }
 }
 
-void ScanEncounters::OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
-                                   EncounterSourceOutput* out) {
-  OfferNearMatch(candidate, /*wide=*/true, graph, out);
-}
-
-void ScanEncounters::OfferNear(const EncounterCandidate& candidate, const GraphView& graph,
-                               EncounterSourceOutput* out) {
-  OfferNearMatch(candidate, /*wide=*/false, graph, out);
-}
-
 Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView& graph) {
   if (graph.ties == nullptr ||
       (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {

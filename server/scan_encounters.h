@@ -238,15 +238,13 @@ class ScanEncounters : public EncounterSource {
   // path as a matched one (pairwise consistency when unjoined, the gate when joined).
   void OfferCandidate(const EncounterCandidate& candidate, const GraphView& graph,
                       EncounterSourceOutput* out);
-  // A match of a near search whose window was wide, a the other's submap, b the query (tests
-  // offer hand-made ones): gated with the widened covariance, then held until a second one
-  // agrees (both enter then).
-  void OfferWideNear(const EncounterCandidate& candidate, const GraphView& graph,
-                     EncounterSourceOutput* out);
-  // A match of a near search whose window was not wide: entered at once when the plain gate
-  // accepts it; else, when the gate with the drift term accepts it, held as a wide one is.
-  void OfferNear(const EncounterCandidate& candidate, const GraphView& graph,
-                 EncounterSourceOutput* out);
+  // A match of a near search (tests offer hand-made ones), a the other's submap, b the query.
+  // `wide` (its window was wider than max_window_m): gated with the widened covariance, then
+  // held until a second one agrees (both enter then). Otherwise: entered at once when the
+  // plain gate accepts it; else, when the gate with the drift term accepts it, held as a wide
+  // one is.
+  void OfferNearMatch(const EncounterCandidate& candidate, bool wide, const GraphView& graph,
+                      EncounterSourceOutput* out);
   // The drift term of the relative pose of keyframe b seen from keyframe a, two joined
   // trajectories (zero without the graph's ties, or when none connects them).
   Eigen::Matrix3d NearDrift(PoseKey a, PoseKey b, const GraphView& graph);
@@ -292,9 +290,6 @@ class ScanEncounters : public EncounterSource {
   // The same test, not counted; `drift` is added to the prediction's covariance.
   bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
                   const Eigen::Matrix3d& drift) const;
-  // A near match (wide: its window was): entered, held for the pair rule, or refused.
-  void OfferNearMatch(const EncounterCandidate& candidate, bool wide, const GraphView& graph,
-                      EncounterSourceOutput* out);
   // Holds a match accepted only by a widened gate until a second one agrees; both enter then.
   void HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);

@@ -503,7 +503,7 @@ class WideNearTest : public ::testing::Test {
     EncounterSourceOutput out;
     for (const EncounterCandidate& c : matches) {
       if (wide) {
-        source.OfferWideNear(c, graph, &out);
+        source.OfferNearMatch(c, /*wide=*/true, graph, &out);
       } else {
         source.OfferCandidate(c, graph, &out);
       }
@@ -588,7 +588,8 @@ class NearDriftTest : public ::testing::Test {
     const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother(),
                           ties ? &server_->ties() : nullptr};
     EncounterSourceOutput out;
-    for (const EncounterCandidate& c : matches) source.OfferNear(c, graph, &out);
+    for (const EncounterCandidate& c : matches)
+      source.OfferNearMatch(c, /*wide=*/false, graph, &out);
     held_before_flush_ = source.stats().kept;
     source.Flush(graph, &out);
     stats_ = source.stats();
