@@ -1,6 +1,7 @@
 #include "common/scan_matching/lattice_search.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -303,7 +304,7 @@ class BranchAndBoundSearch {
     for (Node& root : roots) {
       root.bound = Score(top, root.k, root.dx, root.dy, nullptr, Sums(top, root.slot));
     }
-    Descend(top, &roots);
+    Descend(top, roots.data(), roots.size());
     return best_;
   }
 
@@ -323,10 +324,10 @@ class BranchAndBoundSearch {
   }
 
   // Nodes of `level`, each a block of 2^level x 2^level translations (cut at the window).
-  void Descend(int level, std::vector<Node>* nodes) {
-    std::stable_sort(nodes->begin(), nodes->end(),
-                     [](const Node& a, const Node& b) { return a.bound > b.bound; });
-    for (const Node& node : *nodes) {
+  void Descend(int level, Node* nodes, size_t count) {
+    SortByBound(nodes, count);
+    for (size_t i = 0; i < count; ++i) {
+      const Node& node = nodes[i];
       if (!(node.bound > best_score_)) break;  // sorted: no later node can do better
       if (level == 0) {
         best_score_ = node.bound;
@@ -334,22 +335,40 @@ class BranchAndBoundSearch {
         break;
       }
       const int half = 1 << (level - 1);
-      std::vector<Node> children;
-      children.reserve(4);
+      // At most four children, on the stack: a vector (and stable_sort's buffer) per expanded
+      // node was two allocations each, millions per global search.
+      std::array<Node, 4> children;
+      size_t num_children = 0;
       const double* parent_sums = Sums(level, node.slot);
       for (int oy = 0; oy <= half; oy += half) {
         for (int ox = 0; ox <= half; ox += half) {
           const int dx = node.dx + ox;
           const int dy = node.dy + oy;
           if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
-          const int slot = static_cast<int>(children.size());
+          const int slot = static_cast<int>(num_children);
           // Leaves need no sums (nothing descends from them).
           double* sums = level - 1 > 0 ? Sums(level - 1, slot) : nullptr;
-          children.push_back(
-              Node{node.k, dx, dy, Score(level - 1, node.k, dx, dy, parent_sums, sums), slot});
+          children[num_children++] =
+              Node{node.k, dx, dy, Score(level - 1, node.k, dx, dy, parent_sums, sums), slot};
         }
       }
-      Descend(level - 1, &children);
+      Descend(level - 1, children.data(), num_children);
+    }
+  }
+
+  // Best bound first, equal bounds in their given order (what std::stable_sort gives; an
+  // insertion sort for the few children of a node, without its buffer).
+  static void SortByBound(Node* nodes, size_t count) {
+    if (count > 4) {
+      std::stable_sort(nodes, nodes + count,
+                       [](const Node& a, const Node& b) { return a.bound > b.bound; });
+      return;
+    }
+    for (size_t i = 1; i < count; ++i) {
+      const Node node = nodes[i];
+      size_t j = i;
+      for (; j > 0 && node.bound > nodes[j - 1].bound; --j) nodes[j] = nodes[j - 1];
+      nodes[j] = node;
     }
   }
 
