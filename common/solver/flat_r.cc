@@ -10,9 +10,6 @@ static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double) &&
               "the solves read vectors and blocks as plain arrays of doubles");
 
 double* Doubles(std::vector<Eigen::Vector3d>* v) { return reinterpret_cast<double*>(v->data()); }
-const double* Doubles(const std::vector<Eigen::Matrix3d>& m) {
-  return reinterpret_cast<const double*>(m.data());
-}
 
 // The inverse of an upper triangular 3x3 block (column-major: d[i + 3 * j] is (i, j)).
 std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
@@ -25,6 +22,10 @@ std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
 }
 
 }  // namespace
+
+Eigen::Matrix3d FlatR::Rounded(const Eigen::Matrix3d& block) {
+  return block.cast<float>().cast<double>();
+}
 
 int FlatR::Refresh(const SparseR& r) {
   int from = 0;
@@ -47,14 +48,15 @@ int FlatR::Refresh(const SparseR& r) {
   }
   row_start_[n] = blocks;
   columns_.resize(blocks);
-  blocks_.resize(blocks);
+  blocks_.resize(9 * blocks);
   for (int p = from; p < n; ++p) {
     const RBlockRow& row = r.row(p);
     inverse_diagonals_[p] = InverseUpper(row.diagonal);
     int64_t k = row_start_[p];
     for (const auto& [q, block] : row.right) {
       columns_[k] = q;
-      blocks_[k] = block;
+      float* b = blocks_.data() + 9 * k;
+      for (int i = 0; i < 9; ++i) b[i] = static_cast<float>(block.data()[i]);
       ++k;
     }
   }
@@ -71,7 +73,7 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
   double* x = Doubles(v);
   const int n = size();
   const int* column = columns_.data();
-  const double* block = Doubles(blocks_);
+  const float* block = blocks_.data();
   double norm2 = 0.0;
   for (int p = 0; p < n; ++p) {
     // y = R_pp^-T x_p.
@@ -86,7 +88,7 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
     // x_q -= R_pq^T y for the blocks right of the diagonal.
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
-      const double* b = block + 9 * k;
+      const float* b = block + 9 * k;
       double* xq = x + 3 * column[k];
       xq[0] -= b[0] * y0 + b[1] * y1 + b[2] * y2;
       xq[1] -= b[3] * y0 + b[4] * y1 + b[5] * y2;
@@ -100,14 +102,14 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
 void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
   double* x = Doubles(v);
   const int* column = columns_.data();
-  const double* block = Doubles(blocks_);
+  const float* block = blocks_.data();
   for (int p = size() - 1; p >= 0; --p) {
     double* xp = x + 3 * p;
     double s0 = xp[0], s1 = xp[1], s2 = xp[2];
     // s -= R_pq x_q for the blocks right of the diagonal (already solved).
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
-      const double* b = block + 9 * k;
+      const float* b = block + 9 * k;
       const double* xq = x + 3 * column[k];
       s0 -= b[0] * xq[0] + b[3] * xq[1] + b[6] * xq[2];
       s1 -= b[1] * xq[0] + b[4] * xq[1] + b[7] * xq[2];

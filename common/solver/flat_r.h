@@ -10,8 +10,10 @@
 //
 // The diagonal blocks are kept inverted (R_pp^-1, upper triangular): a row's 3x3 solve is
 // then a product, not a chain of three dependent divisions, which on a sparse R (M3500:
-// 23 blocks per row) was the solves' critical path. The results differ from SparseR's
-// solves by rounding only.
+// 23 blocks per row) was the solves' critical path. The off-diagonal blocks are kept as
+// floats: the solves stream all of R and are memory-bound on a large one, and R only
+// preconditions the correction (both solves use the same rounded R, and J^T J is applied
+// exactly). The results differ from SparseR's solves by that rounding.
 
 #include <array>
 #include <cstdint>
@@ -27,6 +29,8 @@ class FlatR {
  public:
   // Brings the copy up to date with `r`; returns the block rows copied.
   int Refresh(const SparseR& r);
+  // An off-diagonal block as the solves see it (rounded to float).
+  static Eigen::Matrix3d Rounded(const Eigen::Matrix3d& block);
 
   int size() const { return static_cast<int>(row_start_.size()) - 1; }
   // v <- R^-T v by block forward substitution; returns |R^-T v|^2.
@@ -39,9 +43,10 @@ class FlatR {
   uint64_t source_revision_ = 0;
   // By block row: R_pp^-1's upper triangle (00, 01, 02, 11, 12, 22).
   std::vector<std::array<double, 6>> inverse_diagonals_;
-  std::vector<int64_t> row_start_{0};    // by block row, and one past the last
-  std::vector<int> columns_;             // off-diagonal blocks' columns, in row order
-  std::vector<Eigen::Matrix3d> blocks_;  // the blocks themselves, same order
+  std::vector<int64_t> row_start_{0};  // by block row, and one past the last
+  std::vector<int> columns_;           // off-diagonal blocks' columns, in row order
+  // The blocks themselves, same order, 9 floats each (column-major).
+  std::vector<float> blocks_;
 };
 
 }  // namespace anchormap

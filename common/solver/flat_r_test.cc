@@ -13,7 +13,9 @@ Eigen::MatrixXd Dense(const SparseR& r) {
   Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * r.size(), 3 * r.size());
   for (int p = 0; p < r.size(); ++p) {
     R.block<3, 3>(3 * p, 3 * p) = r.row(p).diagonal;
-    for (const auto& [q, block] : r.row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
+    for (const auto& [q, block] : r.row(p).right) {
+      R.block<3, 3>(3 * p, 3 * q) = FlatR::Rounded(block);
+    }
   }
   return R;
 }
@@ -43,7 +45,8 @@ NewRows Between(int a, int b, std::mt19937* rng) {
   return rows;
 }
 
-// Both solves against dense triangular solves with R, and R^-T's squared norm.
+// Both solves against dense triangular solves with R (its off-diagonal blocks rounded
+// as FlatR keeps them), and R^-T's squared norm.
 void ExpectSolvesMatchDense(const FlatR& flat, const SparseR& r, std::mt19937* rng) {
   ASSERT_EQ(flat.size(), r.size());
   const Eigen::MatrixXd R = Dense(r);

@@ -206,11 +206,14 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
     ASSERT_TRUE(smoother->Update().status.ok());
   }
   EXPECT_GT(ascending.stats().correction_steps, 0);
+  // The two R differ in their order, and the correction is preconditioned by R's blocks
+  // rounded to float (FlatR): steps stopped at the tolerance differ by ~1e-9; a pose
+  // placed from an unplaced predecessor would be off by the odometry's 0.5 m.
   for (int i = 0; i < 33; ++i) {
     EXPECT_LE(PoseError(ascending.Value(PoseKey{t, i}), descending.Value(PoseKey{t, i}))
                   .cwiseAbs()
                   .maxCoeff(),
-              1e-9)
+              1e-7)
         << i;
   }
 }
