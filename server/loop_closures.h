@@ -4,8 +4,8 @@
 //   1. candidates: earlier keyframes of its trajectory, at least min_index_gap back, whose
 //      predicted position may lie within max_distance_m of it: the Mahalanobis distance of
 //      the predicted offset from that disc, under the joint covariance of the two poses
-//      (PredictRelativePose), below candidate_chi2; the nearest max_candidates; not those an
-//      entered closure already ties to the keyframe's stretch of path (saturation_m);
+//      (PredictRelativePose), below candidate_chi2; the nearest max_candidates (optionally not
+//      those an entered closure already ties to the keyframe's stretch of path: saturation_m);
 //   2. verification: the keyframe's scan matched against a submap of the candidate's
 //      neighbours (KeyframeSubmap) in a window around the prediction sized by its
 //      covariance; a good match has score >= min_score and overlap >= min_overlap;
@@ -79,11 +79,13 @@ struct LoopClosureOptions {
   // Saturation (issue 12): a candidate is not matched when a closure already entered ties
   // this place to that one, both ends within this much path (odometry) of the keyframe's and
   // the candidate's (0: never skipped). A robot driving along its old path then closes every
-  // few metres instead of every cooldown_keyframes + 1 keyframes (keyframes come every 0.5 m,
-  // so 2 m skips the candidates of retraced ground the cooldown let through, mostly in turns;
-  // aces-1 measured 0.0423 m at 0, 0.0424 at 2, 0.0431 at 3). The wide search is not affected:
-  // it looks for the places the estimate has lost.
-  double saturation_m = 2.0;
+  // few metres instead of every cooldown_keyframes + 1 keyframes. The wide search is not
+  // affected: it looks for the places the estimate has lost. Off by default: with 2 m and the
+  // near search's saturation together, Intel split in three (simultaneous) went 0.0234 ->
+  // 0.0342 m (0.0238 with this off, 0.0234 with the near search's off); aces-1 measured
+  // 0.0424 at 2 m, 0.0431 at 3 m. A skipped candidate hands its slot to the next nearest, so
+  // the matches run fall less than the skips (100 x 60: 1211 skipped, candidates 838 -> 766).
+  double saturation_m = 0.0;
   // Neighbours on each side of the candidate in its reference (0: its scan alone). A submap
   // drawn at raw-odometry estimates is less exact than one scan: on the simulated loop the
   // worst closure was 3 mm with one scan, 0.11 m with 2 neighbours each side.
