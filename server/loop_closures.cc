@@ -24,6 +24,7 @@ Status LoopClosureOptions::Validate() const {
   if (!(candidate_chi2 > 0) || !(gate_chi2 > 0))
     return Status::Error("loop chi2 gates must be > 0");
   if (max_candidates < 0) return Status::Error("loop.max_candidates must be >= 0");
+  if (!(saturation_m >= 0)) return Status::Error("loop.saturation_m must be >= 0");
   if (cooldown_keyframes < 0) return Status::Error("loop.cooldown_keyframes must be >= 0");
   if (submap_half_width < 0) return Status::Error("loop.submap_half_width must be >= 0");
   if (!(max_range_m > 0)) return Status::Error("loop.max_range_m must be > 0");
@@ -422,6 +423,10 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   const size_t max_examined = static_cast<size_t>(4 * options_.max_candidates);
   for (size_t n = 0; n < near.size() && n < max_examined; ++n) {
     const int j = near[n].second;
+    if (Saturated(*record, PoseKey{key.trajectory, j}, key)) {
+      ++saturated_;
+      continue;
+    }
     const bool overlaps_chosen = std::any_of(chosen.begin(), chosen.end(), [&](const auto& c) {
       return std::abs(c.first - j) <= options_.submap_half_width;
     });
@@ -446,6 +451,34 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
            graph, query);
   }
   if (options_.wide_search) SubmitWide(key, graph, *record, query);
+}
+
+double LoopClosures::DrivenTo(const TrajectoryRecord& record, int32_t index) {
+  std::vector<double>& driven = driven_[record.solver_id];
+  for (size_t i = driven.size(); i < record.odometry_poses.size(); ++i) {
+    driven.push_back(i == 0 ? 0.0
+                            : driven.back() + (record.odometry_poses[i].translation() -
+                                               record.odometry_poses[i - 1].translation())
+                                                  .norm());
+  }
+  if (driven.empty()) return 0.0;
+  return driven[static_cast<size_t>(
+      std::clamp<int32_t>(index, 0, static_cast<int32_t>(driven.size()) - 1))];
+}
+
+bool LoopClosures::Saturated(const TrajectoryRecord& record, PoseKey candidate, PoseKey key) {
+  if (options_.saturation_m <= 0) return false;
+  const auto entered = entered_.find(key.trajectory);
+  if (entered == entered_.end()) return false;
+  const double at_key = DrivenTo(record, key.index);
+  const double at_candidate = DrivenTo(record, candidate.index);
+  for (const auto& [a, b] : entered->second) {
+    if (std::abs(DrivenTo(record, b) - at_key) < options_.saturation_m &&
+        std::abs(DrivenTo(record, a) - at_candidate) < options_.saturation_m) {
+      return true;
+    }
+  }
+  return false;
 }
 
 bool LoopClosures::NeedsWideWindow(const Eigen::Matrix3d& covariance) const {

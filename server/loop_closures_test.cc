@@ -33,6 +33,7 @@ struct LoopRun {
   int64_t wide_searches = 0;
   int64_t doubled_closures = 0;  // keyframe pairs joined by more than one closure
   int64_t ambiguous = 0;         // wide matches refused as ambiguous
+  int64_t saturated = 0;         // candidates an entered closure near both ends made needless
 };
 
 LoopRun RunPath(const testing::SyntheticWorld& world, const std::vector<Pose2>& path,
@@ -78,6 +79,7 @@ LoopRun RunPath(const testing::SyntheticWorld& world, const std::vector<Pose2>& 
     run.loop = source->stats();
     run.wide_searches = source->wide_searches();
     run.ambiguous = source->ambiguous();
+    run.saturated = source->saturated();
   }
   // Every loop closure's measurement against the truth.
   std::set<std::pair<int32_t, int32_t>> closed;
@@ -118,7 +120,20 @@ TEST(LoopClosuresTest, ClosingTheLoopCutsTheMapError) {
     // one loop can only spread, not remove.
     EXPECT_LT(closed.mean_error_m, 0.5 * open.mean_error_m);
     EXPECT_LT(closed.mean_error_m, 0.2);
+    EXPECT_EQ(closed.saturated, 0);  // off by default
   }
+  // Saturation (off by default): the second lap drives 15 m of the first one again, and
+  // candidates next to an entered closure (both ends within 2 m of path) are not matched.
+  // Measured, seed 1: 20 skipped, 21 closures, mean 0.067 m (0.081 without).
+  LoopClosureOptions saturated;
+  saturated.saturation_m = 2.0;
+  const LoopRun run = RunPath(LoopWorld(), RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 1.3),
+                              OdometryNoise{}, 1, saturated);
+  std::printf("seed 1, saturation 2 m: mean %.3f m; %s; saturated %lld\n", run.mean_error_m,
+              run.loop.Summary("loop").c_str(), static_cast<long long>(run.saturated));
+  EXPECT_GT(run.saturated, 0);
+  EXPECT_GT(run.loop.accepted, 0);
+  EXPECT_LT(run.mean_error_m, 0.2);
 }
 
 // Odometry that drifts far more than the local window holds and than its covariance says

@@ -10,9 +10,9 @@ namespace {
 static_assert(sizeof(MatchOptions) == 32, "new MatchOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
-static_assert(sizeof(LoopClosureOptions) == 384,
+static_assert(sizeof(LoopClosureOptions) == 392,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 416,
+static_assert(sizeof(ScanEncounterOptions) == 432,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 104,
               "new SmootherOptions field: add it to the fingerprint");
@@ -58,6 +58,7 @@ void Add(Fnv1a* h, const LoopClosureOptions& o) {
   h->F(o.gate_chi2);
   h->I(o.max_candidates);
   h->I(o.cooldown_keyframes);
+  h->F(o.saturation_m);
   h->I(o.submap_half_width);
   h->F(o.max_range_m);
   h->F(o.min_score);
@@ -139,6 +140,8 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.near_drift_per_m);
   h->F(o.near_drift_rad_per_m);
   h->I(o.near_catch_up_every);
+  h->F(o.near_saturation_m);
+  h->I(o.near_max_partners);
   h->I(o.near_pair_min_gap);
   h->I(o.near_pair_max_gap);
   h->I(o.near_max_held);

@@ -68,6 +68,8 @@ Status ScanEncounterOptions::Validate() const {
         "near_pair_max_gap, near_max_held >= 1");
   }
   if (near_catch_up_every < 0) return Status::Error("scan.near_catch_up_every must be >= 0");
+  if (!(near_saturation_m >= 0)) return Status::Error("scan.near_saturation_m must be >= 0");
+  if (near_max_partners < 0) return Status::Error("scan.near_max_partners must be >= 0");
   if (!(near_drift_per_m >= 0) || !(near_drift_rad_per_m >= 0))
     return Status::Error("scan near drift: near_drift_per_m and near_drift_rad_per_m >= 0");
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
@@ -128,7 +130,9 @@ void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
 std::string ScanEncounters::StatsLine() const {
   return stats_.Summary(name()) + " joins_contradicted " + std::to_string(joins_contradicted_) +
          " global_searches " + std::to_string(global_queue_.searches()) + " global_replaced " +
-         std::to_string(global_queue_.dropped()) + " " + references_.stats().Summary(name());
+         std::to_string(global_queue_.dropped()) + " near_saturated " +
+         std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) + " " +
+         references_.stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -192,26 +196,38 @@ std::shared_ptr<const ScanReference> ScanEncounters::Reference(const Submap& sub
 }
 
 void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
-                                     EncounterSourceOutput* out) {
+                                     EncounterSourceOutput* /*out*/) {
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return;
   if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return;
   bool unjoined = false;
+  std::vector<NearTarget> near;
   for (const TrajectoryRecord& other : graph.table.records()) {
     if (other.solver_id == key.trajectory) continue;
     if (InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
-      SearchNear(key, other.solver_id, graph, out);
+      if (std::optional<NearTarget> target = FindNear(key, other.solver_id, graph)) {
+        near.push_back(*target);
+      }
     } else {
       unjoined = true;
     }
   }
+  std::sort(near.begin(), near.end(), [](const NearTarget& x, const NearTarget& y) {
+    return x.distance != y.distance ? x.distance < y.distance : x.other < y.other;
+  });
+  if (options_.near_max_partners > 0 &&
+      near.size() > static_cast<size_t>(options_.near_max_partners)) {
+    near_capped_ += static_cast<int64_t>(near.size()) - options_.near_max_partners;
+    near.resize(static_cast<size_t>(options_.near_max_partners));
+  }
+  for (const NearTarget& target : near) SearchNear(key, target, graph);
   if (unjoined && key.index % options_.global_every == 0) {
     global_queue_.Enqueue(key);
     ServeGlobalQueue(graph);
   }
 }
 
-void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out) {
+void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput* /*out*/) {
   const std::deque<TrajectoryRecord>& records = graph.table.records();
   std::set<std::pair<int64_t, int32_t>> waiting;
   for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
@@ -230,7 +246,9 @@ void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput
               record->scans[static_cast<size_t>(k)].ranges.empty()) {
             continue;
           }
-          SearchNear(key, to, graph, out);
+          if (std::optional<NearTarget> target = FindNear(key, to, graph)) {
+            SearchNear(key, *target, graph);
+          }
         }
       }
     }
@@ -315,13 +333,13 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   return submitted;
 }
 
-void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                EncounterSourceOutput* /*out*/) {
-  if (options_.near_distance_m <= 0) return;
+std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, TrajectoryId other,
+                                                                   const GraphView& graph) {
+  if (options_.near_distance_m <= 0) return std::nullopt;
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
-  if (quiet != near_quiet_until_.end() && key.index < quiet->second) return;
+  if (quiet != near_quiet_until_.end() && key.index < quiet->second) return std::nullopt;
   std::vector<Submap>& submaps = submaps_[other];
-  if (submaps.empty()) return;
+  if (submaps.empty()) return std::nullopt;
   const Pose2 global_key = graph.smoother.GlobalPose(key);
   // The keyframe in the other's frame (one rigid motion: the distances are the same).
   const PoseKey reference_center = submaps.front().center;
@@ -331,33 +349,48 @@ void ScanEncounters::SearchNear(PoseKey key, TrajectoryId other, const GraphView
   const std::vector<int32_t> near =
       NearIndex(other, graph)
           .Near(T_frame_key.translation(), options_.near_distance_m + options_.near_index_slack_m);
-  Submap* nearest = nullptr;
-  double nearest_distance = std::numeric_limits<double>::infinity();
+  std::optional<NearTarget> nearest;
   for (const int32_t item : near) {
-    Submap& submap = submaps[static_cast<size_t>(item)];
+    const Submap& submap = submaps[static_cast<size_t>(item)];
     if (submap.drawing.num_points == 0) continue;
     const double distance =
         (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
-    if (distance < nearest_distance) {
-      nearest_distance = distance;
-      nearest = &submap;
+    if (!nearest || distance < nearest->distance) {
+      nearest = NearTarget{other, static_cast<size_t>(item), distance};
     }
   }
-  if (nearest == nullptr || nearest_distance > options_.near_distance_m) return;
+  if (!nearest || nearest->distance > options_.near_distance_m) return std::nullopt;
+  if (Saturated(key, submaps[nearest->submap].center, graph)) {
+    ++near_saturated_;
+    return std::nullopt;
+  }
+  return nearest;
+}
+
+bool ScanEncounters::Saturated(PoseKey key, PoseKey center, const GraphView& graph) {
+  if (graph.ties == nullptr || options_.near_saturation_m <= 0) return false;
+  const auto driven_to = [this, &graph](PoseKey k) { return DrivenTo(k, graph); };
+  const std::optional<double> drive =
+      graph.ties->ShortestDrive(key, center, driven_to, options_.near_saturation_m);
+  return drive && *drive < options_.near_saturation_m;
+}
+
+void ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
+  const Submap& nearest = submaps_[target.other][target.submap];
   const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, nearest->center, key);
+      PredictRelativePose(graph.covariances, nearest.center, key);
   if (!predicted) return;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   bool wide = false;
   const LocalMatchOptions window = NearSearchWindow(
-      predicted->covariance + NearDrift(nearest->center, key, graph), options_, &wide);
-  std::shared_ptr<const ScanReference> reference = Reference(*nearest, graph);
+      predicted->covariance + NearDrift(nearest.center, key, graph), options_, &wide);
+  std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
   Submit(
-      key, nearest->center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
+      key, nearest.center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
       [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
 }
 
@@ -440,26 +473,27 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
   }
 }
 
+double ScanEncounters::DrivenTo(PoseKey key, const GraphView& graph) {
+  std::vector<double>& driven = driven_[key.trajectory];
+  if (const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory)) {
+    for (size_t i = driven.size(); i < record->odometry_poses.size(); ++i) {
+      driven.push_back(i == 0 ? 0.0
+                              : driven.back() + (record->odometry_poses[i].translation() -
+                                                 record->odometry_poses[i - 1].translation())
+                                                    .norm());
+    }
+  }
+  if (driven.empty()) return 0.0;
+  return driven[static_cast<size_t>(
+      std::clamp<int32_t>(key.index, 0, static_cast<int32_t>(driven.size()) - 1))];
+}
+
 Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView& graph) {
   if (graph.ties == nullptr ||
       (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {
     return Eigen::Matrix3d::Zero();
   }
-  for (const TrajectoryRecord& record : graph.table.records()) {
-    std::vector<double>& driven = driven_[record.solver_id];
-    for (size_t i = driven.size(); i < record.odometry_poses.size(); ++i) {
-      driven.push_back(i == 0 ? 0.0
-                              : driven.back() + (record.odometry_poses[i].translation() -
-                                                 record.odometry_poses[i - 1].translation())
-                                                    .norm());
-    }
-  }
-  const auto driven_to = [this](PoseKey key) {
-    const std::vector<double>& driven = driven_[key.trajectory];
-    if (driven.empty()) return 0.0;
-    return driven[static_cast<size_t>(
-        std::clamp<int32_t>(key.index, 0, static_cast<int32_t>(driven.size()) - 1))];
-  };
+  const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
   const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
   if (!drive) return Eigen::Matrix3d::Zero();
   const double m = options_.near_drift_per_m * *drive;

@@ -33,7 +33,9 @@
 //   a drift term for the path both robots drove since the nearest tie between them
 //   (near_drift_*): a match only that gate accepts enters with a second one that agrees.
 //   When a pair first comes into one frame, the keyframes examined before are searched
-//   so once (near_catch_up_every).
+//   so once (near_catch_up_every). A pair already tied near here is not searched again
+//   (near_saturation_m), and a keyframe searches at most near_max_partners joined
+//   trajectories, the nearest first: the work per keyframe does not grow with the team.
 // The matches run on the MatchPool's workers (or on the caller's thread without a pool);
 // their results are used when the canonical input reaches the keyframe's time plus the
 // schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
@@ -42,6 +44,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -168,6 +171,17 @@ struct ScanEncounterOptions {
   // both passed before the join is otherwise never matched (ACES 2 robots simultaneous: R1
   // 456-511 s and R2's 1041-1080 s pass, joined at R1's 650 s, 2 m apart in the map).
   int near_catch_up_every = 1;
+  // Saturation (issue 12: the work per keyframe must not grow with the team and the map). A
+  // pair already tied near here needs no further match here: the near search is skipped when
+  // the shortest drive from the query keyframe to the other's nearest submap through the ties
+  // (TrajectoryTies::ShortestDrive: both robots' paths, through a third trajectory too) is
+  // under near_saturation_m (0: never skipped). Ties then come every few metres of path
+  // instead of every near_cooldown_keyframes keyframes, where each pair of 100 robots met.
+  double near_saturation_m = 4.0;
+  // At most this many joined trajectories are near-searched per keyframe (0: all), nearest
+  // submap first (ties by trajectory id): in a crowd the others are searched at the next
+  // keyframes, and the cost per keyframe is bounded whatever the team.
+  int near_max_partners = 3;
   int near_pair_min_gap = 2;
   int near_pair_max_gap = 60;
   int near_max_held = 8;  // wide matches held per pair of trajectories
@@ -226,6 +240,8 @@ class ScanEncounters : public EncounterSource {
   std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
   int64_t joins_contradicted() const { return joins_contradicted_; }
+  int64_t near_saturated() const { return near_saturated_; }
+  int64_t near_capped() const { return near_capped_; }
   const GlobalSearchQueue& global_searches() const { return global_queue_; }
 
   // The source's state for snapshots (scan_encounter_state.h, defined in
@@ -269,8 +285,19 @@ class ScanEncounters : public EncounterSource {
   std::vector<TrajectoryId> GlobalTargets(PoseKey key, const GraphView& graph) const;
   // Submits the searches of `key` against `other`'s submaps; returns how many.
   int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
-  void SearchNear(PoseKey key, TrajectoryId other, const GraphView& graph,
-                  EncounterSourceOutput* out);
+  // The submap of `other` a near search of `key` would match against: the nearest one within
+  // near_distance_m, unless the pair is quiet or saturated there (nullopt then).
+  struct NearTarget {
+    TrajectoryId other;
+    size_t submap = 0;  // in submaps_[other]
+    double distance = 0.0;
+  };
+  std::optional<NearTarget> FindNear(PoseKey key, TrajectoryId other, const GraphView& graph);
+  void SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph);
+  // True when the pair is tied within near_saturation_m of drive between `key` and `center`.
+  bool Saturated(PoseKey key, PoseKey center, const GraphView& graph);
+  // The path `key`'s odometry drove from its trajectory's first keyframe (driven_, extended).
+  double DrivenTo(PoseKey key, const GraphView& graph);
   // Near-searches the keyframes examined before a pair came into one frame (once per pair).
   void CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
@@ -339,6 +366,10 @@ class ScanEncounters : public EncounterSource {
   // First-join hypotheses refused by the free-space test. Not in snapshots (CandidateStats'
   // format is fixed there): a restored source counts from 0.
   int64_t joins_contradicted_ = 0;
+  // Near searches skipped as saturated, and beyond near_max_partners (counted as
+  // joins_contradicted_: not in snapshots).
+  int64_t near_saturated_ = 0;
+  int64_t near_capped_ = 0;
   std::map<Pair, std::deque<Kept>> kept_;
   std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
   int64_t now_utime_ = 0;

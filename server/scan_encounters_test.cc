@@ -74,6 +74,7 @@ struct TeamRun {
   double mean_error_m = 0.0;       // every keyframe, merged frame against the truth
   double max_error_m = 0.0;
   CandidateStats scan;
+  int64_t near_saturated = 0;
   int false_offered = 0;
 };
 
@@ -117,6 +118,7 @@ TeamRun RunTeam(const SyntheticWorld& world, const std::vector<Pose2>& path1,
   server.Flush();
   TeamRun run;
   run.scan = source->stats();
+  run.near_saturated = source->near_saturated();
   if (injector) run.false_offered = injector->offered();
   const Smoother& smoother = server.smoother();
   const TrajectoryId t0(0), t1(1);
@@ -157,6 +159,10 @@ TEST(ScanEncountersTest, TwoRobotsJoinByScanMatching) {
               run.max_error_m, run.scan.Summary("scan").c_str());
   ASSERT_TRUE(run.joined);
   EXPECT_GE(run.scan.accepted, 2);
+  // Joined, the robots drive each other's path: the near searches stop where a tie is near
+  // (near_saturation_m) and go on beyond it.
+  std::printf("near searches saturated %lld\n", static_cast<long long>(run.near_saturated));
+  EXPECT_GT(run.near_saturated, 0);
   // Measured: mean 0.026 m, max 0.056 m (odometry noise 1 cm, 0.005 rad per 0.5 m step).
   EXPECT_LT(run.mean_error_m, 0.06);
 }

@@ -13,11 +13,15 @@ void TrajectoryTies::Add(PoseKey a, PoseKey b) {
   ++size_;
 }
 
-std::optional<double> TrajectoryTies::ShortestDrive(
-    PoseKey from, PoseKey to, const std::function<double(PoseKey)>& driven) const {
+std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
+                                                    const std::function<double(PoseKey)>& driven,
+                                                    double limit) const {
   const auto along = [&](PoseKey p, PoseKey q) { return std::abs(driven(p) - driven(q)); };
   std::optional<double> best;
   if (from.trajectory == to.trajectory) best = along(from, to);
+  const auto within_limit = [&](std::optional<double> drive) {
+    return drive && *drive <= limit ? drive : std::nullopt;
+  };
   // Dijkstra over the tied keyframes. Along one trajectory the drive between two keyframes
   // is the difference of the paths driven to them, so each tied keyframe needs edges only to
   // its neighbours by index there (and to `to`, when in its trajectory).
@@ -46,7 +50,7 @@ std::optional<double> TrajectoryTies::ShortestDrive(
   while (!queue.empty()) {
     const auto [distance, node] = queue.top();
     queue.pop();
-    if (best && distance >= *best) break;
+    if ((best && distance >= *best) || distance > limit) break;
     if (!settled.emplace(node, distance).second) continue;
     const PoseKey key{TrajectoryId(node.first), node.second};
     if (key.trajectory == to.trajectory) {
@@ -62,7 +66,7 @@ std::optional<double> TrajectoryTies::ShortestDrive(
       queue.push({distance, {other.trajectory.value(), other.index}});
     }
   }
-  return best;
+  return within_limit(best);
 }
 
 }  // namespace anchormap

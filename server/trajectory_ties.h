@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <optional>
 #include <vector>
@@ -26,9 +27,12 @@ class TrajectoryTies {
   // The shortest drive from `from` to `to`: along each trajectory (`driven(key)`, the path
   // driven from the trajectory's start to that keyframe, nondecreasing in the index),
   // crossing from one trajectory to another only where they are tied (a tie costs nothing).
-  // nullopt when no chain of ties connects the two trajectories.
+  // nullopt when no chain of ties connects the two trajectories, or (given `limit`) when
+  // the shortest drive is longer than `limit`: the search stops there, so a bounded
+  // question ("tied within a few metres of here?") costs the ties near here, not all of them.
   std::optional<double> ShortestDrive(PoseKey from, PoseKey to,
-                                      const std::function<double(PoseKey)>& driven) const;
+                                      const std::function<double(PoseKey)>& driven,
+                                      double limit = std::numeric_limits<double>::infinity()) const;
 
  private:
   // Per trajectory: its tied keyframes, by index, each with the keyframes tied to it.

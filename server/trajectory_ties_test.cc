@@ -40,5 +40,17 @@ TEST(TrajectoryTiesTest, AChainThroughAThirdTrajectoryCounts) {
   EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 89}, {kB, 92}, OneMetreEach), 3.0);
 }
 
+TEST(TrajectoryTiesTest, ALimitAnswersOnlyDrivesWithinIt) {
+  TrajectoryTies ties;
+  ties.Add({kA, 5}, {kC, 100});
+  ties.Add({kC, 104}, {kB, 30});
+  ties.Add({kA, 90}, {kB, 90});
+  // A[8] to B[33] is 10 m through C (above): within a limit of 10, not of 9.99.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 8}, {kB, 33}, OneMetreEach, 10.0), 10.0);
+  EXPECT_FALSE(ties.ShortestDrive({kA, 8}, {kB, 33}, OneMetreEach, 9.99));
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 89}, {kB, 92}, OneMetreEach, 4.0), 3.0);
+  EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kA, 9}, OneMetreEach, 5.0));  // 6 m along A
+}
+
 }  // namespace
 }  // namespace anchormap

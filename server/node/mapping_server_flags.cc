@@ -79,6 +79,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "find loop closures within a trajectory by scan matching");
   add("loop.max_distance_m", "loop-max-distance-m", &s.loop.max_distance_m,
       "a loop-closure candidate may lie this close to the keyframe (m)");
+  add("loop.saturation_m", "loop-saturation-m", &s.loop.saturation_m,
+      "a loop-closure candidate is not matched when an entered closure has both ends within "
+      "this much path of the keyframe's and the candidate's (m; 0 = always matched)");
   add("loop.min_overlap", "loop-min-overlap", &s.loop.min_overlap,
       "a loop closure's match needs this fraction of points near the submap's walls");
   add("loop.submap_cache_mb", "loop-submap-cache-mb", &s.loop.submap_cache.budget_mb,
@@ -104,6 +107,11 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("scan.near_wide_max_window_m", "scan-near-wide-max-window-m", &s.scan.near_wide_max_window_m,
       "joined trajectories whose estimate drifted apart: the window grows to 3 sigma up to "
       "this (m; 0 = off); such a match enters only with a second one of the pair that agrees");
+  add("scan.near_saturation_m", "scan-near-saturation-m", &s.scan.near_saturation_m,
+      "joined trajectories already tied within this drive of here (both paths, through the "
+      "ties) are not near-searched here (m; 0 = always searched)");
+  add("scan.near_max_partners", "scan-near-max-partners", &s.scan.near_max_partners,
+      "joined trajectories near-searched per keyframe at most, nearest first (0 = all)");
   add("scan.global_every", "scan-global-every", &s.scan.global_every,
       "unjoined trajectories: every N-th keyframe is searched globally");
   add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
