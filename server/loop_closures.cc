@@ -453,28 +453,15 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   if (options_.wide_search) SubmitWide(key, graph, *record, query);
 }
 
-double LoopClosures::DrivenTo(const TrajectoryRecord& record, int32_t index) {
-  std::vector<double>& driven = driven_[record.solver_id];
-  for (size_t i = driven.size(); i < record.odometry_poses.size(); ++i) {
-    driven.push_back(i == 0 ? 0.0
-                            : driven.back() + (record.odometry_poses[i].translation() -
-                                               record.odometry_poses[i - 1].translation())
-                                                  .norm());
-  }
-  if (driven.empty()) return 0.0;
-  return driven[static_cast<size_t>(
-      std::clamp<int32_t>(index, 0, static_cast<int32_t>(driven.size()) - 1))];
-}
-
 bool LoopClosures::Saturated(const TrajectoryRecord& record, PoseKey candidate, PoseKey key) {
   if (options_.saturation_m <= 0) return false;
   const auto entered = entered_.find(key.trajectory);
   if (entered == entered_.end()) return false;
-  const double at_key = DrivenTo(record, key.index);
-  const double at_candidate = DrivenTo(record, candidate.index);
+  const double at_key = driven_.To(record, key.index);
+  const double at_candidate = driven_.To(record, candidate.index);
   for (const auto& [a, b] : entered->second) {
-    if (std::abs(DrivenTo(record, b) - at_key) < options_.saturation_m &&
-        std::abs(DrivenTo(record, a) - at_candidate) < options_.saturation_m) {
+    if (std::abs(driven_.To(record, b) - at_key) < options_.saturation_m &&
+        std::abs(driven_.To(record, a) - at_candidate) < options_.saturation_m) {
       return true;
     }
   }

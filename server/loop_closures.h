@@ -60,6 +60,7 @@
 #include "common/scan_matching/scan_reference.h"
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
+#include "server/driven_path.h"
 #include "server/encounter_source.h"
 #include "server/loop_closure_state.h"
 #include "server/match_pool.h"
@@ -249,9 +250,6 @@ class LoopClosures : public EncounterSource {
   // True when an entered closure of the trajectory has its ends within saturation_m of path
   // of `key` and of `candidate`.
   bool Saturated(const TrajectoryRecord& record, PoseKey candidate, PoseKey key);
-  // The path the record's odometry drove from its first keyframe to `index` (driven_, extended;
-  // a function of the table, so not in snapshots).
-  double DrivenTo(const TrajectoryRecord& record, int32_t index);
 
   // A wide match waiting for a consistent second.
   struct Hypothesis {
@@ -307,7 +305,7 @@ class LoopClosures : public EncounterSource {
   int64_t wide_searches_ = 0;
   SubmapCache references_;
   int64_t ambiguous_ = 0;
-  std::map<TrajectoryId, std::vector<double>> driven_;
+  DrivenPath driven_;  // a function of the table, so not in snapshots
   // Candidates skipped as saturated (a count only: not in snapshots, a restored source counts
   // from 0).
   int64_t saturated_ = 0;

@@ -156,14 +156,14 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   BuildSubmaps(graph);
-  CatchUpJoined(graph, out);
+  CatchUpJoined(graph);
   std::deque<PoseKey> still_waiting;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
       still_waiting.push_back(key);
       continue;
     }
-    ExamineKeyframe(key, graph, out);
+    ExamineKeyframe(key, graph);
     UseMatches(/*all=*/false, graph, out);
   }
   waiting_ = std::move(still_waiting);
@@ -195,8 +195,7 @@ std::shared_ptr<const ScanReference> ScanEncounters::Reference(const Submap& sub
   return references_.Get(*record, submap.drawing, options_.submap_half_width);
 }
 
-void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
-                                     EncounterSourceOutput* /*out*/) {
+void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return;
   if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return;
@@ -227,7 +226,7 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph,
   }
 }
 
-void ScanEncounters::CatchUpJoined(const GraphView& graph, EncounterSourceOutput* /*out*/) {
+void ScanEncounters::CatchUpJoined(const GraphView& graph) {
   const std::deque<TrajectoryRecord>& records = graph.table.records();
   std::set<std::pair<int64_t, int32_t>> waiting;
   for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
@@ -474,18 +473,8 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
 }
 
 double ScanEncounters::DrivenTo(PoseKey key, const GraphView& graph) {
-  std::vector<double>& driven = driven_[key.trajectory];
-  if (const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory)) {
-    for (size_t i = driven.size(); i < record->odometry_poses.size(); ++i) {
-      driven.push_back(i == 0 ? 0.0
-                              : driven.back() + (record->odometry_poses[i].translation() -
-                                                 record->odometry_poses[i - 1].translation())
-                                                    .norm());
-    }
-  }
-  if (driven.empty()) return 0.0;
-  return driven[static_cast<size_t>(
-      std::clamp<int32_t>(key.index, 0, static_cast<int32_t>(driven.size()) - 1))];
+  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  return record != nullptr ? driven_.To(*record, key.index) : 0.0;
 }
 
 Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView& graph) {

@@ -56,6 +56,7 @@
 #include "common/scan_matching/scan_reference.h"
 #include "common/util/status.h"
 #include "server/candidate_stats.h"
+#include "server/driven_path.h"
 #include "server/encounter_source.h"
 #include "server/global_search_queue.h"
 #include "server/keyframe_submap.h"
@@ -277,7 +278,7 @@ class ScanEncounters : public EncounterSource {
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   void BuildSubmaps(const GraphView& graph);
-  void ExamineKeyframe(PoseKey key, const GraphView& graph, EncounterSourceOutput* out);
+  void ExamineKeyframe(PoseKey key, const GraphView& graph);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
   // The trajectories `key` is searched against: one of each other group (the pair
@@ -296,10 +297,10 @@ class ScanEncounters : public EncounterSource {
   void SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph);
   // True when the pair is tied within near_saturation_m of drive between `key` and `center`.
   bool Saturated(PoseKey key, PoseKey center, const GraphView& graph);
-  // The path `key`'s odometry drove from its trajectory's first keyframe (driven_, extended).
+  // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
   double DrivenTo(PoseKey key, const GraphView& graph);
   // Near-searches the keyframes examined before a pair came into one frame (once per pair).
-  void CatchUpJoined(const GraphView& graph, EncounterSourceOutput* out);
+  void CatchUpJoined(const GraphView& graph);
   // Hands a match of keyframe `key` against the submap around `center` to the pool.
   void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
               MatchPool::Job job);
@@ -366,7 +367,7 @@ class ScanEncounters : public EncounterSource {
   // First-join hypotheses refused by the free-space test. Not in snapshots (CandidateStats'
   // format is fixed there): a restored source counts from 0.
   int64_t joins_contradicted_ = 0;
-  // Near searches skipped as saturated, and beyond near_max_partners (counted as
+  // Near searches skipped as saturated, and beyond near_max_partners (counts only, like
   // joins_contradicted_: not in snapshots).
   int64_t near_saturated_ = 0;
   int64_t near_capped_ = 0;
@@ -385,9 +386,7 @@ class ScanEncounters : public EncounterSource {
   // The index of `other`'s submaps, refreshed when due.
   const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
   std::map<TrajectoryId, SubmapIndex> near_index_;
-  // Per trajectory, the path its odometry drove from its first keyframe to each keyframe
-  // (extended as keyframes come; a function of the table, so not in snapshots).
-  std::map<TrajectoryId, std::vector<double>> driven_;
+  DrivenPath driven_;  // a function of the table, so not in snapshots
   // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
   // that held none: the pairs in one frame then are taken as caught up.
   std::set<Pair> near_joined_;

@@ -84,6 +84,33 @@ constexpr size_t kChunk = 32;
 // `Inside` when every shifted cell lies within the stored level (no bounds checks), `Exact`
 // when the values' sums are exact in any order (MaxGridPyramid::exact_sums: four independent
 // sums, the same double), in order otherwise (the same rounding as one running sum).
+template <bool Inside, bool Exact>
+double SumCells(const MaxGridPyramid::LevelView& l, const int32_t* xs, const int32_t* ys,
+                size_t begin, size_t end, int x0, int y0, double sum) {
+  auto value = [&l, xs, ys, x0, y0](size_t i) -> double {
+    const int x = xs[i] + x0;
+    const int y = ys[i] + y0;
+    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
+                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
+      return 0.0;
+    }
+    return l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
+  };
+  size_t i = begin;
+  if (Exact) {
+    double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    for (; i + 4 <= end; i += 4) {
+      sum += value(i);
+      s1 += value(i + 1);
+      s2 += value(i + 2);
+      s3 += value(i + 3);
+    }
+    sum += (s1 + s2) + s3;
+  }
+  for (; i < end; ++i) sum += value(i);
+  return sum;
+}
+
 #if defined(__x86_64__) && defined(__GNUC__)
 #define ANCHORMAP_HAS_AVX2_SUM 1
 // SumCells for exact sums, eight points at a time by AVX2 gathers (the order of the additions
@@ -125,16 +152,8 @@ __attribute__((target("avx2"))) double SumCellsAvx2(const MaxGridPyramid::LevelV
   alignas(32) double lanes[4];
   _mm256_store_pd(lanes, _mm256_add_pd(low, high));
   sum += (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-  for (; i < end; ++i) {
-    const int x = xs[i] + x0;
-    const int y = ys[i] + y0;
-    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
-                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
-      continue;
-    }
-    sum += l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
-  }
-  return sum;
+  // The last points (fewer than eight), one at a time.
+  return SumCells<Inside, /*Exact=*/false>(l, xs, ys, i, end, x0, y0, sum);
 }
 bool HasAvx2() {
   static const bool has = [] {
@@ -144,33 +163,6 @@ bool HasAvx2() {
   return has;
 }
 #endif
-
-template <bool Inside, bool Exact>
-double SumCells(const MaxGridPyramid::LevelView& l, const int32_t* xs, const int32_t* ys,
-                size_t begin, size_t end, int x0, int y0, double sum) {
-  auto value = [&l, xs, ys, x0, y0](size_t i) -> double {
-    const int x = xs[i] + x0;
-    const int y = ys[i] + y0;
-    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
-                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
-      return 0.0;
-    }
-    return l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
-  };
-  size_t i = begin;
-  if (Exact) {
-    double s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    for (; i + 4 <= end; i += 4) {
-      sum += value(i);
-      s1 += value(i + 1);
-      s2 += value(i + 2);
-      s3 += value(i + 3);
-    }
-    sum += (s1 + s2) + s3;
-  }
-  for (; i < end; ++i) sum += value(i);
-  return sum;
-}
 
 // The points' sums are taken in chunks; after each, whether the rest can still lift the mean
 // above `floor`. The rest is bounded by max_value per point, or, given the node's parent in the
