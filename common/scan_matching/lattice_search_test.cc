@@ -177,7 +177,7 @@ void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query
 
 TEST(LatticeSearchTest, HeadingGroupsFindTheExhaustivePoseOnEveryLevelCount) {
   // A wall-like grid (walls of exact values, 0 elsewhere), many headings at the step that moves
-  // the farthest point by one cell (groups of headings bound together from 5 levels on), and at
+  // the farthest point by one cell (groups of headings bound together from 6 levels on), and at
   // three times that step (groups too wide for their level: bounded higher up, or not at all).
   std::mt19937_64 rng(17);
   GridGeometry g;
