@@ -258,13 +258,30 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
 
 namespace {
 
+// Heading groups are split down to blocks of 2^kSingleHeadingBlock cells; there each heading of
+// a group goes on alone (measured on FR079's global searches: 3 gave the fewest point sums, 2 and
+// 4 about a sixth more).
+constexpr int kSingleHeadingBlock = 3;
+
+// Headings [k, k + 2^g) (cut at the window; g = 0: heading k alone) and translations
+// [dx, dx + 2^b) x [dy, dy + 2^b) (cut at the window).
 struct Node {
   int k;
-  int dx;  // lower corner of the block of translations
+  int g;
+  int b;
+  int dx;
   int dy;
   double bound;
-  int slot;  // where its running sums are kept (see Descend)
+  int slot;        // where its running sums are kept (see Descend)
+  bool dominates;  // its running sums bound its single-heading children's, point by point
 };
+
+// (k, dy, dx) order: ExhaustiveSearch's, which decides between equal scores.
+bool Precedes(int k, int dx, int dy, const LatticePose& other) {
+  if (k != other.k) return k < other.k;
+  if (dy != other.dy) return dy < other.dy;
+  return dx < other.dx;
+}
 
 class BranchAndBoundSearch {
  public:
@@ -279,30 +296,114 @@ class BranchAndBoundSearch {
 
   std::optional<LatticePose> Run() {
     const int top = grids_.num_levels() - 1;
-    const int step = 1 << top;
-    std::vector<Node> roots;
-    for (int k = -window_.half_angles; k <= window_.half_angles; ++k) {
+    // Grouped roots one level below the top: a group of 2^b headings turns the query's farthest
+    // point by about 2^b cells (the angle step moves it by one), so its bound fits on level b + 1.
+    const int root_b = top - 1 > kSingleHeadingBlock ? top - 1 : top;
+    const int root_g = root_b == top ? 0 : root_b;
+    deviations_.resize(static_cast<size_t>(root_g) + 1);
+    // Depth first: the nodes being descended at each depth, and their running sums.
+    const size_t depths = static_cast<size_t>(top + root_g + 2);
+    nodes_.resize(depths);
+    sums_.resize(depths);
+    std::vector<Node>& roots = nodes_[0];
+    roots.clear();
+    const int step = 1 << root_b;
+    for (int k = -window_.half_angles; k <= window_.half_angles; k += 1 << root_g) {
       for (int dy = -window_.half_cells_y; dy <= window_.half_cells_y; dy += step) {
         for (int dx = -window_.half_cells_x; dx <= window_.half_cells_x; dx += step) {
-          roots.push_back(Node{k, dx, dy, 0.0, static_cast<int>(roots.size())});
+          roots.push_back(Group(k, root_g, root_b, dx, dy));
         }
       }
     }
-    // Running sums per level: the roots', then at each lower level those of the (at most 4)
-    // children being descended (one set per level at a time: the descent is depth first).
-    sums_.resize(grids_.num_levels());
-    sums_[top].resize(roots.size() * chunks_);
-    for (int level = 0; level < top; ++level) sums_[level].resize(4 * chunks_);
-    for (Node& root : roots) {
-      root.bound = Score(top, root.k, root.dx, root.dy, nullptr, Sums(top, root.slot));
-    }
-    Descend(top, roots.data(), roots.size());
+    BoundAll(0, nullptr);
+    Descend(0);
     return best_;
   }
 
  private:
-  double* Sums(int level, int slot) {
-    return sums_[level].data() + static_cast<size_t>(slot) * chunks_;
+  int LastHeading(int k, int g) const { return std::min(k + (1 << g) - 1, window_.half_angles); }
+
+  // A group's node, or a single heading's when the window leaves the group one.
+  Node Group(int k, int g, int b, int dx, int dy) const {
+    if (g > 0 && LastHeading(k, g) == k) g = 0;
+    return Node{k, g, b, dx, dy, 0.0, 0, false};
+  }
+
+  double* Sums(int depth, int slot) {
+    return sums_[depth].data() + static_cast<size_t>(slot) * chunks_;
+  }
+
+  struct Deviation {
+    int centre = 0;  // the heading the group is scored at
+    int x = -1;      // the most any point's cell moves along x from its cell at the centre
+    int y = -1;
+  };
+
+  // The group's centre heading and how far its other headings move the query's cells (memoised:
+  // children of one group share it).
+  const Deviation& GroupDeviation(int k, int g) {
+    std::vector<Deviation>& memo = deviations_[static_cast<size_t>(g)];
+    const size_t index = static_cast<size_t>((k + window_.half_angles) >> g);
+    if (memo.size() <= index) memo.resize(index + 1);
+    Deviation& d = memo[index];
+    if (d.x >= 0) return d;
+    const int last = LastHeading(k, g);
+    d.centre = std::min(k + (1 << (g - 1)), last);
+    d.x = 0;
+    d.y = 0;
+    const size_t n = query_.num_points();
+    const int32_t* cx = query_.xs(d.centre);
+    const int32_t* cy = query_.ys(d.centre);
+    for (int h = k; h <= last; ++h) {
+      const int32_t* xs = query_.xs(h);
+      const int32_t* ys = query_.ys(h);
+      for (size_t i = 0; i < n; ++i) {
+        d.x = std::max(d.x, std::abs(xs[i] - cx[i]));
+        d.y = std::max(d.y, std::abs(ys[i] - cy[i]));
+      }
+    }
+    return d;
+  }
+
+  // Bounds the nodes at `depth`: the roots, or the children of one node (`parent_sums`: its
+  // running sums when it dominates its single-heading children, else null).
+  void BoundAll(int depth, const double* parent_sums) {
+    std::vector<Node>& nodes = nodes_[depth];
+    std::vector<double>& sums = sums_[depth];
+    if (sums.size() < nodes.size() * chunks_) sums.resize(nodes.size() * chunks_);
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      Node& node = nodes[i];
+      node.slot = static_cast<int>(i);
+      // Leaves need no sums (nothing descends from them).
+      double* own = node.g == 0 && node.b == 0 ? nullptr : Sums(depth, node.slot);
+      Bound(&node, node.g == 0 ? parent_sums : nullptr, own);
+    }
+  }
+
+  // A single heading's bound is its score on level b. A group's: every point, at any heading of
+  // the group, lies within (x, y) cells of where it lies at the centre, so over the node's
+  // translations it lands in a block of 2^b + 2 max(x, y) cells around its centre cell shifted
+  // by the node's corner, whose maximum is the value of the level just as wide, read at the
+  // corner minus (x, y). That level's block also holds every single heading's block of the same
+  // translations: the group's sums bound theirs point by point.
+  void Bound(Node* node, const double* parent_sums, double* sums) {
+    if (node->g == 0) {
+      node->bound = Score(node->b, node->k, node->dx, node->dy, parent_sums, sums);
+      node->dominates = true;
+      return;
+    }
+    const Deviation& d = GroupDeviation(node->k, node->g);
+    const int span = (1 << node->b) + 2 * std::max(d.x, d.y);
+    int level = node->b;
+    while ((1 << level) < span) ++level;
+    if (level >= grids_.num_levels()) {
+      // No level is wide enough: always descended.
+      node->bound = std::numeric_limits<double>::infinity();
+      node->dominates = false;
+      return;
+    }
+    node->bound = Score(level, d.centre, node->dx - d.x, node->dy - d.y, nullptr, sums);
+    node->dominates = true;
   }
 
   double Score(int level, int k, int dx, int dy, const double* parent_sums, double* sums) {
@@ -310,48 +411,65 @@ class BranchAndBoundSearch {
       ++stats_->scored_nodes;
       if (level == 0) ++stats_->leaves;
     }
-    // Only whether a node beats the best leaf so far matters (a node at or below it is never
-    // expanded): its score is finished only when it does.
+    // Only whether a node can reach the best leaf so far matters: its score is finished only
+    // when it does.
     return ScoreWithParent(grids_, level, query_, k, dx, dy, best_score_, parent_sums, sums);
   }
 
-  // Nodes of `level`, each a block of 2^level x 2^level translations (cut at the window).
-  void Descend(int level, Node* nodes, size_t count) {
-    SortByBound(nodes, count);
-    for (size_t i = 0; i < count; ++i) {
-      const Node& node = nodes[i];
-      if (!(node.bound > best_score_)) break;  // sorted: no later node can do better
-      if (level == 0) {
-        best_score_ = node.bound;
-        best_ = LatticePose{node.k, node.dx, node.dy, node.bound};
-        break;
+  // A node is descended when it may hold a leaf above the best so far, or one equal to it that
+  // comes first in (k, dy, dx) order (an equal bound: ties are decided as ExhaustiveSearch
+  // decides them, whatever the order of the descent).
+  bool Promising(double bound) const {
+    return bound > best_score_ || (best_.has_value() && bound == best_score_);
+  }
+
+  void Descend(int depth) {
+    std::vector<Node>& nodes = nodes_[depth];
+    SortByBound(nodes.data(), nodes.size());
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      const Node node = nodes[i];
+      if (!Promising(node.bound)) break;  // sorted: no later node can do better
+      if (node.g == 0 && node.b == 0) {
+        if (node.bound > best_score_ || Precedes(node.k, node.dx, node.dy, *best_)) {
+          best_score_ = node.bound;
+          best_ = LatticePose{node.k, node.dx, node.dy, node.bound};
+        }
+        continue;
       }
-      const int half = 1 << (level - 1);
-      // At most four children, on the stack: a vector (and stable_sort's buffer) per expanded
-      // node was two allocations each, millions per global search.
-      std::array<Node, 4> children;
-      size_t num_children = 0;
-      const double* parent_sums = Sums(level, node.slot);
-      for (int oy = 0; oy <= half; oy += half) {
-        for (int ox = 0; ox <= half; ox += half) {
-          const int dx = node.dx + ox;
-          const int dy = node.dy + oy;
-          if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
-          const int slot = static_cast<int>(num_children);
-          // Leaves need no sums (nothing descends from them).
-          double* sums = level - 1 > 0 ? Sums(level - 1, slot) : nullptr;
-          children[num_children++] =
-              Node{node.k, dx, dy, Score(level - 1, node.k, dx, dy, parent_sums, sums), slot};
+      std::vector<Node>& children = nodes_[depth + 1];
+      children.clear();
+      if (node.g > 0 && node.b <= kSingleHeadingBlock) {
+        // Each heading alone, the same translations.
+        for (int k = node.k; k <= LastHeading(node.k, node.g); ++k) {
+          children.push_back(Node{k, 0, node.b, node.dx, node.dy, 0.0, 0, false});
+        }
+      } else {
+        // Halves of the group (none for a single heading) times quarters of the block.
+        const int half = 1 << (node.b - 1);
+        const int group_step = node.g > 0 ? 1 << (node.g - 1) : 1;
+        for (int k = node.k; k <= LastHeading(node.k, node.g); k += group_step) {
+          for (int oy = 0; oy <= half; oy += half) {
+            for (int ox = 0; ox <= half; ox += half) {
+              const int dx = node.dx + ox;
+              const int dy = node.dy + oy;
+              if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
+              children.push_back(Group(k, std::max(node.g - 1, 0), node.b - 1, dx, dy));
+            }
+          }
         }
       }
-      Descend(level - 1, children.data(), num_children);
+      // Single headings below a node that dominates them stop early on its sums; a group's
+      // bound is read elsewhere than its parent's and cannot.
+      const double* parent_sums = node.dominates ? Sums(depth, node.slot) : nullptr;
+      BoundAll(depth + 1, parent_sums);
+      Descend(depth + 1);
     }
   }
 
-  // Best bound first, equal bounds in their given order (what std::stable_sort gives; an
-  // insertion sort for the few children of a node, without its buffer).
+  // Best bound first, equal bounds in their given order (an insertion sort for the few children
+  // of a node, without std::stable_sort's buffer).
   static void SortByBound(Node* nodes, size_t count) {
-    if (count > 4) {
+    if (count > 16) {
       std::stable_sort(nodes, nodes + count,
                        [](const Node& a, const Node& b) { return a.bound > b.bound; });
       return;
@@ -371,7 +489,9 @@ class BranchAndBoundSearch {
   LatticeSearchStats* stats_;
   std::optional<LatticePose> best_;
   size_t chunks_;
+  std::vector<std::vector<Node>> nodes_;
   std::vector<std::vector<double>> sums_;
+  std::vector<std::vector<Deviation>> deviations_;  // per group size (log2), per group
 };
 
 }  // namespace

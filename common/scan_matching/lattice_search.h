@@ -4,10 +4,14 @@
 // query points are put into cells once and every translation only shifts their indices; the
 // score of a lattice pose is the mean likelihood of the cells its points land in (Olson 2009).
 //
-// BranchAndBound finds the best lattice pose exactly (the same score as ExhaustiveSearch) by
+// BranchAndBound finds the best lattice pose exactly (the same pose as ExhaustiveSearch) by
 // scoring blocks of 2^h x 2^h translations on the max-grid of level h, an upper bound of every
 // translation in the block (Hess et al. 2016): blocks are visited best first, depth first, and
-// a block whose bound is not above the best leaf so far is skipped with all it contains.
+// a block whose bound is below the best leaf so far is skipped with all it contains. Above
+// blocks of 8 cells, headings are bounded in groups too: 2^h consecutive headings move every
+// query point by at most about 2^(h-1) cells from where the middle one puts it, so one score on
+// level h + 1, shifted back by that much, bounds the group's 2^h x 2^h blocks (one score for
+// 2^h headings where the search without groups scored each heading on a level of its own).
 
 #include <cstdint>
 #include <optional>
@@ -90,7 +94,7 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
                                             const SearchWindow& window, double min_score,
                                             LatticeSearchStats* stats = nullptr);
 
-// The same best score, by branch and bound over all the pyramid's levels.
+// The same best lattice pose, by branch and bound over all the pyramid's levels.
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats = nullptr);

@@ -154,6 +154,102 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearchOnExactGrids) {
   }
 }
 
+// Expects branch and bound to find exhaustive search's lattice pose (score, then the first in
+// (k, dy, dx) order among equals), scoring no more leaves (as many with one level: no bounds).
+void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query,
+                    const SearchWindow& window, double min_score) {
+  LatticeSearchStats all_stats;
+  LatticeSearchStats bnb_stats;
+  const auto all = ExhaustiveSearch(pyramid, query, window, min_score, &all_stats);
+  const auto bnb = BranchAndBound(pyramid, query, window, min_score, &bnb_stats);
+  EXPECT_EQ(all.has_value(), bnb.has_value());
+  if (all && bnb) {
+    EXPECT_EQ(bnb->score, all->score);
+    EXPECT_EQ(bnb->k, all->k);
+    EXPECT_EQ(bnb->dx, all->dx);
+    EXPECT_EQ(bnb->dy, all->dy);
+  }
+  EXPECT_LE(bnb_stats.leaves, all_stats.leaves);
+  if (pyramid.num_levels() > 1) {
+    EXPECT_LT(bnb_stats.leaves, all_stats.leaves);
+  }
+}
+
+TEST(LatticeSearchTest, HeadingGroupsFindTheExhaustivePoseOnEveryLevelCount) {
+  // A wall-like grid (walls of exact values, 0 elsewhere), many headings at the step that moves
+  // the farthest point by one cell (groups of headings bound together from 6 levels on), and at
+  // three times that step (groups too wide for their level: bounded higher up, or not at all).
+  std::mt19937_64 rng(17);
+  GridGeometry g;
+  g.resolution = 0.1;
+  g.width = 70;
+  g.height = 60;
+  std::vector<float> values(g.num_cells(), 0.0f);
+  std::uniform_int_distribution<int> cell_x(0, g.width - 1);
+  std::uniform_int_distribution<int> cell_y(0, g.height - 1);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int wall = 0; wall < 12; ++wall) {
+    const int x = cell_x(rng);
+    const int y = cell_y(rng);
+    const bool along_x = wall % 2 == 0;
+    for (int i = 0; i < 15; ++i) {
+      const int wx = along_x ? std::min(x + i, g.width - 1) : x;
+      const int wy = along_x ? y : std::min(y + i, g.height - 1);
+      values[g.Index(wx, wy)] = std::max(1.0f / 128.0f, unit(rng));
+    }
+  }
+  const LikelihoodGrid grid(g, values);
+  std::uniform_real_distribution<double> coord(-2.5, 2.5);
+  PointCloud query;
+  for (int i = 0; i < 50; ++i) query.push_back({coord(rng), coord(rng)});
+  const double step = AngleStepForRange(g.resolution, MaxPointRange(query));
+  for (const int levels : {1, 5, 6, 7}) {
+    const MaxGridPyramid pyramid(grid, levels);
+    for (const double step_factor : {1.0, 3.0}) {
+      SearchWindow window;
+      window.center = Pose2(3.5, 3.0, 0.2 * levels);
+      window.angle_step_rad = step_factor * step;
+      window.half_angles = 40;
+      window.half_cells_x = 20;
+      window.half_cells_y = 15;
+      const DiscretisedQuery discretised(query, window, g);
+      for (const double min_score : {0.0, 0.3}) {
+        SCOPED_TRACE(testing::Message()
+                     << levels << " levels, step x" << step_factor << ", min score " << min_score);
+        ExpectSamePose(pyramid, discretised, window, min_score);
+      }
+    }
+  }
+}
+
+TEST(LatticeSearchTest, TiesGoToTheFirstPoseInExhaustiveOrder) {
+  // A plateau of equal values: many lattice poses score 1 exactly; every level count and
+  // window returns the one exhaustive search meets first.
+  GridGeometry g;
+  g.resolution = 0.1;
+  g.width = 50;
+  g.height = 40;
+  std::vector<float> values(g.num_cells(), 0.0f);
+  for (int y = 10; y < 30; ++y) {
+    for (int x = 12; x < 40; ++x) values[g.Index(x, y)] = 0.5f;
+  }
+  const LikelihoodGrid grid(g, values);
+  PointCloud query;
+  for (int i = 0; i < 40; ++i) query.push_back({0.02 * (i % 8) - 0.07, 0.02 * (i / 8) - 0.05});
+  for (int levels = 1; levels <= 7; levels += 2) {
+    const MaxGridPyramid pyramid(grid, levels);
+    SearchWindow window;
+    window.center = Pose2(2.5, 2.0, 0.0);
+    window.angle_step_rad = AngleStepForRange(g.resolution, MaxPointRange(query));
+    window.half_angles = 12;
+    window.half_cells_x = 24;
+    window.half_cells_y = 19;
+    const DiscretisedQuery discretised(query, window, g);
+    SCOPED_TRACE(testing::Message() << levels << " levels");
+    ExpectSamePose(pyramid, discretised, window, 0.0);
+  }
+}
+
 TEST(LatticeSearchTest, FindsAPlantedPatternAndNothingAboveAnImpossibleScore) {
   GridGeometry g;
   g.resolution = 0.1;
@@ -182,6 +278,12 @@ TEST(LatticeSearchTest, FindsAPlantedPatternAndNothingAboveAnImpossibleScore) {
   const auto best = BranchAndBound(pyramid, discretised, window, 0.0);
   ASSERT_TRUE(best.has_value());
   EXPECT_DOUBLE_EQ(best->score, 1.0);
+  // Of the tied poses, the exhaustive search's first.
+  const auto first = ExhaustiveSearch(pyramid, discretised, window, 0.0);
+  ASSERT_TRUE(first.has_value());
+  EXPECT_EQ(best->k, first->k);
+  EXPECT_EQ(best->dx, first->dx);
+  EXPECT_EQ(best->dy, first->dy);
   const Pose2 pose = LatticeToPose(window, g.resolution, *best);
   EXPECT_NEAR(pose.x(), 1.05, 0.051);
   EXPECT_NEAR(pose.y(), 1.05, 0.051);
