@@ -11,26 +11,77 @@ namespace anchormap {
 KeyframeGrid::KeyframeGrid(const OccupancyGridOptions& options, double move_tolerance_cells)
     : options_(options), move_tolerance_m_(move_tolerance_cells * options.resolution_m) {}
 
-void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sign) {
+KeyframeGrid::Counts* KeyframeGrid::TouchTile(int64_t tile_x, int64_t tile_y) {
+  const uint64_t key = TileKey(tile_x, tile_y);
+  Tile& tile = tiles_[key];
   const int64_t size = options_.tile_size_cells;
-  uint64_t last_key = 0;
-  Tile* tile = nullptr;
-  int64_t tile_x = 0, tile_y = 0;
-  for (const TracedCell& cell : tracer_.Trace(scan, T_map_body, options_)) {
-    const int64_t tx = FloorDiv(cell.x, size), ty = FloorDiv(cell.y, size);
-    const uint64_t key = TileKey(tx, ty);
-    if (tile == nullptr || key != last_key) {
-      tile = &tiles_[key];
-      if (tile->cells.empty()) tile->cells.resize(static_cast<size_t>(size * size));
-      changed_.insert(key);
-      last_key = key;
-      tile_x = tx;
-      tile_y = ty;
-    }
-    Counts& counts = tile->cells[static_cast<size_t>((cell.y - tile_y * size) * size +
-                                                     (cell.x - tile_x * size))];
-    (cell.hit ? counts.hits : counts.misses) += sign;
+  if (tile.cells.empty()) tile.cells.resize(static_cast<size_t>(size * size));
+  changed_.insert(key);
+  return tile.cells.data();
+}
+
+namespace {
+// Tables bigger than this (rays very long for the cell size) are not worth their filling:
+// tiles are then found per cell.
+constexpr int64_t kMaxWindowTiles = 4096;
+}  // namespace
+
+void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sign) {
+  const std::optional<ScanTracer::Window> window = tracer_.Start(scan, T_map_body, options_);
+  if (!window) return;
+  const int64_t size = options_.tile_size_cells;
+  const int64_t side = window->side;
+  const int64_t min_tile_x = FloorDiv(window->min_x, size);
+  const int64_t min_tile_y = FloorDiv(window->min_y, size);
+  const int64_t columns = FloorDiv(window->min_x + side - 1, size) - min_tile_x + 1;
+  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - min_tile_y + 1;
+  if (columns * rows > kMaxWindowTiles) {
+    Counts* tile = nullptr;
+    int64_t tile_x = 0, tile_y = 0;
+    tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
+      const int64_t x = window->min_x + wx, y = window->min_y + wy;
+      const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
+      if (tile == nullptr || tx != tile_x || ty != tile_y) {
+        tile = TouchTile(tx, ty);
+        tile_x = tx;
+        tile_y = ty;
+      }
+      Counts& counts = tile[(y - ty * size) * size + (x - tx * size)];
+      (hit ? counts.hits : counts.misses) += sign;
+    });
+    return;
   }
+  auto fill = [&](int64_t min, int64_t tile_stride, int64_t cell_stride, std::vector<int32_t>* tile,
+                  std::vector<int32_t>* cell) {
+    tile->resize(static_cast<size_t>(side));
+    cell->resize(static_cast<size_t>(side));
+    int64_t t = 0, c = min - FloorDiv(min, size) * size;
+    for (int64_t w = 0; w < side; ++w) {
+      (*tile)[w] = static_cast<int32_t>(t * tile_stride);
+      (*cell)[w] = static_cast<int32_t>(c * cell_stride);
+      if (++c == size) {
+        c = 0;
+        ++t;
+      }
+    }
+  };
+  fill(window->min_x, 1, 1, &column_tile_, &column_cell_);
+  fill(window->min_y, columns, size, &row_tile_, &row_cell_);
+  window_tiles_.assign(static_cast<size_t>(columns * rows), nullptr);
+  const int32_t* const column_tile = column_tile_.data();
+  const int32_t* const column_cell = column_cell_.data();
+  const int32_t* const row_tile = row_tile_.data();
+  const int32_t* const row_cell = row_cell_.data();
+  Counts** const tiles = window_tiles_.data();
+  tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
+    Counts*& tile = tiles[row_tile[wy] + column_tile[wx]];
+    if (tile == nullptr) {
+      tile = TouchTile(min_tile_x + column_tile[wx], min_tile_y + row_tile[wy] / columns);
+    }
+    Counts& counts = tile[row_cell[wy] + column_cell[wx]];
+    counts.hits += hit ? sign : 0;
+    counts.misses += hit ? 0 : sign;
+  });
 }
 
 KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,

@@ -72,12 +72,22 @@ class KeyframeGrid {
   };
   // Adds (sign +1) or takes out (-1) the cells of `scan` at T_map_body.
   void Trace(const LaserScan& scan, const Pose2& T_map_body, int sign);
+  // Tile (tile_x, tile_y)'s cells, the tile made when new; marks it changed.
+  Counts* TouchTile(int64_t tile_x, int64_t tile_y);
   std::optional<double> LogOdds(const Counts& counts) const;
   GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
 
   OccupancyGridOptions options_;
   double move_tolerance_m_;
   ScanTracer tracer_;
+  // Per trace, for each column (row) of the tracer's window: its tile's column (row, times
+  // the window's tile columns) among the tiles the window spans, and its cell's column (row,
+  // times the tile size) in that tile; and each spanned tile's cells once touched. A cell's
+  // counts are then four table reads away, with one hash lookup per tile and trace instead
+  // of a division per cell and a lookup at every tile switch (the beams start at the
+  // sensor's tile again and again).
+  std::vector<int32_t> column_tile_, column_cell_, row_tile_, row_cell_;
+  std::vector<Counts*> window_tiles_;
   std::unordered_map<uint64_t, Tile> tiles_;
   std::unordered_set<uint64_t> changed_;
   std::unordered_map<uint64_t, Pose2> placed_pose_;

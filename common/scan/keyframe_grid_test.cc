@@ -74,20 +74,29 @@ void ExpectSameCells(const KeyframeGrid& a, const KeyframeGrid& b) {
   EXPECT_GT(compared, observed);
 }
 
+// With the tiles found through the tracer's window (few tiles per window) and per cell
+// (rays long for the tile size: 77 x 77 tiles span the window of the second options).
 TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
-  const OccupancyGridOptions options = SmallOptions();
-  const Pose2 pose(1.0, -0.5, 0.3);
-  const LaserScan scan = BoxScan(pose, 360);
-  OccupancyGrid reference(options);
-  reference.InsertScan(scan, pose);
-  KeyframeGrid grid(options);
-  EXPECT_EQ(grid.Place(7, scan, pose), KeyframeGrid::Placement::kInserted);
-  const std::vector<GridTile> expected = reference.Tiles(3, 4), actual = grid.Tiles(3, 4);
-  ASSERT_EQ(actual.size(), expected.size());
-  for (size_t i = 0; i < expected.size(); ++i) {
-    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
-    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
-    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  OccupancyGridOptions many_tiles = SmallOptions();
+  many_tiles.resolution_m = 0.02;
+  many_tiles.tile_size_cells = 8;
+  many_tiles.max_ray_length_m = 6.0;
+  for (const OccupancyGridOptions& options : {SmallOptions(), many_tiles}) {
+    const Pose2 pose(1.0, -0.5, 0.3);
+    const LaserScan scan = BoxScan(pose, 360);
+    OccupancyGrid reference(options);
+    reference.InsertScan(scan, pose);
+    KeyframeGrid grid(options);
+    EXPECT_EQ(grid.Place(7, scan, pose), KeyframeGrid::Placement::kInserted);
+    const std::vector<GridTile> expected = reference.Tiles(3, 4), actual = grid.Tiles(3, 4);
+    ASSERT_GT(expected.size(), 20u);
+    ASSERT_EQ(actual.size(), expected.size());
+    for (size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+      EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+      EXPECT_EQ(actual[i].cells, expected[i].cells);
+    }
+    EXPECT_EQ(grid.TakeChangedTiles(3, 4).size(), expected.size());
   }
 }
 
