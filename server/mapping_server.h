@@ -41,8 +41,8 @@ namespace anchormap {
 
 // The smoother's defaults: common/solver's ServerModeOptions() (relinearisation and
 // merges by partial steps, batch steps only on fill; why there) with the conjugate-gradient
-// correction (the estimate kept within 1e-4 x chi2 of the optimum by CG steps with R as the
-// preconditioner; partial steps only when it stalls): M3500 1.70 s CPU against 4.78 s, the
+// correction (the estimate kept within a few 1e-4 x chi2 of the optimum by CG steps with R as
+// the preconditioner; partial steps only when it stalls): M3500 1.70 s CPU against 4.78 s, the
 // same maps on the real logs and the demo (docs/ARCHITECTURE.md, "Correcting the estimate").
 // anchormap-bench-solver's equivalent: --server-mode --correct 1e-4 --correct-iterations 5
 // --relinearize-on-stall --correct-cg 50.

@@ -14,7 +14,7 @@ static_assert(sizeof(LoopClosureOptions) == 392,
               "new LoopClosureOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanEncounterOptions) == 432,
               "new ScanEncounterOptions field: add it to the fingerprint");
-static_assert(sizeof(SmootherOptions) == 104,
+static_assert(sizeof(SmootherOptions) == 120,
               "new SmootherOptions field: add it to the fingerprint");
 #endif
 
@@ -166,6 +166,7 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
   h->B(s.relinearize_when_correction_stalls);
   // Hashed only when set, so that fingerprints recorded before the option existed still hold.
   if (s.correction_cg_iterations != 0) h->I(s.correction_cg_iterations);
+  h->F(s.correction_skip_factor);
   h->B(s.partial_merges);
   h->B(s.converge_periodic_batches);
   h->F(s.convergence_step);

@@ -24,7 +24,7 @@ bool Smoother::Impl::CorrectEstimate() {
   // Converged last time and the new factors agree with the estimate: the gradient is
   // unchanged (new rows only add information), nothing to do.
   if (correction_converged_ &&
-      innovation_ <= options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
+      innovation_ <= SkipFactor() * options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
     ++stats_.correction_skips;
     return true;
   }
@@ -34,7 +34,9 @@ bool Smoother::Impl::CorrectEstimate() {
                                                                : CorrectByFixedPointSteps();
   if (!converged) ++stats_.correction_stalls;
   correction_converged_ = converged;
-  innovation_ = 0.0;
+  // Kept-estimate mode: the decrease still predicted where the correction stopped, which
+  // the next updates' factors add to; else the new factors' chi2 since this correction.
+  innovation_ = KeepsEstimate() && converged ? last_decrease_ : 0.0;
   stats_.correction_seconds += Seconds(start);
   return converged;
 }
@@ -108,7 +110,10 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     z = r;
     double rz = R.SolveTransposedInPlace(&z);
     const double stop = tolerance * std::max(chi2, 1e-12);
-    if (rz <= stop) return true;
+    // At entry the update may be left as it is (correction_skip_factor); once steps are
+    // taken they go on to the tolerance.
+    last_decrease_ = rz;
+    if (rz <= (outer == 0 ? SkipFactor() : 1.0) * stop) return true;
     if (outer == options_.correction_iterations ||
         cg_iterations >= options_.correction_cg_iterations) {
       return false;

@@ -236,6 +236,10 @@ class Smoother::Impl {
   bool KeepsEstimate() const {
     return options_.correction_tolerance > 0 && options_.correction_cg_iterations > 0;
   }
+  // How far above correction_tolerance an update may stay uncorrected (CG mode only).
+  double SkipFactor() const {
+    return options_.correction_cg_iterations > 0 ? options_.correction_skip_factor : 1.0;
+  }
   // Kept-estimate mode, after IncrementalStep's Givens updates (no back-substitution):
   // each new variable (position >= first_new) is placed by the factor that determines it
   // (`jacobians`, by factor of `ready`) relative to its neighbours' estimates, as R's
@@ -348,7 +352,11 @@ class Smoother::Impl {
   std::vector<Eigen::Vector3d> correction_;
   bool correction_converged_ = false;  // the last CorrectEstimate() converged
   double last_chi2_ = 0.0;             // chi2 at its last gradient evaluation
-  double innovation_ = 0.0;            // new factors' chi2 at entry since then
+  // The skip test's estimate of the decrease a correction would bring: CG mode, a bound
+  // from the last correction's predicted decrease and the new factors' errors since
+  // (IncrementalStep); else the new factors' chi2 at entry and after the update since it.
+  double innovation_ = 0.0;
+  double last_decrease_ = 0.0;  // CG: the decrease predicted at the last gradient pass
   // Work space of GradientAtEstimate (not in the state: a function of the estimate).
   IncrementalGradient gradient_;
   std::vector<Pose2> estimate_scratch_;

@@ -78,6 +78,16 @@ struct SmootherOptions {
   // conjugate-gradient iterations in one update count as a stall (the preconditioner is
   // too stale: relinearize_when_correction_stalls relinearises then). 0 = fixed-point steps.
   int correction_cg_iterations = 0;
+  // With correction_cg_iterations: an update is left uncorrected while the decrease of chi2
+  // a correction would bring stays below this multiple of correction_tolerance x chi2
+  // (judged first by a bound from the last correction's predicted decrease and the new
+  // factors' errors since, then by the correction's first solve); a correction that runs
+  // still goes on to correction_tolerance. Why: most corrected updates of a large map take
+  // one CG step that costs solves with all of R, while the check asks each step for
+  // 1e-3 x chi2 (city10000: 3801 -> 4455 of 10000 updates skipped, 5383 -> 4025 CG steps,
+  // worst of 100 sampled steps 1.2e-4 -> 2.8e-4 above their batch optimum). 1 = skip only
+  // within correction_tolerance.
+  double correction_skip_factor = 3.0;
 
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
@@ -119,6 +129,8 @@ struct SmootherOptions {
     if (!(correction_tolerance >= 0)) return Status::Error("correction_tolerance must be >= 0");
     if (correction_iterations < 1) return Status::Error("correction_iterations must be >= 1");
     if (correction_cg_iterations < 0) return Status::Error("correction_cg_iterations must be >= 0");
+    if (!(correction_skip_factor >= 1.0))
+      return Status::Error("correction_skip_factor must be >= 1");
     if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");
     if (max_batch_iterations < 1) return Status::Error("max_batch_iterations must be >= 1");
     if (!(dogleg_initial_radius > 0)) return Status::Error("dogleg_initial_radius must be > 0");

@@ -181,6 +181,57 @@ TEST(SmootherTest, ConjugateGradientCorrectionReachesTheDenseOptimumAfterEveryUp
   EXPECT_EQ(smoother.stats().batch_steps, 0);
 }
 
+TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget) {
+  // correction_skip_factor: an update stays uncorrected while the decrease a correction
+  // would bring is predicted below factor x tolerance x chi2. A loose tolerance (1e-2) makes
+  // this small graph's new factors small against it, as a large map's are against 1e-4.
+  // Against factor 1, more updates are skipped, and every update's estimate stays within
+  // its budget of the dense optimum of its factors (measured worst 7.7e-3 and 2.5e-2).
+  auto run = [](double factor, double* worst_excess) {
+    SmootherOptions options = ServerModeOptions();
+    options.correction_tolerance = 1e-2;
+    options.correction_cg_iterations = 50;
+    options.relinearize_when_correction_stalls = true;
+    options.correction_skip_factor = factor;
+    Smoother smoother(options);
+    testing::RandomGraphOptions g;
+    g.poses = 40;
+    g.loop_closures = 20;
+    g.seed = 11;
+    const PoseGraph graph = testing::RandomGraph(g);
+    const TrajectoryId t(0);
+    *worst_excess = 0.0;
+    for (int i = 0; i < g.poses; ++i) {
+      const Pose2 initial =
+          i == 0 ? Pose2()
+                 : Compose(smoother.FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+      EXPECT_TRUE(smoother.AddPose({t, i}, initial).ok());
+      for (const GraphEdge& e : graph.edges) {
+        if (e.to != i) continue;
+        EXPECT_TRUE(smoother
+                        .AddBetween({t, static_cast<int32_t>(e.from)}, {t, i}, e.measured_T_from_to,
+                                    e.information.inverse())
+                        .ok());
+      }
+      EXPECT_TRUE(smoother.Update().status.ok());
+      if (i < 2) continue;
+      const DenseOracle oracle(smoother.ActiveFactors());
+      const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 20));
+      *worst_excess = std::max(*worst_excess, (smoother.Chi2() - optimum) / optimum);
+    }
+    std::printf("skip factor %g: %lld skipped, %lld CG steps, worst excess %.3g\n", factor,
+                static_cast<long long>(smoother.stats().correction_skips),
+                static_cast<long long>(smoother.stats().correction_steps), *worst_excess);
+    return smoother.stats().correction_skips;
+  };
+  double worst_1 = 0.0, worst_3 = 0.0;
+  const int64_t skipped_1 = run(1.0, &worst_1);
+  const int64_t skipped_3 = run(3.0, &worst_3);
+  EXPECT_GT(skipped_3, skipped_1);
+  EXPECT_LE(worst_1, 1e-2);
+  EXPECT_LE(worst_3, 3e-2);
+}
+
 TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAddedIn) {
   // The conjugate-gradient correction's mode places each new variable by the factor that
   // determines it, relative to its neighbours' estimates: a pose added before its

@@ -107,7 +107,8 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
       rows.blocks.emplace_back(position, lin.jacobians[j]);
       rows.rhs += lin.jacobians[j] * OffsetOf(f.vars[j]);
     }
-    if (options_.correction_tolerance > 0) innovation_ += lin.whitened_error.squaredNorm();
+    if (options_.correction_tolerance > 0 && !keep_estimate)
+      innovation_ += lin.whitened_error.squaredNorm();
     if (keep_estimate) new_jacobians.push_back(lin);
     // A variable this factor determines is placed by R relative to its neighbours'
     // uncorrected estimates (see PlaceByNeighboursCorrection).
@@ -138,10 +139,20 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     // The new factors at the new estimate: with a zero error at entry R's solution of the
     // old variables is unchanged, so these tell whether the gradient changed (a new
     // variable placed by one factor may disagree with its others).
+    double added = 0.0;
     for (int64_t id : ready) {
       const FactorRecord& f = factors_[id];
       for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
-      innovation_ += FactorChi2(f.factor, values.data());
+      added += FactorChi2(f.factor, values.data());
+    }
+    if (keep_estimate) {
+      // The old variables kept their estimate, so the gradient changed by the new factors'
+      // J^T e only, whose share of the decrease still predicted is at most |e|^2 (the
+      // factors are in R): sqrt(decrease) grows by at most |e|, over any number of updates.
+      const double root = std::sqrt(innovation_) + std::sqrt(added);
+      innovation_ = root * root;
+    } else {
+      innovation_ += added;
     }
   }
 }

@@ -46,6 +46,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --relinearize-on-stall      look at drift only when the correction did not converge
   --correct-cg M              correction steps by conjugate gradients (R^T R as the
                               preconditioner); more than M iterations in an update is a stall
+  --correct-skip F            with --correct-cg: leave an update uncorrected while the
+                              predicted decrease stays below F x TOL x chi2 (default 3)
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
                               chi2 excess of the step's estimate over it (0 = off)
@@ -137,6 +139,8 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.correction_tolerance = ParseNumber(arg, value());
     } else if (arg == "--correct-cg") {
       flags.smoother.correction_cg_iterations = static_cast<int>(ParseNumber(arg, value()));
+    } else if (arg == "--correct-skip") {
+      flags.smoother.correction_skip_factor = ParseNumber(arg, value());
     } else if (arg == "--correct-iterations") {
       flags.smoother.correction_iterations = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--relinearize-on-stall") {
