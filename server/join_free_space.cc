@@ -36,4 +36,18 @@ JoinConflict MeasureJoinConflict(const std::vector<RayScan>& a, const std::vecto
   return conflict;
 }
 
+JoinConflict MeasureCandidateConflict(const TrajectoryRecord& record_a,
+                                      const TrajectoryRecord& record_b, const Smoother& smoother,
+                                      PoseKey a, PoseKey b, const Pose2& T_a_b, double radius_m,
+                                      double max_range_m, const FreeSpaceOptions& options) {
+  const Pose2 T_a_frame_b_frame =
+      Compose(Compose(smoother.FramePose(a), T_a_b), smoother.FramePose(b).Inverse());
+  return MeasureJoinConflict(
+      KeyframeRaysNear(record_a, smoother, {smoother.FramePose(a).translation()}, radius_m, Pose2(),
+                       max_range_m),
+      KeyframeRaysNear(record_b, smoother, {smoother.FramePose(b).translation()}, radius_m,
+                       T_a_frame_b_frame, max_range_m),
+      options);
+}
+
 }  // namespace anchormap

@@ -36,8 +36,25 @@ struct JoinConflict {
   // open space; in a true one a side's far walls, drawn at an estimate that has drifted (or
   // grazed by the other's rays), can conflict alone.
   double fraction() const { return std::min(a_in_b.fraction(), b_in_a.fraction()); }
+  // Both sides' points together: how much of the two maps, drawn as one, contradicts itself.
+  double pooled_fraction() const {
+    const size_t seen = a_in_b.seen + b_in_a.seen;
+    return seen == 0 ? 0.0
+                     : static_cast<double>(a_in_b.contradicts + b_in_a.contradicts) /
+                           static_cast<double>(seen);
+  }
+  // The evidence of the thinner side: its points that landed where the other side saw anything.
+  size_t fewer_seen() const { return std::min(a_in_b.seen, b_in_a.seen); }
 };
 JoinConflict MeasureJoinConflict(const std::vector<RayScan>& a, const std::vector<RayScan>& b,
                                  const FreeSpaceOptions& options);
+
+// One candidate's maps: keyframe b of `record_b` seen from keyframe a of `record_a` at T_a_b;
+// each trajectory's keyframes within radius_m of its keyframe (in its own estimate), drawn in
+// a's frame, rays cut at max_range_m.
+JoinConflict MeasureCandidateConflict(const TrajectoryRecord& record_a,
+                                      const TrajectoryRecord& record_b, const Smoother& smoother,
+                                      PoseKey a, PoseKey b, const Pose2& T_a_b, double radius_m,
+                                      double max_range_m, const FreeSpaceOptions& options);
 
 }  // namespace anchormap

@@ -12,7 +12,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 392,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 432,
+static_assert(sizeof(ScanEncounterOptions) == 464,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 120,
               "new SmootherOptions field: add it to the fingerprint");
@@ -123,6 +123,10 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.join_check_radius_m);
   h->F(o.join_check_range_m);
   h->F(o.join_max_conflict);
+  h->F(o.verify_max_conflict);
+  h->I(o.verify_min_points);
+  h->F(o.verify_drift_per_m);
+  h->F(o.verify_drift_rad_per_m);
   h->F(o.free_space.resolution_m);
   h->F(o.free_space.wall_margin_m);
   h->F(o.near_distance_m);

@@ -40,7 +40,8 @@ ScanEncounterState ScanEncounters::ExportState() const {
   s.global_queue = global_queue_.ExportState();
   for (const auto& [pair, kept] : kept_) {
     auto& out = s.kept[pair];
-    for (const Kept& k : kept) out.push_back({ToState(k.candidate), k.support, k.localised});
+    for (const Kept& k : kept)
+      out.push_back({ToState(k.candidate), k.support, k.localised, k.verified});
   }
   s.qualified_since = qualified_since_;
   s.now_utime = now_utime_;
@@ -84,7 +85,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   for (const auto& [pair, kept] : s.kept) {
     std::deque<Kept>& out = kept_[pair];
     for (const ScanEncounterState::Kept& k : kept) {
-      out.push_back({FromState(k.candidate), k.support, k.localised});
+      out.push_back({FromState(k.candidate), k.support, k.localised, k.verified});
     }
   }
   qualified_since_ = s.qualified_since;

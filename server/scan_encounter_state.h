@@ -52,6 +52,7 @@ struct ScanEncounterState {
     ScanEncounterCandidateState candidate;
     int support = 0;
     bool localised = true;
+    bool verified = false;  // its own maps agree (snapshot version 7; before, none was)
   };
   struct NearIndex {
     std::vector<std::pair<int32_t, Eigen::Vector2d>> entries;  // PositionIndex's items

@@ -48,6 +48,12 @@ Status ScanEncounterOptions::Validate() const {
     return Status::Error("scan.join_check_radius_m must be >= 0 and join_check_range_m > 0");
   if (!(join_max_conflict >= 0 && join_max_conflict <= 1))
     return Status::Error("scan.join_max_conflict must be in [0, 1]");
+  if (!(verify_max_conflict >= 0 && verify_max_conflict <= 1) || verify_min_points < 0 ||
+      !(verify_drift_per_m >= 0) || !(verify_drift_rad_per_m >= 0)) {
+    return Status::Error(
+        "scan map-verified candidates: verify_max_conflict in [0, 1], verify_min_points >= 0, "
+        "verify_drift_per_m and verify_drift_rad_per_m >= 0");
+  }
   if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
     return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
@@ -517,7 +523,7 @@ void ScanEncounters::HoldForPair(const EncounterCandidate& candidate, const Grap
       [](const EncounterCandidate& c) { return c.b.index; }, &held, &stats_);
   for (auto it = held.rbegin(); it != held.rend(); ++it) {
     if (candidate.b.index - it->b.index < options_.near_pair_min_gap) continue;
-    if (!Consistent(*it, candidate, graph)) continue;
+    if (!Consistent(*it, candidate, graph, /*drift=*/false)) continue;
     const EncounterCandidate first = *it;
     DropHeld(&held, &stats_);
     stats_.accepted += 2;
@@ -545,13 +551,14 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   // The places that confirm it: agreeing candidates at one place count once.
   std::vector<const EncounterCandidate*> confirming;
   const bool localised = Localised(candidate);
+  const bool verified = localised && MapsAgree(candidate, graph);
   for (size_t i = 0; localised && i < kept.size(); ++i) {
     if (!kept[i].localised) continue;
     // One place seen twice is no second opinion: the two must be apart in both
     // trajectories (a symmetric spot makes every match there agree).
     const EncounterCandidate& other = kept[i].candidate;
     if (!TwoPlaces(other, candidate, graph)) continue;
-    if (!Consistent(other, candidate, graph)) continue;
+    if (!Consistent(other, candidate, graph, verified && kept[i].verified)) continue;
     agrees[i] = true;
     ++kept[i].support;
     if (std::all_of(confirming.begin(), confirming.end(),
@@ -572,7 +579,7 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
     // Qualified: joins after the hold, unless other evidence joins the pair first.
     qualified_since_.emplace(pair, now_utime_);
   }
-  kept.push_back({candidate, consistent, localised});
+  kept.push_back({candidate, consistent, localised, verified});
   ++stats_.kept;
   if (static_cast<int>(kept.size()) > options_.max_kept) {
     kept.pop_front();
@@ -588,15 +595,40 @@ bool ScanEncounters::Localised(const EncounterCandidate& candidate) const {
 }
 
 bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                                const GraphView& graph) const {
+                                const GraphView& graph, bool drift) {
+  return PairwiseChi2(c1, c2, graph, drift ? options_.verify_drift_per_m : 0.0,
+                      drift ? options_.verify_drift_rad_per_m : 0.0) <= options_.pcm_chi2;
+}
+
+double ScanEncounters::PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                                    const GraphView& graph, double drift_per_m,
+                                    double drift_rad_per_m) {
   // Within each trajectory, the estimate from c1's keyframe to c2's, with covariance.
-  const std::optional<PredictedRelativePose> in_a =
-      PredictRelativePose(graph.covariances, c1.a, c2.a);
-  const std::optional<PredictedRelativePose> in_b =
-      PredictRelativePose(graph.covariances, c1.b, c2.b);
-  if (!in_a || !in_b) return false;
-  return PairwiseInconsistency2(*in_a, c1.T_a_b, c1.covariance, *in_b, c2.T_a_b, c2.covariance) <=
-         options_.pcm_chi2;
+  std::optional<PredictedRelativePose> in_a = PredictRelativePose(graph.covariances, c1.a, c2.a);
+  std::optional<PredictedRelativePose> in_b = PredictRelativePose(graph.covariances, c1.b, c2.b);
+  if (!in_a || !in_b) return std::numeric_limits<double>::infinity();
+  if (drift_per_m > 0 || drift_rad_per_m > 0) {
+    const auto widen = [&](PoseKey k1, PoseKey k2, PredictedRelativePose* predicted) {
+      const double driven = std::abs(DrivenTo(k2, graph) - DrivenTo(k1, graph));
+      const double m = drift_per_m * driven;
+      const double rad = drift_rad_per_m * driven;
+      predicted->covariance += Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
+    };
+    widen(c1.a, c2.a, &*in_a);
+    widen(c1.b, c2.b, &*in_b);
+  }
+  return PairwiseInconsistency2(*in_a, c1.T_a_b, c1.covariance, *in_b, c2.T_a_b, c2.covariance);
+}
+
+bool ScanEncounters::MapsAgree(const EncounterCandidate& candidate, const GraphView& graph) const {
+  const TrajectoryRecord* record_a = graph.table.FindBySolverId(candidate.a.trajectory);
+  const TrajectoryRecord* record_b = graph.table.FindBySolverId(candidate.b.trajectory);
+  if (record_a == nullptr || record_b == nullptr) return false;
+  const JoinConflict conflict = MeasureCandidateConflict(
+      *record_a, *record_b, graph.smoother, candidate.a, candidate.b, candidate.T_a_b,
+      options_.join_check_radius_m, options_.join_check_range_m, options_.free_space);
+  return conflict.fewer_seen() >= static_cast<size_t>(options_.verify_min_points) &&
+         conflict.pooled_fraction() <= options_.verify_max_conflict;
 }
 
 bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
@@ -668,7 +700,8 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
           agrees = false;
           break;
         }
-        if (!same_place && !Consistent(kept[i].candidate, kept[j].candidate, graph)) {
+        if (!same_place && !Consistent(kept[i].candidate, kept[j].candidate, graph,
+                                       kept[i].verified && kept[j].verified)) {
           agrees = false;
           break;
         }
@@ -712,15 +745,9 @@ bool ScanEncounters::MapsContradict(const std::deque<Kept>& kept, const std::vec
   JoinConflict total;
   for (const size_t i : set) {
     const EncounterCandidate& c = kept[i].candidate;
-    const Pose2 T_a_frame_b_frame =
-        Compose(Compose(smoother.FramePose(c.a), c.T_a_b), smoother.FramePose(c.b).Inverse());
-    const JoinConflict conflict = MeasureJoinConflict(
-        KeyframeRaysNear(*record_a, smoother, {smoother.FramePose(c.a).translation()},
-                         options_.join_check_radius_m, Pose2(), options_.join_check_range_m),
-        KeyframeRaysNear(*record_b, smoother, {smoother.FramePose(c.b).translation()},
-                         options_.join_check_radius_m, T_a_frame_b_frame,
-                         options_.join_check_range_m),
-        options_.free_space);
+    const JoinConflict conflict = MeasureCandidateConflict(
+        *record_a, *record_b, smoother, c.a, c.b, c.T_a_b, options_.join_check_radius_m,
+        options_.join_check_range_m, options_.free_space);
     total.a_in_b.seen += conflict.a_in_b.seen;
     total.a_in_b.contradicts += conflict.a_in_b.contradicts;
     total.b_in_a.seen += conflict.b_in_a.seen;

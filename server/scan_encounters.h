@@ -15,7 +15,9 @@
 //   reversed, odometry in the other, is the identity within the chi-square gate). Only
 //   matches localised in every direction take part (first_join_max_sigma_*: a corridor
 //   match is free along it and agrees with anything there), and the candidates that join
-//   agree pair by pair, not only with the best supported one. Lone
+//   agree pair by pair, not only with the best supported one. Two candidates whose own maps
+//   agree (map-verified: few of either side's points in the other's seen free space) are
+//   tested with each trajectory's estimate widened for the drive between them. Lone
 //   candidates are kept (at most max_kept per pair); when the pair comes into one frame
 //   by other evidence (a direct encounter) they are gated against the estimate instead.
 //   A symmetric building makes whole sets of wrong candidates agree with each other (the
@@ -133,6 +135,22 @@ struct ScanEncounterOptions {
   double join_check_radius_m = 5.0;
   double join_check_range_m = 8.0;
   double join_max_conflict = 0.05;
+  // A candidate whose own maps agree (map-verified): drawn by its own match as above, at most
+  // verify_max_conflict of both sides' end points together land in space the other side saw
+  // free, out of at least verify_min_points on each side. Two map-verified candidates
+  // confirm each other through the pairwise test with each trajectory's estimate between
+  // them widened by verify_drift_per_m (x, y) and verify_drift_rad_per_m (heading) per metre
+  // its odometry drove between them (the near search's drift rates): the smoother's
+  // covariance trusts scan-matched odometry too much. ACES split in two sequentially: the true
+  // candidates of R2's visits 80-130 m apart disagreed through R2's estimate by 0.1 rad at
+  // sigma 0.01 and through R1's by 1.3 m at sigma 0.2 (chi-square 23-40; 7.2 with the drift);
+  // the 180-degree aliases that agree among themselves fail their own maps (pooled 0.069 and
+  // more, the true ones 0.011-0.028; on Intel and FR079 split sequentially, false candidates
+  // 0.039-0.047 with fewer than 2000 points on a side, true ones 0.000-0.043).
+  double verify_max_conflict = 0.045;
+  int verify_min_points = 2000;
+  double verify_drift_per_m = 0.01;
+  double verify_drift_rad_per_m = 0.001;
   FreeSpaceOptions free_space;
   // Joined trajectories: window search near the prediction.
   double near_distance_m = 4.0;
@@ -326,8 +344,15 @@ class ScanEncounters : public EncounterSource {
                    EncounterSourceOutput* out);
   void Emit(const EncounterCandidate& candidate, EncounterSourceOutput* out);
   // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
+  // `drift`: each trajectory's estimate between the two widened by the verify_drift_* terms
+  // (two map-verified candidates).
   bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                  const GraphView& graph) const;
+                  const GraphView& graph, bool drift);
+  // The pairwise test's statistic (+inf when a relative pose is not known).
+  double PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                      const GraphView& graph, double drift_per_m, double drift_rad_per_m);
+  // The candidate's own maps agree (verify_max_conflict, verify_min_points).
+  bool MapsAgree(const EncounterCandidate& candidate, const GraphView& graph) const;
   // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories,
   // seeing other walls in at least one (pcm_max_shared_view): only then can one confirm the
   // other.
@@ -359,6 +384,8 @@ class ScanEncounters : public EncounterSource {
     // Localised in every direction, and not in a hypothesis the free-space test refused:
     // only these take part in a first join.
     bool localised = true;
+    // Its own maps agree (MapsAgree, at the estimate it was offered at).
+    bool verified = false;
   };
   bool Localised(const EncounterCandidate& candidate) const;
   // The free-space test of the hypothesis of `set` (its first member the best supported).

@@ -57,8 +57,9 @@ namespace anchormap {
 // Version 5 adds the scan encounters' wide near matches (in flight and held); older ones
 // read as having none. Version 6 adds the scan encounters' pairs of trajectories caught up
 // (near-searched after they came into one frame); older ones read as every pair in one frame
-// caught up.
-inline constexpr uint32_t kSnapshotVersion = 6;
+// caught up. Version 7 adds whether a scan encounter's kept candidate is map-verified; older
+// ones read as none being.
+inline constexpr uint32_t kSnapshotVersion = 7;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

@@ -295,6 +295,7 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
       PutCandidate(w, k.candidate);
       w->I32(k.support);
       w->Bool(k.localised);
+      if (snapshot_version >= 7) w->Bool(k.verified);  // before version 7 none was verified
     }
   }
   PutMap(w, s.qualified_since);
@@ -389,6 +390,7 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
       GetCandidate(r, &k.candidate);
       k.support = r->I32();
       k.localised = r->Bool();
+      k.verified = snapshot_version >= 7 && r->Bool();  // before version 7 none was verified
     }
   }
   GetMap(r, &s->qualified_since);

@@ -175,5 +175,30 @@ TEST(SourceStateCodecTest, CaughtUpPairsAreKeptFromVersionSix) {
   EXPECT_TRUE(old.near_joined.empty());
 }
 
+// Whether a kept candidate is map-verified (version 7) is kept; a version-6 state reads as
+// none being.
+TEST(SourceStateCodecTest, MapVerifiedKeptCandidatesAreKeptFromVersionSeven) {
+  ScanEncounterState state = StateWithAWideNearMatch();
+  ScanEncounterState::Kept kept;
+  kept.candidate.a = PoseKey{TrajectoryId(0), 5};
+  kept.candidate.b = PoseKey{TrajectoryId(1), 85};
+  kept.candidate.T_a_b = Pose2(-0.57, -1.13, -0.498);
+  kept.support = 1;
+  kept.verified = true;
+  state.kept[{TrajectoryId(0), TrajectoryId(1)}].push_back(kept);
+  bool complete = false;
+  const ScanEncounterState out =
+      DecodeScan(Encode(state, kSnapshotVersion), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(out.kept.size(), 1u);
+  ASSERT_EQ(out.kept.begin()->second.size(), 1u);
+  EXPECT_TRUE(out.kept.begin()->second.front().verified);
+  EXPECT_EQ(out.kept.begin()->second.front().support, 1);
+  const ScanEncounterState old = DecodeScan(Encode(state, 6), 6, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(old.kept.size(), 1u);
+  EXPECT_FALSE(old.kept.begin()->second.front().verified);
+}
+
 }  // namespace
 }  // namespace anchormap
