@@ -17,6 +17,27 @@ using testing::Values;
 
 const Eigen::Matrix3d kCovariance = Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal();
 
+// Adds pose i of `graph` as (t, i), placed by odometry from the estimate of pose i - 1, and
+// every edge of `graph` that ends at i.
+::testing::AssertionResult AddPoseAndItsEdges(Smoother* smoother, const PoseGraph& graph,
+                                              TrajectoryId t, int i) {
+  const Pose2 initial =
+      i == 0 ? Pose2()
+             : Compose(smoother->FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
+  if (!smoother->AddPose({t, i}, initial).ok())
+    return ::testing::AssertionFailure() << "pose " << i;
+  for (const GraphEdge& e : graph.edges) {
+    if (e.to != i) continue;
+    if (!smoother
+             ->AddBetween({t, static_cast<int32_t>(e.from)}, {t, i}, e.measured_T_from_to,
+                          e.information.inverse())
+             .ok()) {
+      return ::testing::AssertionFailure() << "edge " << e.from << " -> " << i;
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
 // Adds a random single-trajectory graph as trajectory `t` and returns its ground truth.
 PoseGraph AddRandomTrajectory(Smoother* smoother, TrajectoryId t, int poses, uint32_t seed,
                               bool update_each_step) {
@@ -152,17 +173,7 @@ TEST(SmootherTest, ConjugateGradientCorrectionReachesTheDenseOptimumAfterEveryUp
   double worst_error = 0.0;
   int checked = 0;
   for (int i = 0; i < g.poses; ++i) {
-    const Pose2 initial =
-        i == 0 ? Pose2()
-               : Compose(smoother.FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
-    ASSERT_TRUE(smoother.AddPose({t, i}, initial).ok());
-    for (const GraphEdge& e : graph.edges) {
-      if (e.to != i) continue;
-      ASSERT_TRUE(smoother
-                      .AddBetween({t, static_cast<int32_t>(e.from)}, {t, i}, e.measured_T_from_to,
-                                  e.information.inverse())
-                      .ok());
-    }
+    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
     ASSERT_TRUE(smoother.Update().status.ok());
     if (i < 2) continue;
     const DenseOracle oracle(smoother.ActiveFactors());
@@ -202,17 +213,7 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
     const TrajectoryId t(0);
     *worst_excess = 0.0;
     for (int i = 0; i < g.poses; ++i) {
-      const Pose2 initial =
-          i == 0 ? Pose2()
-                 : Compose(smoother.FramePose({t, i - 1}), graph.edges[i - 1].measured_T_from_to);
-      EXPECT_TRUE(smoother.AddPose({t, i}, initial).ok());
-      for (const GraphEdge& e : graph.edges) {
-        if (e.to != i) continue;
-        EXPECT_TRUE(smoother
-                        .AddBetween({t, static_cast<int32_t>(e.from)}, {t, i}, e.measured_T_from_to,
-                                    e.information.inverse())
-                        .ok());
-      }
+      EXPECT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
       EXPECT_TRUE(smoother.Update().status.ok());
       if (i < 2) continue;
       const DenseOracle oracle(smoother.ActiveFactors());
