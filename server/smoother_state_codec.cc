@@ -2,6 +2,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace anchormap {
@@ -71,7 +72,7 @@ void ForEachCount(Stats& s, OnInt on_int) {
 
 }  // namespace
 
-void PutSmootherState(ByteWriter* w, const SmootherState& s) {
+void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherState& s) {
   w->Size(s.variables.size());
   for (const SmootherState::Variable& v : s.variables) {
     w->Pose(v.linearization);
@@ -93,7 +94,15 @@ void PutSmootherState(ByteWriter* w, const SmootherState& s) {
   PutVectors(w, s.correction);
   w->Bool(s.correction_converged);
   w->F64(s.last_chi2);
-  w->F64(s.innovation);
+  if (snapshot_version >= 8) {
+    w->F64(s.innovation);
+    w->Size(s.uncorrected_factors.size());
+    for (int64_t f : s.uncorrected_factors) w->I64(f);
+  } else {
+    // No room for the factors: an infinite bound makes the restored smoother correct at
+    // its next update instead of skipping on a bound that leaves them out.
+    w->F64(s.uncorrected_factors.empty() ? s.innovation : std::numeric_limits<double>::infinity());
+  }
   w->Size(s.r.rows.size());
   for (const RBlockRow& row : s.r.rows) {
     w->Matrix(row.diagonal);
@@ -119,7 +128,7 @@ void PutSmootherState(ByteWriter* w, const SmootherState& s) {
   ForEachCount(stats, [w](int64_t* v) { w->I64(*v); });
 }
 
-void GetSmootherState(ByteReader* r, SmootherState* s) {
+void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* s) {
   s->variables.resize(r->Count(3 * sizeof(double) + sizeof(int32_t)));
   for (SmootherState::Variable& v : s->variables) {
     v.linearization = r->Pose();
@@ -142,6 +151,11 @@ void GetSmootherState(ByteReader* r, SmootherState* s) {
   s->correction_converged = r->Bool();
   s->last_chi2 = r->F64();
   s->innovation = r->F64();
+  s->uncorrected_factors.clear();  // before version 8 none was kept
+  if (snapshot_version >= 8) {
+    s->uncorrected_factors.resize(r->Count(sizeof(int64_t)));
+    for (int64_t& f : s->uncorrected_factors) f = r->I64();
+  }
   s->r.rows.resize(r->Count(12 * sizeof(double)));
   for (RBlockRow& row : s->r.rows) {
     row.diagonal = r->Matrix();

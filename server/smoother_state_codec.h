@@ -11,8 +11,11 @@
 
 namespace anchormap {
 
-void PutSmootherState(ByteWriter* w, const SmootherState& state);
+// In the snapshot format `snapshot_version` (server/snapshot_codec.h): version 8 adds the
+// uncorrected factors; older ones read as none (before version 8 the skip test's bound,
+// `innovation`, covered them; written in an older format, it is infinite if there are any).
+void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherState& state);
 // A failed read latches in `r` (the caller checks r->failed()).
-void GetSmootherState(ByteReader* r, SmootherState* state);
+void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* state);
 
 }  // namespace anchormap

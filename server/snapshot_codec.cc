@@ -341,7 +341,7 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
   // Version 2: the smoother's incremental state (its graph follows from the edits above),
   // the match pool's numbering, the scan-matching sources (their matches in flight waited
   // for: server/loop_closure_state.h).
-  PutSmootherState(&w, s.smoother_.ExportState());
+  PutSmootherState(&w, version, s.smoother_.ExportState());
   w.I64(s.pool_->next_ordinal());
   w.Size(s.sources_.size() - 1);
   for (size_t i = 1; i < s.sources_.size(); ++i) {
@@ -485,7 +485,7 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   direct.now_utime_ = r.I64();
   if (!version1) {
     SmootherState smoother;
-    GetSmootherState(&r, &smoother);
+    GetSmootherState(&r, payload->version, &smoother);
     const int64_t next_ordinal = r.I64();
     const size_t sources = r.Count();
     if (r.failed()) return Corrupt("payload ends early");

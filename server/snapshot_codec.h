@@ -58,8 +58,9 @@ namespace anchormap {
 // read as having none. Version 6 adds the scan encounters' pairs of trajectories caught up
 // (near-searched after they came into one frame); older ones read as every pair in one frame
 // caught up. Version 7 adds whether a scan encounter's kept candidate is map-verified; older
-// ones read as none being.
-inline constexpr uint32_t kSnapshotVersion = 7;
+// ones read as none being. Version 8 adds the smoother's factors since its last correction
+// (its skip test); older ones read as none (the bound they hold stands for them).
+inline constexpr uint32_t kSnapshotVersion = 8;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

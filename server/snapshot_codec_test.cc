@@ -140,7 +140,7 @@ std::vector<uint8_t> AsVersion1(const MappingServer& server, const SnapshotNodeS
   EXPECT_TRUE(encoded.ok());
   const std::vector<uint8_t>& v2 = *encoded;
   ByteWriter tail;
-  PutSmootherState(&tail, server.smoother().ExportState());
+  PutSmootherState(&tail, 2, server.smoother().ExportState());
   const size_t tail_size = tail.bytes().size() + 8 + 8;  // + next ordinal, sources (0)
   const size_t header = 8 + 4 + 8;
   const std::vector<uint8_t> payload(v2.begin() + header, v2.end() - 8 - tail_size);

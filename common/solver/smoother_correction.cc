@@ -4,6 +4,7 @@
 // fixed-point steps h = -(R^T R)^-1 g or by conjugate gradients on J^T J h = -g.
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -23,22 +24,52 @@ using Vectors = std::vector<Eigen::Vector3d>;
 bool Smoother::Impl::CorrectEstimate() {
   // Converged last time and the new factors agree with the estimate: the gradient is
   // unchanged (new rows only add information), nothing to do.
+  const double budget = SkipFactor() * options_.correction_tolerance * std::max(last_chi2_, 1e-12);
   if (correction_converged_ &&
-      innovation_ <= SkipFactor() * options_.correction_tolerance * std::max(last_chi2_, 1e-12)) {
+      (KeepsEstimate() ? UncorrectedDecreaseWithin(budget) : innovation_ <= budget)) {
     ++stats_.correction_skips;
     return true;
   }
+  uncorrected_factors_.clear();
   const auto start = std::chrono::steady_clock::now();
   flat_r_.Refresh(*r_);
   const bool converged = options_.correction_cg_iterations > 0 ? CorrectByConjugateGradients()
                                                                : CorrectByFixedPointSteps();
   if (!converged) ++stats_.correction_stalls;
   correction_converged_ = converged;
-  // Kept-estimate mode: the decrease still predicted where the correction stopped, which
-  // the next updates' factors add to; else the new factors' chi2 since this correction.
+  // Kept-estimate mode: the decrease still predicted where the correction stopped, to which
+  // the next updates' factors add; else the new factors' chi2 since this correction.
   innovation_ = KeepsEstimate() && converged ? last_decrease_ : 0.0;
   stats_.correction_seconds += Seconds(start);
   return converged;
+}
+
+bool Smoother::Impl::UncorrectedDecreaseWithin(double budget) {
+  // Since the last correction the old variables kept their estimate and R only gained
+  // rows, so g = g_last + J^T e of the factors since (J, e at the estimate, the same as
+  // when they entered). With R's metric, sqrt(g^T (R^T R)^-1 g) <= sqrt(g_last's
+  // decrease) + |R^-T J^T e|: new rows only shrink g_last's share. J^T e is non-zero at
+  // those factors' variables only, so R^-T J^T e only on their paths up R (the rows their
+  // Givens updates touched), and the solve stops once the budget is exceeded.
+  const double root = std::sqrt(budget) - std::sqrt(innovation_);
+  if (root < 0.0) return false;
+  new_gradient_.clear();
+  std::array<Pose2, kMaxFactorKeys> values;
+  double chi2 = 0.0;
+  for (int64_t id : uncorrected_factors_) {
+    if (!counted_in_gradient_[id]) continue;
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+    const LinearizedFactor lin = Linearize(f.factor, values.data());
+    chi2 += lin.whitened_error.squaredNorm();
+    for (int j = 0; j < f.num_vars; ++j) {
+      new_gradient_.emplace_back(vars_[f.vars[j]].position,
+                                 lin.jacobians[j].transpose() * lin.whitened_error);
+    }
+  }
+  // |R^-T J^T e|^2 <= |e|^2 (the factors are in R): within the budget without a solve.
+  if (chi2 <= root * root) return true;
+  return path_solve_.SquaredNorm(*r_, new_gradient_, root * root) <= root * root;
 }
 
 double Smoother::Impl::GradientAtEstimate() {

@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,7 @@
 #include "common/solver/factor_record.h"
 #include "common/solver/flat_r.h"
 #include "common/solver/incremental_gradient.h"
+#include "common/solver/path_solve.h"
 #include "common/solver/smoother.h"
 #include "common/solver/smoother_state.h"
 #include "common/solver/sparse_r.h"
@@ -214,6 +216,9 @@ class Smoother::Impl {
   // correction_tolerance: moves the estimate toward the nonlinear optimum with R as the
   // preconditioner; false if it did not converge in correction_iterations steps.
   bool CorrectEstimate();
+  // Kept-estimate mode's skip test: whether the decrease a correction would predict now
+  // is surely at most `budget` (innovation_ and the uncorrected factors' errors).
+  bool UncorrectedDecreaseWithin(double budget);
   bool CorrectByFixedPointSteps();
   bool CorrectByConjugateGradients();
   // A new variable of `f` (position >= first_new) with no correction yet gets the one its
@@ -352,15 +357,20 @@ class Smoother::Impl {
   std::vector<Eigen::Vector3d> correction_;
   bool correction_converged_ = false;  // the last CorrectEstimate() converged
   double last_chi2_ = 0.0;             // chi2 at its last gradient evaluation
-  // The skip test's estimate of the decrease a correction would bring: CG mode, a bound
-  // from the last correction's predicted decrease and the new factors' errors since
-  // (IncrementalStep); else the new factors' chi2 at entry and after the update since it.
+  // The skip test's estimate of the decrease a correction would bring: CG mode, the decrease
+  // the last correction still predicted (UncorrectedDecreaseWithin adds the factors since);
+  // else the new factors' chi2 at entry and after the update since it.
   double innovation_ = 0.0;
+  // Kept-estimate mode: the factors that entered R since the last correction ran.
+  std::vector<int64_t> uncorrected_factors_;
   double last_decrease_ = 0.0;  // CG: the decrease predicted at the last gradient pass
   // Work space of GradientAtEstimate (not in the state: a function of the estimate).
   IncrementalGradient gradient_;
   std::vector<Pose2> estimate_scratch_;
   FlatR flat_r_;  // the correction's copy of R (not in the state: rebuilt from r_)
+  // The skip test's work space.
+  PathSolve path_solve_;
+  std::vector<std::pair<int, Eigen::Vector3d>> new_gradient_;
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
   CovarianceProjection projected_;  // work space only

@@ -27,6 +27,7 @@ SmootherState Smoother::Impl::ExportState() const {
   s.correction_converged = correction_converged_;
   s.last_chi2 = last_chi2_;
   s.innovation = innovation_;
+  s.uncorrected_factors = uncorrected_factors_;
   s.r = r_->ExportState();
   s.merge_pending = merge_pending_;
   s.merge_variables = merge_vars_;
@@ -65,6 +66,9 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   for (int64_t f : s.pending_factors) {
     if (f < 0 || f >= num_factors) return refuse("pending factor");
   }
+  for (int64_t f : s.uncorrected_factors) {
+    if (f < 0 || f >= num_factors) return refuse("uncorrected factor");
+  }
   for (int var : s.pending_variables) {
     if (var < 0 || var >= num_vars) return refuse("pending variable");
   }
@@ -95,6 +99,7 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   correction_converged_ = s.correction_converged;
   last_chi2_ = s.last_chi2;
   innovation_ = s.innovation;
+  uncorrected_factors_ = std::move(s.uncorrected_factors);
   RecountFactorsInR();
   gradient_.Clear();  // a function of the estimate: rebuilt by the next pass
   r_ = std::move(r);

@@ -43,6 +43,9 @@ struct SmootherState {
   bool correction_converged = false;
   double last_chi2 = 0.0;
   double innovation = 0.0;
+  // Kept-estimate mode: the factors that entered R since the last correction ran (the
+  // skip test sums their gradient).
+  std::vector<int64_t> uncorrected_factors;
   SparseR::State r;
   bool merge_pending = false;
   std::vector<int> merge_variables;

@@ -135,24 +135,18 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     result->rows_backsubstituted =
         R.BackSubstitutePartial(touched, options_.backsubstitution_threshold, &delta_);
   }
-  if (options_.correction_tolerance > 0) {
+  if (keep_estimate) {
+    // The old variables kept their estimate, so the gradient changed by these factors'
+    // J^T e only: the skip test (CorrectEstimate) bounds what they add.
+    uncorrected_factors_.insert(uncorrected_factors_.end(), ready.begin(), ready.end());
+  } else if (options_.correction_tolerance > 0) {
     // The new factors at the new estimate: with a zero error at entry R's solution of the
     // old variables is unchanged, so these tell whether the gradient changed (a new
     // variable placed by one factor may disagree with its others).
-    double added = 0.0;
     for (int64_t id : ready) {
       const FactorRecord& f = factors_[id];
       for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
-      added += FactorChi2(f.factor, values.data());
-    }
-    if (keep_estimate) {
-      // The old variables kept their estimate, so the gradient changed by the new factors'
-      // J^T e only, whose share of the decrease still predicted is at most |e|^2 (the
-      // factors are in R): sqrt(decrease) grows by at most |e|, over any number of updates.
-      const double root = std::sqrt(innovation_) + std::sqrt(added);
-      innovation_ = root * root;
-    } else {
-      innovation_ += added;
+      innovation_ += FactorChi2(f.factor, values.data());
     }
   }
 }
