@@ -12,7 +12,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 392,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 464,
+static_assert(sizeof(ScanEncounterOptions) == 472,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 120,
               "new SmootherOptions field: add it to the fingerprint");
@@ -127,6 +127,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->I(o.verify_min_points);
   h->F(o.verify_drift_per_m);
   h->F(o.verify_drift_rad_per_m);
+  h->F(o.verify_drift_rad_per_rad);
   h->F(o.free_space.resolution_m);
   h->F(o.free_space.wall_margin_m);
   h->F(o.near_distance_m);

@@ -49,10 +49,11 @@ Status ScanEncounterOptions::Validate() const {
   if (!(join_max_conflict >= 0 && join_max_conflict <= 1))
     return Status::Error("scan.join_max_conflict must be in [0, 1]");
   if (!(verify_max_conflict >= 0 && verify_max_conflict <= 1) || verify_min_points < 0 ||
-      !(verify_drift_per_m >= 0) || !(verify_drift_rad_per_m >= 0)) {
+      !(verify_drift_per_m >= 0) || !(verify_drift_rad_per_m >= 0) ||
+      !(verify_drift_rad_per_rad >= 0)) {
     return Status::Error(
         "scan map-verified candidates: verify_max_conflict in [0, 1], verify_min_points >= 0, "
-        "verify_drift_per_m and verify_drift_rad_per_m >= 0");
+        "verify_drift_per_m, verify_drift_rad_per_m and verify_drift_rad_per_rad >= 0");
   }
   if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
     return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
@@ -549,7 +550,7 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   std::deque<Kept>& kept = kept_[pair];
   std::vector<bool> agrees(kept.size(), false);
   // The places that confirm it: agreeing candidates at one place count once.
-  std::vector<const EncounterCandidate*> confirming;
+  std::vector<const Kept*> confirming;
   const bool localised = Localised(candidate);
   const bool verified = localised && MapsAgree(candidate, graph);
   for (size_t i = 0; localised && i < kept.size(); ++i) {
@@ -557,13 +558,13 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
     // One place seen twice is no second opinion: the two must be apart in both
     // trajectories (a symmetric spot makes every match there agree).
     const EncounterCandidate& other = kept[i].candidate;
-    if (!TwoPlaces(other, candidate, graph)) continue;
+    if (!Independent(kept[i], {candidate, 0, localised, verified}, graph)) continue;
     if (!Consistent(other, candidate, graph, verified && kept[i].verified)) continue;
     agrees[i] = true;
     ++kept[i].support;
     if (std::all_of(confirming.begin(), confirming.end(),
-                    [&](const EncounterCandidate* c) { return TwoPlaces(*c, other, graph); })) {
-      confirming.push_back(&other);
+                    [&](const Kept* c) { return Independent(*c, kept[i], graph); })) {
+      confirming.push_back(&kept[i]);
     }
   }
   const int consistent = static_cast<int>(confirming.size());
@@ -597,21 +598,24 @@ bool ScanEncounters::Localised(const EncounterCandidate& candidate) const {
 bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
                                 const GraphView& graph, bool drift) {
   return PairwiseChi2(c1, c2, graph, drift ? options_.verify_drift_per_m : 0.0,
-                      drift ? options_.verify_drift_rad_per_m : 0.0) <= options_.pcm_chi2;
+                      drift ? options_.verify_drift_rad_per_m : 0.0,
+                      drift ? options_.verify_drift_rad_per_rad : 0.0) <= options_.pcm_chi2;
 }
 
 double ScanEncounters::PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
                                     const GraphView& graph, double drift_per_m,
-                                    double drift_rad_per_m) {
+                                    double drift_rad_per_m, double drift_rad_per_rad) {
   // Within each trajectory, the estimate from c1's keyframe to c2's, with covariance.
   std::optional<PredictedRelativePose> in_a = PredictRelativePose(graph.covariances, c1.a, c2.a);
   std::optional<PredictedRelativePose> in_b = PredictRelativePose(graph.covariances, c1.b, c2.b);
   if (!in_a || !in_b) return std::numeric_limits<double>::infinity();
-  if (drift_per_m > 0 || drift_rad_per_m > 0) {
+  if (drift_per_m > 0 || drift_rad_per_m > 0 || drift_rad_per_rad > 0) {
     const auto widen = [&](PoseKey k1, PoseKey k2, PredictedRelativePose* predicted) {
       const double driven = std::abs(DrivenTo(k2, graph) - DrivenTo(k1, graph));
       const double m = drift_per_m * driven;
-      const double rad = drift_rad_per_m * driven;
+      // The estimate's turn between them (wrapped: a full spin counts as none, the safe side).
+      const double rad =
+          drift_rad_per_m * driven + drift_rad_per_rad * std::abs(predicted->T_a_b.theta());
       predicted->covariance += Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
     };
     widen(c1.a, c2.a, &*in_a);
@@ -629,6 +633,22 @@ bool ScanEncounters::MapsAgree(const EncounterCandidate& candidate, const GraphV
       options_.join_check_radius_m, options_.join_check_range_m, options_.free_space);
   return conflict.fewer_seen() >= static_cast<size_t>(options_.verify_min_points) &&
          conflict.pooled_fraction() <= options_.verify_max_conflict;
+}
+
+bool ScanEncounters::ApartAndSeeingOtherWalls(PoseKey k1, PoseKey k2,
+                                              const GraphView& graph) const {
+  const Smoother& smoother = graph.smoother;
+  if (std::abs(k1.index - k2.index) < 2 * options_.submap_half_width + 1 ||
+      std::abs(k1.index - k2.index) < options_.pcm_min_separation || !smoother.HasPose(k1) ||
+      !smoother.HasPose(k2) ||
+      (smoother.FramePose(k1).translation() - smoother.FramePose(k2).translation()).norm() <
+          options_.pcm_min_separation_m) {
+    return false;
+  }
+  const TrajectoryRecord* record = graph.table.FindBySolverId(k1.trajectory);
+  return record != nullptr &&
+         KeyframeOverlap(*record, smoother, k1.index, k2.index, options_.max_range_m,
+                         kSharedViewDistanceM) < options_.pcm_max_shared_view;
 }
 
 bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
@@ -663,6 +683,20 @@ bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCand
          shared_view(c1.b, c2.b) < options_.pcm_max_shared_view;
 }
 
+bool ScanEncounters::Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const {
+  if (TwoPlaces(k1.candidate, k2.candidate, graph)) return true;
+  if (!k1.verified || !k2.verified) return false;
+  const EncounterCandidate& c1 = k1.candidate;
+  const EncounterCandidate& c2 = k2.candidate;
+  // One place, two looks: two query scans, each matched against its own stretch of the other
+  // trajectory (keyframes that see other walls), so that the two matches share no scan.
+  if (c1.query() == c2.query()) return false;
+  const PoseKey reference1 = c1.a_is_query ? c1.b : c1.a;
+  const PoseKey reference2 = c2.a_is_query ? c2.b : c2.a;
+  if (reference1.trajectory != reference2.trajectory) return false;
+  return ApartAndSeeingOtherWalls(reference1, reference2, graph);
+}
+
 void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {
   for (auto it = qualified_since_.begin(); it != qualified_since_.end();) {
     const Pair pair = it->first;
@@ -693,7 +727,7 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
       if (i == best || !kept[i].localised) continue;
       bool agrees = true;
       for (const size_t j : set) {
-        const bool same_place = !TwoPlaces(kept[i].candidate, kept[j].candidate, graph);
+        const bool same_place = !Independent(kept[i], kept[j], graph);
         // Two candidates at one place cannot confirm each other, but one may join the
         // set when another member at another place confirms it.
         if (same_place && j == best) {

@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "server/join_free_space.h"
 #include "server/keyframe_overlap.h"
 #include "server/mapping_server.h"
 #include "server/relative_pose.h"
@@ -401,10 +402,15 @@ class SharedViewFirstJoinTest : public ::testing::Test {
       double join_max_conflict = ScanEncounterOptions{}.join_max_conflict,
       double verify_max_conflict = ScanEncounterOptions{}.verify_max_conflict) {
     ScanEncounterOptions options;
-    options.first_join_hold_s = 0.0;
     options.pcm_max_shared_view = max_shared_view;
     options.join_max_conflict = join_max_conflict;
     options.verify_max_conflict = verify_max_conflict;
+    return OfferWith(candidates, options);
+  }
+
+  std::vector<EncounterConstraint> OfferWith(const std::vector<EncounterCandidate>& candidates,
+                                             ScanEncounterOptions options) {
+    options.first_join_hold_s = 0.0;
     ScanEncounters source(options);
     const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
     EncounterSourceOutput out;
@@ -414,6 +420,15 @@ class SharedViewFirstJoinTest : public ::testing::Test {
     source.Flush(graph, &out);
     joins_contradicted_ = source.joins_contradicted();
     return out.constraints;
+  }
+
+  // The candidate's own maps within `radius_m` of its places (the default rays and grid).
+  JoinConflict OwnMaps(const EncounterCandidate& c, double radius_m) const {
+    const ScanEncounterOptions defaults;
+    return MeasureCandidateConflict(*server_->table().FindBySolverId(c.a.trajectory),
+                                    *server_->table().FindBySolverId(c.b.trajectory),
+                                    server_->smoother(), c.a, c.b, c.T_a_b, radius_m,
+                                    defaults.join_check_range_m, defaults.free_space);
   }
 
   std::vector<Pose2> path1_;
@@ -527,6 +542,59 @@ TEST_F(SharedViewFirstJoinTest, AnAliasGetsNoAllowanceForDrift) {
   const double shared_view = ScanEncounterOptions{}.pcm_max_shared_view;
   EXPECT_TRUE(Offer(aliased, shared_view, /*join_max_conflict=*/1.0).empty());
   EXPECT_EQ(Offer(aliased, shared_view, 1.0, /*verify_max_conflict=*/1.0).size(), 2u);
+}
+
+// One place of R2 seen twice by R1: two query scans of R2 four keyframes apart, each matched
+// against its own stretch of R1 (keyframes 20 apart that see other walls), both candidates
+// map-verified, join (as R2[180] and R2[185] against R1[5] and R1[25] on ACES split in three
+// sequentially: the only true candidates of that pair). Not map-verified, they do not.
+TEST_F(SharedViewFirstJoinTest, OnePlaceMatchedAgainstTwoStretchesJoins) {
+  Drive(testing::LoopWorld(), testing::LoopWorldLap(0, 60), testing::LoopWorldLap(50, 60));
+  const std::vector<EncounterCandidate> truth = {Candidate(38, 2), Candidate(58, 6)};
+  for (const EncounterCandidate& c : truth) {
+    const JoinConflict own = OwnMaps(c, ScanEncounterOptions{}.join_check_radius_m);
+    std::printf("one place, R1[%d]-R2[%d]: %zu of %zu points conflict, fewer side %zu\n", c.a.index,
+                c.b.index, own.a_in_b.contradicts + own.b_in_a.contradicts,
+                own.a_in_b.seen + own.b_in_a.seen, own.fewer_seen());
+    EXPECT_GE(own.fewer_seen(), 2000u);  // measured 2622 and 3722
+  }
+  const double shared_1 = SharedView(TrajectoryId(0), 38, 58);
+  std::printf("one place: shared view R1[38]/R1[58] %.2f\n", shared_1);  // measured 0.37
+  EXPECT_LT(shared_1, ScanEncounterOptions{}.pcm_max_shared_view);
+  const std::vector<EncounterConstraint> joined = Offer(truth);
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(joined[0].a.index, 38);
+  EXPECT_EQ(joined[1].a.index, 58);
+  ScanEncounterOptions unverified;
+  unverified.verify_min_points = 1'000'000;
+  EXPECT_TRUE(OfferWith(truth, unverified).empty());
+}
+
+// An alias at one place: R2's north corridor matched twice as TwinCorridorWorld's south one,
+// seen by R1. Where the alias is map-verified (R1[12]-R2[12]: no point in the other's free
+// space; R1[20]-R2[16]: 0.026), R1's two stretches see the same walls (shared view 0.76); where
+// R1 sees other walls (R1[28], shared view 0.47), the hall stands in the other's free space
+// (R1[28]-R2[16]: 0.072, over the 0.045 bar). Taken as verified, it joins R2 10 m off.
+TEST_F(SharedViewFirstJoinTest, AnAliasAtOnePlaceDoesNotJoin) {
+  Drive(testing::TwinCorridorWorld(), testing::StraightPath({19.0, 1.5}, {1.5, 1.5}, 0.5),
+        testing::StraightPath({19.0, 11.5}, {1.5, 11.5}, 0.5));
+  const Pose2 alias(0.0, -10.0, 0.0);
+  for (const int32_t i : {12, 20, 28}) {
+    const JoinConflict own =
+        OwnMaps(Candidate(i, i == 12 ? 12 : 16, alias), ScanEncounterOptions{}.join_check_radius_m);
+    std::printf("alias R1[%d]: %.4f of %zu points, shared view R1[12]/R1[%d] %.2f\n", i,
+                own.pooled_fraction(), own.a_in_b.seen + own.b_in_a.seen, i,
+                SharedView(TrajectoryId(0), 12, i));
+  }
+  const std::vector<EncounterCandidate> same_walls = {Candidate(12, 12, alias),
+                                                      Candidate(20, 16, alias)};
+  const std::vector<EncounterCandidate> other_walls = {Candidate(12, 12, alias),
+                                                       Candidate(28, 16, alias)};
+  EXPECT_TRUE(Offer(same_walls).empty());
+  EXPECT_TRUE(Offer(other_walls).empty());
+  const double shared_view = ScanEncounterOptions{}.pcm_max_shared_view;
+  EXPECT_TRUE(Offer(other_walls, shared_view, /*join_max_conflict=*/1.0).empty());
+  EXPECT_EQ(Offer(other_walls, shared_view, 1.0, /*verify_max_conflict=*/1.0).size(), 2u);
 }
 
 // The wide near search's acceptance on hand-made matches between the parallel tracks, joined
