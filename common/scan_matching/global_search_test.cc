@@ -93,7 +93,7 @@ TEST(GlobalSearchTest, BranchAndBoundEqualsExhaustiveSearchOnScans) {
 }
 
 TEST(GlobalSearchTest, EmptyInputsFindNothing) {
-  const ScanReference empty({}, ScanReferenceOptions{});
+  const ScanReference empty(std::vector<PointCloud>{}, ScanReferenceOptions{});
   EXPECT_FALSE(GlobalSearch(empty, {{1.0, 0.0}}, GlobalSearchOptions{}).has_value());
   const ScanReference one({{{1.0, 0.0}, {1.0, 0.1}}}, ScanReferenceOptions{});
   EXPECT_FALSE(GlobalSearch(one, {}, GlobalSearchOptions{}).has_value());

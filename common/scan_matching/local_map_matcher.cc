@@ -31,12 +31,15 @@ LocalMapMatcher::LocalMapMatcher(const LocalMapMatcherOptions& options) : option
 
 void LocalMapMatcher::AddKeyframe(const PointCloud& points, const Pose2& pose,
                                   const Pose2& odometry) {
-  keyframes_.push_back({pose, odometry, TransformPointCloud(points, pose)});
+  keyframes_.push_back(
+      {pose, odometry,
+       std::make_shared<const ScanSurface>(
+           MakeScanSurface(TransformPointCloud(points, pose), options_.reference.max_join_gap_m))});
   while (static_cast<int>(keyframes_.size()) > options_.max_keyframes) keyframes_.pop_front();
-  std::vector<PointCloud> scans;
-  scans.reserve(keyframes_.size());
-  for (const Keyframe& k : keyframes_) scans.push_back(k.points_local);
-  reference_ = std::make_unique<ScanReference>(scans, options_.reference);
+  std::vector<std::shared_ptr<const ScanSurface>> surfaces;
+  surfaces.reserve(keyframes_.size());
+  for (const Keyframe& k : keyframes_) surfaces.push_back(k.surface);
+  reference_ = std::make_unique<ScanReference>(surfaces, options_.reference);
   ++stats_.keyframes;
 }
 

@@ -83,7 +83,9 @@ class LocalMapMatcher {
   struct Keyframe {
     Pose2 pose;      // T_local_body
     Pose2 odometry;  // T_odom_body at the scan's time
-    PointCloud points_local;
+    // The points in the local frame, joined into walls with their normals once: the map's
+    // reference is rebuilt from them at every keyframe.
+    std::shared_ptr<const ScanSurface> surface;
   };
   void AddKeyframe(const PointCloud& points, const Pose2& pose, const Pose2& odometry);
   bool HeldBack(const Pose2& matched, const Pose2& T_odom_body) const;

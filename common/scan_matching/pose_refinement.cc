@@ -16,8 +16,7 @@ namespace {
 bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double cutoff_sq,
                    int* rows, Eigen::Vector2d* e, Eigen::Matrix2d* de_dq) {
   Eigen::Vector2d v;
-  Eigen::Matrix2d J;
-  if (!field.Interpolate(q, &v, &J) || v.squaredNorm() > cutoff_sq) return false;
+  if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq) return false;
   const Eigen::Vector2i cell = field.geometry().CellOf(q);
   Eigen::Vector2d n;
   if (field.NearestNormal(cell.x(), cell.y(), &n)) {
@@ -26,6 +25,10 @@ bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double
     de_dq->row(0) = n.transpose();
     return true;
   }
+  // Only a lone return's residual needs the field's derivative (four divisions per point):
+  // asked again with it, the same v.
+  Eigen::Matrix2d J;
+  field.Interpolate(q, &v, &J);
   *rows = 2;
   *e = -v;
   *de_dq = -J;

@@ -3,8 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace anchormap {
 
@@ -36,15 +42,96 @@ Eigen::Vector2d ClosestPointOnSegment(const Eigen::Vector2d& p, const Eigen::Vec
   return a + t * ab;
 }
 
+namespace {
+
+// PrimitiveNormal of the primitive whose vertices have normals na and nb.
+bool PrimitiveNormalOf(const Eigen::Vector2d& na, const Eigen::Vector2d& nb, Eigen::Vector2d* n) {
+  Eigen::Vector2d sum = na + (na.dot(nb) < 0.0 ? -nb : nb);
+  if (na.isZero()) sum = nb;
+  const double norm = sum.norm();
+  if (norm < 1e-9) return false;
+  *n = sum / norm;
+  return true;
+}
+
+}  // namespace
+
+ScanSurface MakeScanSurface(PointCloud points, double max_join_gap_m) {
+  ScanSurface surface;
+  surface.max_join_gap_m = max_join_gap_m;
+  surface.points = std::move(points);
+  const PointCloud& scan = surface.points;
+  const double gap_sq = max_join_gap_m * max_join_gap_m;
+  std::vector<uint8_t>& joined = surface.joined;
+  joined.assign(scan.size(), 0);
+  for (size_t i = 0; i + 1 < scan.size(); ++i) {
+    joined[i] = (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq ? 1 : 0;
+  }
+  surface.normals.reserve(scan.size());
+  for (size_t i = 0; i < scan.size(); ++i) {
+    // The vertex's normal from itself and its joined neighbours up to kNormalReach steps away.
+    size_t lo = i;
+    size_t hi = i;
+    while (lo > 0 && i - lo < kNormalReach && joined[lo - 1]) --lo;
+    while (hi + 1 < scan.size() && hi - i < kNormalReach && joined[hi]) ++hi;
+    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+    if (hi > lo) {
+      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+      for (size_t k = lo; k <= hi; ++k) mean += scan[k];
+      mean /= static_cast<double>(hi - lo + 1);
+      Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+      for (size_t k = lo; k <= hi; ++k) {
+        scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
+      }
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+      normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
+    }
+    surface.normals.push_back(normal);
+  }
+  surface.start_normals.reserve(scan.size());
+  for (size_t i = 0; i < scan.size(); ++i) {
+    Eigen::Vector2d n = Eigen::Vector2d::Zero();
+    const size_t b = joined[i] ? i + 1 : i;
+    if (!PrimitiveNormalOf(surface.normals[i], surface.normals[b], &n)) n.setZero();
+    surface.start_normals.push_back(n);
+  }
+  return surface;
+}
+
 ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
                                const ReferenceFieldOptions& options)
     : options_(options) {
+  std::vector<ScanSurface> surfaces;
+  surfaces.reserve(scans.size());
+  for (const PointCloud& scan : scans) {
+    surfaces.push_back(MakeScanSurface(scan, options.max_join_gap_m));
+  }
+  std::vector<const ScanSurface*> pointers;
+  for (const ScanSurface& surface : surfaces) pointers.push_back(&surface);
+  Build(pointers);
+}
+
+ReferenceField::ReferenceField(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
+                               const ReferenceFieldOptions& options)
+    : options_(options) {
+  std::vector<const ScanSurface*> pointers;
+  for (const std::shared_ptr<const ScanSurface>& surface : surfaces) {
+    if (surface->max_join_gap_m != options.max_join_gap_m) {
+      throw std::invalid_argument("ReferenceField: a surface joined with another max_join_gap_m");
+    }
+    pointers.push_back(surface.get());
+  }
+  Build(pointers);
+}
+
+void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
+  const ReferenceFieldOptions& options = options_;
   geometry_.resolution = options.resolution_m;
   Eigen::Vector2d lo(std::numeric_limits<double>::infinity(),
                      std::numeric_limits<double>::infinity());
   Eigen::Vector2d hi = -lo;
-  for (const PointCloud& scan : scans) {
-    for (const Eigen::Vector2d& p : scan) {
+  for (const ScanSurface* surface : surfaces) {
+    for (const Eigen::Vector2d& p : surface->points) {
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
       ++num_points_;
@@ -63,50 +150,99 @@ ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
   primitive_a_.assign(geometry_.num_cells(), -1);
   primitive_b_.assign(geometry_.num_cells(), -1);
   std::vector<float> best_sq(geometry_.num_cells(), max_sq);
-  const double gap_sq = options.max_join_gap_m * options.max_join_gap_m;
+  // The cells' centre x per column, GridGeometry::CellCentre's own arithmetic; three columns
+  // more for the vector rows' last four (never stored).
+  std::vector<double> centre_x(static_cast<size_t>(geometry_.width) + 3);
+  for (int ix = 0; ix < geometry_.width + 3; ++ix) centre_x[ix] = geometry_.CellCentre(ix, 0).x();
   vertices_.reserve(num_points_);
   normals_.reserve(num_points_);
   start_normals_.reserve(num_points_);
-  std::vector<uint8_t> joined;
-  for (const PointCloud& scan : scans) {
+  for (const ScanSurface* surface : surfaces) {
+    const PointCloud& scan = surface->points;
     const int first = static_cast<int>(vertices_.size());
     vertices_.insert(vertices_.end(), scan.begin(), scan.end());
-    joined.assign(scan.size(), 0);  // joined[i]: points i and i + 1 are one wall
-    for (size_t i = 0; i + 1 < scan.size(); ++i) {
-      joined[i] = (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq ? 1 : 0;
-    }
+    normals_.insert(normals_.end(), surface->normals.begin(), surface->normals.end());
+    start_normals_.insert(start_normals_.end(), surface->start_normals.begin(),
+                          surface->start_normals.end());
     for (size_t i = 0; i < scan.size(); ++i) {
       const int a = first + static_cast<int>(i);
-      AddPrimitive(a, joined[i] ? a + 1 : a, &best_sq);
-      // The vertex's normal from itself and its joined neighbours up to two steps away.
-      size_t lo = i;
-      size_t hi = i;
-      while (lo > 0 && i - lo < kNormalReach && joined[lo - 1]) --lo;
-      while (hi + 1 < scan.size() && hi - i < kNormalReach && joined[hi]) ++hi;
-      Eigen::Vector2d normal = Eigen::Vector2d::Zero();
-      if (hi > lo) {
-        Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-        for (size_t k = lo; k <= hi; ++k) mean += scan[k];
-        mean /= static_cast<double>(hi - lo + 1);
-        Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
-        for (size_t k = lo; k <= hi; ++k) {
-          scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
-        }
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
-        normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
-      }
-      normals_.push_back(normal);
-    }
-    for (size_t i = 0; i < scan.size(); ++i) {
-      const int a = first + static_cast<int>(i);
-      Eigen::Vector2d n = Eigen::Vector2d::Zero();
-      if (!PrimitiveNormal(a, joined[i] ? a + 1 : a, &n)) n.setZero();
-      start_normals_.push_back(n);
+      AddPrimitive(a, surface->joined[i] ? a + 1 : a, centre_x, &best_sq);
     }
   }
 }
 
-void ReferenceField::AddPrimitive(int a_index, int b_index, std::vector<float>* best_sq) {
+namespace {
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define ANCHORMAP_HAS_AVX2_FIELD 1
+bool HasAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has;
+}
+
+// AddPrimitive's row of cells [first, last], four at a time (the last four masked): the same
+// IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2 alone), so
+// the same bits. `centre_x` has three entries past the grid's last column.
+__attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, double centre_y,
+                                                       int first, int last, int row_index,
+                                                       const Eigen::Vector2d& a,
+                                                       const Eigen::Vector2d& ab, double len_sq,
+                                                       int32_t a_index, int32_t b_index,
+                                                       float* best_sq, float* vx, float* vy,
+                                                       int32_t* primitive_a, int32_t* primitive_b) {
+  const __m256d ax = _mm256_set1_pd(a.x());
+  const __m256d ay = _mm256_set1_pd(a.y());
+  const __m256d abx = _mm256_set1_pd(ab.x());
+  const __m256d aby = _mm256_set1_pd(ab.y());
+  const __m256d cy = _mm256_set1_pd(centre_y);
+  const __m256d length_sq = _mm256_set1_pd(len_sq);
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m128i ia = _mm_set1_epi32(a_index);
+  const __m128i ib = _mm_set1_epi32(b_index);
+  const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
+  const bool point = len_sq <= 0.0;  // ClosestPointOnSegment's own test
+  // (p - a).dot(ab) takes its y term once per row.
+  const __m256d dy_term = _mm256_mul_pd(_mm256_sub_pd(cy, ay), aby);
+  for (int ix = first; ix <= last; ix += 4) {
+    const __m256d cx = _mm256_loadu_pd(centre_x + ix);
+    __m256d closest_x = ax;
+    __m256d closest_y = ay;
+    if (!point) {
+      const __m256d dot = _mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(cx, ax), abx), dy_term);
+      const __m256d ratio = _mm256_div_pd(dot, length_sq);
+      // std::clamp(ratio, 0, 1): ratio < 0 ? 0 : (1 < ratio ? 1 : ratio).
+      __m256d t = _mm256_blendv_pd(ratio, one, _mm256_cmp_pd(one, ratio, _CMP_LT_OQ));
+      t = _mm256_blendv_pd(t, zero, _mm256_cmp_pd(ratio, zero, _CMP_LT_OQ));
+      closest_x = _mm256_add_pd(ax, _mm256_mul_pd(t, abx));
+      closest_y = _mm256_add_pd(ay, _mm256_mul_pd(t, aby));
+    }
+    const __m256d v_x = _mm256_sub_pd(closest_x, cx);
+    const __m256d v_y = _mm256_sub_pd(closest_y, cy);
+    const __m128 sq =
+        _mm256_cvtpd_ps(_mm256_add_pd(_mm256_mul_pd(v_x, v_x), _mm256_mul_pd(v_y, v_y)));
+    const int index = row_index + ix;
+    // Lanes past `last` neither read nor write the field.
+    const __m128i valid = _mm_cmpgt_epi32(_mm_set1_epi32(last - ix + 1), lanes);
+    const __m128 best = _mm_maskload_ps(best_sq + index, valid);
+    const __m128i take = _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(sq, best)), valid);
+    if (_mm_testz_si128(take, take)) continue;
+    _mm_maskstore_ps(best_sq + index, take, sq);
+    _mm_maskstore_ps(vx + index, take, _mm256_cvtpd_ps(v_x));
+    _mm_maskstore_ps(vy + index, take, _mm256_cvtpd_ps(v_y));
+    _mm_maskstore_epi32(primitive_a + index, take, ia);
+    _mm_maskstore_epi32(primitive_b + index, take, ib);
+  }
+}
+#endif
+
+}  // namespace
+
+void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<double>& centre_x,
+                                  std::vector<float>* best_sq) {
   const Eigen::Vector2d& a = vertices_[a_index];
   const Eigen::Vector2d& b = vertices_[b_index];
   const double d = options_.max_distance_m;
@@ -116,14 +252,37 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, std::vector<float>* 
   const int y0 = std::max(c0.y(), 0);
   const int x1 = std::min(c1.x(), geometry_.width - 1);
   const int y1 = std::min(c1.y(), geometry_.height - 1);
+  // Only cells within d of the segment can pass `sq <= best` (best starts at d^2 as a float):
+  // the box's rows whose centres lie farther than that from the segment's y range are skipped
+  // (the reach is padded far above the float rounding of the squared distances).
+  const double reach = d * (1.0 + 1e-6) + 1e-9;
+  const double r = geometry_.resolution;
+  const double lo_y = std::min(a.y(), b.y());
+  const double hi_y = std::max(a.y(), b.y());
+  const Eigen::Vector2d ab = b - a;
+  const double len_sq = ab.squaredNorm();
+  float* best = best_sq->data();
   for (int iy = y0; iy <= y1; ++iy) {
+    const double centre_y = geometry_.origin.y() + r * (iy + 0.5);
+    const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
+    if (!(dy <= reach)) continue;
+    const int row_index = geometry_.Index(0, iy);
+#ifdef ANCHORMAP_HAS_AVX2_FIELD
+    if (HasAvx2()) {
+      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
+                        b_index, best, vx_.data(), vy_.data(), primitive_a_.data(),
+                        primitive_b_.data());
+      continue;
+    }
+#endif
     for (int ix = x0; ix <= x1; ++ix) {
-      const Eigen::Vector2d centre = geometry_.CellCentre(ix, iy);
+      // geometry_.CellCentre(ix, iy), its x from the table (the same bits).
+      const Eigen::Vector2d centre(centre_x[ix], centre_y);
       const Eigen::Vector2d v = ClosestPointOnSegment(centre, a, b) - centre;
       const float sq = static_cast<float>(v.squaredNorm());
-      const int index = geometry_.Index(ix, iy);
-      if (sq <= (*best_sq)[index]) {
-        (*best_sq)[index] = sq;
+      const int index = row_index + ix;
+      if (sq <= best[index]) {
+        best[index] = sq;
         vx_[index] = static_cast<float>(v.x());
         vy_[index] = static_cast<float>(v.y());
         primitive_a_[index] = a_index;
@@ -151,14 +310,7 @@ bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
 }
 
 bool ReferenceField::PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const {
-  const Eigen::Vector2d& na = normals_[a];
-  const Eigen::Vector2d& nb = normals_[b];
-  Eigen::Vector2d sum = na + (na.dot(nb) < 0.0 ? -nb : nb);
-  if (na.isZero()) sum = nb;
-  const double norm = sum.norm();
-  if (norm < 1e-9) return false;
-  *n = sum / norm;
-  return true;
+  return PrimitiveNormalOf(normals_[a], normals_[b], n);
 }
 
 }  // namespace anchormap

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,11 +37,27 @@ struct ReferenceFieldOptions {
   Status Validate() const;
 };
 
+// One scan's surface as a field joins it: which consecutive returns are one wall, each
+// return's normal and the normal of the primitive that starts there. A function of the points
+// alone: a local map that keeps its scans makes it once per scan, not at every rebuild (the
+// normals' eigen-decompositions were a fifth of a build).
+struct ScanSurface {
+  double max_join_gap_m = 0.0;
+  PointCloud points;
+  std::vector<uint8_t> joined;                 // joined[i]: points i and i + 1 are one wall
+  std::vector<Eigen::Vector2d> normals;        // per point, zero for a lone return
+  std::vector<Eigen::Vector2d> start_normals;  // per point, zero where it is a lone return
+};
+ScanSurface MakeScanSurface(PointCloud points, double max_join_gap_m);
+
 class ReferenceField {
  public:
   // `scans`: each scan's points in the reference frame, in beam order. An empty input gives an
   // empty field (every lookup misses).
   ReferenceField(const std::vector<PointCloud>& scans, const ReferenceFieldOptions& options);
+  // The same field from the scans' surfaces (made with options.max_join_gap_m).
+  ReferenceField(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
+                 const ReferenceFieldOptions& options);
 
   const GridGeometry& geometry() const { return geometry_; }
   const ReferenceFieldOptions& options() const { return options_; }
@@ -70,7 +87,11 @@ class ReferenceField {
   bool NearestNormal(int ix, int iy, Eigen::Vector2d* n) const;
 
  private:
-  void AddPrimitive(int a, int b, std::vector<float>* best_sq);
+  void Build(const std::vector<const ScanSurface*>& surfaces);
+  // Stores the segment [a, b] (a == b: a lone point) in every cell within max_distance_m where
+  // it is nearer than what the cell holds (ties to the later primitive). `centre_x`: the cells'
+  // centre x per column.
+  void AddPrimitive(int a, int b, const std::vector<double>& centre_x, std::vector<float>* best_sq);
 
   ReferenceFieldOptions options_;
   GridGeometry geometry_;

@@ -47,6 +47,74 @@ TEST(ReferenceFieldTest, CellVectorsPointToTheNearestSurfacePoint) {
   EXPECT_GT(stored, 100);
 }
 
+TEST(ReferenceFieldTest, CellsHoldTheNearestPrimitiveToTheBitWithTiesToTheLater) {
+  // Three noisy scans (walls, corners, lone returns, repeated points, segments at every
+  // angle): every cell of the field equals the definition evaluated cell by cell over all
+  // primitives in order - the same float vector, the same primitive - whatever rows, columns
+  // or vector lanes the build visits.
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<PointCloud> scans(3);
+  for (int s = 0; s < 3; ++s) {
+    for (int i = 0; i < 240; ++i) {
+      const double angle = 0.02 * i + 0.7 * s;
+      const double range = (i % 37 == 0) ? 0.9 : 1.5 + 0.4 * std::cos(3.0 * angle) + noise(rng);
+      scans[s].push_back({range * std::cos(angle) + 0.2 * s, range * std::sin(angle)});
+      if (i % 53 == 0) scans[s].push_back(scans[s].back());  // a zero-length segment
+    }
+  }
+  ReferenceFieldOptions options;
+  options.max_join_gap_m = 0.1;
+  const ReferenceField field(scans, options);
+  const GridGeometry& g = field.geometry();
+  // The primitives in build order: each vertex's segment to the next when joined, else alone.
+  std::vector<std::pair<int, int>> primitives;
+  int first = 0;
+  for (const PointCloud& scan : scans) {
+    for (size_t i = 0; i < scan.size(); ++i) {
+      const int a = first + static_cast<int>(i);
+      const bool joined =
+          i + 1 < scan.size() &&
+          (scan[i + 1] - scan[i]).squaredNorm() <= options.max_join_gap_m * options.max_join_gap_m;
+      primitives.emplace_back(a, joined ? a + 1 : a);
+    }
+    first += static_cast<int>(scan.size());
+  }
+  const float max_sq = static_cast<float>(options.max_distance_m * options.max_distance_m);
+  int stored = 0;
+  for (int iy = 0; iy < g.height; ++iy) {
+    for (int ix = 0; ix < g.width; ++ix) {
+      const Eigen::Vector2d centre = g.CellCentre(ix, iy);
+      float best = max_sq;
+      int best_primitive = -1;
+      Eigen::Vector2d best_v;
+      for (size_t k = 0; k < primitives.size(); ++k) {
+        const Eigen::Vector2d v = ClosestPointOnSegment(centre, field.vertex(primitives[k].first),
+                                                        field.vertex(primitives[k].second)) -
+                                  centre;
+        const float sq = static_cast<float>(v.squaredNorm());
+        if (sq <= best) {
+          best = sq;
+          best_primitive = static_cast<int>(k);
+          best_v = v;
+        }
+      }
+      Eigen::Vector2d v;
+      int a = 0;
+      int b = 0;
+      ASSERT_EQ(field.NearestVector(ix, iy, &v), best_primitive >= 0) << ix << " " << iy;
+      if (best_primitive < 0) continue;
+      ++stored;
+      ASSERT_EQ(v.x(), static_cast<double>(static_cast<float>(best_v.x()))) << ix << " " << iy;
+      ASSERT_EQ(v.y(), static_cast<double>(static_cast<float>(best_v.y()))) << ix << " " << iy;
+      ASSERT_TRUE(field.NearestPrimitive(ix, iy, &a, &b));
+      EXPECT_EQ(a, primitives[static_cast<size_t>(best_primitive)].first);
+      EXPECT_EQ(b, primitives[static_cast<size_t>(best_primitive)].second);
+    }
+  }
+  EXPECT_GT(stored, 2000);
+}
+
 TEST(ReferenceFieldTest, JoinsOnlyCloseConsecutiveReturns) {
   ReferenceFieldOptions options;
   options.max_join_gap_m = 0.2;
@@ -111,7 +179,7 @@ TEST(ReferenceFieldTest, LikelihoodIsAGaussianOfTheDistance) {
 }
 
 TEST(ReferenceFieldTest, EmptyReference) {
-  const ReferenceField field({}, ReferenceFieldOptions{});
+  const ReferenceField field(std::vector<PointCloud>{}, ReferenceFieldOptions{});
   Eigen::Vector2d v;
   EXPECT_EQ(field.num_points(), 0u);
   EXPECT_FALSE(field.NearestVector(0, 0, &v));

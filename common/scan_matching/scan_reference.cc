@@ -39,4 +39,11 @@ ScanReference::ScanReference(const std::vector<PointCloud>& scans,
       likelihood_(field_, options.likelihood_sigma_m),
       pyramid_(likelihood_, options.num_levels) {}
 
+ScanReference::ScanReference(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
+                             const ScanReferenceOptions& options)
+    : options_(options),
+      field_(surfaces, FieldOptions(options)),
+      likelihood_(field_, options.likelihood_sigma_m),
+      pyramid_(likelihood_, options.num_levels) {}
+
 }  // namespace anchormap

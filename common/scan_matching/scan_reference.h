@@ -4,6 +4,7 @@
 // and overlap), the likelihood grid (the score) and its max-grid pyramid (branch and bound).
 // Building costs O(reference points x (max distance / resolution)^2) plus O(levels x cells).
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,6 +35,9 @@ class ScanReference {
   // `scans`: each scan's points in the reference frame, in beam order (e.g.
   // TransformPointCloud(ScanToPointCloud(scan), T_reference_body)). Options must be valid.
   ScanReference(const std::vector<PointCloud>& scans, const ScanReferenceOptions& options);
+  // The same reference from the scans' surfaces (MakeScanSurface with options.max_join_gap_m).
+  ScanReference(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
+                const ScanReferenceOptions& options);
 
   const ScanReferenceOptions& options() const { return options_; }
   const ReferenceField& field() const { return field_; }
