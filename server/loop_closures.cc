@@ -4,7 +4,9 @@
 #include <cmath>
 #include <future>
 #include <limits>
+#include <map>
 #include <memory>
+#include <queue>
 #include <utility>
 #include <vector>
 
@@ -68,9 +70,6 @@ Status LoopClosureOptions::Validate() const {
 }
 
 namespace {
-
-// The submap cache's key for wide submaps drawn by place (a half width by index is >= 0).
-constexpr int kPlaceSubmapCacheKey = -1;
 
 // Squared Mahalanobis distance of the offset t from the disc of radius r around 0.
 double DistanceFromDisc2(const Eigen::Vector2d& t, const Eigen::Matrix2d& covariance, double r) {
@@ -249,14 +248,23 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
       near.push_back({entry.first, entry.second,
                       Reference(*record, graph, PoseKey{pending.key.trajectory, entry.first}, 0)});
     }
-    const int32_t seen = BestSeenKeyframe(near, *pending.query, coarse.pose, small);
+    // Only the scores choose: no covariance (at 100 robots 44 % of a local match's CPU).
+    LocalMatchOptions scored = small;
+    scored.match.covariance = false;
+    const int32_t seen = BestSeenKeyframe(near, *pending.query, coarse.pose, scored);
     for (const auto& entry : pending.submap_poses) {
       if (entry.first == seen) nearest = &entry;
     }
   }
   const PoseKey candidate{pending.key.trajectory, nearest ? nearest->first : 0};
+  // Drawn at the estimates of the moment (a one-scan submap, at the identity, is kept).
   const std::shared_ptr<const ScanReference> scan =
-      nearest ? Reference(*record, graph, candidate, options_.wide_refine_half_width) : nullptr;
+      nearest == nullptr ? nullptr
+      : options_.wide_refine_half_width > 0
+          ? references_.BuildUnkept(
+                *record, DrawKeyframeSubmap(*record, graph.smoother, candidate,
+                                            options_.wide_refine_half_width, options_.max_range_m))
+          : Reference(*record, graph, candidate, 0);
   const std::optional<PredictedRelativePose> predicted =
       scan ? PredictRelativePose(graph.covariances, candidate, pending.key) : std::nullopt;
   if (!predicted) {
@@ -487,15 +495,7 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
   // The drift the estimate may not know of grows with the path driven from the candidate
   // to the keyframe (the smoother's covariance trusts the scan-matched odometry too much:
   // on ACES 1-sigma 0.5-1 m where the return was metres off).
-  std::vector<double> along(static_cast<size_t>(key.index) + 1, 0.0);
-  for (int i = key.index - 1; i >= 0; --i) {
-    const PoseKey a{key.trajectory, i}, b{key.trajectory, i + 1};
-    const double step =
-        smoother->HasPose(a) && smoother->HasPose(b)
-            ? (smoother->FramePose(a).translation() - smoother->FramePose(b).translation()).norm()
-            : 0.0;
-    along[static_cast<size_t>(i)] = along[static_cast<size_t>(i) + 1] + step;
-  }
+  const std::vector<double> along = DriftPaths(key, *smoother);
   auto drift = [&](int j) { return WideDriftCovariance(along[static_cast<size_t>(j)], options_); };
   const Pose2 T_local_key = smoother->FramePose(key);
   // The candidate the estimate and the drift make likeliest within reach (nearest on ties).
@@ -531,6 +531,60 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
   Submit(candidate, key, *predicted, extra, true, record, graph, query);
 }
 
+std::vector<double> DriveThroughClosures(const std::vector<double>& steps,
+                                         const std::set<std::pair<int32_t, int32_t>>& closures) {
+  const int32_t last = static_cast<int32_t>(steps.size());
+  std::vector<double> along(steps.size() + 1, 0.0);
+  for (int32_t i = last - 1; i >= 0; --i) {
+    along[static_cast<size_t>(i)] =
+        along[static_cast<size_t>(i) + 1] + steps[static_cast<size_t>(i)];
+  }
+  std::map<int32_t, std::vector<int32_t>> jumps;
+  for (const auto& [a, b] : closures) {
+    if (a < 0 || b < 0 || a > last || b > last || a == b) continue;
+    jumps[a].push_back(b);
+    jumps[b].push_back(a);
+  }
+  if (jumps.empty()) return along;
+  // Dijkstra from the last keyframe: along the path, and across a closure for nothing.
+  std::vector<double> drive(along.size(), std::numeric_limits<double>::infinity());
+  using Item = std::pair<double, int32_t>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  const auto relax = [&](int32_t i, double d) {
+    if (d < drive[static_cast<size_t>(i)]) {
+      drive[static_cast<size_t>(i)] = d;
+      queue.push({d, i});
+    }
+  };
+  relax(last, 0.0);
+  while (!queue.empty()) {
+    const auto [d, i] = queue.top();
+    queue.pop();
+    if (d > drive[static_cast<size_t>(i)]) continue;
+    if (i > 0) relax(i - 1, d + steps[static_cast<size_t>(i) - 1]);
+    if (i < last) relax(i + 1, d + steps[static_cast<size_t>(i)]);
+    if (const auto jump = jumps.find(i); jump != jumps.end()) {
+      for (const int32_t j : jump->second) relax(j, d);
+    }
+  }
+  return drive;
+}
+
+std::vector<double> LoopClosures::DriftPaths(PoseKey key, const Smoother& smoother) const {
+  std::vector<double> steps(static_cast<size_t>(key.index), 0.0);  // keyframe i to i + 1
+  for (int32_t i = 0; i < key.index; ++i) {
+    const PoseKey a{key.trajectory, i}, b{key.trajectory, i + 1};
+    if (!smoother.HasPose(a) || !smoother.HasPose(b)) continue;
+    steps[static_cast<size_t>(i)] =
+        (smoother.FramePose(a).translation() - smoother.FramePose(b).translation()).norm();
+  }
+  const auto entered = entered_.find(key.trajectory);
+  if (!options_.wide_drift_through_closures || entered == entered_.end()) {
+    return DriveThroughClosures(steps, {});
+  }
+  return DriveThroughClosures(steps, entered->second);
+}
+
 void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativePose& predicted,
                           const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
                           const GraphView& graph, const std::shared_ptr<const PointCloud>& query) {
@@ -557,7 +611,7 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
                                       place, options_.max_range_m);
   }
   const std::shared_ptr<const ScanReference> submap =
-      by_place ? references_.Get(record, *by_place, kPlaceSubmapCacheKey)
+      by_place ? references_.BuildUnkept(record, *by_place)
                : Reference(record, graph, candidate,
                            wide ? options_.wide_submap_half_width : options_.submap_half_width);
   if (!submap) {

@@ -111,6 +111,27 @@ EncounterCandidate Reversed(const EncounterCandidate& c) {
 
 }  // namespace
 
+Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options) {
+  const double m = options.near_drift_per_m * drive_m;
+  const double rad = options.near_drift_rad_per_m * drive_m;
+  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
+}
+
+double NearWindowSaturatingDrive(const ScanEncounterOptions& options) {
+  // NearSearchWindow's linear window stops growing at 3 sigma = max(max_window_m,
+  // near_wide_max_window_m), its angular one at 3 sigma = max_window_rad; the drift alone
+  // reaches both (whatever the prediction's covariance adds) at these drives (a rate of 0: that
+  // window does not grow with the drive). The margin keeps rounding from bringing 3 sigma back
+  // under the bounds.
+  const double linear = std::max(options.max_window_m, options.near_wide_max_window_m);
+  const double linear_drive =
+      options.near_drift_per_m > 0 ? linear / (3.0 * options.near_drift_per_m) : 0.0;
+  const double angular_drive = options.near_drift_rad_per_m > 0
+                                   ? options.max_window_rad / (3.0 * options.near_drift_rad_per_m)
+                                   : 0.0;
+  return std::max(linear_drive, angular_drive) * (1.0 + 1e-6);
+}
+
 LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
                                    const ScanEncounterOptions& options, bool* wide) {
   LocalMatchOptions window;
@@ -391,7 +412,7 @@ void ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const Gra
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   bool wide = false;
   const LocalMatchOptions window = NearSearchWindow(
-      predicted->covariance + NearDrift(nearest.center, key, graph), options_, &wide);
+      predicted->covariance + NearWindowDrift(nearest.center, key, graph), options_, &wide);
   std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
   if (!reference) return;
   const Pose2 guess = predicted->T_a_b;
@@ -492,15 +513,26 @@ Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView&
   const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
   const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
   if (!drive) return Eigen::Matrix3d::Zero();
-  const double m = options_.near_drift_per_m * *drive;
-  const double rad = options_.near_drift_rad_per_m * *drive;
-  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
+  return NearDriftOf(*drive, options_);
+}
+
+Eigen::Matrix3d ScanEncounters::NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph) {
+  if (graph.ties == nullptr ||
+      (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {
+    return Eigen::Matrix3d::Zero();
+  }
+  const double saturated = NearWindowSaturatingDrive(options_);
+  const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
+  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to, saturated);
+  if (drive) return NearDriftOf(*drive, options_);
+  if (!graph.ties->Connected(a.trajectory, b.trajectory)) return Eigen::Matrix3d::Zero();
+  // Farther than `saturated`: any such drive gives the widest window, this one too.
+  return NearDriftOf(saturated, options_);
 }
 
 void ScanEncounters::OfferNearMatch(const EncounterCandidate& candidate, bool wide,
                                     const GraphView& graph, EncounterSourceOutput* out) {
   const Pair key{candidate.b.trajectory, candidate.a.trajectory};
-  const Eigen::Matrix3d drift = NearDrift(candidate.a, candidate.b, graph);
   // Within the estimate's own covariance: enters at once.
   if (!wide && WithinGate(candidate, graph, /*widened=*/false, Eigen::Matrix3d::Zero())) {
     ++stats_.accepted;
@@ -508,6 +540,8 @@ void ScanEncounters::OfferNearMatch(const EncounterCandidate& candidate, bool wi
     near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
     return;
   }
+  // Only now: the drive through the ties is a search of the tie graph.
+  const Eigen::Matrix3d drift = NearDrift(candidate.a, candidate.b, graph);
   if ((!wide && drift.isZero()) || !WithinGate(candidate, graph, wide, drift)) {
     ++stats_.gate_rejected;
     return;

@@ -228,6 +228,13 @@ struct ScanEncounterOptions {
   Status Validate() const;
 };
 
+// The near drift term for a drive of `drive_m` through the ties (near_drift_per_m,
+// near_drift_rad_per_m).
+Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options);
+// A drive from which NearSearchWindow's window, with that drift term added, is its widest in
+// translation and rotation whatever the prediction's covariance: a longer drive gives the
+// same window.
+double NearWindowSaturatingDrive(const ScanEncounterOptions& options);
 // The near search's window around a prediction of covariance `covariance` (the drift term
 // included): 3 sigma within [min_window, max_window], or, when 3 sigma exceeds max_window_m,
 // up to near_wide_max_window_m (`wide`, with the acceptance bar as the lattice's bar).
@@ -292,6 +299,9 @@ class ScanEncounters : public EncounterSource {
   // The drift term of the relative pose of keyframe b seen from keyframe a, two joined
   // trajectories (zero without the graph's ties, or when none connects them).
   Eigen::Matrix3d NearDrift(PoseKey a, PoseKey b, const GraphView& graph);
+  // The same for a near search's window (NearSearchWindow): the tie graph searched only as far
+  // as the window keeps growing with the drive (NearWindowSaturatingDrive), the same window.
+  Eigen::Matrix3d NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
   // Drawn when its keyframes are solved, built when a search uses it (references_: the

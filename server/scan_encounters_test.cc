@@ -805,6 +805,37 @@ TEST(NearSearchWindowTest, TheDriftTermReachesWhereTheEstimateDrifted) {
   EXPECT_LT(Mahalanobis2(Pose2(), measured, drifted + match), options.gate_chi2);
 }
 
+// Beyond NearWindowSaturatingDrive the drift term widens nothing more: the window of any longer
+// drive is the same to the bit, whatever the prediction's covariance (so the tie graph need
+// not be searched further).
+TEST(NearSearchWindowTest, BeyondTheSaturatingDriveTheWindowIsTheSame) {
+  const ScanEncounterOptions options;
+  const double saturated = NearWindowSaturatingDrive(options);
+  EXPECT_NEAR(saturated, 200.0, 1e-3);  // 6 m / (3 x 0.01) and 0.6 rad / (3 x 0.001)
+  for (const double sigma : {0.0, 0.05, 0.5, 3.0}) {
+    const Eigen::Matrix3d estimate =
+        Eigen::Vector3d(sigma * sigma, 0.25 * sigma * sigma, 0.01 * sigma * sigma).asDiagonal();
+    bool wide_at = false;
+    const LocalMatchOptions at =
+        NearSearchWindow(estimate + NearDriftOf(saturated, options), options, &wide_at);
+    for (const double drive : {saturated * 1.0001, 2.0 * saturated, 1e4}) {
+      bool wide = false;
+      const LocalMatchOptions beyond =
+          NearSearchWindow(estimate + NearDriftOf(drive, options), options, &wide);
+      EXPECT_EQ(wide, wide_at);
+      EXPECT_EQ(beyond.linear_window_m, at.linear_window_m);
+      EXPECT_EQ(beyond.angular_window_rad, at.angular_window_rad);
+      EXPECT_EQ(beyond.match.min_score, at.match.min_score);
+    }
+    EXPECT_EQ(at.linear_window_m, options.near_wide_max_window_m);
+    EXPECT_EQ(at.angular_window_rad, options.max_window_rad);
+  }
+  // A little short of it, the window is still growing.
+  bool wide = false;
+  EXPECT_LT(NearSearchWindow(NearDriftOf(0.9 * saturated, options), options, &wide).linear_window_m,
+            options.near_wide_max_window_m);
+}
+
 // Eight robots that never meet, keyframes 1 s apart: how many global searches they cost.
 struct BudgetRun {
   int64_t searches = 0;

@@ -83,6 +83,13 @@ std::shared_ptr<const ScanReference> SubmapCache::Get(const TrajectoryRecord& re
   return reference;
 }
 
+std::shared_ptr<const ScanReference> SubmapCache::BuildUnkept(const TrajectoryRecord& record,
+                                                              const SubmapDrawing& drawing) {
+  if (drawing.num_points == 0) return nullptr;
+  ++stats_.builds;
+  return BuildKeyframeSubmap(record, drawing, max_range_m_, reference_);
+}
+
 void SubmapCache::EvictBeyondBudget(const EntryKey& keep) {
   const double budget = options_.budget_mb * 1e6;
   while (static_cast<double>(stats_.bytes) > budget && !by_use_.empty()) {

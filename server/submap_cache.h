@@ -60,6 +60,13 @@ class SubmapCache {
   std::shared_ptr<const ScanReference> Get(const TrajectoryRecord& record,
                                            const SubmapDrawing& drawing, int half_width);
 
+  // The reference of a drawing that will not be drawn with the same bits again (a wide loop
+  // search's submaps, drawn at the estimates of the moment: 0 of 173 reused at 100 robots x
+  // 60 s), built and not kept: keeping it would only evict references that are asked again.
+  // Counted as a build.
+  std::shared_ptr<const ScanReference> BuildUnkept(const TrajectoryRecord& record,
+                                                   const SubmapDrawing& drawing);
+
   const SubmapCacheStats& stats() const { return stats_; }
 
  private:

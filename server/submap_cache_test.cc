@@ -51,6 +51,21 @@ TEST_F(SubmapCacheTest, ASecondUseOfTheSameDrawingIsServedFromTheCache) {
             static_cast<int64_t>(ReferenceBytes(*first) + ReferenceBytes(*wider)));
 }
 
+TEST_F(SubmapCacheTest, AnUnkeptBuildEvictsNothing) {
+  SubmapCache cache(SubmapCacheOptions{0.0, 0.0, 0.0}, 15.0, reference_);
+  const auto kept = cache.Get(*record_, Draw(10, 2), 2);
+  const auto unkept = cache.BuildUnkept(*record_, Draw(20, 4));
+  ASSERT_TRUE(unkept);
+  EXPECT_TRUE(unkept->likelihood().SameCells(
+      BuildKeyframeSubmap(*record_, Draw(20, 4), 15.0, reference_)->likelihood()));
+  EXPECT_EQ(cache.Get(*record_, Draw(10, 2), 2), kept);  // still held under a budget of 0
+  EXPECT_EQ(cache.stats().builds, 2);
+  EXPECT_EQ(cache.stats().hits, 1);
+  EXPECT_EQ(cache.stats().held, 1);
+  EXPECT_EQ(cache.stats().evictions, 0);
+  EXPECT_EQ(cache.stats().bytes, static_cast<int64_t>(ReferenceBytes(*kept)));
+}
+
 TEST_F(SubmapCacheTest, TheBudgetEvictsTheLeastRecentlyUsedAndARebuildHasTheSameBits) {
   // A budget of about two references of this size.
   const auto probe = BuildKeyframeSubmap(*record_, Draw(10, 2), 15.0, reference_);

@@ -1,7 +1,9 @@
 #include "server/trajectory_ties.h"
 
+#include <algorithm>
 #include <cmath>
 #include <queue>
+#include <unordered_set>
 #include <utility>
 
 namespace anchormap {
@@ -11,14 +13,28 @@ void TrajectoryTies::Add(PoseKey a, PoseKey b) {
   ends_[a.trajectory][a.index].push_back(b);
   ends_[b.trajectory][b.index].push_back(a);
   ++size_;
+  const TrajectoryId root = std::min(Root(a.trajectory), Root(b.trajectory));
+  // Both ends' trajectories and their old roots point at the joint root (keeps chains short).
+  for (const TrajectoryId t :
+       {Root(a.trajectory), Root(b.trajectory), a.trajectory, b.trajectory}) {
+    if (t != root) parent_[t] = root;
+  }
+}
+
+TrajectoryId TrajectoryTies::Root(TrajectoryId trajectory) const {
+  // Without path compression (const): a team's few hundred trajectories keep the chains short.
+  for (auto up = parent_.find(trajectory); up != parent_.end(); up = parent_.find(trajectory)) {
+    trajectory = up->second;
+  }
+  return trajectory;
 }
 
 std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
                                                     const std::function<double(PoseKey)>& driven,
                                                     double limit) const {
-  const auto along = [&](PoseKey p, PoseKey q) { return std::abs(driven(p) - driven(q)); };
+  const double driven_to = driven(to);
   std::optional<double> best;
-  if (from.trajectory == to.trajectory) best = along(from, to);
+  if (from.trajectory == to.trajectory) best = std::abs(driven(from) - driven_to);
   const auto within_limit = [&](std::optional<double> drive) {
     return drive && *drive <= limit ? drive : std::nullopt;
   };
@@ -28,22 +44,14 @@ std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
   using Node = std::pair<int64_t, int32_t>;  // (trajectory, index)
   using Item = std::pair<double, Node>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  std::map<Node, double> settled;
-  const auto push_neighbours_by_index = [&](PoseKey key, double distance) {
-    const auto trajectory = ends_.find(key.trajectory);
-    if (trajectory == ends_.end()) return;
-    const std::map<int32_t, std::vector<PoseKey>>& tied = trajectory->second;
-    auto above = tied.upper_bound(key.index);
-    if (above != tied.end()) {
-      const PoseKey next{key.trajectory, above->first};
-      queue.push({distance + along(key, next), {key.trajectory.value(), next.index}});
-    }
-    auto below = tied.lower_bound(key.index);
-    if (below != tied.begin()) {
-      --below;
-      const PoseKey next{key.trajectory, below->first};
-      queue.push({distance + along(key, next), {key.trajectory.value(), next.index}});
-    }
+  // Settled nodes; a node settled is not queued again (the heap's order is total, so the
+  // others come out as they would).
+  std::unordered_set<uint64_t> settled;
+  const auto id = [](const Node& node) {
+    return (static_cast<uint64_t>(node.first) << 32) ^ static_cast<uint32_t>(node.second);
+  };
+  const auto push = [&](double distance, const Node& node) {
+    if (settled.count(id(node)) == 0) queue.push({distance, node});
   };
   // `from` itself may be tied: then it is a node with its partners.
   queue.push({0.0, {from.trajectory.value(), from.index}});
@@ -51,19 +59,32 @@ std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
     const auto [distance, node] = queue.top();
     queue.pop();
     if ((best && distance >= *best) || distance > limit) break;
-    if (!settled.emplace(node, distance).second) continue;
+    if (!settled.insert(id(node)).second) continue;
     const PoseKey key{TrajectoryId(node.first), node.second};
+    const auto trajectory = ends_.find(key.trajectory);
+    const double driven_key = driven(key);
     if (key.trajectory == to.trajectory) {
-      const double total = distance + along(key, to);
+      const double total = distance + std::abs(driven_key - driven_to);
       if (!best || total < *best) best = total;
     }
-    push_neighbours_by_index(key, distance);
-    const auto trajectory = ends_.find(key.trajectory);
     if (trajectory == ends_.end()) continue;
-    const auto here = trajectory->second.find(key.index);
-    if (here == trajectory->second.end()) continue;
+    const std::map<int32_t, std::vector<PoseKey>>& tied = trajectory->second;
+    // Its neighbours by index among the trajectory's tied keyframes.
+    const auto above = tied.upper_bound(key.index);
+    if (above != tied.end()) {
+      const PoseKey next{key.trajectory, above->first};
+      push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
+    }
+    auto below = tied.lower_bound(key.index);
+    if (below != tied.begin()) {
+      --below;
+      const PoseKey next{key.trajectory, below->first};
+      push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
+    }
+    const auto here = tied.find(key.index);
+    if (here == tied.end()) continue;
     for (const PoseKey& other : here->second) {
-      queue.push({distance, {other.trajectory.value(), other.index}});
+      push(distance, {other.trajectory.value(), other.index});
     }
   }
   return within_limit(best);

@@ -21,7 +21,10 @@ class TrajectoryTies {
   // Keyframe a of one trajectory tied to keyframe b of another (a loop closure, within one
   // trajectory, is no tie: ignored).
   void Add(PoseKey a, PoseKey b);
-  void Clear() { ends_.clear(); }
+  void Clear() {
+    ends_.clear();
+    parent_.clear();
+  }
   int64_t size() const { return size_; }
 
   // The shortest drive from `from` to `to`: along each trajectory (`driven(key)`, the path
@@ -33,10 +36,16 @@ class TrajectoryTies {
   std::optional<double> ShortestDrive(PoseKey from, PoseKey to,
                                       const std::function<double(PoseKey)>& driven,
                                       double limit = std::numeric_limits<double>::infinity()) const;
+  // Whether a chain of ties connects the two trajectories (each is connected to itself): what a
+  // bounded ShortestDrive's nullopt leaves open, answered without a search.
+  bool Connected(TrajectoryId a, TrajectoryId b) const { return Root(a) == Root(b); }
 
  private:
   // Per trajectory: its tied keyframes, by index, each with the keyframes tied to it.
   std::map<TrajectoryId, std::map<int32_t, std::vector<PoseKey>>> ends_;
+  // Union-find over the trajectories the ties connect (absent: alone).
+  TrajectoryId Root(TrajectoryId trajectory) const;
+  std::map<TrajectoryId, TrajectoryId> parent_;
   int64_t size_ = 0;
 };
 

@@ -52,5 +52,26 @@ TEST(TrajectoryTiesTest, ALimitAnswersOnlyDrivesWithinIt) {
   EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kA, 9}, OneMetreEach, 5.0));  // 6 m along A
 }
 
+TEST(TrajectoryTiesTest, ConnectedFollowsChainsOfTies) {
+  TrajectoryTies ties;
+  const TrajectoryId kD(3);
+  EXPECT_TRUE(ties.Connected(kA, kA));
+  EXPECT_FALSE(ties.Connected(kA, kB));
+  ties.Add({kC, 1}, {kD, 2});
+  ties.Add({kA, 0}, {kA, 9});  // a loop closure connects nothing
+  EXPECT_FALSE(ties.Connected(kA, kD));
+  ties.Add({kB, 7}, {kA, 3});
+  EXPECT_TRUE(ties.Connected(kA, kB));
+  EXPECT_FALSE(ties.Connected(kB, kC));
+  ties.Add({kD, 5}, {kB, 8});  // joins {A, B} and {C, D}
+  EXPECT_TRUE(ties.Connected(kA, kC));
+  EXPECT_TRUE(ties.Connected(kD, kA));
+  // A bounded drive that says nothing is either beyond the limit (connected) or none at all.
+  EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kC, 50}, OneMetreEach, 5.0));
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 3}, {kC, 50}, OneMetreEach), 53.0);
+  ties.Clear();
+  EXPECT_FALSE(ties.Connected(kA, kB));
+}
+
 }  // namespace
 }  // namespace anchormap
