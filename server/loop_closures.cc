@@ -4,9 +4,7 @@
 #include <cmath>
 #include <future>
 #include <limits>
-#include <map>
 #include <memory>
-#include <queue>
 #include <utility>
 #include <vector>
 
@@ -495,7 +493,15 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
   // The drift the estimate may not know of grows with the path driven from the candidate
   // to the keyframe (the smoother's covariance trusts the scan-matched odometry too much:
   // on ACES 1-sigma 0.5-1 m where the return was metres off).
-  const std::vector<double> along = DriftPaths(key, *smoother);
+  std::vector<double> along(static_cast<size_t>(key.index) + 1, 0.0);
+  for (int i = key.index - 1; i >= 0; --i) {
+    const PoseKey a{key.trajectory, i}, b{key.trajectory, i + 1};
+    const double step =
+        smoother->HasPose(a) && smoother->HasPose(b)
+            ? (smoother->FramePose(a).translation() - smoother->FramePose(b).translation()).norm()
+            : 0.0;
+    along[static_cast<size_t>(i)] = along[static_cast<size_t>(i) + 1] + step;
+  }
   auto drift = [&](int j) { return WideDriftCovariance(along[static_cast<size_t>(j)], options_); };
   const Pose2 T_local_key = smoother->FramePose(key);
   // The candidate the estimate and the drift make likeliest within reach (nearest on ties).
@@ -529,60 +535,6 @@ void LoopClosures::SubmitWide(PoseKey key, const GraphView& graph, const Traject
   predicted->covariance += extra;
   next = key.index + options_.wide_every_keyframes;
   Submit(candidate, key, *predicted, extra, true, record, graph, query);
-}
-
-std::vector<double> DriveThroughClosures(const std::vector<double>& steps,
-                                         const std::set<std::pair<int32_t, int32_t>>& closures) {
-  const int32_t last = static_cast<int32_t>(steps.size());
-  std::vector<double> along(steps.size() + 1, 0.0);
-  for (int32_t i = last - 1; i >= 0; --i) {
-    along[static_cast<size_t>(i)] =
-        along[static_cast<size_t>(i) + 1] + steps[static_cast<size_t>(i)];
-  }
-  std::map<int32_t, std::vector<int32_t>> jumps;
-  for (const auto& [a, b] : closures) {
-    if (a < 0 || b < 0 || a > last || b > last || a == b) continue;
-    jumps[a].push_back(b);
-    jumps[b].push_back(a);
-  }
-  if (jumps.empty()) return along;
-  // Dijkstra from the last keyframe: along the path, and across a closure for nothing.
-  std::vector<double> drive(along.size(), std::numeric_limits<double>::infinity());
-  using Item = std::pair<double, int32_t>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  const auto relax = [&](int32_t i, double d) {
-    if (d < drive[static_cast<size_t>(i)]) {
-      drive[static_cast<size_t>(i)] = d;
-      queue.push({d, i});
-    }
-  };
-  relax(last, 0.0);
-  while (!queue.empty()) {
-    const auto [d, i] = queue.top();
-    queue.pop();
-    if (d > drive[static_cast<size_t>(i)]) continue;
-    if (i > 0) relax(i - 1, d + steps[static_cast<size_t>(i) - 1]);
-    if (i < last) relax(i + 1, d + steps[static_cast<size_t>(i)]);
-    if (const auto jump = jumps.find(i); jump != jumps.end()) {
-      for (const int32_t j : jump->second) relax(j, d);
-    }
-  }
-  return drive;
-}
-
-std::vector<double> LoopClosures::DriftPaths(PoseKey key, const Smoother& smoother) const {
-  std::vector<double> steps(static_cast<size_t>(key.index), 0.0);  // keyframe i to i + 1
-  for (int32_t i = 0; i < key.index; ++i) {
-    const PoseKey a{key.trajectory, i}, b{key.trajectory, i + 1};
-    if (!smoother.HasPose(a) || !smoother.HasPose(b)) continue;
-    steps[static_cast<size_t>(i)] =
-        (smoother.FramePose(a).translation() - smoother.FramePose(b).translation()).norm();
-  }
-  const auto entered = entered_.find(key.trajectory);
-  if (!options_.wide_drift_through_closures || entered == entered_.end()) {
-    return DriveThroughClosures(steps, {});
-  }
-  return DriveThroughClosures(steps, entered->second);
 }
 
 void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativePose& predicted,

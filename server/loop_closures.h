@@ -109,18 +109,6 @@ struct LoopClosureOptions {
   // (scan-matched odometry is overconfident): added to the wide search's prediction.
   double drift_per_m = 0.03;
   double drift_rad_per_m = 0.002;
-  // EXPERIMENT (off): the path the drift model counts from the candidate to the keyframe as
-  // the shortest drive where a closure entered in the trajectory counts as no drive (as scan
-  // encounters count drives through ties), not the whole path driven between them: over a
-  // long run the whole path makes every wide window its largest (12 m from 400 m of path).
-  // On, wide searches fell 324 -> 47 on intel-1 (replay CPU 38.4 -> 19.4 s) and the 20 x 600
-  // run took 31 % less CPU to 150 s of data, but a closure corrects the estimate where it
-  // closed, not the other passes the robot reaches next (see wide_quiet_keyframes): with it
-  // AClosureDoesNotPauseTheWideSearch's map stays at 0.524 m mean error (seed 2), closures
-  // accepted fell 303 -> 200 (intel-1) and 52 -> 31 (aces-1), intel-1 0.02337 -> 0.02382 m,
-  // aces-1 0.04235 -> 0.04282, intel-3s 0.0238 -> 0.0239, fr079-3s 0.0525 -> 0.0527,
-  // fr079-1 0.0523 -> 0.0522.
-  bool wide_drift_through_closures = false;
   // No wide search this soon after an accepted closure (0: no pause). None by default: a
   // closure corrects the estimate where it closed, not the other passes the robot reaches next
   // (ACES 1266-1290 s: the return closed on its 1018 s pass, then 8 keyframes on drove over its
@@ -208,12 +196,6 @@ double WidePairInconsistency2(const PredictedRelativePose& candidates, const Pos
                               const Eigen::Matrix3d& second_covariance, double query_path_m,
                               const LoopClosureOptions& options);
 
-// The drive from each keyframe [0, steps.size()] to the last one along a path of `steps`
-// (steps[i]: from keyframe i to i + 1) where a closure (a pair of keyframe indices) costs no
-// drive (wide_drift_through_closures); without closures, the path itself.
-std::vector<double> DriveThroughClosures(const std::vector<double>& steps,
-                                         const std::set<std::pair<int32_t, int32_t>>& closures);
-
 class LoopClosures : public EncounterSource {
  public:
   // Without a pool, matches run on the caller's thread and are used at once (lag 0).
@@ -265,9 +247,6 @@ class LoopClosures : public EncounterSource {
   void SubmitWide(PoseKey key, const GraphView& graph, const TrajectoryRecord& record,
                   const std::shared_ptr<const PointCloud>& query);
   bool NeedsWideWindow(const Eigen::Matrix3d& covariance) const;
-  // The path the drift model counts from each keyframe [0, key.index] to `key` (see
-  // wide_drift_through_closures).
-  std::vector<double> DriftPaths(PoseKey key, const Smoother& smoother) const;
   // True when an entered closure of the trajectory has its ends within saturation_m of path
   // of `key` and of `candidate`.
   bool Saturated(const TrajectoryRecord& record, PoseKey candidate, PoseKey key);

@@ -409,25 +409,6 @@ TEST(LoopClosuresTest, TheRefinementKeyframeIsThePassTheQueryMatched) {
   EXPECT_EQ(BestSeenKeyframe({}, seen, query, window), -1);
 }
 
-TEST(LoopClosuresTest, TheDriftPathCrossesEnteredClosuresForNothing) {
-  // Ten keyframes 1 m apart (0..10); keyframe 9 closed on keyframe 2.
-  const std::vector<double> steps(10, 1.0);
-  const std::vector<double> plain = DriveThroughClosures(steps, {});
-  EXPECT_DOUBLE_EQ(plain[0], 10.0);
-  EXPECT_DOUBLE_EQ(plain[6], 4.0);
-  const std::vector<double> closed = DriveThroughClosures(steps, {{2, 9}});
-  EXPECT_DOUBLE_EQ(closed[10], 0.0);
-  EXPECT_DOUBLE_EQ(closed[9], 1.0);
-  EXPECT_DOUBLE_EQ(closed[2], 1.0);  // back to 9, across the closure
-  EXPECT_DOUBLE_EQ(closed[0], 3.0);
-  EXPECT_DOUBLE_EQ(closed[5], 4.0);  // 1 to 2, then 3 on (or 5 back along the path)
-  EXPECT_DOUBLE_EQ(closed[6], 4.0);  // along the path, as before
-  // A chain of closures; a closure beyond the last keyframe is not known yet.
-  const std::vector<double> chained = DriveThroughClosures(steps, {{2, 9}, {0, 3}, {1, 12}});
-  EXPECT_DOUBLE_EQ(chained[0], 2.0);  // 10 -> 9, 9 -> 2, 2 -> 3, 3 -> 0
-  EXPECT_DOUBLE_EQ(chained[1], 2.0);  // 10 -> 9, 9 -> 2, 2 -> 1
-}
-
 TEST(LoopClosuresTest, WeakWideOptionsAreValidated) {
   LoopClosureOptions options;
   EXPECT_TRUE(options.Validate().ok());
