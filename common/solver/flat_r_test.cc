@@ -1,4 +1,5 @@
 #include "common/solver/flat_r.h"
+#include "common/solver/sparse_r_testing.h"
 
 #include <algorithm>
 #include <random>
@@ -32,19 +33,6 @@ Eigen::VectorXd Join(const std::vector<Eigen::Vector3d>& v) {
   return out;
 }
 
-// One measurement between two variables (a loop closure when they are far apart).
-NewRows Between(int a, int b, std::mt19937* rng) {
-  std::normal_distribution<double> g;
-  NewRows rows;
-  Eigen::Matrix3d ja, jb;
-  for (int i = 0; i < 9; ++i) ja(i) = g(*rng);
-  for (int i = 0; i < 9; ++i) jb(i) = g(*rng);
-  rows.blocks.emplace_back(a, ja + 3 * Eigen::Matrix3d::Identity());
-  if (b >= 0) rows.blocks.emplace_back(b, jb);
-  rows.rhs = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
-  return rows;
-}
-
 // Both solves against dense triangular solves with R (its off-diagonal blocks rounded
 // as FlatR keeps them), and R^-T's squared norm.
 void ExpectSolvesMatchDense(const FlatR& flat, const SparseR& r, std::mt19937* rng) {
@@ -71,7 +59,7 @@ TEST(FlatRTest, RefreshCopiesOnlyTheRowsFromTheFirstChangeAndSolvesStayExact) {
   constexpr int kChain = 40;
   SparseR r;
   r.Append(kChain);
-  for (int p = 0; p < kChain; ++p) r.Eliminate(Between(p, p - 1, &rng), nullptr);
+  for (int p = 0; p < kChain; ++p) r.Eliminate(RandomBetweenRows(p, p - 1, &rng), nullptr);
   FlatR flat;
   EXPECT_EQ(flat.Refresh(r), kChain);
   ExpectSolvesMatchDense(flat, r, &rng);
@@ -79,20 +67,20 @@ TEST(FlatRTest, RefreshCopiesOnlyTheRowsFromTheFirstChangeAndSolvesStayExact) {
 
   // A closure from variable 30 to the last one changes rows 30 on only.
   std::vector<int> touched;
-  r.Eliminate(Between(kChain - 1, 30, &rng), &touched);
+  r.Eliminate(RandomBetweenRows(kChain - 1, 30, &rng), &touched);
   EXPECT_EQ(*std::min_element(touched.begin(), touched.end()), 30);
   EXPECT_EQ(flat.Refresh(r), kChain - 30);
   ExpectSolvesMatchDense(flat, r, &rng);
 
   // New variables: the appended rows, and those a measurement on them changed.
   r.Append(2);
-  r.Eliminate(Between(kChain, kChain - 1, &rng), nullptr);
-  r.Eliminate(Between(kChain + 1, kChain, &rng), nullptr);
+  r.Eliminate(RandomBetweenRows(kChain, kChain - 1, &rng), nullptr);
+  r.Eliminate(RandomBetweenRows(kChain + 1, kChain, &rng), nullptr);
   EXPECT_EQ(flat.Refresh(r), 3);
   ExpectSolvesMatchDense(flat, r, &rng);
 
   // A closure reaching far back changes nearly all of R.
-  r.Eliminate(Between(kChain + 1, 2, &rng), nullptr);
+  r.Eliminate(RandomBetweenRows(kChain + 1, 2, &rng), nullptr);
   EXPECT_EQ(flat.Refresh(r), kChain + 2 - 2);
   ExpectSolvesMatchDense(flat, r, &rng);
 }
@@ -101,13 +89,13 @@ TEST(FlatRTest, ACopyOfRIsCopiedWhole) {
   std::mt19937 rng(11);
   SparseR r;
   r.Append(10);
-  for (int p = 0; p < 10; ++p) r.Eliminate(Between(p, p - 1, &rng), nullptr);
+  for (int p = 0; p < 10; ++p) r.Eliminate(RandomBetweenRows(p, p - 1, &rng), nullptr);
   FlatR flat;
   flat.Refresh(r);
   // A snapshot's R restored in place of the current one: another object, whatever its
   // revisions say.
   SparseR older = r;
-  r.Eliminate(Between(9, 0, &rng), nullptr);
+  r.Eliminate(RandomBetweenRows(9, 0, &rng), nullptr);
   EXPECT_EQ(flat.Refresh(r), 10);
   EXPECT_EQ(flat.Refresh(older), 10);
   ExpectSolvesMatchDense(flat, older, &rng);

@@ -1,4 +1,5 @@
 #include "common/solver/path_solve.h"
+#include "common/solver/sparse_r_testing.h"
 
 #include <random>
 
@@ -8,41 +9,19 @@
 namespace anchormap {
 namespace {
 
-Eigen::MatrixXd Dense(const SparseR& r) {
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * r.size(), 3 * r.size());
-  for (int p = 0; p < r.size(); ++p) {
-    R.block<3, 3>(3 * p, 3 * p) = r.row(p).diagonal;
-    for (const auto& [q, block] : r.row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
-  }
-  return R;
-}
-
-// One measurement between two variables (b < 0: a prior on a).
-NewRows Between(int a, int b, std::mt19937* rng) {
-  std::normal_distribution<double> g;
-  NewRows rows;
-  Eigen::Matrix3d ja, jb;
-  for (int i = 0; i < 9; ++i) ja(i) = g(*rng);
-  for (int i = 0; i < 9; ++i) jb(i) = g(*rng);
-  rows.blocks.emplace_back(a, ja + 3 * Eigen::Matrix3d::Identity());
-  if (b >= 0) rows.blocks.emplace_back(b, jb);
-  rows.rhs = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
-  return rows;
-}
-
 // Two chains, positions 0-19 and 20-39 (a closure inside the first), both tied to
 // position 40: the elimination tree has two branches, so a gradient on the first chain
 // reaches that chain's rows from it on and the root, not the second chain.
 SparseR TwoBranches(std::mt19937* rng) {
   SparseR r;
   r.Append(41);
-  r.Eliminate(Between(40, -1, rng), nullptr);
+  r.Eliminate(RandomBetweenRows(40, -1, rng), nullptr);
   for (int p = 0; p < 40; ++p) {
-    r.Eliminate(Between(p, p == 0 || p == 20 ? -1 : p - 1, rng), nullptr);
+    r.Eliminate(RandomBetweenRows(p, p == 0 || p == 20 ? -1 : p - 1, rng), nullptr);
   }
-  r.Eliminate(Between(19, 40, rng), nullptr);
-  r.Eliminate(Between(39, 40, rng), nullptr);
-  r.Eliminate(Between(8, 15, rng), nullptr);
+  r.Eliminate(RandomBetweenRows(19, 40, rng), nullptr);
+  r.Eliminate(RandomBetweenRows(39, 40, rng), nullptr);
+  r.Eliminate(RandomBetweenRows(8, 15, rng), nullptr);
   return r;
 }
 
@@ -55,7 +34,7 @@ TEST(PathSolveTest, SolvesOnlyThePathsOfTheGradientAndMatchesADenseSolve) {
       {5, Eigen::Vector3d(-0.5, 1.0, 0.0)}};  // a repeated position adds up
   Eigen::VectorXd dense_g = Eigen::VectorXd::Zero(3 * r.size());
   for (const auto& [p, v] : g) dense_g.segment<3>(3 * p) += v;
-  const Eigen::VectorXd y = Dense(r).transpose().triangularView<Eigen::Lower>().solve(dense_g);
+  const Eigen::VectorXd y = DenseR(r).transpose().triangularView<Eigen::Lower>().solve(dense_g);
 
   PathSolve solve;
   const double norm2 = solve.SquaredNorm(r, g);

@@ -1,4 +1,5 @@
 #include "common/solver/sparse_r.h"
+#include "common/solver/sparse_r_testing.h"
 
 #include <algorithm>
 #include <random>
@@ -8,15 +9,6 @@
 
 namespace anchormap {
 namespace {
-
-Eigen::MatrixXd Dense(const SparseR& r) {
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * r.size(), 3 * r.size());
-  for (int p = 0; p < r.size(); ++p) {
-    R.block<3, 3>(3 * p, 3 * p) = r.row(p).diagonal;
-    for (const auto& [q, block] : r.row(p).right) R.block<3, 3>(3 * p, 3 * q) = block;
-  }
-  return R;
-}
 
 Eigen::VectorXd DenseRhs(const SparseR& r) {
   Eigen::VectorXd d(3 * r.size());
@@ -68,7 +60,7 @@ struct DenseMirror {
 
   // R is upper triangular and carries the normal equations of A x = b.
   void ExpectSameNormalEquations() const {
-    const Eigen::MatrixXd R = Dense(r);
+    const Eigen::MatrixXd R = DenseR(r);
     EXPECT_EQ(R.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
     EXPECT_LT((R.transpose() * R - A.transpose() * A).cwiseAbs().maxCoeff(), 1e-9);
     EXPECT_LT((R.transpose() * DenseRhs(r) - A.transpose() * b).cwiseAbs().maxCoeff(), 1e-9);
@@ -201,7 +193,7 @@ TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
     gd.segment<3>(3 * p) = g[p];
   }
   const auto y = SolveTransposed(copy, g);
-  const Eigen::VectorXd expected = Dense(r).transpose().triangularView<Eigen::Lower>().solve(gd);
+  const Eigen::VectorXd expected = DenseR(r).transpose().triangularView<Eigen::Lower>().solve(gd);
   for (int p = 0; p < 8; ++p) EXPECT_LT((y[p] - expected.segment<3>(3 * p)).norm(), 1e-10);
 }
 
