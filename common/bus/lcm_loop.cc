@@ -168,6 +168,12 @@ void LcmLoop::StopOnSignals(std::function<void(int)> on_signal) {
       });
 }
 
+void LcmLoop::RestoreDefaultSignals() {
+  // Destroying the signal set unregisters asio's handlers; asio restores the default
+  // action of a signal no other set still handles.
+  impl_->signals.reset();
+}
+
 void LcmLoop::Run() {
   impl_->io.restart();
   impl_->io.run();

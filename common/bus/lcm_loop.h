@@ -67,6 +67,9 @@ class LcmLoop {
 
   // Stops the loop on SIGINT / SIGTERM; `on_signal` (optional) runs first with the number.
   void StopOnSignals(std::function<void(int)> on_signal = nullptr);
+  // Gives SIGINT / SIGTERM back their default action (the process ends). For the work a
+  // daemon does after its loop stopped: a second signal then ends it at once.
+  void RestoreDefaultSignals();
 
   // Runs until Stop() or a handled signal.
   void Run();

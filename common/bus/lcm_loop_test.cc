@@ -68,6 +68,23 @@ TEST(LcmLoopTest, SigtermStopsTheLoopCleanly) {
   EXPECT_EQ(signal_seen, SIGTERM);
 }
 
+TEST(LcmLoopDeathTest, ASignalAfterRestoringTheDefaultsEndsTheProcess) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_EXIT(
+      {
+        Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
+        if (!created.ok()) std::exit(3);
+        std::unique_ptr<LcmLoop> loop = std::move(*created);
+        loop->StopOnSignals();
+        loop->Every(std::chrono::milliseconds(10), [] { std::raise(SIGTERM); });
+        loop->Run();  // the first SIGTERM stops the loop only
+        loop->RestoreDefaultSignals();
+        std::raise(SIGTERM);
+        std::exit(0);  // not reached
+      },
+      ::testing::KilledBySignal(SIGTERM), "");
+}
+
 TEST(LcmLoopTest, HandlerExceptionsAreContained) {
   Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
   ASSERT_TRUE(created.ok()) << created.status().message();

@@ -213,6 +213,13 @@ int RunOnline(const ServerOptions& given) {
   node.PublishStatus();
   loop->Run();
   if (journal) journal->WaitForSnapshotWrite();
+  // What is solved goes out first: the sources' last look below waits for their queued
+  // matches, which on a starved machine can outlast the caller's patience, and a second
+  // signal now ends the process with this map already published.
+  loop->RestoreDefaultSignals();
+  node.server().SolvePending();
+  node.PublishAll();
+  LogInfo("published the solved map; admitting what still waits (a second signal ends now)");
   // End of the session: what still waits is admitted (gaps bridged), then one batch step,
   // and the converged map goes out.
   node.server().Flush();
