@@ -188,7 +188,7 @@ main() {
     awk 'NR == 1 || $1 < lo { lo = $1 } NR == 1 || $2 > hi { hi = $2 } END { printf "%.1f", hi - lo }')
   log "robots: $robots; data time ${duration} s; load average $(cut -d' ' -f1-3 /proc/loadavg)"
 
-  export -f inside_namespace outboxes_empty wait_for_outboxes log
+  export -f inside_namespace outboxes_show outboxes_empty wait_for_outboxes log
   export BIN URL SPEED MAX_WAIT_S TEST_NAME LOG
   unshare -n bash -c "inside_namespace '$WORK' '$robots'"
   local status=$?
