@@ -16,8 +16,8 @@ namespace {
 bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double cutoff_sq,
                    int* rows, Eigen::Vector2d* e, Eigen::Matrix2d* de_dq) {
   Eigen::Vector2d v;
-  if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq) return false;
-  const Eigen::Vector2i cell = field.geometry().CellOf(q);
+  Eigen::Vector2i cell;
+  if (!field.InterpolateInCell(q, &v, &cell) || v.squaredNorm() > cutoff_sq) return false;
   Eigen::Vector2d n;
   if (field.NearestNormal(cell.x(), cell.y(), &n)) {
     *rows = 1;
@@ -101,11 +101,11 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
   for (size_t j = 0; j < query.size(); ++j) {
     const Eigen::Vector2d q = R * query[j] + t;
     Eigen::Vector2d v;
-    if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq_) continue;
+    Eigen::Vector2i cell;
+    if (!field.InterpolateInCell(q, &v, &cell) || v.squaredNorm() > cutoff_sq_) continue;
     Association& a = associations_[j];
     a.inlier = true;
     a.surface = q + v;
-    const Eigen::Vector2i cell = field.geometry().CellOf(q);
     a.has_normal = field.NearestNormal(cell.x(), cell.y(), &a.normal);
   }
 }
@@ -119,8 +119,8 @@ double AnchoredCost::operator()(const Pose2& pose) const {
     // PointResidual's cost without its Jacobian (the same bits: only the value is needed
     // here, at every point of every sample of the score distribution).
     Eigen::Vector2d v;
-    if (field_.Interpolate(q, &v) && v.squaredNorm() <= cutoff_sq_) {
-      const Eigen::Vector2i cell = field_.geometry().CellOf(q);
+    Eigen::Vector2i cell;
+    if (field_.InterpolateInCell(q, &v, &cell) && v.squaredNorm() <= cutoff_sq_) {
       Eigen::Vector2d n;
       if (field_.NearestNormal(cell.x(), cell.y(), &n)) {
         const double along_normal = -n.dot(v);
