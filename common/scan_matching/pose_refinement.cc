@@ -41,13 +41,15 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
   const double cutoff_sq = cutoff_m * cutoff_m;
-  H->setZero();
   b->setZero();
   *inliers = 0;
   double cost = 0.0;
   int rows = 0;
   Eigen::Vector2d e;
   Eigen::Matrix2d de_dq;
+  // H's upper triangle, mirrored at the end: a_j a_i is a_i a_j to the bit, so the lower
+  // triangle's sums were the same numbers added in the same order.
+  double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
   for (const Eigen::Vector2d& p : query) {
     const Eigen::Vector2d rp = R * p;
     if (!PointResidual(field, rp + t, cutoff_sq, &rows, &e, &de_dq)) {
@@ -60,11 +62,20 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
     dq << 1.0, 0.0, -rp.y(), 0.0, 1.0, rp.x();
     const Eigen::Matrix<double, 2, 3> A = de_dq * dq;
     for (int r = 0; r < rows; ++r) {
-      *H += A.row(r).transpose() * A.row(r);
+      const double a0 = A(r, 0);
+      const double a1 = A(r, 1);
+      const double a2 = A(r, 2);
+      h00 += a0 * a0;
+      h01 += a0 * a1;
+      h02 += a0 * a2;
+      h11 += a1 * a1;
+      h12 += a1 * a2;
+      h22 += a2 * a2;
       *b -= A.row(r).transpose() * e(r);
       cost += e(r) * e(r);
     }
   }
+  *H << h00, h01, h02, h01, h11, h12, h02, h12, h22;
   return cost;
 }
 
