@@ -16,8 +16,8 @@ namespace {
 bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double cutoff_sq,
                    int* rows, Eigen::Vector2d* e, Eigen::Matrix2d* de_dq) {
   Eigen::Vector2d v;
-  if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq) return false;
-  const Eigen::Vector2i cell = field.geometry().CellOf(q);
+  Eigen::Vector2i cell;
+  if (!field.InterpolateInCell(q, &v, &cell) || v.squaredNorm() > cutoff_sq) return false;
   Eigen::Vector2d n;
   if (field.NearestNormal(cell.x(), cell.y(), &n)) {
     *rows = 1;
@@ -41,13 +41,15 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
   const double cutoff_sq = cutoff_m * cutoff_m;
-  H->setZero();
   b->setZero();
   *inliers = 0;
   double cost = 0.0;
   int rows = 0;
   Eigen::Vector2d e;
   Eigen::Matrix2d de_dq;
+  // H's upper triangle, mirrored at the end: a_j a_i is a_i a_j to the bit, so the lower
+  // triangle's sums were the same numbers added in the same order.
+  double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
   for (const Eigen::Vector2d& p : query) {
     const Eigen::Vector2d rp = R * p;
     if (!PointResidual(field, rp + t, cutoff_sq, &rows, &e, &de_dq)) {
@@ -60,11 +62,20 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
     dq << 1.0, 0.0, -rp.y(), 0.0, 1.0, rp.x();
     const Eigen::Matrix<double, 2, 3> A = de_dq * dq;
     for (int r = 0; r < rows; ++r) {
-      *H += A.row(r).transpose() * A.row(r);
+      const double a0 = A(r, 0);
+      const double a1 = A(r, 1);
+      const double a2 = A(r, 2);
+      h00 += a0 * a0;
+      h01 += a0 * a1;
+      h02 += a0 * a2;
+      h11 += a1 * a1;
+      h12 += a1 * a2;
+      h22 += a2 * a2;
       *b -= A.row(r).transpose() * e(r);
       cost += e(r) * e(r);
     }
   }
+  *H << h00, h01, h02, h01, h11, h12, h02, h12, h22;
   return cost;
 }
 
@@ -101,11 +112,11 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
   for (size_t j = 0; j < query.size(); ++j) {
     const Eigen::Vector2d q = R * query[j] + t;
     Eigen::Vector2d v;
-    if (!field.Interpolate(q, &v) || v.squaredNorm() > cutoff_sq_) continue;
+    Eigen::Vector2i cell;
+    if (!field.InterpolateInCell(q, &v, &cell) || v.squaredNorm() > cutoff_sq_) continue;
     Association& a = associations_[j];
     a.inlier = true;
     a.surface = q + v;
-    const Eigen::Vector2i cell = field.geometry().CellOf(q);
     a.has_normal = field.NearestNormal(cell.x(), cell.y(), &a.normal);
   }
 }
@@ -119,8 +130,8 @@ double AnchoredCost::operator()(const Pose2& pose) const {
     // PointResidual's cost without its Jacobian (the same bits: only the value is needed
     // here, at every point of every sample of the score distribution).
     Eigen::Vector2d v;
-    if (field_.Interpolate(q, &v) && v.squaredNorm() <= cutoff_sq_) {
-      const Eigen::Vector2i cell = field_.geometry().CellOf(q);
+    Eigen::Vector2i cell;
+    if (field_.InterpolateInCell(q, &v, &cell) && v.squaredNorm() <= cutoff_sq_) {
       Eigen::Vector2d n;
       if (field_.NearestNormal(cell.x(), cell.y(), &n)) {
         const double along_normal = -n.dot(v);

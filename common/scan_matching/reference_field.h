@@ -70,6 +70,10 @@ class ReferenceField {
   // with respect to p; false when any of the four is missing.
   bool Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
                    Eigen::Matrix2d* dv_dp = nullptr) const;
+  // Interpolate, and when it succeeds the cell containing p (GridGeometry::CellOf, from the
+  // same quotients computed once): the refinement and the covariance's samples ask both, with
+  // NearestNormal, for every point of every pose they try.
+  bool InterpolateInCell(const Eigen::Vector2d& p, Eigen::Vector2d* v, Eigen::Vector2i* cell) const;
   // The surface primitive nearest to cell (ix, iy)'s centre: the segment from vertex a to
   // vertex b (a == b for a lone point); false where NearestVector is false.
   bool NearestPrimitive(int ix, int iy, int* a, int* b) const;
@@ -87,6 +91,8 @@ class ReferenceField {
   bool NearestNormal(int ix, int iy, Eigen::Vector2d* n) const;
 
  private:
+  bool InterpolateImpl(const Eigen::Vector2d& p, Eigen::Vector2d* v, Eigen::Matrix2d* dv_dp,
+                       Eigen::Vector2i* cell) const;
   void Build(const std::vector<const ScanSurface*>& surfaces);
   // Stores the segment [a, b] (a == b: a lone point) in every cell within max_distance_m where
   // it is nearer than what the cell holds (ties to the later primitive). `centre_x`: the cells'
@@ -112,10 +118,22 @@ class ReferenceField {
 // replay's samples as out-of-line calls).
 inline bool ReferenceField::Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
                                         Eigen::Matrix2d* dv_dp) const {
+  return InterpolateImpl(p, v, dv_dp, nullptr);
+}
+
+inline bool ReferenceField::InterpolateInCell(const Eigen::Vector2d& p, Eigen::Vector2d* v,
+                                              Eigen::Vector2i* cell) const {
+  return InterpolateImpl(p, v, nullptr, cell);
+}
+
+inline bool ReferenceField::InterpolateImpl(const Eigen::Vector2d& p, Eigen::Vector2d* v,
+                                            Eigen::Matrix2d* dv_dp, Eigen::Vector2i* cell) const {
   // Cell centres are at origin + (i + 0.5) r: the four around p start at floor(u - 0.5).
   const double r = geometry_.resolution;
-  const double ux = (p.x() - geometry_.origin.x()) / r - 0.5;
-  const double uy = (p.y() - geometry_.origin.y()) / r - 0.5;
+  const double qx = (p.x() - geometry_.origin.x()) / r;  // CellOf's quotients
+  const double qy = (p.y() - geometry_.origin.y()) / r;
+  const double ux = qx - 0.5;
+  const double uy = qy - 0.5;
   if (!std::isfinite(ux) || !std::isfinite(uy)) return false;
   const double fx = std::floor(ux);
   const double fy = std::floor(uy);
@@ -143,6 +161,8 @@ inline bool ReferenceField::Interpolate(const Eigen::Vector2d& p, Eigen::Vector2
     dv_dp->col(0) = ((1 - ty) * (v10 - v00) + ty * (v11 - v01)) / r;
     dv_dp->col(1) = ((1 - tx) * (v01 - v00) + tx * (v11 - v10)) / r;
   }
+  // p lies within the grid's cells here: the casts cannot overflow.
+  if (cell != nullptr) *cell = {static_cast<int>(std::floor(qx)), static_cast<int>(std::floor(qy))};
   return true;
 }
 

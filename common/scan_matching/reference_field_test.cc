@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -159,6 +160,40 @@ TEST(ReferenceFieldTest, InterpolationIsExactNearAStraightWallWithItsJacobian) {
     EXPECT_NEAR((v - expected).norm(), 0.0, 1e-5);
     EXPECT_NEAR((J + n * n.transpose()).norm(), 0.0, 1e-4);
   }
+}
+
+TEST(ReferenceFieldTest, InterpolateInCellIsInterpolateAndCellOfToTheBit) {
+  // Random points over the grid and past its edges, and points on cell borders and centres
+  // (where floor and the half-cell shift meet): the same vector to the bit, the same cell.
+  PointCloud wall;
+  for (int i = 0; i <= 30; ++i) wall.push_back({0.1 * i, 0.02 * i * (i % 7 == 0 ? 1 : -1)});
+  const ReferenceField field({wall}, ReferenceFieldOptions{});
+  const GridGeometry& g = field.geometry();
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> x(g.origin.x() - 0.2, g.max_corner().x() + 0.2);
+  std::uniform_real_distribution<double> y(g.origin.y() - 0.2, g.max_corner().y() + 0.2);
+  std::vector<Eigen::Vector2d> points;
+  for (int i = 0; i < 20000; ++i) points.emplace_back(x(rng), y(rng));
+  for (int ix = 0; ix <= g.width; ++ix) {
+    for (int iy = 0; iy <= g.height; iy += 3) {
+      points.push_back(g.origin + g.resolution * Eigen::Vector2d(ix, iy));
+      points.push_back(g.CellCentre(ix, iy));
+    }
+  }
+  int inside = 0;
+  for (const Eigen::Vector2d& p : points) {
+    Eigen::Vector2d v_plain;
+    Eigen::Vector2d v;
+    Eigen::Vector2i cell;
+    const bool plain = field.Interpolate(p, &v_plain);
+    ASSERT_EQ(field.InterpolateInCell(p, &v, &cell), plain) << p.transpose();
+    if (!plain) continue;
+    ++inside;
+    EXPECT_EQ(v.x(), v_plain.x());
+    EXPECT_EQ(v.y(), v_plain.y());
+    EXPECT_EQ(cell, g.CellOf(p)) << p.transpose();
+  }
+  EXPECT_GT(inside, 1000);
 }
 
 TEST(ReferenceFieldTest, LikelihoodIsAGaussianOfTheDistance) {
