@@ -307,36 +307,25 @@ std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const Graph
     return std::make_pair(graph.smoother.IsAnchored(id),
                           graph.smoother.IsAnchored(id) ? graph.smoother.GroupRoot(id) : id);
   };
-  // Per other group, its trajectories ranked by their pair with key's searched least (then
-  // the smaller id).
-  using Rank = std::pair<int64_t, TrajectoryId>;
-  std::map<std::pair<bool, TrajectoryId>, std::vector<Rank>> groups;
+  // Per other group, the trajectory whose pair with key's was searched least (then the
+  // smaller id); then the groups whose best pair was searched least.
+  std::map<std::pair<bool, TrajectoryId>, std::pair<int64_t, TrajectoryId>> best;
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
     if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
     const auto submaps = submaps_.find(id);
     if (submaps == submaps_.end() || submaps->second.empty()) continue;
-    groups[group_of(id)].push_back({global_queue_.PairSearches(key.trajectory, id), id});
+    const std::pair<int64_t, TrajectoryId> rank{global_queue_.PairSearches(key.trajectory, id), id};
+    const auto [it, inserted] = best.emplace(group_of(id), rank);
+    if (!inserted && rank < it->second) it->second = rank;
   }
-  // First the best pair of each group, the groups whose best pair was searched least first;
-  // then, while slots are left (fewer other groups than max_global_groups_per_keyframe), the
-  // groups' other trajectories, searched least first. A group's trajectories saw different
-  // places: after a merge a trajectory still searches each of them as often as before it, so
-  // the evidence found against one of them before the merge keeps getting partners.
-  std::vector<Rank> first;
-  std::vector<Rank> rest;
-  for (auto& [group, ranks] : groups) {
-    std::sort(ranks.begin(), ranks.end());
-    first.push_back(ranks.front());
-    rest.insert(rest.end(), ranks.begin() + 1, ranks.end());
-  }
-  std::sort(first.begin(), first.end());
-  std::sort(rest.begin(), rest.end());
-  first.insert(first.end(), rest.begin(), rest.end());
+  std::vector<std::pair<int64_t, TrajectoryId>> ranked;
+  for (const auto& [group, rank] : best) ranked.push_back(rank);
+  std::sort(ranked.begin(), ranked.end());
   const size_t take = std::min(
-      first.size(), static_cast<size_t>(std::max(0, options_.max_global_groups_per_keyframe)));
+      ranked.size(), static_cast<size_t>(std::max(0, options_.max_global_groups_per_keyframe)));
   std::vector<TrajectoryId> targets;
-  for (size_t i = 0; i < take; ++i) targets.push_back(first[i].second);
+  for (size_t i = 0; i < take; ++i) targets.push_back(ranked[i].second);
   // Searched in id order, as before the budget (the order the matches are used in).
   std::sort(targets.begin(), targets.end());
   return targets;

@@ -6,8 +6,7 @@
 // - against a trajectory not in its anchored group (no prior): every global_every-th
 //   keyframe is searched globally (GlobalSearch, every heading, the submap's whole grid)
 //   in up to max_global_per_keyframe of the other's submaps, taken in turn, against at
-//   most max_global_groups_per_keyframe other trajectories (one per other group first, the
-//   groups' other trajectories in the slots left) and within a team-wide budget per
+//   most max_global_groups_per_keyframe other groups and within a team-wide budget per
 //   second of data (GlobalSearchQueue: the cost does not grow with the team). A match with
 //   enough score and overlap is a candidate, not yet a constraint: a first encounter
 //   joins two groups only when two candidates of the same pair of trajectories at
@@ -80,9 +79,8 @@ struct ScanEncounterOptions {
   // Unjoined trajectories: global search.
   // The global search is the costly part (the server matches on its event loop): every
   // 5th keyframe, 2 submaps of each target (the multiprocess test's server fell behind
-  // real time with 3, 4), against at most 2 other trajectories per keyframe (one of each
-  // other group first: a join with any of them joins the group; with fewer other groups, the
-  // slots left go to the groups' other trajectories), within the team-wide budget.
+  // real time with 3, 4), in at most 2 other groups per keyframe (one trajectory of each:
+  // a join with any of them joins the group), within the team-wide budget.
   int global_every = 5;
   int max_global_per_keyframe = 2;  // submaps of one target trajectory, taken in turn
   int max_global_groups_per_keyframe = 2;
@@ -320,12 +318,8 @@ class ScanEncounters : public EncounterSource {
   void ExamineKeyframe(PoseKey key, const GraphView& graph);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
-  // The trajectories `key` is searched against, at most max_global_groups_per_keyframe: one
-  // of each other group (the pair searched least so far), then, while slots are left, the
-  // groups' other trajectories (searched least first). After a merge an unjoined trajectory
-  // searches each trajectory of the merged group as often as before it (ACES split in three
-  // sequentially: once R1 and R2 had merged, R3 searched each half as often and missed its one
-  // true candidate, R2[65]-R3[115]; with both searched it is found again).
+  // The trajectories `key` is searched against: one of each other group (the pair
+  // searched least so far), at most max_global_groups_per_keyframe groups.
   std::vector<TrajectoryId> GlobalTargets(PoseKey key, const GraphView& graph) const;
   // Submits the searches of `key` against `other`'s submaps; returns how many.
   int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);

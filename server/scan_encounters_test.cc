@@ -903,56 +903,5 @@ TEST(ScanEncountersTest, GlobalSearchesStayWithinTheTeamBudget) {
   EXPECT_LE(bounded.most_by_one - bounded.fewest_by_one, 4);
 }
 
-// Three robots that never see each other's places, keyframes 1 s apart; R1 and R2 meet
-// (a direct encounter) at their second keyframe, R3 meets no one.
-TEST(ScanEncountersTest, AfterAMergeEveryTrajectoryOfTheGroupIsStillSearched) {
-  constexpr int kKeyframes = 40;
-  MappingServerOptions options;
-  options.loop_closures = false;
-  options.scan_encounters = false;
-  MappingServer server(options);
-  ScanEncounterOptions scan_options;
-  scan_options.global_budget.searches_per_s = 1e6;
-  scan_options.global_budget.burst = 1e6;
-  auto scan = std::make_unique<ScanEncounters>(scan_options);
-  ScanEncounters* source = scan.get();
-  server.AddEncounterSource(std::move(scan));
-  for (int32_t seq = 0; seq < kKeyframes; ++seq) {
-    for (int r = 0; r < 3; ++r) {
-      EXPECT_TRUE(
-          server.OnKeyframe(testing::StraightKeyframe("R" + std::to_string(r + 1), r + 1, seq, 40))
-              .ok());
-    }
-    if (seq == 1) {
-      Encounter met;
-      met.utime = 2'000'000;
-      met.observer = "R1";
-      met.observer_trajectory_id = 1;
-      met.observed = "R2";
-      met.T_observer_observed = Pose2(1.0, 0.0, 0.0);
-      met.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-4).asDiagonal();
-      EXPECT_TRUE(server.OnEncounter(met).ok());
-    }
-  }
-  server.Flush();
-  const TrajectoryId r1(0), r2(1), r3(2);
-  ASSERT_TRUE(InOneFrame(server.smoother(), r1, r2));
-  ASSERT_FALSE(InOneFrame(server.smoother(), r1, r3));
-  const GlobalSearchQueue& queue = source->global_searches();
-  std::printf("R3 searched R1 %lld, R2 %lld submaps (R3 in all %lld); R1 searched R3 %lld\n",
-              static_cast<long long>(queue.PairSearches(r3, r1)),
-              static_cast<long long>(queue.PairSearches(r3, r2)),
-              static_cast<long long>(queue.Searched(r3)),
-              static_cast<long long>(queue.PairSearches(r1, r3)));
-  // R1 and R2 were one group before R3's first search. Each global keyframe of R3 still
-  // searches both of them (2 submaps each), not one of the group in turn: a place R3 saw
-  // of only one of them is found as often as before the merge.
-  EXPECT_EQ(queue.PairSearches(r3, r1), queue.PairSearches(r3, r2));
-  EXPECT_EQ(queue.Searched(r3), 2 * queue.PairSearches(r3, r1));
-  // R3's keyframes 15, 20, ..., 35 (R1's and R2's first submaps come at their keyframe 10):
-  // 5 x 2 x 2. One of the group per keyframe, as before, searched half of it (10).
-  EXPECT_EQ(queue.Searched(r3), 20);
-}
-
 }  // namespace
 }  // namespace anchormap
