@@ -44,7 +44,12 @@ Pose2 Compose(const Pose2& T_a_b, const Pose2& T_b_c, Eigen::Matrix3d* J_ab,
 }
 
 Pose2 Between(const Pose2& T_w_a, const Pose2& T_w_b, Eigen::Matrix3d* J_a, Eigen::Matrix3d* J_b) {
-  const double c = std::cos(T_w_a.theta()), s = std::sin(T_w_a.theta());
+  return Between(T_w_a, CosSin::Of(T_w_a.theta()), T_w_b, J_a, J_b);
+}
+
+Pose2 Between(const Pose2& T_w_a, const CosSin& rotation_a, const Pose2& T_w_b,
+              Eigen::Matrix3d* J_a, Eigen::Matrix3d* J_b) {
+  const double c = rotation_a.c, s = rotation_a.s;
   const double dx = T_w_b.x() - T_w_a.x(), dy = T_w_b.y() - T_w_a.y();
   const double x = c * dx + s * dy;
   const double y = -s * dx + c * dy;

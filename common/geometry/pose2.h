@@ -5,6 +5,8 @@
 // Compose(T_a_b, T_b_c) = T_a_c and Between(T_w_a, T_w_b) = T_a_b, the pose of b seen
 // from a, which the thesis writes "b (-) a". Angles are wrapped to (-pi, pi].
 
+#include <cmath>
+
 #include <Eigen/Core>
 
 #include "common/geometry/angle.h"
@@ -42,10 +44,21 @@ class Pose2 {
 Pose2 Compose(const Pose2& T_a_b, const Pose2& T_b_c, Eigen::Matrix3d* J_ab = nullptr,
               Eigen::Matrix3d* J_bc = nullptr);
 
+// cos and sin of a pose's angle: a caller that evaluates many factors at the same poses
+// (the smoother's gradient passes) computes them once per pose, not once per factor.
+struct CosSin {
+  double c = 1.0;
+  double s = 0.0;
+  static CosSin Of(double angle) { return {std::cos(angle), std::sin(angle)}; }
+};
+
 // T_a_b = T_w_b (-) T_w_a: the pose b expressed in the frame of a. Optional Jacobians
 // d(result)/d(T_w_a) and d(result)/d(T_w_b).
 Pose2 Between(const Pose2& T_w_a, const Pose2& T_w_b, Eigen::Matrix3d* J_a = nullptr,
               Eigen::Matrix3d* J_b = nullptr);
+// The same with `rotation_a` = CosSin::Of(T_w_a.theta()) given (the same bits).
+Pose2 Between(const Pose2& T_w_a, const CosSin& rotation_a, const Pose2& T_w_b,
+              Eigen::Matrix3d* J_a = nullptr, Eigen::Matrix3d* J_b = nullptr);
 
 // Difference of two poses as a vector (x, y, wrapped theta): the residual of a
 // measurement `measured` against a prediction `predicted`.

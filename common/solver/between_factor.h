@@ -22,6 +22,11 @@ struct BetweenFactor {
                         Eigen::Matrix3d* J_to) const {
     return PoseError(Between(T_w_from, T_w_to, J_from, J_to), measured_T_from_to);
   }
+  // The same with CosSin::Of(T_w_from.theta()) given.
+  Eigen::Vector3d Error(const Pose2& T_w_from, const CosSin& rotation_from, const Pose2& T_w_to,
+                        Eigen::Matrix3d* J_from, Eigen::Matrix3d* J_to) const {
+    return PoseError(Between(T_w_from, rotation_from, T_w_to, J_from, J_to), measured_T_from_to);
+  }
 };
 
 }  // namespace anchormap

@@ -6,15 +6,20 @@ namespace {
 template <typename>
 [[maybe_unused]] inline constexpr bool kAlwaysFalse = false;
 
-// Raw error and (optional) Jacobians for any factor type.
-Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J) {
+// Raw error and (optional) Jacobians for any factor type; `rotations` (optional) holds
+// the values' CosSin.
+Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J,
+                         const CosSin* rotations = nullptr) {
   return std::visit(
       [&](const auto& f) -> Eigen::Vector3d {
         using T = std::decay_t<decltype(f)>;
         if constexpr (std::is_same_v<T, PriorFactor>) {
           return f.Error(v[0], J);
-        } else if constexpr (std::is_same_v<T, BetweenFactor> ||
-                             std::is_same_v<T, GlobalEncounterFactor>) {
+        } else if constexpr (std::is_same_v<T, BetweenFactor>) {
+          if (rotations)
+            return f.Error(v[0], rotations[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+          return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+        } else if constexpr (std::is_same_v<T, GlobalEncounterFactor>) {
           return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
         } else if constexpr (std::is_same_v<T, EncounterFactor>) {
           return f.Error(v[0], v[1], v[2], v[3], J);
@@ -57,9 +62,13 @@ std::vector<Key> FactorKeys(const Factor& factor) {
 }
 
 LinearizedFactor Linearize(const Factor& factor, const Pose2* values) {
+  return Linearize(factor, values, nullptr);
+}
+
+LinearizedFactor Linearize(const Factor& factor, const Pose2* values, const CosSin* rotations) {
   LinearizedFactor out;
   std::array<Eigen::Matrix3d, kMaxFactorKeys> J;
-  const Eigen::Vector3d error = Evaluate(factor, values, J.data());
+  const Eigen::Vector3d error = Evaluate(factor, values, J.data(), rotations);
   const Eigen::Matrix3d& S = SqrtInformation(factor);
   out.num_keys = NumKeys(factor);
   // S * J_k entry by entry, the products summed in Eigen's order: its packet product

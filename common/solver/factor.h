@@ -37,6 +37,9 @@ std::vector<Key> FactorKeys(const Factor& factor);
 
 // Linearises `factor` at `values` (one Pose2 per key, in FactorKeys order).
 LinearizedFactor Linearize(const Factor& factor, const Pose2* values);
+// The same with `rotations[k]` = CosSin::Of(values[k].theta()) given, for a caller that
+// linearises many factors at the same values (the same bits).
+LinearizedFactor Linearize(const Factor& factor, const Pose2* values, const CosSin* rotations);
 
 // Squared whitened residual |S e(x)|^2 at `values`.
 double FactorChi2(const Factor& factor, const Pose2* values);

@@ -1,5 +1,6 @@
 #include "common/solver/factor.h"
 
+#include <cstring>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -80,6 +81,34 @@ TEST(FactorTest, AllJacobiansEqualNumericDifferences) {
                                 RandomPoses(&rng, 2));
     ExpectJacobiansMatchNumeric(EncounterFactor{a, b, z, Eigen::Matrix3d::Identity()},
                                 RandomPoses(&rng, 4));
+  }
+}
+
+// The gradient passes give each value's cos and sin: the same bits as without them.
+TEST(FactorTest, LinearizeWithGivenRotationsIsBitForBitTheSame) {
+  std::mt19937 rng(5);
+  const PoseKey a{TrajectoryId(0), 3}, b{TrajectoryId(1), 5};
+  const Eigen::Matrix3d S = Eigen::Vector3d(10.0, 20.0, 30.0).asDiagonal();
+  for (int trial = 0; trial < 50; ++trial) {
+    const Pose2 z = RandomPoses(&rng, 1)[0];
+    const std::vector<Pose2> values = RandomPoses(&rng, 4);
+    std::array<CosSin, kMaxFactorKeys> rotations;
+    for (int k = 0; k < 4; ++k) rotations[k] = CosSin::Of(values[k].theta());
+    for (const Factor& factor :
+         {Factor(PriorFactor{a, z, S}), Factor(BetweenFactor{a, {TrajectoryId(0), 4}, z, S}),
+          Factor(GlobalEncounterFactor{a, b, z, S}), Factor(EncounterFactor{a, b, z, S})}) {
+      const LinearizedFactor plain = Linearize(factor, values.data());
+      const LinearizedFactor given = Linearize(factor, values.data(), rotations.data());
+      ASSERT_EQ(plain.num_keys, given.num_keys);
+      for (int k = 0; k < plain.num_keys; ++k) {
+        EXPECT_EQ(
+            std::memcmp(plain.jacobians[k].data(), given.jacobians[k].data(), 9 * sizeof(double)),
+            0);
+      }
+      EXPECT_EQ(
+          std::memcmp(plain.whitened_error.data(), given.whitened_error.data(), 3 * sizeof(double)),
+          0);
+    }
   }
 }
 

@@ -26,6 +26,10 @@ void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num
   for (size_t v = 0; v < values.size() && v < known; ++v)
     moved_[v] = !SameBits(values[v], values_[v]);
   values_ = values;
+  rotations_.resize(values.size());
+  for (size_t v = 0; v < values.size(); ++v) {
+    if (moved_[v]) rotations_[v] = CosSin::Of(values[v].theta());
+  }
 }
 
 const LinearizedFactor& LinearizationCache::At(int64_t id, const Factor& factor, const int* vars,
@@ -34,8 +38,12 @@ const LinearizedFactor& LinearizationCache::At(int64_t id, const Factor& factor,
   for (int j = 0; j < num_vars && fresh; ++j) fresh = !moved_[vars[j]];
   if (!fresh) {
     std::array<Pose2, kMaxFactorKeys> at;
-    for (int j = 0; j < num_vars; ++j) at[j] = values_[vars[j]];
-    factors_[id] = Linearize(factor, at.data());
+    std::array<CosSin, kMaxFactorKeys> rotations;
+    for (int j = 0; j < num_vars; ++j) {
+      at[j] = values_[vars[j]];
+      rotations[j] = rotations_[vars[j]];
+    }
+    factors_[id] = Linearize(factor, at.data(), rotations.data());
     valid_[id] = 1;
     ++linearized_;
   }
@@ -48,6 +56,7 @@ void LinearizationCache::Skip(int64_t id) {
 
 void LinearizationCache::Clear() {
   values_.clear();
+  rotations_.clear();
   moved_.clear();
   factors_.clear();
   valid_.clear();

@@ -39,7 +39,9 @@ class LinearizationCache {
   int64_t linearized() const { return linearized_; }
 
  private:
-  std::vector<Pose2> values_;              // by variable: the values of the current pass
+  std::vector<Pose2> values_;  // by variable: the values of the current pass
+  // By variable: CosSin of its value, once per moved variable instead of once per factor.
+  std::vector<CosSin> rotations_;
   std::vector<char> moved_;                // by variable: differs from the previous pass
   std::vector<LinearizedFactor> factors_;  // by factor id
   std::vector<char> valid_;                // by factor id

@@ -20,7 +20,7 @@ bool SameBits(const LinearizedFactor& a, const LinearizedFactor& b) {
 }
 
 // A chain of 30 poses with odometry and 10 loop closures; at each of 50 passes a few
-// variables move (some by one unit in the last place). Every entry equals a fresh
+// variables move (in x or in angle; some by one unit in the last place). Every entry equals a fresh
 // linearisation bit for bit, and only factors touching a moved variable are linearised.
 TEST(LinearizationCacheTest, EntriesEqualAFreshLinearisationAndOnlyMovedFactorsAreRedone) {
   std::mt19937 rng(7);
@@ -50,9 +50,12 @@ TEST(LinearizationCacheTest, EntriesEqualAFreshLinearisationAndOnlyMovedFactorsA
     if (pass > 0) {
       const int moves = static_cast<int>(rng() % 4);
       for (int m = 0; m < moves; ++m) {
+        // x or the angle (whose cos and sin the cache keeps per variable).
         Pose2& v = values[rng() % n];
-        const double x = rng() % 2 ? std::nextafter(v.x(), 10.0) : v.x() + 0.01;
-        v = Pose2(x, v.y(), v.theta());
+        const bool turn = rng() % 2;
+        const double old = turn ? v.theta() : v.x();
+        const double moved = rng() % 2 ? std::nextafter(old, 10.0) : old + 0.01;
+        v = turn ? Pose2(v.x(), v.y(), moved) : Pose2(moved, v.y(), v.theta());
       }
     }
     cache.BeginPass(values, static_cast<int64_t>(factors.size()));

@@ -199,8 +199,13 @@ Status Smoother::Impl::AddEncounter(PoseKey a, PoseKey b, const Pose2& z,
 }
 
 int Smoother::Impl::CountAnchors() const {
+  // By trajectory, not by variable: this runs twice per update, and a trajectory has at
+  // most one anchor.
   int anchors = 0;
-  for (int var : position_to_var_) anchors += vars_[var].key.is_anchor() ? 1 : 0;
+  for (TrajectoryId t : trajectory_order_) {
+    auto it = index_.find(AnchorKey{t});
+    anchors += it != index_.end() && vars_[it->second].position >= 0 ? 1 : 0;
+  }
   return anchors;
 }
 
