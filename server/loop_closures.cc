@@ -64,6 +64,10 @@ Status LoopClosureOptions::Validate() const {
   }
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
+  if (Status s = budget.Validate("loop.budget"); !s.ok()) return s;
+  if (!(budget_wide_units >= 0) || !std::isfinite(budget_wide_units)) {
+    return Status::Error("loop.budget_wide_units must be finite and >= 0");
+  }
   return match.Validate();
 }
 
@@ -120,15 +124,30 @@ void LoopClosures::Examine(const GraphView& graph, EncounterSourceOutput* out) {
   if (graph.covariances == nullptr) return;
   // In arrival order; a keyframe not solved yet (it arrived in this very call) waits.
   std::deque<PoseKey> still_waiting;
+  std::vector<BudgetRequest> ready;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
       still_waiting.push_back(key);
       continue;
     }
-    ExamineKeyframe(key, graph);
-    UseMatches(now_utime_, /*all=*/false, graph, out);
+    BudgetRequest request{key, 0.0};
+    if (budget_.bounded()) {
+      if (const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory)) {
+        request.driven_m = driven_.To(*record, key.index);
+      }
+    }
+    ready.push_back(request);
   }
   waiting_ = std::move(still_waiting);
+  budget_.Advance(now_utime_);
+  const double most_per_keyframe =
+      options_.max_candidates + (options_.wide_search ? options_.budget_wide_units : 0.0);
+  budget_.Serve(ready, most_per_keyframe, [&](PoseKey key) {
+    const double before = units_submitted_;
+    ExamineKeyframe(key, graph);
+    UseMatches(now_utime_, /*all=*/false, graph, out);
+    return units_submitted_ - before;
+  });
   UseMatches(now_utime_, /*all=*/false, graph, out);
 }
 
@@ -226,6 +245,9 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
   }
   LocalMatchOptions window;
   window.match = options_.match;
+  // The bars a refined match must pass below (its covariance is used only then).
+  window.match.covariance_min_score = options_.min_score;
+  window.match.covariance_min_overlap = options_.min_overlap;
   window.linear_window_m = options_.min_window_m;
   window.angular_window_rad = options_.min_window_rad;
   LocalMatchOptions small = window;
@@ -541,6 +563,7 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
                           const Eigen::Matrix3d& drift, bool wide, const TrajectoryRecord& record,
                           const GraphView& graph, const std::shared_ptr<const PointCloud>& query) {
   ++stats_.candidates;
+  units_submitted_ += wide ? options_.budget_wide_units : 1.0;
   // The wide window's half width (the branch and bound searches it around the prediction).
   const double sigma_xy = LargestSigma(predicted.covariance.topLeftCorner<2, 2>());
   const double sigma_theta = std::sqrt(std::max(0.0, predicted.covariance(2, 2)));
@@ -611,6 +634,10 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     window.half_cells_x = window.half_cells_y = static_cast<int>(std::ceil(linear / resolution));
     MatchOptions match = options_.match;
     match.min_score = std::max(match.min_score, options_.wide_min_score);
+    // UseMatches' bars for a wide match (a weak hypothesis included).
+    match.covariance_min_score = options_.wide_min_score;
+    match.covariance_min_overlap =
+        std::min(options_.wide_min_overlap, options_.wide_weak_min_overlap);
     auto job = [submap, query, window, match] {
       return SearchWindowAndFinish(*submap, *query, window, match);
     };
@@ -632,6 +659,8 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
   } else {
     LocalMatchOptions window;
     window.match = options_.match;
+    window.match.covariance_min_score = options_.min_score;  // UseMatches' bars
+    window.match.covariance_min_overlap = options_.min_overlap;
     window.linear_window_m =
         std::clamp(3.0 * sigma_xy, options_.min_window_m, options_.max_window_m);
     window.angular_window_rad =

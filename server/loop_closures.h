@@ -39,6 +39,9 @@
 // around the prediction (the "rival"), and when that match agrees with the estimate's own
 // covariance (without the drift model) at a pose distinct from the wide match's, the estimate
 // is borne out where it is and the wide match is refused (counted in gate and as "ambiguous").
+// The keyframes examined are bounded by a matching budget per second of data, whole team
+// (`budget`, server/match_budget.h): with many robots, those whose trajectory drove farthest
+// since its last examined keyframe go first, and the rest are not examined.
 // Step 2 runs on the MatchPool's workers (or on the caller's thread without a pool); step 3
 // and what follows from it happen when the canonical input reaches the keyframe's time plus
 // the schedule's lag (MatchSchedule), waiting for the match if needed: the results do not
@@ -63,6 +66,7 @@
 #include "server/driven_path.h"
 #include "server/encounter_source.h"
 #include "server/loop_closure_state.h"
+#include "server/match_budget.h"
 #include "server/match_pool.h"
 #include "server/relative_pose.h"
 #include "server/submap_cache.h"
@@ -145,6 +149,14 @@ struct LoopClosureOptions {
   // The candidates' submaps, kept for the next keyframes (which mostly have the same
   // candidates) under a memory budget.
   SubmapCacheOptions submap_cache;
+  // The matching work per second of data, whole team (server/match_budget.h): a local match
+  // costs 1 unit, a wide search budget_wide_units (its branch and bound, rival and refinement:
+  // ~8 local matches' CPU at 100 robots).
+  // 40 units per second bind only with many robots: a 0.5 s solve period brings at most
+  // ~6 keyframes at once from the real logs' 1-3 robots (60 units at 10 each, within the
+  // burst), while 100 simulated robots ask ~150 units per second.
+  MatchBudgetOptions budget{40.0, 120.0};
+  double budget_wide_units = 8.0;
   MatchOptions match;
 
   Status Validate() const;
@@ -204,7 +216,8 @@ class LoopClosures : public EncounterSource {
       : options_(options),
         pool_(pool),
         schedule_(schedule),
-        references_(options.submap_cache, options.max_range_m, options.reference) {}
+        references_(options.submap_cache, options.max_range_m, options.reference),
+        budget_(options.budget) {}
 
   std::string name() const override { return "loop"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -213,13 +226,15 @@ class LoopClosures : public EncounterSource {
   size_t pending() const override { return waiting_.size() + matches_.size(); }
   std::string StatsLine() const override {
     return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_) + " ambiguous " +
-           std::to_string(ambiguous_) + " saturated " + std::to_string(saturated_) + " " +
+           std::to_string(ambiguous_) + " saturated " + std::to_string(saturated_) +
+           " over_budget " + std::to_string(budget_.skipped()) + " " +
            references_.stats().Summary(name());
   }
   const CandidateStats& stats() const { return stats_; }
   int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
   int64_t ambiguous() const { return ambiguous_; }          // of stats().gate_rejected
   int64_t saturated() const { return saturated_; }          // candidates not matched
+  const MatchBudget& budget() const { return budget_; }
 
   // The source's state for snapshots (loop_closure_state.h, defined in loop_closure_state.cc):
   // ExportState waits for the matches in flight; ImportState is for a source given no input.
@@ -309,6 +324,8 @@ class LoopClosures : public EncounterSource {
   // Candidates skipped as saturated (a count only: not in snapshots, a restored source counts
   // from 0).
   int64_t saturated_ = 0;
+  MatchBudget budget_;
+  double units_submitted_ = 0.0;  // budget units of the matches submitted so far
 };
 
 }  // namespace anchormap

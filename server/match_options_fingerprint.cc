@@ -7,12 +7,14 @@ namespace {
 // field is hashed below (or said not to change results) and the sizes updated. (x86-64,
 // gcc and clang; elsewhere the check is off rather than wrong.)
 #if defined(__x86_64__)
-static_assert(sizeof(MatchOptions) == 32, "new MatchOptions field: add it to the fingerprint");
+// MatchOptions' covariance_min_score / covariance_min_overlap are not hashed: a result below
+// them is one its caller discards unused, so the results used are the same.
+static_assert(sizeof(MatchOptions) == 48, "new MatchOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
-static_assert(sizeof(LoopClosureOptions) == 392,
+static_assert(sizeof(LoopClosureOptions) == 440,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 472,
+static_assert(sizeof(ScanEncounterOptions) == 512,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 120,
               "new SmootherOptions field: add it to the fingerprint");
@@ -35,6 +37,12 @@ class Fnv1a {
  private:
   uint64_t hash_ = 0xcbf29ce484222325ULL;
 };
+
+void Add(Fnv1a* h, const MatchBudgetOptions& b) {
+  h->F(b.units_per_s);
+  h->F(b.burst);
+  h->F(b.skip_priority_m);
+}
 
 void Add(Fnv1a* h, const MatchOptions& m) {
   h->F(m.min_score);
@@ -96,6 +104,8 @@ void Add(Fnv1a* h, const LoopClosureOptions& o) {
   h->F(o.refine_look_ahead_m);
   h->F(o.refine_choice_radius_m);
   h->F(o.wide_weak_partner_max_sigma_m);
+  Add(h, o.budget);
+  h->F(o.budget_wide_units);
   Add(h, o.reference);
   Add(h, o.match);
 }
@@ -109,6 +119,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->I(o.max_global_groups_per_keyframe);
   h->F(o.global_budget.searches_per_s);
   h->F(o.global_budget.burst);
+  Add(h, o.near_budget);
   h->F(o.global_min_score);
   h->F(o.global_min_overlap);
   h->F(o.pcm_chi2);

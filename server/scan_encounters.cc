@@ -84,6 +84,7 @@ Status ScanEncounterOptions::Validate() const {
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
+  if (Status s = near_budget.Validate("scan.near_budget"); !s.ok()) return s;
   return match.Validate();
 }
 
@@ -159,13 +160,15 @@ std::string ScanEncounters::StatsLine() const {
   return stats_.Summary(name()) + " joins_contradicted " + std::to_string(joins_contradicted_) +
          " global_searches " + std::to_string(global_queue_.searches()) + " global_replaced " +
          std::to_string(global_queue_.dropped()) + " near_saturated " +
-         std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) + " " +
+         std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) +
+         " near_over_budget " + std::to_string(near_budget_.skipped()) + " " +
          references_.stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
   now_utime_ = std::max(now_utime_, now_utime);
   global_queue_.Advance(now_utime_);
+  near_budget_.Advance(now_utime_);
   Examine(graph, out);
   JoinQualified(/*flush=*/false, graph, out);
 }
@@ -186,15 +189,26 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   BuildSubmaps(graph);
   CatchUpJoined(graph);
   std::deque<PoseKey> still_waiting;
+  std::vector<BudgetRequest> ready;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
       still_waiting.push_back(key);
       continue;
     }
-    ExamineKeyframe(key, graph);
-    UseMatches(/*all=*/false, graph, out);
+    ready.push_back({key, near_budget_.bounded() ? DrivenTo(key, graph) : 0.0});
   }
   waiting_ = std::move(still_waiting);
+  const double most_per_keyframe = options_.near_max_partners > 0
+                                       ? options_.near_max_partners
+                                       : static_cast<double>(graph.table.records().size());
+  const std::vector<PoseKey> skipped =
+      near_budget_.Serve(ready, most_per_keyframe, [&](PoseKey key) {
+        const int searches = ExamineKeyframe(key, graph, /*near=*/true);
+        UseMatches(/*all=*/false, graph, out);
+        return static_cast<double>(searches);
+      });
+  // Over the near budget: their global searches still wait for theirs.
+  for (const PoseKey key : skipped) ExamineKeyframe(key, graph, /*near=*/false);
   ServeGlobalQueue(graph);  // tokens accrued since the last keyframe
   UseMatches(/*all=*/false, graph, out);
 }
@@ -223,15 +237,16 @@ std::shared_ptr<const ScanReference> ScanEncounters::Reference(const Submap& sub
   return references_.Get(*record, submap.drawing, options_.submap_half_width);
 }
 
-void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph) {
+int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too) {
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
-  if (record == nullptr || key.index >= record->num_keyframes()) return;
-  if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return;
+  if (record == nullptr || key.index >= record->num_keyframes()) return 0;
+  if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return 0;
   bool unjoined = false;
   std::vector<NearTarget> near;
   for (const TrajectoryRecord& other : graph.table.records()) {
     if (other.solver_id == key.trajectory) continue;
     if (InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
+      if (!near_too) continue;
       if (std::optional<NearTarget> target = FindNear(key, other.solver_id, graph)) {
         near.push_back(*target);
       }
@@ -247,11 +262,13 @@ void ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph) {
     near_capped_ += static_cast<int64_t>(near.size()) - options_.near_max_partners;
     near.resize(static_cast<size_t>(options_.near_max_partners));
   }
-  for (const NearTarget& target : near) SearchNear(key, target, graph);
+  int searches = 0;
+  for (const NearTarget& target : near) searches += SearchNear(key, target, graph) ? 1 : 0;
   if (unjoined && key.index % options_.global_every == 0) {
     global_queue_.Enqueue(key);
     ServeGlobalQueue(graph);
   }
+  return searches;
 }
 
 void ScanEncounters::CatchUpJoined(const GraphView& graph) {
@@ -342,6 +359,7 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   GlobalSearchOptions search;
   search.match = options_.match;
   search.match.min_score = options_.global_min_score;
+  search.match.covariance_min_overlap = options_.global_min_overlap;  // UseMatches' bar
   size_t& cursor = global_cursor_[{key.trajectory, other}];
   const size_t tries =
       std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
@@ -402,23 +420,26 @@ bool ScanEncounters::Saturated(PoseKey key, PoseKey center, const GraphView& gra
   return drive && *drive < options_.near_saturation_m;
 }
 
-void ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
+bool ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
   const Submap& nearest = submaps_[target.other][target.submap];
   const std::optional<PredictedRelativePose> predicted =
       PredictRelativePose(graph.covariances, nearest.center, key);
-  if (!predicted) return;
+  if (!predicted) return false;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   bool wide = false;
-  const LocalMatchOptions window = NearSearchWindow(
+  LocalMatchOptions window = NearSearchWindow(
       predicted->covariance + NearWindowDrift(nearest.center, key, graph), options_, &wide);
+  window.match.covariance_min_score = options_.near_min_score;  // UseMatches' bars
+  window.match.covariance_min_overlap = options_.near_min_overlap;
   std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
-  if (!reference) return;
+  if (!reference) return false;
   const Pose2 guess = predicted->T_a_b;
   Submit(
       key, nearest.center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
       [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
+  return true;
 }
 
 const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphView& graph) {

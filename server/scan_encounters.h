@@ -40,7 +40,9 @@
 //   When a pair first comes into one frame, the keyframes examined before are searched
 //   so once (near_catch_up_every). A pair already tied near here is not searched again
 //   (near_saturation_m), and a keyframe searches at most near_max_partners joined
-//   trajectories, the nearest first: the work per keyframe does not grow with the team.
+//   trajectories, the nearest first: the work per keyframe does not grow with the team;
+//   and the near searches per second of data are bounded (near_budget,
+//   server/match_budget.h): the work per second does not grow with the team either.
 // The matches run on the MatchPool's workers (or on the caller's thread without a pool);
 // their results are used when the canonical input reaches the keyframe's time plus the
 // schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
@@ -65,6 +67,7 @@
 #include "server/encounter_source.h"
 #include "server/global_search_queue.h"
 #include "server/keyframe_submap.h"
+#include "server/match_budget.h"
 #include "server/match_pool.h"
 #include "server/position_index.h"
 #include "server/scan_encounter_state.h"
@@ -223,6 +226,10 @@ struct ScanEncounterOptions {
   // The submaps' references built for searches, kept under a memory budget (a submap's
   // drawing never changes: a reference built again has the same bits).
   SubmapCacheOptions submap_cache;
+  // The near searches per second of data, whole team (server/match_budget.h; one search, one
+  // unit). Not the catch-up of a pair that came into one frame (once per pair), nor the
+  // global searches (global_budget).
+  MatchBudgetOptions near_budget{20.0, 60.0};
   MatchOptions match;
 
   Status Validate() const;
@@ -263,7 +270,8 @@ class ScanEncounters : public EncounterSource {
         pool_(pool),
         schedule_(schedule),
         global_queue_(options.global_budget),
-        references_(options.submap_cache, options.max_range_m, options.reference) {}
+        references_(options.submap_cache, options.max_range_m, options.reference),
+        near_budget_(options.near_budget) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -278,6 +286,7 @@ class ScanEncounters : public EncounterSource {
   int64_t near_saturated() const { return near_saturated_; }
   int64_t near_capped() const { return near_capped_; }
   const GlobalSearchQueue& global_searches() const { return global_queue_; }
+  const MatchBudget& near_budget() const { return near_budget_; }
 
   // The source's state for snapshots (scan_encounter_state.h, defined in
   // scan_encounter_state.cc): ExportState waits for the matches in flight; ImportState is for
@@ -315,7 +324,9 @@ class ScanEncounters : public EncounterSource {
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   void BuildSubmaps(const GraphView& graph);
-  void ExamineKeyframe(PoseKey key, const GraphView& graph);
+  // `near`: its near searches too (else only its global search, which has its own budget).
+  // Returns the near searches submitted.
+  int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
   // The trajectories `key` is searched against: one of each other group (the pair
@@ -331,7 +342,8 @@ class ScanEncounters : public EncounterSource {
     double distance = 0.0;
   };
   std::optional<NearTarget> FindNear(PoseKey key, TrajectoryId other, const GraphView& graph);
-  void SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph);
+  // True when a match was submitted.
+  bool SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph);
   // True when the pair is tied within near_saturation_m of drive between `key` and `center`.
   bool Saturated(PoseKey key, PoseKey center, const GraphView& graph);
   // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
@@ -443,6 +455,7 @@ class ScanEncounters : public EncounterSource {
   const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
   std::map<TrajectoryId, SubmapIndex> near_index_;
   DrivenPath driven_;  // a function of the table, so not in snapshots
+  MatchBudget near_budget_;
   // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
   // that held none: the pairs in one frame then are taken as caught up.
   std::set<Pair> near_joined_;

@@ -100,7 +100,10 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   }
   result.pose = refined.pose;
   result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
-  if (!options.covariance) return result;
+  if (!options.covariance || result.score < options.covariance_min_score ||
+      result.overlap < options.covariance_min_overlap) {
+    return result;
+  }
   ScoreCovarianceOptions covariance;
   // The noise of one point along the surface normal, estimated from the residuals (the
   // a-posteriori variance factor of least squares), so that the covariance follows the sensor

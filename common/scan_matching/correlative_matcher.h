@@ -36,6 +36,11 @@ struct MatchOptions {
   // False: `covariance` is left at the identity (the score distribution is most of a match's
   // cost); FinishMatch on the result's window and lattice pose gives it later, identically.
   bool covariance = true;
+  // A result below either bar keeps the identity as its covariance: the caller that set them
+  // discards such a match unused (a fifth of the servers' matches; the covariance is most of
+  // a local match's cost). 0: every result gets its covariance.
+  double covariance_min_score = 0.0;
+  double covariance_min_overlap = 0.0;
 
   Status Validate() const;
 };

@@ -87,6 +87,12 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("loop.submap_cache_mb", "loop-submap-cache-mb", &s.loop.submap_cache.budget_mb,
       "loop closures: memory kept for built candidate submaps, least recently used dropped "
       "beyond (MB, estimated)");
+  add("loop.budget_per_s", "loop-budget-per-s", &s.loop.budget.units_per_s,
+      "loop closures: matching work per second of data, whole team (units: a local match 1, "
+      "a wide search 8); short of it the keyframes whose trajectory drove farthest since its "
+      "last served one go first (0 = no bound)");
+  add("loop.budget_burst", "loop-budget-burst", &s.loop.budget.burst,
+      "loop closures: most matching work saved up (units)");
   add("scan.enabled", "scan-encounters", &s.scan_encounters,
       "find encounters between trajectories by scan matching");
   add("match.workers", "match-workers", &s.match_workers,
@@ -112,6 +118,12 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "ties) are not near-searched here (m; 0 = always searched)");
   add("scan.near_max_partners", "scan-near-max-partners", &s.scan.near_max_partners,
       "joined trajectories near-searched per keyframe at most, nearest first (0 = all)");
+  add("scan.near_budget_per_s", "scan-near-budget-per-s", &s.scan.near_budget.units_per_s,
+      "joined trajectories: near searches per second of data, whole team; short of it the "
+      "keyframes whose trajectory drove farthest since its last served one go first (0 = no "
+      "bound)");
+  add("scan.near_budget_burst", "scan-near-budget-burst", &s.scan.near_budget.burst,
+      "joined trajectories: most near searches saved up");
   add("scan.global_every", "scan-global-every", &s.scan.global_every,
       "unjoined trajectories: every N-th keyframe is searched globally");
   add("scan.max_global_per_keyframe", "scan-max-global-per-keyframe",
