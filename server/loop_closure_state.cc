@@ -39,6 +39,7 @@ LoopClosureState LoopClosures::ExportState() const {
   s.stats = stats_;
   s.wide_searches = wide_searches_;
   s.ambiguous = ambiguous_;
+  s.budget = budget_.ExportState();
   return s;
 }
 
@@ -75,6 +76,7 @@ void LoopClosures::ImportState(const LoopClosureState& s) {
   stats_ = s.stats;
   wide_searches_ = s.wide_searches;
   ambiguous_ = s.ambiguous;
+  if (s.budget) budget_.ImportState(*s.budget);
 }
 
 }  // namespace anchormap

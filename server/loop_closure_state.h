@@ -22,6 +22,7 @@
 #include "common/scan_matching/point_cloud.h"
 #include "common/solver/keys.h"
 #include "server/candidate_stats.h"
+#include "server/match_budget.h"
 #include "server/relative_pose.h"
 
 namespace anchormap {
@@ -62,6 +63,9 @@ struct LoopClosureState {
   CandidateStats stats;
   int64_t wide_searches = 0;
   int64_t ambiguous = 0;
+  // The matching budget (none in snapshots before version 9: the restored source keeps a
+  // fresh one).
+  std::optional<MatchBudget::State> budget;
 };
 
 }  // namespace anchormap

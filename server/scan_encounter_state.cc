@@ -51,6 +51,7 @@ ScanEncounterState ScanEncounters::ExportState() const {
                                 entry.merges};
   }
   s.stats = stats_;
+  s.near_budget = near_budget_.ExportState();
   for (const auto& [pair, held] : near_held_) {
     auto& out = s.near_held[pair];
     for (const EncounterCandidate& c : held) out.push_back(ToState(c));
@@ -100,6 +101,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
     out.merges = entry.merges;
   }
   stats_ = s.stats;
+  if (s.near_budget) near_budget_.ImportState(*s.near_budget);
   near_held_.clear();
   for (const auto& [pair, held] : s.near_held) {
     std::deque<EncounterCandidate>& out = near_held_[pair];

@@ -23,6 +23,7 @@
 #include "server/candidate_stats.h"
 #include "server/global_search_queue.h"
 #include "server/keyframe_submap.h"
+#include "server/match_budget.h"
 
 namespace anchormap {
 
@@ -78,6 +79,9 @@ struct ScanEncounterState {
   // (snapshot version 6); near_joined_known false when read from an older one.
   std::set<Pair> near_joined;
   bool near_joined_known = true;
+  // The near searches' matching budget (none in snapshots before version 9: the restored
+  // source keeps a fresh one).
+  std::optional<MatchBudget::State> near_budget;
 };
 
 }  // namespace anchormap

@@ -59,8 +59,11 @@ namespace anchormap {
 // (near-searched after they came into one frame); older ones read as every pair in one frame
 // caught up. Version 7 adds whether a scan encounter's kept candidate is map-verified; older
 // ones read as none being. Version 8 adds the smoother's factors since its last correction
-// (its skip test); older ones read as none (the bound they hold stands for them).
-inline constexpr uint32_t kSnapshotVersion = 8;
+// (its skip test); older ones read as none (the bound they hold stands for them). Version 9
+// adds the sources' matching budgets (loop closures, near searches: tokens, each
+// trajectory's drive and skips at its last served keyframe); older ones read as none (the
+// restored sources keep fresh budgets).
+inline constexpr uint32_t kSnapshotVersion = 9;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

@@ -373,11 +373,16 @@ MappingServerOptions ScanServerOptions() {
 // (links, counters by kind, the sources' figures), and at the end the same state to the
 // bit, the smoother's and the sources' included (its snapshot is the same bytes), hence the
 // same map (0 difference, the brief's bound being 1e-9).
-// (The body of the two tests below, with one update per input or a solve period.)
-void ExpectARestoredServerToContinueExactly(double solve_period_s) {
+// (The body of the tests below, with one update per input or a solve period, and with
+// matching budgets tight enough to skip keyframes.)
+void ExpectARestoredServerToContinueExactly(double solve_period_s, bool tight_budgets = false) {
   const std::vector<Delivery> mission = ScanMission();
   MappingServerOptions options = ScanServerOptions();
   options.solve_period_s = solve_period_s;
+  if (tight_budgets) {
+    options.loop.budget = {2.0, 4.0};
+    options.scan.near_budget = {1.0, 2.0};
+  }
   MappingServer live(options);
   const size_t n = mission.size();
   // Matches in flight and candidates kept by the sources now.
@@ -462,6 +467,15 @@ void ExpectARestoredServerToContinueExactly(double solve_period_s) {
   if (solve_period_s > 0) {
     EXPECT_GT(live.stats().inputs_batched, 0);
   }
+  if (tight_budgets) {  // the budgets bound: keyframes were left unexamined
+    for (const EncounterSource* source : live.sources()) {
+      if (const auto* loop = dynamic_cast<const LoopClosures*>(source)) {
+        EXPECT_GT(loop->budget().skipped(), 0);
+      } else if (const auto* scan = dynamic_cast<const ScanEncounters*>(source)) {
+        EXPECT_GT(scan->near_budget().skipped(), 0);
+      }
+    }
+  }
 }
 
 TEST_F(SnapshotCodecTest, WithTheScanSourcesOnARestoredServerContinuesExactly) {
@@ -473,6 +487,12 @@ TEST_F(SnapshotCodecTest, WithTheScanSourcesOnARestoredServerContinuesExactly) {
 // uninterrupted one does and reaches the same state to the bit.
 TEST_F(SnapshotCodecTest, WithASolvePeriodARestoredServerContinuesExactly) {
   ExpectARestoredServerToContinueExactly(1.0);
+}
+
+// Budgets that bind (version 9 holds their tokens and each trajectory's ledger): the restored
+// server serves the keyframes the uninterrupted one serves.
+TEST_F(SnapshotCodecTest, WithBindingMatchBudgetsARestoredServerContinuesExactly) {
+  ExpectARestoredServerToContinueExactly(1.0, /*tight_budgets=*/true);
 }
 
 class SnapshotRefusalTest : public SnapshotCodecTest {

@@ -47,6 +47,15 @@ void Get(ByteReader* r, std::pair<int32_t, int32_t>* p) {
 }
 
 // Maps with keys and values of the kinds above: a count, then the pairs.
+void Put(ByteWriter* w, const MatchBudget::Ledger& l) {
+  w->F64(l.driven_m);
+  w->I64(l.skips);
+}
+void Get(ByteReader* r, MatchBudget::Ledger* l) {
+  l->driven_m = r->F64();
+  l->skips = r->I64();
+}
+
 template <typename Map>
 void PutMap(ByteWriter* w, const Map& map) {
   w->Size(map.size());
@@ -65,6 +74,34 @@ void GetMap(ByteReader* r, Map* map) {
     Get(r, &value);
     map->emplace(std::move(key), std::move(value));
   }
+}
+
+// A matching budget (version 9 on).
+void PutBudget(ByteWriter* w, uint32_t snapshot_version,
+               const std::optional<MatchBudget::State>& budget) {
+  if (snapshot_version < 9) return;
+  w->Bool(budget.has_value());
+  if (!budget) return;
+  w->F64(budget->tokens);
+  w->Bool(budget->last_utime.has_value());
+  w->I64(budget->last_utime.value_or(0));
+  PutMap(w, budget->ledgers);
+  w->F64(budget->spent);
+  w->I64(budget->skipped);
+}
+void GetBudget(ByteReader* r, uint32_t snapshot_version,
+               std::optional<MatchBudget::State>* budget) {
+  budget->reset();
+  if (snapshot_version < 9 || !r->Bool()) return;
+  MatchBudget::State b;
+  b.tokens = r->F64();
+  const bool has_last = r->Bool();
+  const int64_t last = r->I64();
+  if (has_last) b.last_utime = last;
+  GetMap(r, &b.ledgers);
+  b.spent = r->F64();
+  b.skipped = r->I64();
+  *budget = std::move(b);
 }
 
 void PutKeys(ByteWriter* w, const std::vector<PoseKey>& keys) {
@@ -183,6 +220,7 @@ void PutLoopClosureState(ByteWriter* w, uint32_t snapshot_version, const LoopClo
   Put(w, s.stats);
   w->I64(s.wide_searches);
   w->I64(s.ambiguous);
+  PutBudget(w, snapshot_version, s.budget);
 }
 
 void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* s) {
@@ -244,6 +282,7 @@ void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureSt
   Get(r, &s->stats);
   s->wide_searches = r->I64();
   s->ambiguous = r->I64();
+  GetBudget(r, snapshot_version, &s->budget);
 }
 
 void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanEncounterState& s) {
@@ -326,6 +365,7 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
   w->Bool(s.near_joined_known);
   w->Size(s.near_joined.size());
   for (const auto& pair : s.near_joined) Put(w, pair);
+  PutBudget(w, snapshot_version, s.near_budget);
 }
 
 void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* s) {
@@ -413,6 +453,7 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
   }
   Get(r, &s->stats);
   s->near_held.clear();
+  s->near_budget.reset();
   if (snapshot_version < 5) return;
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
     Pair pair{TrajectoryId(0), TrajectoryId(0)};
@@ -428,6 +469,7 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
     Get(r, &pair);
     s->near_joined.insert(pair);
   }
+  GetBudget(r, snapshot_version, &s->near_budget);
 }
 
 }  // namespace anchormap

@@ -65,8 +65,8 @@ TEST(SourceStateCodecTest, AKeptHypothesisKeepsItsWeakFlag) {
 // Version 2 is version 3 without the flag: the one byte where a weak and a strong
 // hypothesis's encodings differ.
 TEST(SourceStateCodecTest, AVersionTwoStateIsReadWithNoneWeak) {
-  const std::vector<uint8_t> weak = Encode(StateWithOneKeptHypothesis(true));
-  const std::vector<uint8_t> strong = Encode(StateWithOneKeptHypothesis(false));
+  const std::vector<uint8_t> weak = Encode(StateWithOneKeptHypothesis(true), 3);
+  const std::vector<uint8_t> strong = Encode(StateWithOneKeptHypothesis(false), 3);
   ASSERT_EQ(weak.size(), strong.size());
   std::vector<size_t> differ;
   for (size_t i = 0; i < weak.size(); ++i) {
@@ -85,8 +85,8 @@ TEST(SourceStateCodecTest, AVersionTwoStateIsReadWithNoneWeak) {
   EXPECT_FALSE(out.kept.at(TrajectoryId(3)).front().weak);
   EXPECT_EQ(out.kept.at(TrajectoryId(3)).front().key_utime, 2'000'000);
   EXPECT_EQ(out.wide_searches, 7);
-  // Read as the current version, the same bytes end early.
-  Decode(version2, kSnapshotVersion, &complete);
+  // Read as version 3, the same bytes end early.
+  Decode(version2, 3, &complete);
   EXPECT_FALSE(complete);
 }
 
@@ -198,6 +198,50 @@ TEST(SourceStateCodecTest, MapVerifiedKeptCandidatesAreKeptFromVersionSeven) {
   EXPECT_TRUE(complete);
   ASSERT_EQ(old.kept.size(), 1u);
   EXPECT_FALSE(old.kept.begin()->second.front().verified);
+}
+
+// The sources' matching budgets (version 9) are kept to the bit: a restored server serves
+// the keyframes the uninterrupted one would. A version-8 state reads as having none (the
+// restored sources keep fresh budgets), and reading it as version 9 fails.
+TEST(SourceStateCodecTest, MatchBudgetsAreKeptFromVersionNine) {
+  MatchBudget::State budget;
+  budget.tokens = -3.25;  // in debt by part of a keyframe's cost
+  budget.last_utime = 41'300'000;
+  budget.ledgers[TrajectoryId(4)] = {17.5, 3};
+  budget.ledgers[TrajectoryId(9)] = {0.0, 12};
+  budget.spent = 1234.5;
+  budget.skipped = 77;
+  LoopClosureState loop = StateWithOneKeptHypothesis(false);
+  loop.budget = budget;
+  ScanEncounterState scan = StateWithAWideNearMatch();
+  budget.last_utime.reset();
+  scan.near_budget = budget;
+
+  bool complete = false;
+  const LoopClosureState loop_out = Decode(Encode(loop), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_TRUE(loop_out.budget.has_value());
+  EXPECT_EQ(loop_out.budget->tokens, -3.25);
+  EXPECT_EQ(loop_out.budget->last_utime, std::optional<int64_t>(41'300'000));
+  ASSERT_EQ(loop_out.budget->ledgers.size(), 2u);
+  EXPECT_EQ(loop_out.budget->ledgers.at(TrajectoryId(4)).driven_m, 17.5);
+  EXPECT_EQ(loop_out.budget->ledgers.at(TrajectoryId(9)).skips, 12);
+  EXPECT_EQ(loop_out.budget->spent, 1234.5);
+  EXPECT_EQ(loop_out.budget->skipped, 77);
+  const ScanEncounterState scan_out =
+      DecodeScan(Encode(scan, kSnapshotVersion), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_TRUE(scan_out.near_budget.has_value());
+  EXPECT_FALSE(scan_out.near_budget->last_utime.has_value());
+  EXPECT_EQ(scan_out.near_budget->ledgers.at(TrajectoryId(4)).skips, 3);
+
+  const std::vector<uint8_t> loop8 = Encode(loop, 8);
+  EXPECT_FALSE(Decode(loop8, 8, &complete).budget.has_value());
+  EXPECT_TRUE(complete);
+  Decode(loop8, kSnapshotVersion, &complete);
+  EXPECT_FALSE(complete);
+  EXPECT_FALSE(DecodeScan(Encode(scan, 8), 8, &complete).near_budget.has_value());
+  EXPECT_TRUE(complete);
 }
 
 }  // namespace
