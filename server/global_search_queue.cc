@@ -1,7 +1,8 @@
 #include "server/global_search_queue.h"
 
-#include <algorithm>
 #include <cmath>
+
+#include "server/data_time_tokens.h"
 
 namespace anchormap {
 
@@ -16,11 +17,7 @@ Status GlobalSearchBudgetOptions::Validate() const {
 }
 
 void GlobalSearchQueue::Advance(int64_t now_utime) {
-  if (last_utime_ && now_utime > *last_utime_) {
-    const double elapsed_s = 1e-6 * static_cast<double>(now_utime - *last_utime_);
-    tokens_ = std::min(options_.burst, tokens_ + elapsed_s * options_.searches_per_s);
-  }
-  if (!last_utime_ || now_utime > *last_utime_) last_utime_ = now_utime;
+  RefillTokens(now_utime, options_.searches_per_s, options_.burst, &tokens_, &last_utime_);
 }
 
 void GlobalSearchQueue::Enqueue(PoseKey key) {

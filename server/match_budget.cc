@@ -1,7 +1,8 @@
 #include "server/match_budget.h"
 
-#include <algorithm>
 #include <cmath>
+
+#include "server/data_time_tokens.h"
 
 namespace anchormap {
 
@@ -19,11 +20,7 @@ Status MatchBudgetOptions::Validate(const std::string& prefix) const {
 }
 
 void MatchBudget::Advance(int64_t now_utime) {
-  if (last_utime_ && now_utime > *last_utime_) {
-    const double elapsed_s = 1e-6 * static_cast<double>(now_utime - *last_utime_);
-    tokens_ = std::min(options_.burst, tokens_ + elapsed_s * options_.units_per_s);
-  }
-  if (!last_utime_ || now_utime > *last_utime_) last_utime_ = now_utime;
+  RefillTokens(now_utime, options_.units_per_s, options_.burst, &tokens_, &last_utime_);
 }
 
 void MatchBudget::Spend(double units) {
@@ -57,7 +54,7 @@ std::vector<PoseKey> MatchBudget::Serve(const std::vector<BudgetRequest>& reques
   }
   std::vector<bool> done(requests.size(), false);
   std::vector<PoseKey> skipped;
-  for (size_t round = 0; round < requests.size(); ++round) {
+  for (size_t round = 0; round < requests.size() && tokens_ > 0; ++round) {
     // The highest priority left (the first in arrival order on ties); priorities change as
     // keyframes of the same trajectory are served.
     size_t best = requests.size();
@@ -70,7 +67,6 @@ std::vector<PoseKey> MatchBudget::Serve(const std::vector<BudgetRequest>& reques
         best_priority = priority;
       }
     }
-    if (tokens_ <= 0) break;
     done[best] = true;
     Served(requests[best], serve(requests[best].key));
   }

@@ -59,8 +59,8 @@ class MatchBudget {
   // not served, in arrival order.
   std::vector<PoseKey> Serve(const std::vector<BudgetRequest>& requests, double max_units,
                              const std::function<double(PoseKey)>& serve);
-  // Units spent outside Serve (work the source must do, e.g. a pair's catch-up): they are
-  // paid for by the keyframes that come next.
+  // Units spent outside Serve (the tests set the tokens with it; the sources charge nothing
+  // else: a pair's catch-up is not charged): the keyframes that come next pay for them.
   void Spend(double units);
 
   double tokens() const { return tokens_; }

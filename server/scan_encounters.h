@@ -324,9 +324,9 @@ class ScanEncounters : public EncounterSource {
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   void BuildSubmaps(const GraphView& graph);
-  // `near`: its near searches too (else only its global search, which has its own budget).
-  // Returns the near searches submitted.
-  int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near);
+  // `near_too`: its near searches too (else only its global search, which has its own
+  // budget). Returns the near searches submitted.
+  int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
   // The trajectories `key` is searched against: one of each other group (the pair

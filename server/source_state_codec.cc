@@ -76,15 +76,27 @@ void GetMap(ByteReader* r, Map* map) {
   }
 }
 
+// A token bucket's level and clock (the global searches' queue, the matching budgets).
+void PutTokens(ByteWriter* w, double tokens, const std::optional<int64_t>& last_utime) {
+  w->F64(tokens);
+  w->Bool(last_utime.has_value());
+  w->I64(last_utime.value_or(0));
+}
+void GetTokens(ByteReader* r, double* tokens, std::optional<int64_t>* last_utime) {
+  *tokens = r->F64();
+  const bool has_last = r->Bool();
+  const int64_t last = r->I64();
+  last_utime->reset();
+  if (has_last) *last_utime = last;
+}
+
 // A matching budget (version 9 on).
 void PutBudget(ByteWriter* w, uint32_t snapshot_version,
                const std::optional<MatchBudget::State>& budget) {
   if (snapshot_version < 9) return;
   w->Bool(budget.has_value());
   if (!budget) return;
-  w->F64(budget->tokens);
-  w->Bool(budget->last_utime.has_value());
-  w->I64(budget->last_utime.value_or(0));
+  PutTokens(w, budget->tokens, budget->last_utime);
   PutMap(w, budget->ledgers);
   w->F64(budget->spent);
   w->I64(budget->skipped);
@@ -94,10 +106,7 @@ void GetBudget(ByteReader* r, uint32_t snapshot_version,
   budget->reset();
   if (snapshot_version < 9 || !r->Bool()) return;
   MatchBudget::State b;
-  b.tokens = r->F64();
-  const bool has_last = r->Bool();
-  const int64_t last = r->I64();
-  if (has_last) b.last_utime = last;
+  GetTokens(r, &b.tokens, &b.last_utime);
   GetMap(r, &b.ledgers);
   b.spent = r->F64();
   b.skipped = r->I64();
@@ -314,9 +323,7 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
   }
   PutMap(w, s.global_cursor);
   const GlobalSearchQueue::State& q = s.global_queue;
-  w->F64(q.tokens);
-  w->Bool(q.last_utime.has_value());
-  w->I64(q.last_utime.value_or(0));
+  PutTokens(w, q.tokens, q.last_utime);
   w->Size(q.waiting.size());
   for (const auto& [trajectory, key] : q.waiting) {
     Put(w, trajectory);
@@ -403,11 +410,7 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
   }
   GetMap(r, &s->global_cursor);
   GlobalSearchQueue::State& q = s->global_queue;
-  q.tokens = r->F64();
-  const bool has_last = r->Bool();
-  const int64_t last = r->I64();
-  q.last_utime.reset();
-  if (has_last) q.last_utime = last;
+  GetTokens(r, &q.tokens, &q.last_utime);
   q.waiting.clear();
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
     TrajectoryId trajectory(0);

@@ -16,9 +16,9 @@ Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* 
         if constexpr (std::is_same_v<T, PriorFactor>) {
           return f.Error(v[0], J);
         } else if constexpr (std::is_same_v<T, BetweenFactor>) {
-          if (rotations)
-            return f.Error(v[0], rotations[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
-          return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+          // Between computes CosSin::Of itself when not given: the same bits either way.
+          return f.Error(v[0], rotations ? rotations[0] : CosSin::Of(v[0].theta()), v[1],
+                         J ? &J[0] : nullptr, J ? &J[1] : nullptr);
         } else if constexpr (std::is_same_v<T, GlobalEncounterFactor>) {
           return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
         } else if constexpr (std::is_same_v<T, EncounterFactor>) {
