@@ -7,6 +7,7 @@
 
 #include "common/scan_matching/point_cloud.h"
 #include "server/keyframe_submap.h"
+#include "server/relative_pose.h"
 
 namespace anchormap {
 namespace {
@@ -55,6 +56,24 @@ double KeyframeOverlap(const TrajectoryRecord& record, const Smoother& smoother,
       TransformPointCloud(KeyframePoints(record, i, max_range_m), smoother.FramePose(key_i));
   const PointCloud points_j =
       TransformPointCloud(KeyframePoints(record, j, max_range_m), smoother.FramePose(key_j));
+  if (points_i.empty() || points_j.empty()) return 0.0;
+  return std::max(ShareNear(points_i, Cells(points_j, distance_m), distance_m),
+                  ShareNear(points_j, Cells(points_i, distance_m), distance_m));
+}
+
+double KeyframeOverlap(const TrajectoryRecord& record_i, int i, const TrajectoryRecord& record_j,
+                       int j, const Smoother& smoother, double max_range_m, double distance_m) {
+  const PoseKey key_i{record_i.solver_id, i};
+  const PoseKey key_j{record_j.solver_id, j};
+  if (i < 0 || j < 0 || i >= record_i.num_keyframes() || j >= record_j.num_keyframes() ||
+      !smoother.HasPose(key_i) || !smoother.HasPose(key_j) ||
+      !InOneFrame(smoother, record_i.solver_id, record_j.solver_id)) {
+    return 0.0;
+  }
+  const PointCloud points_i =
+      TransformPointCloud(KeyframePoints(record_i, i, max_range_m), smoother.GlobalPose(key_i));
+  const PointCloud points_j =
+      TransformPointCloud(KeyframePoints(record_j, j, max_range_m), smoother.GlobalPose(key_j));
   if (points_i.empty() || points_j.empty()) return 0.0;
   return std::max(ShareNear(points_i, Cells(points_j, distance_m), distance_m),
                   ShareNear(points_j, Cells(points_i, distance_m), distance_m));

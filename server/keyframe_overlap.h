@@ -17,5 +17,9 @@ namespace anchormap {
 // about distance_m (cells of that size, the 3 x 3 around a point).
 double KeyframeOverlap(const TrajectoryRecord& record, const Smoother& smoother, int i, int j,
                        double max_range_m, double distance_m);
+// The same for keyframe i of `record_i` and keyframe j of `record_j`, two trajectories of one
+// group, each placed at its estimate in the group's frame (0 when they are not in one).
+double KeyframeOverlap(const TrajectoryRecord& record_i, int i, const TrajectoryRecord& record_j,
+                       int j, const Smoother& smoother, double max_range_m, double distance_m);
 
 }  // namespace anchormap

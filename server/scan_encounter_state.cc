@@ -41,7 +41,8 @@ ScanEncounterState ScanEncounters::ExportState() const {
   for (const auto& [pair, kept] : kept_) {
     auto& out = s.kept[pair];
     for (const Kept& k : kept)
-      out.push_back({ToState(k.candidate), k.support, k.localised, k.verified});
+      out.push_back({ToState(k.candidate), k.support, k.localised, k.verified, k.conflict,
+                     k.conflict_points});
   }
   s.qualified_since = qualified_since_;
   s.now_utime = now_utime_;
@@ -86,7 +87,8 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   for (const auto& [pair, kept] : s.kept) {
     std::deque<Kept>& out = kept_[pair];
     for (const ScanEncounterState::Kept& k : kept) {
-      out.push_back({FromState(k.candidate), k.support, k.localised, k.verified});
+      out.push_back({FromState(k.candidate), k.support, k.localised, k.verified, k.conflict,
+                     k.conflict_points});
     }
   }
   qualified_since_ = s.qualified_since;

@@ -54,6 +54,10 @@ struct ScanEncounterState {
     int support = 0;
     bool localised = true;
     bool verified = false;  // its own maps agree (snapshot version 7; before, none was)
+    // Its own maps' conflict and the fewer side's points, measured when it was offered
+    // (snapshot version 10; before, none was measured: 1 and 0, it guides no search).
+    double conflict = 1.0;
+    int64_t conflict_points = 0;
   };
   struct NearIndex {
     std::vector<std::pair<int32_t, Eigen::Vector2d>> entries;  // PositionIndex's items

@@ -55,6 +55,8 @@ Status ScanEncounterOptions::Validate() const {
         "scan map-verified candidates: verify_max_conflict in [0, 1], verify_min_points >= 0, "
         "verify_drift_per_m, verify_drift_rad_per_m and verify_drift_rad_per_rad >= 0");
   }
+  if (guide_min_points < 0 || !(guide_max_distance_m >= 0))
+    return Status::Error("scan guided search: guide_min_points and guide_max_distance_m >= 0");
   if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
     return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
@@ -108,6 +110,12 @@ EncounterCandidate Reversed(const EncounterCandidate& c) {
   r.T_a_b = Between(c.T_a_b, Pose2(), &J, nullptr);
   r.covariance = J * c.covariance * J.transpose();
   return r;
+}
+
+// `c` oriented like `like`: its a in the frame of like's a.
+EncounterCandidate OrientedLike(const EncounterCandidate& c, const EncounterCandidate& like,
+                                const Smoother& smoother) {
+  return InOneFrame(smoother, c.a.trajectory, like.a.trajectory) ? c : Reversed(c);
 }
 
 }  // namespace
@@ -363,10 +371,19 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   size_t& cursor = global_cursor_[{key.trajectory, other}];
   const size_t tries =
       std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
+  // The first one guided by the best kept hypothesis, if any, instead of the next in turn: the
+  // same number of searches.
+  const std::optional<size_t> guided = GuidedSubmap(key, other, graph);
   int submitted = 0;
   for (size_t t = 0; t < tries; ++t) {
-    Submap& submap = submaps[cursor % submaps.size()];
-    ++cursor;
+    size_t index = 0;
+    if (t == 0 && guided) {
+      index = *guided;
+    } else {
+      index = cursor % submaps.size();
+      ++cursor;
+    }
+    Submap& submap = submaps[index];
     std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
     if (!reference) continue;
     Submit(key, submap.center, /*global=*/true, /*wide=*/false,
@@ -376,6 +393,67 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   }
   global_queue_.CountPair(key.trajectory, other, submitted);
   return submitted;
+}
+
+std::optional<size_t> ScanEncounters::GuidedByHypothesis(PoseKey key,
+                                                         const EncounterCandidate& hypothesis,
+                                                         const std::vector<Submap>& submaps,
+                                                         const GraphView& graph) const {
+  const Smoother& smoother = graph.smoother;
+  // Oriented with b in key's trajectory; key placed in the group's frame through it.
+  const EncounterCandidate c =
+      hypothesis.a.trajectory == key.trajectory ? Reversed(hypothesis) : hypothesis;
+  if (!smoother.HasPose(c.a) || !smoother.HasPose(c.b) || !smoother.HasPose(key)) {
+    return std::nullopt;
+  }
+  const Pose2 T_global_key =
+      Compose(Compose(smoother.GlobalPose(c.a), c.T_a_b),
+              Compose(smoother.FramePose(c.b).Inverse(), smoother.FramePose(key)));
+  std::optional<size_t> nearest;
+  double nearest_m = options_.guide_max_distance_m;
+  for (size_t i = 0; i < submaps.size(); ++i) {
+    const Submap& submap = submaps[i];
+    if (submap.drawing.num_points == 0 || !smoother.HasPose(submap.center)) continue;
+    const double d =
+        (smoother.GlobalPose(submap.center).translation() - T_global_key.translation()).norm();
+    if (d < nearest_m) {
+      nearest_m = d;
+      nearest = i;
+    }
+  }
+  return nearest;
+}
+
+std::optional<size_t> ScanEncounters::GuidedSubmap(PoseKey key, TrajectoryId other,
+                                                   const GraphView& graph) const {
+  const Smoother& smoother = graph.smoother;
+  const auto submaps = submaps_.find(other);
+  if (options_.guide_max_distance_m <= 0 || submaps == submaps_.end()) return std::nullopt;
+  // Only against a group of two trajectories or more: a single one is searched in turn, as
+  // it always was (its first join needs two places of it, which the turn reaches).
+  const std::deque<TrajectoryRecord>& records = graph.table.records();
+  if (std::none_of(records.begin(), records.end(), [&](const TrajectoryRecord& r) {
+        return r.solver_id != other && InOneFrame(smoother, r.solver_id, other);
+      })) {
+    return std::nullopt;
+  }
+  // The kept candidate of key's trajectory against the target's group whose own maps agree
+  // best (measured once, when it was offered).
+  const Kept* best = nullptr;
+  for (const auto& [pair, kept] : kept_) {
+    const bool first = pair.first == key.trajectory;
+    if (!first && pair.second != key.trajectory) continue;
+    if (!InOneFrame(smoother, first ? pair.second : pair.first, other)) continue;
+    for (const Kept& k : kept) {
+      if (!k.localised || k.conflict_points < options_.guide_min_points ||
+          k.conflict > options_.verify_max_conflict) {
+        continue;
+      }
+      if (best == nullptr || k.conflict < best->conflict) best = &k;
+    }
+  }
+  if (best == nullptr) return std::nullopt;
+  return GuidedByHypothesis(key, best->candidate, submaps->second, graph);
 }
 
 std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, TrajectoryId other,
@@ -606,14 +684,22 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
   std::vector<bool> agrees(kept.size(), false);
   // The places that confirm it: agreeing candidates at one place count once.
   std::vector<const Kept*> confirming;
-  const bool localised = Localised(candidate);
-  const bool verified = localised && MapsAgree(candidate, graph);
+  Kept offered_kept{candidate, 0, Localised(candidate), false};
+  if (offered_kept.localised) {
+    // Measured once: it also guides global searches (GuidedSubmap).
+    const JoinConflict conflict = OwnMapsConflict(candidate, graph);
+    offered_kept.verified = MapsAgree(conflict);
+    offered_kept.conflict = conflict.pooled_fraction();
+    offered_kept.conflict_points = static_cast<int64_t>(conflict.fewer_seen());
+  }
+  const bool localised = offered_kept.localised;
+  const bool verified = offered_kept.verified;
   for (size_t i = 0; localised && i < kept.size(); ++i) {
     if (!kept[i].localised) continue;
     // One place seen twice is no second opinion: the two must be apart in both
     // trajectories (a symmetric spot makes every match there agree).
     const EncounterCandidate& other = kept[i].candidate;
-    if (!Independent(kept[i], {candidate, 0, localised, verified}, graph)) continue;
+    if (!Independent(kept[i], offered_kept, graph)) continue;
     if (!Consistent(other, candidate, graph, verified && kept[i].verified)) continue;
     agrees[i] = true;
     ++kept[i].support;
@@ -630,12 +716,36 @@ void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const Gra
       alternative = std::max(alternative, 1 + kept[i].support);
     }
   }
-  const int support = 1 + consistent;
-  if (consistent >= 1 && support >= options_.alternative_ratio * alternative) {
+  // Across the pairs between the same two groups (R1-R3 and R2-R3, R1 and R2 joined): a
+  // map-verified candidate of another pair at two places of both groups confirms it too, and
+  // any other candidate there is an alternative.
+  int alternative_across = alternative;
+  if (verified) {
+    for (const Pair& sibling : PairsBetweenTheSameGroups(pair, graph)) {
+      for (Kept& k : kept_[sibling]) {
+        if (!k.localised) continue;
+        if (!IndependentAcross(k, offered_kept, graph) ||
+            !ConsistentAcross(k.candidate, candidate, graph)) {
+          alternative_across = std::max(alternative_across, 1 + k.support);
+          continue;
+        }
+        ++k.support;
+        if (std::all_of(confirming.begin(), confirming.end(),
+                        [&](const Kept* c) { return IndependentAcross(*c, k, graph); })) {
+          confirming.push_back(&k);
+        }
+      }
+    }
+  }
+  const int confirmed = static_cast<int>(confirming.size());
+  if ((consistent >= 1 && 1 + consistent >= options_.alternative_ratio * alternative) ||
+      (confirmed > consistent &&
+       1 + confirmed >= options_.alternative_ratio * alternative_across)) {
     // Qualified: joins after the hold, unless other evidence joins the pair first.
     qualified_since_.emplace(pair, now_utime_);
   }
-  kept.push_back({candidate, consistent, localised, verified});
+  offered_kept.support = confirmed;
+  kept.push_back(offered_kept);
   ++stats_.kept;
   if (static_cast<int>(kept.size()) > options_.max_kept) {
     kept.pop_front();
@@ -666,7 +776,13 @@ double ScanEncounters::PairwiseChi2(const EncounterCandidate& c1, const Encounte
   if (!in_a || !in_b) return std::numeric_limits<double>::infinity();
   if (drift_per_m > 0 || drift_rad_per_m > 0 || drift_rad_per_rad > 0) {
     const auto widen = [&](PoseKey k1, PoseKey k2, PredictedRelativePose* predicted) {
-      const double driven = std::abs(DrivenTo(k2, graph) - DrivenTo(k1, graph));
+      // In two trajectories of one group (across pairs) no drive: the joint estimate between
+      // them rests on their ties, not on odometry alone (ACES split in three sequentially: 125 m
+      // through the ties widened the heading by 0.125 rad and let R1[235]-R3[50], 0.2 rad off,
+      // confirm the true R2[65]-R3[125]; chi-square 2.8 with the drive, 79 without).
+      const double driven = k1.trajectory == k2.trajectory
+                                ? std::abs(DrivenTo(k2, graph) - DrivenTo(k1, graph))
+                                : 0.0;
       const double m = drift_per_m * driven;
       // The estimate's turn between them (wrapped: a full spin counts as none, the safe side).
       const double rad =
@@ -679,13 +795,17 @@ double ScanEncounters::PairwiseChi2(const EncounterCandidate& c1, const Encounte
   return PairwiseInconsistency2(*in_a, c1.T_a_b, c1.covariance, *in_b, c2.T_a_b, c2.covariance);
 }
 
-bool ScanEncounters::MapsAgree(const EncounterCandidate& candidate, const GraphView& graph) const {
+JoinConflict ScanEncounters::OwnMapsConflict(const EncounterCandidate& candidate,
+                                             const GraphView& graph) const {
   const TrajectoryRecord* record_a = graph.table.FindBySolverId(candidate.a.trajectory);
   const TrajectoryRecord* record_b = graph.table.FindBySolverId(candidate.b.trajectory);
-  if (record_a == nullptr || record_b == nullptr) return false;
-  const JoinConflict conflict = MeasureCandidateConflict(
-      *record_a, *record_b, graph.smoother, candidate.a, candidate.b, candidate.T_a_b,
-      options_.join_check_radius_m, options_.join_check_range_m, options_.free_space);
+  if (record_a == nullptr || record_b == nullptr) return {};
+  return MeasureCandidateConflict(*record_a, *record_b, graph.smoother, candidate.a, candidate.b,
+                                  candidate.T_a_b, options_.join_check_radius_m,
+                                  options_.join_check_range_m, options_.free_space);
+}
+
+bool ScanEncounters::MapsAgree(const JoinConflict& conflict) const {
   return conflict.fewer_seen() >= static_cast<size_t>(options_.verify_min_points) &&
          conflict.pooled_fraction() <= options_.verify_max_conflict;
 }
@@ -752,6 +872,67 @@ bool ScanEncounters::Independent(const Kept& k1, const Kept& k2, const GraphView
   return ApartAndSeeingOtherWalls(reference1, reference2, graph);
 }
 
+std::vector<ScanEncounters::Pair> ScanEncounters::PairsBetweenTheSameGroups(
+    const Pair& pair, const GraphView& graph) const {
+  const Smoother& smoother = graph.smoother;
+  std::vector<Pair> pairs;
+  for (const auto& [other, kept] : kept_) {
+    if (other == pair || kept.empty()) continue;
+    const bool straight = InOneFrame(smoother, other.first, pair.first) &&
+                          InOneFrame(smoother, other.second, pair.second);
+    const bool crossed = InOneFrame(smoother, other.first, pair.second) &&
+                         InOneFrame(smoother, other.second, pair.first);
+    if (straight || crossed) pairs.push_back(other);
+  }
+  return pairs;
+}
+
+namespace {
+
+bool SamePair(const EncounterCandidate& c1, const EncounterCandidate& c2) {
+  return c1.a.trajectory == c2.a.trajectory && c1.b.trajectory == c2.b.trajectory;
+}
+
+}  // namespace
+
+bool ScanEncounters::IndependentAcross(const Kept& k1, const Kept& k2,
+                                       const GraphView& graph) const {
+  if (SamePair(k1.candidate, k2.candidate)) return Independent(k1, k2, graph);
+  // Only map-verified evidence: a pair of groups offers more ways for aliases to agree.
+  if (!k1.localised || !k2.localised || !k1.verified || !k2.verified) return false;
+  const Smoother& smoother = graph.smoother;
+  const EncounterCandidate& c1 = k1.candidate;
+  const EncounterCandidate c2 = OrientedLike(k2.candidate, c1, smoother);
+  const auto apart = [&](PoseKey x, PoseKey y) {
+    if (!smoother.HasPose(x) || !smoother.HasPose(y)) return false;
+    if (x.trajectory == y.trajectory) {
+      return std::abs(x.index - y.index) >= options_.pcm_min_separation &&
+             (smoother.FramePose(x).translation() - smoother.FramePose(y).translation()).norm() >=
+                 options_.pcm_min_separation_m;
+    }
+    return (smoother.GlobalPose(x).translation() - smoother.GlobalPose(y).translation()).norm() >=
+           options_.pcm_min_separation_m;
+  };
+  if (!apart(c1.a, c2.a) || !apart(c1.b, c2.b)) return false;
+  const auto shared_view = [&](PoseKey x, PoseKey y) {
+    const TrajectoryRecord* record_x = graph.table.FindBySolverId(x.trajectory);
+    const TrajectoryRecord* record_y = graph.table.FindBySolverId(y.trajectory);
+    if (record_x == nullptr || record_y == nullptr) return 1.0;
+    return x.trajectory == y.trajectory
+               ? KeyframeOverlap(*record_x, smoother, x.index, y.index, options_.max_range_m,
+                                 kSharedViewDistanceM)
+               : KeyframeOverlap(*record_x, x.index, *record_y, y.index, smoother,
+                                 options_.max_range_m, kSharedViewDistanceM);
+  };
+  return shared_view(c1.a, c2.a) < options_.pcm_max_shared_view ||
+         shared_view(c1.b, c2.b) < options_.pcm_max_shared_view;
+}
+
+bool ScanEncounters::ConsistentAcross(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                                      const GraphView& graph) {
+  return Consistent(c1, OrientedLike(c2, c1, graph.smoother), graph, /*drift=*/true);
+}
+
 void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out) {
   for (auto it = qualified_since_.begin(); it != qualified_since_.end();) {
     const Pair pair = it->first;
@@ -774,66 +955,83 @@ void ScanEncounters::JoinQualified(bool flush, const GraphView& graph, Encounter
       }
     }
     if (!kept[best].localised) continue;
+    // The candidates of the pair, then those of the other pairs between the same two groups
+    // (IndependentAcross, ConsistentAcross).
+    std::vector<const Pair*> pairs{&pair};
+    const std::vector<Pair> siblings = PairsBetweenTheSameGroups(pair, graph);
+    for (const Pair& sibling : siblings) pairs.push_back(&sibling);
+    std::vector<Kept*> members;
+    for (const Pair* p : pairs) {
+      for (Kept& k : kept_[*p]) members.push_back(&k);
+    }
     // A candidate joins with the best one when it agrees with every candidate of the set
     // so far (a clique, as in PCM), not only with the best: two that each agree with the
     // best may still disagree with each other.
-    std::vector<size_t> set{best};
-    for (size_t i = 0; i < kept.size(); ++i) {
-      if (i == best || !kept[i].localised) continue;
+    Kept* const best_kept = &kept[best];
+    std::vector<Kept*> set{best_kept};
+    for (Kept* member : members) {
+      if (member == best_kept || !member->localised) continue;
       bool agrees = true;
-      for (const size_t j : set) {
-        const bool same_place = !Independent(kept[i], kept[j], graph);
+      for (const Kept* j : set) {
+        if (!SamePair(member->candidate, j->candidate)) {
+          if (!IndependentAcross(*member, *j, graph) ||
+              !ConsistentAcross(member->candidate, j->candidate, graph)) {
+            agrees = false;
+            break;
+          }
+          continue;
+        }
+        const bool same_place = !Independent(*member, *j, graph);
         // Two candidates at one place cannot confirm each other, but one may join the
         // set when another member at another place confirms it.
-        if (same_place && j == best) {
+        if (same_place && j == best_kept) {
           agrees = false;
           break;
         }
-        if (!same_place && !Consistent(kept[i].candidate, kept[j].candidate, graph,
-                                       kept[i].verified && kept[j].verified)) {
+        if (!same_place &&
+            !Consistent(member->candidate, j->candidate, graph, member->verified && j->verified)) {
           agrees = false;
           break;
         }
       }
-      if (agrees) set.push_back(i);
+      if (agrees) set.push_back(member);
     }
-    if (MapsContradict(kept, set, graph)) {
+    if (MapsContradict(set, graph)) {
       // Refused for good: its candidates stay kept (gated if the pair joins otherwise) but
       // take no further part in a first join.
-      for (const size_t i : set) kept[i].localised = false;
+      for (Kept* k : set) k->localised = false;
       ++joins_contradicted_;
       continue;
     }
-    std::vector<bool> in_set(kept.size(), false);
-    for (const size_t i : set) in_set[i] = true;
-    std::deque<Kept> rest;
-    for (size_t i = 0; i < kept.size(); ++i) {
-      if (in_set[i]) {
-        Emit(kept[i].candidate, out);
-        ++stats_.accepted;
-        --stats_.kept;
-      } else {
-        rest.push_back(kept[i]);
+    const std::set<const Kept*> in_set(set.begin(), set.end());
+    for (const Pair* p : pairs) {
+      std::deque<Kept>& pair_kept = kept_[*p];
+      std::deque<Kept> rest;
+      for (const Kept& k : pair_kept) {
+        if (in_set.count(&k) > 0) {
+          Emit(k.candidate, out);
+          ++stats_.accepted;
+          --stats_.kept;
+        } else {
+          rest.push_back(k);
+        }
       }
+      pair_kept = std::move(rest);
     }
-    kept = std::move(rest);
   }
 }
 
-bool ScanEncounters::MapsContradict(const std::deque<Kept>& kept, const std::vector<size_t>& set,
-                                    const GraphView& graph) const {
-  const TrajectoryRecord* record_a =
-      graph.table.FindBySolverId(kept[set.front()].candidate.a.trajectory);
-  const TrajectoryRecord* record_b =
-      graph.table.FindBySolverId(kept[set.front()].candidate.b.trajectory);
-  if (record_a == nullptr || record_b == nullptr) return false;
+bool ScanEncounters::MapsContradict(const std::vector<Kept*>& set, const GraphView& graph) const {
   const Smoother& smoother = graph.smoother;
   // Each place by its own match: between places 10-20 m apart each robot's estimate drifts
   // by more than the margin (the simulator's LoopWorld, joined truly: 10 % of the points
   // conflicted by the best match's pose alone, all at the far place's walls).
   JoinConflict total;
-  for (const size_t i : set) {
-    const EncounterCandidate& c = kept[i].candidate;
+  for (const Kept* k : set) {
+    const EncounterCandidate& c = k->candidate;
+    const TrajectoryRecord* record_a = graph.table.FindBySolverId(c.a.trajectory);
+    const TrajectoryRecord* record_b = graph.table.FindBySolverId(c.b.trajectory);
+    if (record_a == nullptr || record_b == nullptr) return false;
     const JoinConflict conflict = MeasureCandidateConflict(
         *record_a, *record_b, smoother, c.a, c.b, c.T_a_b, options_.join_check_radius_m,
         options_.join_check_range_m, options_.free_space);

@@ -20,7 +20,11 @@
 //   tested with each trajectory's estimate widened for the drive and the turn between them.
 //   Two map-verified candidates also confirm each other from one place of one trajectory
 //   when they come from two query scans matched against two stretches of the other that
-//   share no keyframe and see other walls (the other robot saw the place twice). Lone
+//   share no keyframe and see other walls (the other robot saw the place twice). Once a
+//   group holds two trajectories or more, two map-verified candidates of two pairs between the
+//   same groups (R1-R3 and R2-R3, R1 and R2 joined) confirm each other too: each side's
+//   relative pose comes from its group's joint estimate, and they must be at two places of
+//   both groups as above. Lone
 //   candidates are kept (at most max_kept per pair); when the pair comes into one frame
 //   by other evidence (a direct encounter) they are gated against the estimate instead.
 //   A symmetric building makes whole sets of wrong candidates agree with each other (the
@@ -66,6 +70,7 @@
 #include "server/driven_path.h"
 #include "server/encounter_source.h"
 #include "server/global_search_queue.h"
+#include "server/join_free_space.h"
 #include "server/keyframe_submap.h"
 #include "server/match_budget.h"
 #include "server/match_pool.h"
@@ -163,6 +168,17 @@ struct ScanEncounterOptions {
   // its estimate 0.015 rad off at sigma 0.005; the two true candidates there, plain chi-square
   // 37.2, 27.9 with the per-metre drift alone).
   double verify_drift_rad_per_rad = 0.01;
+  // Guided global search, once the target's group holds two trajectories or more: the first of
+  // a keyframe's max_global_per_keyframe submaps of the target is, instead of the next one in
+  // turn, the one nearest (within guide_max_distance_m) where the kept candidate of the
+  // querying trajectory against that group whose own maps agree best (verify_max_conflict, at
+  // least guide_min_points on the fewer side; measured once, when offered) puts the keyframe.
+  // The cost is the same. ACES split in three sequentially: from R2[65]-R3[115] (1910 points,
+  // no conflict) R3's guided searches found R2[65]-R3[125] and R1[115]-R3[230..245], which the
+  // submaps taken in turn missed, and R3 joined by them (cross-pair confirmation); but R3 finds
+  // that first candidate only when a search happens to take R2[65] there.
+  int guide_min_points = 1000;
+  double guide_max_distance_m = 8.0;
   FreeSpaceOptions free_space;
   // Joined trajectories: window search near the prediction.
   double near_distance_m = 4.0;
@@ -383,8 +399,11 @@ class ScanEncounters : public EncounterSource {
   double PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
                       const GraphView& graph, double drift_per_m, double drift_rad_per_m,
                       double drift_rad_per_rad = 0.0);
-  // The candidate's own maps agree (verify_max_conflict, verify_min_points).
-  bool MapsAgree(const EncounterCandidate& candidate, const GraphView& graph) const;
+  // The free-space conflict of the candidate's own maps (both sides within
+  // join_check_radius_m of its places, drawn by its match).
+  JoinConflict OwnMapsConflict(const EncounterCandidate& candidate, const GraphView& graph) const;
+  // Its own maps agree (verify_max_conflict, verify_min_points).
+  bool MapsAgree(const JoinConflict& conflict) const;
   // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories,
   // seeing other walls in at least one (pcm_max_shared_view): only then can one confirm the
   // other.
@@ -422,6 +441,10 @@ class ScanEncounters : public EncounterSource {
     bool localised = true;
     // Its own maps agree (MapsAgree, at the estimate it was offered at).
     bool verified = false;
+    // The free-space conflict of its own maps measured then (pooled fraction, the fewer
+    // side's points; 1 and 0 when not measured: not localised): what guides a global search.
+    double conflict = 1.0;
+    int64_t conflict_points = 0;
   };
   bool Localised(const EncounterCandidate& candidate) const;
   // Two kept candidates are independent evidence: at two places (TwoPlaces), or, both
@@ -429,9 +452,29 @@ class ScanEncounters : public EncounterSource {
   // share no keyframe and see other walls (one place of the querying robot, seen twice by
   // the other).
   bool Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const;
+  // Across two pairs of trajectories between the same two groups (R1-R3 and R2-R3, R1 and R2
+  // joined): two places of the groups, both candidates map-verified and localised. Each side
+  // in one trajectory: its keyframes pcm_min_separation apart; each side: pcm_min_separation_m
+  // apart in the estimate; one side seeing other walls (pcm_max_shared_view), as TwoPlaces.
+  bool IndependentAcross(const Kept& k1, const Kept& k2, const GraphView& graph) const;
+  // Pairwise consistency across two pairs (as above), each side's relative pose predicted by
+  // its group's joint estimate, widened by the verify_drift_* terms for the turn between the two
+  // keyframes and, within one trajectory, for its drive (a side in two trajectories rests on
+  // their ties, not on odometry alone: no drive term).
+  bool ConsistentAcross(const EncounterCandidate& c1, const EncounterCandidate& c2,
+                        const GraphView& graph);
+  // The pairs of trajectories, other than `pair`, between the same two groups as `pair` (their
+  // kept candidates may confirm `pair`'s across the pairs).
+  std::vector<Pair> PairsBetweenTheSameGroups(const Pair& pair, const GraphView& graph) const;
+  // The submap of `other` a global search of `key` is guided to (guide_*), if any.
+  std::optional<size_t> GuidedSubmap(PoseKey key, TrajectoryId other, const GraphView& graph) const;
+  // The submap of `submaps` nearest (guide_max_distance_m) where `hypothesis` (a candidate of
+  // key's trajectory against their group) puts key.
+  std::optional<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
+                                           const std::vector<Submap>& submaps,
+                                           const GraphView& graph) const;
   // The free-space test of the hypothesis of `set` (its first member the best supported).
-  bool MapsContradict(const std::deque<Kept>& kept, const std::vector<size_t>& set,
-                      const GraphView& graph) const;
+  bool MapsContradict(const std::vector<Kept*>& set, const GraphView& graph) const;
   // First-join hypotheses refused by the free-space test. Not in snapshots (CandidateStats'
   // format is fixed there): a restored source counts from 0.
   int64_t joins_contradicted_ = 0;

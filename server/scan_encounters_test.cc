@@ -597,6 +597,117 @@ TEST_F(SharedViewFirstJoinTest, AnAliasAtOnePlaceDoesNotJoin) {
   EXPECT_EQ(Offer(other_walls, shared_view, 1.0, /*verify_max_conflict=*/1.0).size(), 2u);
 }
 
+// Cross-pair confirmation on hand-made candidates with real scans: R1 and R2 lap LoopWorld from
+// two corners and are joined by a direct encounter at their first keyframes; R3 laps it from a
+// third corner and is not. A candidate R1-R3 and one R2-R3 are two places of R3 against the
+// group {R1, R2}: their consistency is tested through the group's joint estimate between R1's
+// and R2's keyframes (as ACES split in three sequentially: R2[65]-R3[125] and R1[115]-R3[230]).
+class CrossPairFirstJoinTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    paths_ = {testing::LoopWorldLap(0, 60), testing::LoopWorldLap(50, 60),
+              testing::LoopWorldLap(25, 60)};
+    MappingServerOptions options;
+    options.loop_closures = false;
+    options.scan_encounters = false;
+    server_ = std::make_unique<MappingServer>(options);
+    const OdometryNoise noise{0.002, 0.001};
+    std::vector<std::vector<Keyframe>> keyframes;
+    for (size_t r = 0; r < paths_.size(); ++r) {
+      keyframes.push_back(DriveKeyframes(testing::LoopWorld(), paths_[r],
+                                         "R" + std::to_string(r + 1), static_cast<int64_t>(r + 1),
+                                         1'000'000, noise, 21 + r));
+    }
+    for (size_t i = 0; i < paths_[0].size(); ++i) {
+      for (const std::vector<Keyframe>& k : keyframes) ASSERT_TRUE(server_->OnKeyframe(k[i]).ok());
+      if (i == 0) {
+        Encounter seen;
+        seen.utime = 1'000'000;
+        seen.observer = "R1";
+        seen.observer_trajectory_id = 1;
+        seen.observed = "R2";
+        seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[1][0]);
+        seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+        ASSERT_TRUE(server_->OnEncounter(seen).ok());
+      }
+    }
+    server_->Flush();
+    ASSERT_TRUE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
+    ASSERT_FALSE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(2)));
+  }
+
+  // R3[j] seen from keyframe i of trajectory `from` (0: R1, 1: R2) as the world has it, R3
+  // moved by `shift_world`.
+  EncounterCandidate Candidate(int64_t from, int32_t i, int32_t j,
+                               const Pose2& shift_world = Pose2()) const {
+    EncounterCandidate c;
+    c.a = {TrajectoryId(from), i};
+    c.b = {TrajectoryId(2), j};
+    c.T_a_b = Compose(paths_[static_cast<size_t>(from)][static_cast<size_t>(i)].Inverse(),
+                      Compose(shift_world, paths_[2][static_cast<size_t>(j)]));
+    c.covariance = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+    c.utime = 1'000'000 + 500'000 * int64_t{j};
+    return c;
+  }
+
+  std::vector<EncounterConstraint> Offer(
+      const std::vector<EncounterCandidate>& candidates,
+      double verify_max_conflict = ScanEncounterOptions{}.verify_max_conflict) {
+    ScanEncounterOptions options;
+    options.first_join_hold_s = 0.0;
+    options.verify_max_conflict = verify_max_conflict;
+    options.near_catch_up_every = 0;  // no near search between R1 and R2 (a test of its own)
+    ScanEncounters source(options);
+    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
+    EncounterSourceOutput out;
+    source.Poll(100'000'000, graph, &out);
+    for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
+    source.Poll(100'000'000, graph, &out);
+    source.Flush(graph, &out);
+    return out.constraints;
+  }
+
+  std::vector<std::vector<Pose2>> paths_;
+  std::unique_ptr<MappingServer> server_;
+};
+
+TEST_F(CrossPairFirstJoinTest, TwoPlacesOfTheThirdAgainstTheJoinedPairJoin) {
+  // R1[38]-R3[15] and R2[10]-R3[35]: 10 m apart in R3, 11 m in the group's frame.
+  const std::vector<EncounterCandidate> truth = {Candidate(0, 38, 15), Candidate(1, 10, 35)};
+  const ScanEncounterOptions defaults;
+  for (const EncounterCandidate& c : truth) {
+    const JoinConflict own = MeasureCandidateConflict(
+        *server_->table().FindBySolverId(c.a.trajectory),
+        *server_->table().FindBySolverId(c.b.trajectory), server_->smoother(), c.a, c.b, c.T_a_b,
+        defaults.join_check_radius_m, defaults.join_check_range_m, defaults.free_space);
+    std::printf("cross pair R%lld[%d]-R3[%d]: %.4f of %zu points, fewer side %zu\n",
+                static_cast<long long>(c.a.trajectory.value() + 1), c.a.index, c.b.index,
+                own.pooled_fraction(), own.a_in_b.seen + own.b_in_a.seen, own.fewer_seen());
+    EXPECT_GE(own.fewer_seen(), static_cast<size_t>(defaults.verify_min_points));
+    EXPECT_LE(own.pooled_fraction(), defaults.verify_max_conflict);
+  }
+  // Alone, each pair has one candidate: nothing joins.
+  EXPECT_TRUE(Offer({truth[0]}).empty());
+  EXPECT_TRUE(Offer({truth[1]}).empty());
+  const std::vector<EncounterConstraint> joined = Offer(truth);
+  // The pair that qualified last (R2-R3) first, then the other pair's candidate.
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(joined[0].a, truth[1].a);
+  EXPECT_EQ(joined[0].b, truth[1].b);
+  EXPECT_EQ(joined[1].a, truth[0].a);
+  EXPECT_EQ(joined[1].b, truth[0].b);
+}
+
+TEST_F(CrossPairFirstJoinTest, TwoCandidatesThatDisagreeThroughTheGroupDoNotJoin) {
+  // R3 1 m off along the block's south side in the second candidate: each one's maps taken as
+  // agreeing (no conflict bar), the group's joint estimate refuses the pair.
+  const std::vector<EncounterCandidate> disagree = {Candidate(0, 38, 15),
+                                                    Candidate(1, 10, 35, Pose2(1.0, 0.0, 0.0))};
+  EXPECT_TRUE(Offer(disagree, /*verify_max_conflict=*/1.0).empty());
+  // Both at R3's one place (R3[15] and R3[17], 1 m apart) are one piece of evidence.
+  EXPECT_TRUE(Offer({Candidate(0, 38, 15), Candidate(1, 10, 17)}, 1.0).empty());
+}
+
 // The wide near search's acceptance on hand-made matches between the parallel tracks, joined
 // by R1 seeing R2 at their start: R2[j] seen from R1[i] is known to about 0.1 m at keyframe 20.
 class WideNearTest : public ::testing::Test {

@@ -62,8 +62,9 @@ namespace anchormap {
 // (its skip test); older ones read as none (the bound they hold stands for them). Version 9
 // adds the sources' matching budgets (loop closures, near searches: tokens, each
 // trajectory's drive and skips at its last served keyframe); older ones read as none (the
-// restored sources keep fresh budgets).
-inline constexpr uint32_t kSnapshotVersion = 9;
+// restored sources keep fresh budgets). Version 10 adds a scan encounter's kept candidate's
+// own maps' conflict (what guides a global search); older ones read as not measured.
+inline constexpr uint32_t kSnapshotVersion = 10;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

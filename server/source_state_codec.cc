@@ -342,6 +342,10 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
       w->I32(k.support);
       w->Bool(k.localised);
       if (snapshot_version >= 7) w->Bool(k.verified);  // before version 7 none was verified
+      if (snapshot_version >= 10) {                    // before version 10 none was measured
+        w->F64(k.conflict);
+        w->I64(k.conflict_points);
+      }
     }
   }
   PutMap(w, s.qualified_since);
@@ -434,6 +438,10 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
       k.support = r->I32();
       k.localised = r->Bool();
       k.verified = snapshot_version >= 7 && r->Bool();  // before version 7 none was verified
+      if (snapshot_version >= 10) {                     // before version 10 none was measured
+        k.conflict = r->F64();
+        k.conflict_points = r->I64();
+      }
     }
   }
   GetMap(r, &s->qualified_since);

@@ -244,5 +244,36 @@ TEST(SourceStateCodecTest, MatchBudgetsAreKeptFromVersionNine) {
   EXPECT_TRUE(complete);
 }
 
+// A kept candidate's own maps' conflict (version 10: what guides a global search) is kept to
+// the bit; a version-9 state reads as not measured (it guides nothing), and reading it as
+// version 10 fails.
+TEST(SourceStateCodecTest, KeptCandidatesConflictsAreKeptFromVersionTen) {
+  ScanEncounterState state = StateWithAWideNearMatch();
+  ScanEncounterState::Kept kept;
+  kept.candidate.a = PoseKey{TrajectoryId(1), 65};
+  kept.candidate.b = PoseKey{TrajectoryId(2), 125};
+  kept.verified = true;
+  kept.conflict = 0.0129;
+  kept.conflict_points = 2791;
+  state.kept[{TrajectoryId(1), TrajectoryId(2)}].push_back(kept);
+  bool complete = false;
+  const ScanEncounterState out =
+      DecodeScan(Encode(state, kSnapshotVersion), kSnapshotVersion, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(out.kept.size(), 1u);
+  ASSERT_EQ(out.kept.begin()->second.size(), 1u);
+  EXPECT_EQ(out.kept.begin()->second.front().conflict, 0.0129);
+  EXPECT_EQ(out.kept.begin()->second.front().conflict_points, 2791);
+  const std::vector<uint8_t> version9 = Encode(state, 9);
+  const ScanEncounterState old = DecodeScan(version9, 9, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(old.kept.size(), 1u);
+  EXPECT_TRUE(old.kept.begin()->second.front().verified);
+  EXPECT_EQ(old.kept.begin()->second.front().conflict, 1.0);
+  EXPECT_EQ(old.kept.begin()->second.front().conflict_points, 0);
+  DecodeScan(version9, kSnapshotVersion, &complete);
+  EXPECT_FALSE(complete);
+}
+
 }  // namespace
 }  // namespace anchormap
