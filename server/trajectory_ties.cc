@@ -10,8 +10,16 @@ namespace anchormap {
 
 void TrajectoryTies::Add(PoseKey a, PoseKey b) {
   if (a.trajectory == b.trajectory) return;
-  ends_[a.trajectory][a.index].push_back(b);
-  ends_[b.trajectory][b.index].push_back(a);
+  for (const auto& [end, partner] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+    Tied& tied = ends_[end.trajectory.value()];
+    const auto at = std::lower_bound(tied.indices.begin(), tied.indices.end(), end.index);
+    const auto position = at - tied.indices.begin();
+    if (at == tied.indices.end() || *at != end.index) {
+      tied.indices.insert(at, end.index);
+      tied.partners.insert(tied.partners.begin() + position, std::vector<PoseKey>());
+    }
+    tied.partners[static_cast<size_t>(position)].push_back(partner);
+  }
   ++size_;
   const TrajectoryId root = std::min(Root(a.trajectory), Root(b.trajectory));
   // Both ends' trajectories and their old roots point at the joint root (keeps chains short).
@@ -61,29 +69,29 @@ std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
     if ((best && distance >= *best) || distance > limit) break;
     if (!settled.insert(id(node)).second) continue;
     const PoseKey key{TrajectoryId(node.first), node.second};
-    const auto trajectory = ends_.find(key.trajectory);
+    const auto trajectory = ends_.find(node.first);
     const double driven_key = driven(key);
     if (key.trajectory == to.trajectory) {
       const double total = distance + std::abs(driven_key - driven_to);
       if (!best || total < *best) best = total;
     }
     if (trajectory == ends_.end()) continue;
-    const std::map<int32_t, std::vector<PoseKey>>& tied = trajectory->second;
-    // Its neighbours by index among the trajectory's tied keyframes.
-    const auto above = tied.upper_bound(key.index);
-    if (above != tied.end()) {
-      const PoseKey next{key.trajectory, above->first};
+    const std::vector<int32_t>& indices = trajectory->second.indices;
+    // Its neighbours by index among the trajectory's tied keyframes (the one above first).
+    const auto at = std::lower_bound(indices.begin(), indices.end(), key.index);
+    const bool tied_here = at != indices.end() && *at == key.index;
+    const auto above = tied_here ? at + 1 : at;
+    if (above != indices.end()) {
+      const PoseKey next{key.trajectory, *above};
       push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
     }
-    auto below = tied.lower_bound(key.index);
-    if (below != tied.begin()) {
-      --below;
-      const PoseKey next{key.trajectory, below->first};
+    if (at != indices.begin()) {
+      const PoseKey next{key.trajectory, *(at - 1)};
       push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
     }
-    const auto here = tied.find(key.index);
-    if (here == tied.end()) continue;
-    for (const PoseKey& other : here->second) {
+    if (!tied_here) continue;
+    for (const PoseKey& other :
+         trajectory->second.partners[static_cast<size_t>(at - indices.begin())]) {
       push(distance, {other.trajectory.value(), other.index});
     }
   }

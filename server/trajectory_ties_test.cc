@@ -73,5 +73,23 @@ TEST(TrajectoryTiesTest, ConnectedFollowsChainsOfTies) {
   EXPECT_FALSE(ties.Connected(kA, kB));
 }
 
+TEST(TrajectoryTiesTest, TiesAddedInAnyIndexOrderAreSearchedByIndex) {
+  TrajectoryTies ties;
+  // A's tied keyframes arrive out of index order, one of them tied twice.
+  ties.Add({kA, 60}, {kB, 10});
+  ties.Add({kA, 20}, {kC, 70});
+  ties.Add({kA, 40}, {kB, 90});
+  ties.Add({kA, 20}, {kB, 45});
+  // B[47] to A[22]: 2 m back along B to B[45], its tie to A[20], then 2 m: 4.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kB, 47}, {kA, 22}, OneMetreEach), 4.0);
+  // C[75] to B[12]: C[70] (5), A[20] -> A[60] (40), B[10] (2) = 47; or A[20]'s other
+  // partner B[45] (33 back along B): 5 + 33 = 38.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kC, 75}, {kB, 12}, OneMetreEach), 38.0);
+  // A[50] lies between A's tied 40 and 60: B[88] is 10 + 2 away, B[12] 10 + 2.
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 50}, {kB, 88}, OneMetreEach), 12.0);
+  EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 50}, {kB, 12}, OneMetreEach), 12.0);
+  EXPECT_EQ(ties.size(), 4);
+}
+
 }  // namespace
 }  // namespace anchormap

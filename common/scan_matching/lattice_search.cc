@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -425,10 +426,10 @@ class BranchAndBoundSearch {
 
   void Descend(int depth) {
     std::vector<Node>& nodes = nodes_[depth];
-    SortByBound(nodes.data(), nodes.size());
-    for (size_t i = 0; i < nodes.size(); ++i) {
-      const Node node = nodes[i];
-      if (!Promising(node.bound)) break;  // sorted: no later node can do better
+    BestFirst order(&nodes);
+    for (std::optional<Node> next = order.Next(); next; next = order.Next()) {
+      const Node node = *next;
+      if (!Promising(node.bound)) break;  // best first: no later node can do better
       if (node.g == 0 && node.b == 0) {
         if (node.bound > best_score_ || Precedes(node.k, node.dx, node.dy, *best_)) {
           best_score_ = node.bound;
@@ -466,21 +467,43 @@ class BranchAndBoundSearch {
     }
   }
 
-  // Best bound first, equal bounds in their given order (an insertion sort for the few children
-  // of a node, without std::stable_sort's buffer).
-  static void SortByBound(Node* nodes, size_t count) {
-    if (count > 16) {
-      std::stable_sort(nodes, nodes + count,
-                       [](const Node& a, const Node& b) { return a.bound > b.bound; });
-      return;
+  // The nodes of one depth, best bound first, equal bounds in their given order (their slot:
+  // BoundAll numbers them so). Many nodes (the roots: every translation block and heading
+  // group of the window) go into a heap and come out one at a time, since the descent
+  // usually stops long before the last: sorting them all was a third of a wide loop search's
+  // time once the windows reached their cap. A few (a node's children) are insertion-sorted,
+  // without a heap's or std::stable_sort's overhead.
+  class BestFirst {
+   public:
+    explicit BestFirst(std::vector<Node>* nodes) : nodes_(*nodes), left_(nodes->size()) {
+      heap_ = left_ > 16;
+      if (heap_) {
+        std::make_heap(nodes_.begin(), nodes_.end(), Later);
+        return;
+      }
+      for (size_t i = 1; i < left_; ++i) {
+        const Node node = nodes_[i];
+        size_t j = i;
+        for (; j > 0 && node.bound > nodes_[j - 1].bound; --j) nodes_[j] = nodes_[j - 1];
+        nodes_[j] = node;
+      }
     }
-    for (size_t i = 1; i < count; ++i) {
-      const Node node = nodes[i];
-      size_t j = i;
-      for (; j > 0 && node.bound > nodes[j - 1].bound; --j) nodes[j] = nodes[j - 1];
-      nodes[j] = node;
+    std::optional<Node> Next() {
+      if (left_ == 0) return std::nullopt;
+      if (!heap_) return nodes_[nodes_.size() - left_--];
+      std::pop_heap(nodes_.begin(), nodes_.begin() + static_cast<std::ptrdiff_t>(left_), Later);
+      return nodes_[--left_];
     }
-  }
+
+   private:
+    // Whether a comes after b: a lower bound, or an equal one given later.
+    static bool Later(const Node& a, const Node& b) {
+      return a.bound < b.bound || (a.bound == b.bound && a.slot > b.slot);
+    }
+    std::vector<Node>& nodes_;
+    size_t left_;
+    bool heap_ = false;
+  };
 
   const MaxGridPyramid& grids_;
   const DiscretisedQuery& query_;
