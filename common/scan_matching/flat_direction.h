@@ -32,8 +32,8 @@ struct FlatDirectionOptions {
   // Flat: shifted by reach_m both ways, the score keeps at least this fraction of its value
   // at the pose (so fewer than about 1 - ratio of the points constrain the direction). A plain
   // simulated corridor keeps 0.99, rooms 0.4-0.7; ACES's corridors 0.9-1, FR079 never 0.9.
-  // At 0.9 ACES split in three lost a join (docs/ARCHITECTURE.md, "Scan matching").
-  double min_score_ratio = 0.95;
+  // Neither 0.9 nor 0.95 keeps every ACES split joined (docs/ARCHITECTURE.md, "Scan matching").
+  double min_score_ratio = 0.9;
   // Directions tried over half a turn, then around the best one at half, a quarter and an
   // eighth of the step (10, 5, 2.5, 1.25 degrees: off a corridor's axis by a, a shift of
   // reach_m moves the points reach_m * sin(a) across its walls).

@@ -210,9 +210,8 @@ TEST(LocalMapMatcherTest, ATrueSnapOfOneMapSpacingIsAccepted) {
 // repeat that scan's beam pattern best where it was taken; ACES: 4.7 m of odometry in 8 s
 // matched as 0.7 m) until the held-back rule restarts the map, and on ACES's real corridors the
 // optimum slides to the window's edge, flipping sign from scan to scan. Odometry here is 5 %
-// long and drifts sideways by 5 mm per 0.1 m step. The laser sees all round: looking ahead
-// only, the first scans' score keeps 0.946 of itself shifted (not flat at the default 0.95),
-// and the match holds the robot back as without the rule.
+// long and drifts sideways by 5 mm per 0.1 m step. The laser sees all round (looking ahead
+// only, the first scans' score keeps 0.946 of itself shifted: flat at 0.9, not at 0.95).
 TEST(LocalMapMatcherTest, InAFeaturelessCorridorThePoseFollowsOdometryAlongTheAxis) {
   SyntheticWorld corridor;
   corridor.walls = {{{-100.0, 0.0}, {100.0, 0.0}}, {{-100.0, 2.4}, {100.0, 2.4}}};
