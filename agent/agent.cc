@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 namespace anchormap {
 
 Agent::Agent(const AgentOptions& options)
@@ -78,7 +80,10 @@ void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* o
     return keyframer_.ShouldMake(pose, utime);
   });
   if (!keyframer_.ShouldMake(refined.pose, scan.utime)) {
-    if (refined.entered_map && refined.matched) map_growth_covariance_ += refined.covariance;
+    if (refined.entered_map && refined.matched) {
+      map_growth_covariance_ += refined.covariance;
+      map_growth_flat_ = map_growth_flat_ || refined.flat;
+    }
     return;
   }
   if (keyframer_.IsForcedAt(scan.utime)) ++stats_.forced_keyframes;
@@ -102,6 +107,7 @@ void Agent::ProcessScan(LaserScan scan, const Pose2& T_odom_body, AgentOutput* o
   keyframe.scan = std::move(scan);
   last_keyframe_ = refined;
   map_growth_covariance_.setZero();
+  map_growth_flat_ = false;
   ++stats_.keyframes;
   out->keyframes.push_back(std::move(keyframe));
 }
@@ -112,8 +118,16 @@ Eigen::Matrix3d Agent::ConstraintCovariance(const RefinedPose& previous, const R
     ++stats_.matched_constraints;
     // Both matched against the map, which meanwhile grew by scans with errors of their own:
     // those add to the current pose's error relative to the previous one.
-    return RelativePoseCovariance(previous.pose, previous.covariance, current.pose,
-                                  current.covariance + map_growth_covariance_);
+    const Eigen::Matrix3d matched =
+        RelativePoseCovariance(previous.pose, previous.covariance, current.pose,
+                               current.covariance + map_growth_covariance_);
+    if (!(previous.flat || current.flat || map_growth_flat_)) return matched;
+    // Along a flat direction the poses followed odometry, and the matches' covariances say
+    // they know nothing there: the constraint is the matches' and the wheels' information.
+    ++stats_.flat_constraints;
+    const Eigen::Matrix3d fused =
+        (matched.inverse() + options_.noise.Covariance(T_previous_this).inverse()).inverse();
+    return 0.5 * (fused + fused.transpose());
   }
   ++stats_.odometry_constraints;
   return options_.noise.Covariance(T_previous_this);

@@ -49,6 +49,8 @@ struct AgentStats {
   // or the previous keyframe not in the same local map).
   int64_t matched_constraints = 0;
   int64_t odometry_constraints = 0;
+  // Of the matched ones, those fused with odometry along a flat direction (a corridor).
+  int64_t flat_constraints = 0;
 };
 
 class Agent {
@@ -98,6 +100,7 @@ class Agent {
   // The covariances (local frame) of the scans that entered the local map since the last
   // keyframe: each moved the map the next scans match against, by its own error.
   Eigen::Matrix3d map_growth_covariance_ = Eigen::Matrix3d::Zero();
+  bool map_growth_flat_ = false;  // one of them followed odometry along a flat direction
   AgentStats stats_;
 };
 

@@ -53,6 +53,8 @@ RefinedPose ScanRefiner::Refine(const LaserScan& scan, const Pose2& T_odom_body,
   if (update.matched) {
     refined.in_map = true;
     refined.covariance = update.match->covariance;
+    refined.flat = update.flat.has_value();
+    if (refined.flat) ++stats_.flat;
     ++stats_.matched;
   } else {
     ++stats_.fallbacks;

@@ -39,6 +39,9 @@ struct RefinedPose {
   // Of `pose` in the local map's frame when in_map: the matcher's (from its score
   // distribution), zero for the scan that started the map (it defines the frame).
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  // The match's score was flat along a direction (a corridor's axis): `pose` follows odometry
+  // along it, and `covariance` has the match's reach along it (LocalMapUpdate::flat).
+  bool flat = false;
   // Counts the local map's starts: two in_map poses of the same generation are known in one
   // continuous map, so their relative pose comes from the matcher too.
   int64_t map_generation = 0;
@@ -50,6 +53,7 @@ struct ScanRefinementStats {
   int64_t fallbacks = 0;  // odometry used: no match, a rejected match, or too few points
   int64_t too_few_points = 0;
   int64_t map_starts = 0;       // the first scan with points, then every reset
+  int64_t flat = 0;             // matched, following odometry along a flat direction
   double cpu_s = 0.0;           // thread CPU time spent refining, total
   double max_scan_cpu_s = 0.0;  // the most one scan took
   double mean_scan_cpu_s() const { return scans > 0 ? cpu_s / static_cast<double>(scans) : 0.0; }

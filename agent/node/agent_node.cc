@@ -177,8 +177,9 @@ std::string AgentNode::ScanMatchingStatus() const {
   const AgentStats& s = agent_.stats();
   return "scan matching: matched " + std::to_string(r.matched) + "/" + std::to_string(r.scans) +
          " odometry " + std::to_string(r.fallbacks) + " map starts " +
-         std::to_string(r.map_starts) + cpu + " constraints matched " +
-         std::to_string(s.matched_constraints) + " odometry " +
+         std::to_string(r.map_starts) + " flat " + std::to_string(r.flat) + cpu +
+         " constraints matched " + std::to_string(s.matched_constraints) + " (flat " +
+         std::to_string(s.flat_constraints) + ") odometry " +
          std::to_string(s.odometry_constraints);
 }
 

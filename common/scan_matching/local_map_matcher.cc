@@ -20,6 +20,7 @@ Status LocalMapMatcherOptions::Validate() const {
   if (!(held_back_min_odometry_m > 0.0))
     return Status::Error("held_back_min_odometry_m must be > 0");
   if (Status valid = reference.Validate(); !valid.ok()) return valid;
+  if (Status valid = flat_direction.Validate(); !valid.ok()) return valid;
   return match.Validate();
 }
 
@@ -75,6 +76,7 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   LocalMatchOptions search = options_.match;
   if (needs_covariance) search.match.covariance = false;
   update.match = MatchLocal(*reference_, near, update.predicted, search);
+  bool has_covariance = search.match.covariance;
   if (!update.match) {
     ++stats_.no_match;
   } else if (update.match->score >= options_.min_score &&
@@ -82,6 +84,20 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     update.matched = true;
     update.pose = update.match->pose;
     ++stats_.matched;
+    if (options_.follow_odometry_along_flat_direction) {
+      update.flat =
+          FindFlatDirection(*reference_, near, update.match->pose, options_.flat_direction);
+    }
+    if (update.flat) {
+      // Where on the ridge the optimum fell is noise (often the window's edge): odometry from
+      // the last scan knows the position along it better.
+      const Eigen::Vector2d& axis = update.flat->axis;
+      const Eigen::Vector2d t =
+          update.pose.translation() +
+          axis * axis.dot(update.predicted.translation() - update.pose.translation());
+      update.pose = Pose2(t.x(), t.y(), update.pose.theta());
+      ++stats_.flat;
+    }
   } else {
     ++stats_.rejected;
   }
@@ -94,6 +110,8 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     --stats_.matched;
     ++stats_.held_back;
     held_back = true;
+    if (update.flat) --stats_.flat;
+    update.flat.reset();
   }
   last_pose_ = update.pose;
   const Pose2 since = Between(keyframes_.back().pose, update.pose);
@@ -108,6 +126,14 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
     update.match = FinishMatch(*reference_, near, update.match->window, update.match->lattice,
                                options_.match.match);
     update.match->search = stats;
+    has_covariance = true;
+  }
+  if (update.matched && update.flat && has_covariance) {
+    // The match claims the refinement's millimetres along the ridge (far lone returns fit
+    // point to point); the score says the window's reach.
+    const Eigen::Vector2d& axis = update.flat->axis;
+    const double reach = options_.flat_direction.reach_m;
+    update.match->covariance.topLeftCorner<2, 2>() += reach * reach * axis * axis.transpose();
   }
   if (update.matched && moved) {
     AddKeyframe(near, update.pose, T_odom_body);

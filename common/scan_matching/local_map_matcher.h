@@ -20,6 +20,7 @@
 
 #include "common/geometry/pose2.h"
 #include "common/scan_matching/correlative_matcher.h"
+#include "common/scan_matching/flat_direction.h"
 #include "common/scan_matching/point_cloud.h"
 #include "common/scan_matching/scan_reference.h"
 #include "common/util/status.h"
@@ -41,6 +42,12 @@ struct LocalMapMatcherOptions {
   double held_back_min_odometry_m = 1.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 4};  // 4 levels: blocks of 8 cells
   LocalMatchOptions match;                             // the window around the prediction
+  // Along a direction where a good match's score stays flat over the window's reach (a
+  // featureless corridor: FindFlatDirection), the match does not know where the robot is: the
+  // pose keeps the prediction's (odometry's) position along it, and the covariance gets the
+  // reach's spread along it. Off (`follow_odometry_along_flat_direction` false): the match's.
+  bool follow_odometry_along_flat_direction = true;
+  FlatDirectionOptions flat_direction;  // reach_m: the search window's half-width
 
   Status Validate() const;
 };
@@ -51,6 +58,9 @@ struct LocalMapUpdate {
   bool matched = false;
   bool keyframe = false;             // the scan entered the local map
   std::optional<MatchResult> match;  // the match, also when rejected
+  // A matched pose along whose `axis` the match's score was flat: `pose` kept the prediction's
+  // position along it, and the match's covariance has the reach's spread along it added.
+  std::optional<FlatDirection> flat;
 };
 
 struct LocalMapStats {
@@ -61,6 +71,7 @@ struct LocalMapStats {
   int64_t keyframes = 0;
   int64_t resets = 0;     // unmatched scans far from the map restarted it
   int64_t held_back = 0;  // good matches refused as held back (each also restarts the map)
+  int64_t flat = 0;       // good matches that followed odometry along a flat direction
 };
 
 class LocalMapMatcher {

@@ -1,0 +1,98 @@
+#include "common/scan_matching/flat_direction.h"
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/angle.h"
+#include "common/scan_matching/scan_reference.h"
+#include "tests/scan_testing/synthetic_world.h"
+
+namespace anchormap {
+namespace {
+
+using testing::RandomFreePose;
+using testing::RandomRoom;
+using testing::SimulateScan;
+using testing::SyntheticLaser;
+using testing::SyntheticWorld;
+
+SyntheticLaser HalfCircleLaser(double max_range_m) {
+  SyntheticLaser laser;
+  laser.beams = 181;
+  laser.fov_rad = kPi;
+  laser.max_range_m = max_range_m;
+  laser.range_sigma_m = 0.01;
+  return laser;
+}
+
+ScanReferenceOptions LocalReferenceOptions() {
+  ScanReferenceOptions options;
+  options.num_levels = 4;
+  return options;
+}
+
+// The axis's angle from the x axis, folded into [0, pi).
+double AxisAngle(const Eigen::Vector2d& axis) {
+  const double a = std::atan2(axis.y(), axis.x());
+  return a < 0.0 ? a + kPi : a;
+}
+
+TEST(FlatDirectionTest, FindsACorridorsAxis) {
+  // A plain corridor 2.4 m wide running at 0.3 rad, longer than the laser's 8 m reach: a shift
+  // along it leaves every point on its wall. Query and reference are scans 0.5 m apart, the
+  // query at its true pose in the reference's frame.
+  for (const double axis_angle : {0.3, 1.9}) {
+    const Eigen::Vector2d u(std::cos(axis_angle), std::sin(axis_angle));
+    const Eigen::Vector2d n(-u.y(), u.x());
+    SyntheticWorld corridor;
+    corridor.walls = {{-60.0 * u, 60.0 * u}, {-60.0 * u + 2.4 * n, 60.0 * u + 2.4 * n}};
+    corridor.min_corner = -60.0 * u.cwiseAbs() - 2.4 * n.cwiseAbs();
+    corridor.max_corner = 60.0 * u.cwiseAbs() + 2.4 * n.cwiseAbs();
+    std::mt19937_64 rng(31);
+    const Eigen::Vector2d pa = 1.1 * n;
+    const Eigen::Vector2d pb = 0.5 * u + 1.3 * n;
+    const Pose2 a(pa.x(), pa.y(), axis_angle + 0.1);
+    const Pose2 b(pb.x(), pb.y(), axis_angle - 0.05);
+    const SyntheticLaser laser = HalfCircleLaser(8.0);
+    const ScanReference reference({ScanToPointCloud(SimulateScan(corridor, laser, a, &rng))},
+                                  LocalReferenceOptions());
+    const PointCloud query = ScanToPointCloud(SimulateScan(corridor, laser, b, &rng));
+    const auto flat = FindFlatDirection(reference, query, Between(a, b), FlatDirectionOptions{});
+    ASSERT_TRUE(flat.has_value());
+    // In a's frame the corridor runs at -0.1 rad.
+    const double error = std::abs(WrapAngle(2.0 * (AxisAngle(flat->axis) + 0.1))) / 2.0;
+    std::printf("corridor at %.1f rad: axis off by %.2f deg, score ratio %.3f\n", axis_angle,
+                error * 180.0 / kPi, flat->score_ratio);
+    EXPECT_LT(error, 2.0 * kPi / 180.0);
+    EXPECT_GT(flat->score_ratio, 0.95);
+  }
+}
+
+TEST(FlatDirectionTest, RoomsHaveNone) {
+  // In a room every direction moves points off walls within a few centimetres.
+  int rooms = 0;
+  for (uint64_t seed = 0; seed < 6; ++seed) {
+    std::mt19937_64 rng(40 + seed);
+    const SyntheticWorld room = RandomRoom(40 + seed);
+    const Pose2 a = RandomFreePose(room, 0.8, &rng);
+    const Pose2 b = Compose(a, Pose2(0.2, -0.1, 0.05));
+    const SyntheticLaser laser = HalfCircleLaser(30.0);
+    const ScanReference reference({ScanToPointCloud(SimulateScan(room, laser, a, &rng))},
+                                  LocalReferenceOptions());
+    const PointCloud query = ScanToPointCloud(SimulateScan(room, laser, b, &rng));
+    const Pose2 truth = Between(a, b);
+    const auto most = MostFlatDirection(reference, query, truth, FlatDirectionOptions{});
+    ASSERT_TRUE(most.has_value());
+    std::printf("room %d: most flat score ratio %.3f\n", static_cast<int>(seed), most->score_ratio);
+    EXPECT_LT(most->score_ratio, 0.8);
+    EXPECT_FALSE(FindFlatDirection(reference, query, truth, FlatDirectionOptions{}).has_value());
+    ++rooms;
+  }
+  EXPECT_EQ(rooms, 6);
+}
+
+}  // namespace
+}  // namespace anchormap
