@@ -21,6 +21,12 @@ Status LocalMapMatcherOptions::Validate() const {
     return Status::Error("held_back_min_odometry_m must be > 0");
   if (Status valid = reference.Validate(); !valid.ok()) return valid;
   if (Status valid = flat_direction.Validate(); !valid.ok()) return valid;
+  // The flat test shifts by the reach the window could have slid, and the covariance gets
+  // that reach along the axis: a different window with the old reach would claim too little
+  // or too much.
+  if (flat_direction.reach_m != match.linear_window_m) {
+    return Status::Error("flat_direction.reach_m must equal match.linear_window_m");
+  }
   return match.Validate();
 }
 

@@ -273,5 +273,16 @@ TEST(LocalMapMatcherTest, InAFeaturelessCorridorThePoseFollowsOdometryAlongTheAx
   }
 }
 
+// The flat test's reach is the window's half-width (the covariance gets it along the axis):
+// options that change one without the other are refused.
+TEST(LocalMapMatcherTest, TheFlatReachMustBeTheWindowsHalfWidth) {
+  LocalMapMatcherOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.match.linear_window_m = 0.6;
+  EXPECT_FALSE(options.Validate().ok());
+  options.flat_direction.reach_m = 0.6;
+  EXPECT_TRUE(options.Validate().ok());
+}
+
 }  // namespace
 }  // namespace anchormap
