@@ -42,6 +42,13 @@ std::unordered_set<int64_t> Cells(const PointCloud& points, double cell_m) {
   return cells;
 }
 
+// Two keyframes' points placed in one frame: the larger share of either near the other's.
+double PlacedOverlap(const PointCloud& points_i, const PointCloud& points_j, double distance_m) {
+  if (points_i.empty() || points_j.empty()) return 0.0;
+  return std::max(ShareNear(points_i, Cells(points_j, distance_m), distance_m),
+                  ShareNear(points_j, Cells(points_i, distance_m), distance_m));
+}
+
 }  // namespace
 
 double KeyframeOverlap(const TrajectoryRecord& record, const Smoother& smoother, int i, int j,
@@ -56,9 +63,7 @@ double KeyframeOverlap(const TrajectoryRecord& record, const Smoother& smoother,
       TransformPointCloud(KeyframePoints(record, i, max_range_m), smoother.FramePose(key_i));
   const PointCloud points_j =
       TransformPointCloud(KeyframePoints(record, j, max_range_m), smoother.FramePose(key_j));
-  if (points_i.empty() || points_j.empty()) return 0.0;
-  return std::max(ShareNear(points_i, Cells(points_j, distance_m), distance_m),
-                  ShareNear(points_j, Cells(points_i, distance_m), distance_m));
+  return PlacedOverlap(points_i, points_j, distance_m);
 }
 
 double KeyframeOverlap(const TrajectoryRecord& record_i, int i, const TrajectoryRecord& record_j,
@@ -74,9 +79,7 @@ double KeyframeOverlap(const TrajectoryRecord& record_i, int i, const Trajectory
       TransformPointCloud(KeyframePoints(record_i, i, max_range_m), smoother.GlobalPose(key_i));
   const PointCloud points_j =
       TransformPointCloud(KeyframePoints(record_j, j, max_range_m), smoother.GlobalPose(key_j));
-  if (points_i.empty() || points_j.empty()) return 0.0;
-  return std::max(ShareNear(points_i, Cells(points_j, distance_m), distance_m),
-                  ShareNear(points_j, Cells(points_i, distance_m), distance_m));
+  return PlacedOverlap(points_i, points_j, distance_m);
 }
 
 }  // namespace anchormap

@@ -812,50 +812,42 @@ bool ScanEncounters::MapsAgree(const JoinConflict& conflict) const {
 
 bool ScanEncounters::ApartAndSeeingOtherWalls(PoseKey k1, PoseKey k2,
                                               const GraphView& graph) const {
+  return std::abs(k1.index - k2.index) >= 2 * options_.submap_half_width + 1 &&
+         Apart(k1, k2, graph) && SharedView(k1, k2, graph) < options_.pcm_max_shared_view;
+}
+
+bool ScanEncounters::Apart(PoseKey x, PoseKey y, const GraphView& graph) const {
   const Smoother& smoother = graph.smoother;
-  if (std::abs(k1.index - k2.index) < 2 * options_.submap_half_width + 1 ||
-      std::abs(k1.index - k2.index) < options_.pcm_min_separation || !smoother.HasPose(k1) ||
-      !smoother.HasPose(k2) ||
-      (smoother.FramePose(k1).translation() - smoother.FramePose(k2).translation()).norm() <
-          options_.pcm_min_separation_m) {
-    return false;
+  if (!smoother.HasPose(x) || !smoother.HasPose(y)) return false;
+  // Straight-line distance in the estimate, not the path: driving back and forth, or
+  // turning on the spot, does not make another place.
+  if (x.trajectory == y.trajectory) {
+    return std::abs(x.index - y.index) >= options_.pcm_min_separation &&
+           (smoother.FramePose(x).translation() - smoother.FramePose(y).translation()).norm() >=
+               options_.pcm_min_separation_m;
   }
-  const TrajectoryRecord* record = graph.table.FindBySolverId(k1.trajectory);
-  return record != nullptr &&
-         KeyframeOverlap(*record, smoother, k1.index, k2.index, options_.max_range_m,
-                         kSharedViewDistanceM) < options_.pcm_max_shared_view;
+  return (smoother.GlobalPose(x).translation() - smoother.GlobalPose(y).translation()).norm() >=
+         options_.pcm_min_separation_m;
+}
+
+double ScanEncounters::SharedView(PoseKey x, PoseKey y, const GraphView& graph) const {
+  const TrajectoryRecord* record_x = graph.table.FindBySolverId(x.trajectory);
+  const TrajectoryRecord* record_y = graph.table.FindBySolverId(y.trajectory);
+  if (record_x == nullptr || record_y == nullptr) return 1.0;
+  return x.trajectory == y.trajectory
+             ? KeyframeOverlap(*record_x, graph.smoother, x.index, y.index, options_.max_range_m,
+                               kSharedViewDistanceM)
+             : KeyframeOverlap(*record_x, x.index, *record_y, y.index, graph.smoother,
+                               options_.max_range_m, kSharedViewDistanceM);
 }
 
 bool ScanEncounters::TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
                                const GraphView& graph) const {
-  if (std::abs(c1.a.index - c2.a.index) < options_.pcm_min_separation ||
-      std::abs(c1.b.index - c2.b.index) < options_.pcm_min_separation) {
-    return false;
-  }
-  // Straight-line distance in the estimate, not the path: driving back and forth, or
-  // turning on the spot, does not make another place.
-  const Smoother& smoother = graph.smoother;
-  if (!smoother.HasPose(c1.a) || !smoother.HasPose(c2.a) || !smoother.HasPose(c1.b) ||
-      !smoother.HasPose(c2.b)) {
-    return false;
-  }
-  const auto distance = [&](PoseKey k1, PoseKey k2) {
-    return (smoother.FramePose(k1).translation() - smoother.FramePose(k2).translation()).norm();
-  };
-  if (distance(c1.a, c2.a) < options_.pcm_min_separation_m ||
-      distance(c1.b, c2.b) < options_.pcm_min_separation_m) {
-    return false;
-  }
   // A robot that turns round, or drives on along one corridor, keeps seeing the same walls:
   // what both trajectories see twice is one piece of evidence, however far apart.
-  const auto shared_view = [&](PoseKey k1, PoseKey k2) {
-    const TrajectoryRecord* record = graph.table.FindBySolverId(k1.trajectory);
-    return record == nullptr ? 0.0
-                             : KeyframeOverlap(*record, smoother, k1.index, k2.index,
-                                               options_.max_range_m, kSharedViewDistanceM);
-  };
-  return shared_view(c1.a, c2.a) < options_.pcm_max_shared_view ||
-         shared_view(c1.b, c2.b) < options_.pcm_max_shared_view;
+  return Apart(c1.a, c2.a, graph) && Apart(c1.b, c2.b, graph) &&
+         (SharedView(c1.a, c2.a, graph) < options_.pcm_max_shared_view ||
+          SharedView(c1.b, c2.b, graph) < options_.pcm_max_shared_view);
 }
 
 bool ScanEncounters::Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const {
@@ -900,32 +892,7 @@ bool ScanEncounters::IndependentAcross(const Kept& k1, const Kept& k2,
   if (SamePair(k1.candidate, k2.candidate)) return Independent(k1, k2, graph);
   // Only map-verified evidence: a pair of groups offers more ways for aliases to agree.
   if (!k1.localised || !k2.localised || !k1.verified || !k2.verified) return false;
-  const Smoother& smoother = graph.smoother;
-  const EncounterCandidate& c1 = k1.candidate;
-  const EncounterCandidate c2 = OrientedLike(k2.candidate, c1, smoother);
-  const auto apart = [&](PoseKey x, PoseKey y) {
-    if (!smoother.HasPose(x) || !smoother.HasPose(y)) return false;
-    if (x.trajectory == y.trajectory) {
-      return std::abs(x.index - y.index) >= options_.pcm_min_separation &&
-             (smoother.FramePose(x).translation() - smoother.FramePose(y).translation()).norm() >=
-                 options_.pcm_min_separation_m;
-    }
-    return (smoother.GlobalPose(x).translation() - smoother.GlobalPose(y).translation()).norm() >=
-           options_.pcm_min_separation_m;
-  };
-  if (!apart(c1.a, c2.a) || !apart(c1.b, c2.b)) return false;
-  const auto shared_view = [&](PoseKey x, PoseKey y) {
-    const TrajectoryRecord* record_x = graph.table.FindBySolverId(x.trajectory);
-    const TrajectoryRecord* record_y = graph.table.FindBySolverId(y.trajectory);
-    if (record_x == nullptr || record_y == nullptr) return 1.0;
-    return x.trajectory == y.trajectory
-               ? KeyframeOverlap(*record_x, smoother, x.index, y.index, options_.max_range_m,
-                                 kSharedViewDistanceM)
-               : KeyframeOverlap(*record_x, x.index, *record_y, y.index, smoother,
-                                 options_.max_range_m, kSharedViewDistanceM);
-  };
-  return shared_view(c1.a, c2.a) < options_.pcm_max_shared_view ||
-         shared_view(c1.b, c2.b) < options_.pcm_max_shared_view;
+  return TwoPlaces(k1.candidate, OrientedLike(k2.candidate, k1.candidate, graph.smoother), graph);
 }
 
 bool ScanEncounters::ConsistentAcross(const EncounterCandidate& c1, const EncounterCandidate& c2,

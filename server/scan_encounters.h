@@ -404,11 +404,19 @@ class ScanEncounters : public EncounterSource {
   JoinConflict OwnMapsConflict(const EncounterCandidate& candidate, const GraphView& graph) const;
   // Its own maps agree (verify_max_conflict, verify_min_points).
   bool MapsAgree(const JoinConflict& conflict) const;
-  // Two candidates of one pair at two places (pcm_min_separation[_m]) in both trajectories,
-  // seeing other walls in at least one (pcm_max_shared_view): only then can one confirm the
-  // other.
+  // Two candidates, oriented alike, at two places (Apart) of both sides, seeing other walls at
+  // one side at least (pcm_max_shared_view): only then can one confirm the other. A side is
+  // one trajectory for two candidates of one pair, or a group of two for two pairs between
+  // the same groups (IndependentAcross).
   bool TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
                  const GraphView& graph) const;
+  // Two keyframes of one group at two places: in one trajectory pcm_min_separation keyframes
+  // and pcm_min_separation_m apart in its frame; in two, pcm_min_separation_m apart in the
+  // group's frame (the places TwoPlaces and IndependentAcross compare).
+  bool Apart(PoseKey x, PoseKey y, const GraphView& graph) const;
+  // The share of their views the two keyframes have in common (KeyframeOverlap, in the
+  // trajectory's or the group's frame); 1 when a record is missing (no evidence of other walls).
+  double SharedView(PoseKey x, PoseKey y, const GraphView& graph) const;
 
   // Keyframes of one trajectory whose submaps share no keyframe, apart by TwoPlaces' bars and
   // seeing other walls (pcm_max_shared_view).
@@ -453,9 +461,8 @@ class ScanEncounters : public EncounterSource {
   // the other).
   bool Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const;
   // Across two pairs of trajectories between the same two groups (R1-R3 and R2-R3, R1 and R2
-  // joined): two places of the groups, both candidates map-verified and localised. Each side
-  // in one trajectory: its keyframes pcm_min_separation apart; each side: pcm_min_separation_m
-  // apart in the estimate; one side seeing other walls (pcm_max_shared_view), as TwoPlaces.
+  // joined): both candidates map-verified and localised, at two places of both groups
+  // (TwoPlaces).
   bool IndependentAcross(const Kept& k1, const Kept& k2, const GraphView& graph) const;
   // Pairwise consistency across two pairs (as above), each side's relative pose predicted by
   // its group's joint estimate, widened by the verify_drift_* terms for the turn between the two
