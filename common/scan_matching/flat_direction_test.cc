@@ -13,20 +13,12 @@
 namespace anchormap {
 namespace {
 
+using testing::HalfCircleLaser;
 using testing::RandomFreePose;
 using testing::RandomRoom;
 using testing::SimulateScan;
 using testing::SyntheticLaser;
 using testing::SyntheticWorld;
-
-SyntheticLaser HalfCircleLaser(double max_range_m) {
-  SyntheticLaser laser;
-  laser.beams = 181;
-  laser.fov_rad = kPi;
-  laser.max_range_m = max_range_m;
-  laser.range_sigma_m = 0.01;
-  return laser;
-}
 
 ScanReferenceOptions LocalReferenceOptions() {
   ScanReferenceOptions options;

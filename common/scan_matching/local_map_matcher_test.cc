@@ -12,19 +12,12 @@
 namespace anchormap {
 namespace {
 
+using testing::HalfCircleLaser;
 using testing::RandomFreePose;
 using testing::RandomRoom;
 using testing::SimulateScan;
 using testing::SyntheticLaser;
 using testing::SyntheticWorld;
-
-// 181 beams over half a circle, as the benchmark logs' SICK lasers.
-SyntheticLaser HalfCircleLaser() {
-  SyntheticLaser laser;
-  laser.beams = 181;
-  laser.fov_rad = 3.14159265358979323846;
-  return laser;
-}
 
 // A wandering path in free space: 0.1 m steps, turning away from walls.
 std::vector<Pose2> WanderingPath(const SyntheticWorld& world, int steps, std::mt19937_64* rng) {

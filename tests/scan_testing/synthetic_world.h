@@ -45,6 +45,15 @@ struct SyntheticLaser {
   Pose2 T_body_sensor;
 };
 
+// 181 beams over half a circle, as the benchmark logs' SICK lasers.
+inline SyntheticLaser HalfCircleLaser(double max_range_m = 30.0) {
+  SyntheticLaser laser;
+  laser.beams = 181;
+  laser.fov_rad = 3.14159265358979323846;
+  laser.max_range_m = max_range_m;
+  return laser;
+}
+
 // A scan from the robot body at T_world_body. Range noise is drawn from `rng`; beams without a
 // wall within range read max_range (no return).
 LaserScan SimulateScan(const SyntheticWorld& world, const SyntheticLaser& laser,
