@@ -344,8 +344,24 @@ std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const Graph
     const auto [it, inserted] = best.emplace(group_of(id), rank);
     if (!inserted && rank < it->second) it->second = rank;
   }
+  // A group's trajectory is, instead, the one a kept hypothesis guides the search to (the
+  // nearest guided submap, then the smaller id), when there is one: the trajectory searched
+  // least is far from the place the hypothesis puts the keyframe.
+  std::map<std::pair<bool, TrajectoryId>, std::pair<double, TrajectoryId>> guided;
+  for (const TrajectoryRecord& other : graph.table.records()) {
+    const TrajectoryId id = other.solver_id;
+    if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
+    double distance_m = 0.0;
+    if (GuidedSubmaps(key, id, graph, 1, &distance_m).empty()) continue;
+    const std::pair<double, TrajectoryId> rank{distance_m, id};
+    const auto [it, inserted] = guided.emplace(group_of(id), rank);
+    if (!inserted && rank < it->second) it->second = rank;
+  }
   std::vector<std::pair<int64_t, TrajectoryId>> ranked;
-  for (const auto& [group, rank] : best) ranked.push_back(rank);
+  for (const auto& [group, rank] : best) {
+    const auto it = guided.find(group);
+    ranked.push_back(it == guided.end() ? rank : std::make_pair(rank.first, it->second.second));
+  }
   std::sort(ranked.begin(), ranked.end());
   const size_t take = std::min(
       ranked.size(), static_cast<size_t>(std::max(0, options_.max_global_groups_per_keyframe)));
@@ -371,17 +387,27 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   size_t& cursor = global_cursor_[{key.trajectory, other}];
   const size_t tries =
       std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
-  // The first one guided by the best kept hypothesis, if any, instead of the next in turn: the
-  // same number of searches.
-  const std::optional<size_t> guided = GuidedSubmap(key, other, graph);
+  // The submaps nearest where the best kept hypothesis, if any, puts the keyframe, instead of
+  // the next ones in turn: the same number of searches.
+  const std::vector<size_t> guided = GuidedSubmaps(key, other, graph, tries);
   int submitted = 0;
   for (size_t t = 0; t < tries; ++t) {
     size_t index = 0;
-    if (t == 0 && guided) {
-      index = *guided;
+    if (t < guided.size()) {
+      index = guided[t];
     } else {
-      index = cursor % submaps.size();
-      ++cursor;
+      // The cursor counts the searches: modulo a list that grows it steps back by one for
+      // every round done, so a trajectory still driving is searched along one stretch for a
+      // while (ACES split in three simultaneously: R3 searched R1[85], [75] ... [25] while it
+      // passed R1[115]). Taking the submaps round by round joined R3 there, but also the
+      // aliased twin corridors of CandidatesFromOneSpotDoNotJoinAnAliasedPlace: kept.
+      index = cursor++ % submaps.size();
+      // Not a guided submap a second time: the next one in turn instead.
+      for (size_t skipped = 0; skipped + 1 < submaps.size() &&
+                               std::find(guided.begin(), guided.end(), index) != guided.end();
+           ++skipped) {
+        index = cursor++ % submaps.size();
+      }
     }
     Submap& submap = submaps[index];
     std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
@@ -395,47 +421,48 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   return submitted;
 }
 
-std::optional<size_t> ScanEncounters::GuidedByHypothesis(PoseKey key,
-                                                         const EncounterCandidate& hypothesis,
-                                                         const std::vector<Submap>& submaps,
-                                                         const GraphView& graph) const {
+std::vector<size_t> ScanEncounters::GuidedByHypothesis(PoseKey key,
+                                                       const EncounterCandidate& hypothesis,
+                                                       const std::vector<Submap>& submaps,
+                                                       const GraphView& graph, size_t most,
+                                                       double* nearest_m) const {
   const Smoother& smoother = graph.smoother;
   // Oriented with b in key's trajectory; key placed in the group's frame through it.
   const EncounterCandidate c =
       hypothesis.a.trajectory == key.trajectory ? Reversed(hypothesis) : hypothesis;
-  if (!smoother.HasPose(c.a) || !smoother.HasPose(c.b) || !smoother.HasPose(key)) {
-    return std::nullopt;
-  }
+  if (!smoother.HasPose(c.a) || !smoother.HasPose(c.b) || !smoother.HasPose(key)) return {};
   const Pose2 T_global_key =
       Compose(Compose(smoother.GlobalPose(c.a), c.T_a_b),
               Compose(smoother.FramePose(c.b).Inverse(), smoother.FramePose(key)));
-  std::optional<size_t> nearest;
-  double nearest_m = options_.guide_max_distance_m;
+  std::vector<std::pair<double, size_t>> near;
   for (size_t i = 0; i < submaps.size(); ++i) {
     const Submap& submap = submaps[i];
     if (submap.drawing.num_points == 0 || !smoother.HasPose(submap.center)) continue;
     const double d =
         (smoother.GlobalPose(submap.center).translation() - T_global_key.translation()).norm();
-    if (d < nearest_m) {
-      nearest_m = d;
-      nearest = i;
-    }
+    if (d < options_.guide_max_distance_m) near.emplace_back(d, i);
   }
+  std::sort(near.begin(), near.end());
+  if (near.size() > most) near.resize(most);
+  if (!near.empty() && nearest_m != nullptr) *nearest_m = near.front().first;
+  std::vector<size_t> nearest;
+  for (const auto& [d, i] : near) nearest.push_back(i);
   return nearest;
 }
 
-std::optional<size_t> ScanEncounters::GuidedSubmap(PoseKey key, TrajectoryId other,
-                                                   const GraphView& graph) const {
+std::vector<size_t> ScanEncounters::GuidedSubmaps(PoseKey key, TrajectoryId other,
+                                                  const GraphView& graph, size_t most,
+                                                  double* nearest_m) const {
   const Smoother& smoother = graph.smoother;
   const auto submaps = submaps_.find(other);
-  if (options_.guide_max_distance_m <= 0 || submaps == submaps_.end()) return std::nullopt;
+  if (options_.guide_max_distance_m <= 0 || submaps == submaps_.end() || most == 0) return {};
   // Only against a group of two trajectories or more: a single one is searched in turn, as
   // it always was (its first join needs two places of it, which the turn reaches).
   const std::deque<TrajectoryRecord>& records = graph.table.records();
   if (std::none_of(records.begin(), records.end(), [&](const TrajectoryRecord& r) {
         return r.solver_id != other && InOneFrame(smoother, r.solver_id, other);
       })) {
-    return std::nullopt;
+    return {};
   }
   // The kept candidate of key's trajectory against the target's group whose own maps agree
   // best (measured once, when it was offered).
@@ -452,8 +479,8 @@ std::optional<size_t> ScanEncounters::GuidedSubmap(PoseKey key, TrajectoryId oth
       if (best == nullptr || k.conflict < best->conflict) best = &k;
     }
   }
-  if (best == nullptr) return std::nullopt;
-  return GuidedByHypothesis(key, best->candidate, submaps->second, graph);
+  if (best == nullptr) return {};
+  return GuidedByHypothesis(key, best->candidate, submaps->second, graph, most, nearest_m);
 }
 
 std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, TrajectoryId other,

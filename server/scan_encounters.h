@@ -5,7 +5,8 @@
 // the estimates of the time). A keyframe is examined once the smoother has solved it:
 // - against a trajectory not in its anchored group (no prior): every global_every-th
 //   keyframe is searched globally (GlobalSearch, every heading, the submap's whole grid)
-//   in up to max_global_per_keyframe of the other's submaps, taken in turn, against at
+//   in up to max_global_per_keyframe of the other's submaps, taken in turn (or near where a
+//   kept hypothesis puts the keyframe: guide_*), against at
 //   most max_global_groups_per_keyframe other groups and within a team-wide budget per
 //   second of data (GlobalSearchQueue: the cost does not grow with the team). A match with
 //   enough score and overlap is a candidate, not yet a constraint: a first encounter
@@ -168,15 +169,18 @@ struct ScanEncounterOptions {
   // its estimate 0.015 rad off at sigma 0.005; the two true candidates there, plain chi-square
   // 37.2, 27.9 with the per-metre drift alone).
   double verify_drift_rad_per_rad = 0.01;
-  // Guided global search, once the target's group holds two trajectories or more: the first of
-  // a keyframe's max_global_per_keyframe submaps of the target is, instead of the next one in
-  // turn, the one nearest (within guide_max_distance_m) where the kept candidate of the
-  // querying trajectory against that group whose own maps agree best (verify_max_conflict, at
-  // least guide_min_points on the fewer side; measured once, when offered) puts the keyframe.
-  // The cost is the same. ACES split in three sequentially: from R2[65]-R3[115] (1910 points,
-  // no conflict) R3's guided searches found R2[65]-R3[125] and R1[115]-R3[230..245], which the
-  // submaps taken in turn missed, and R3 joined by them (cross-pair confirmation); but R3 finds
-  // that first candidate only when a search happens to take R2[65] there.
+  // Guided global search, once the target's group holds two trajectories or more: a keyframe's
+  // max_global_per_keyframe submaps of the group are, instead of the next ones in turn, those
+  // nearest (within guide_max_distance_m) where the kept candidate of the querying trajectory
+  // against that group whose own maps agree best (verify_max_conflict, at least
+  // guide_min_points on the fewer side; measured once, when offered) puts the keyframe, in the
+  // group's trajectory with the nearest one (not the one searched least); the next ones in turn
+  // if fewer are near. The cost is the same. ACES split in three sequentially: from
+  // R2[65]-R3[135] (0.02 m off, conflict 0.013, 3391 points) the first submap alone, in R1 and
+  // R2 by turns, found nothing R3 could join by (R3[235], [245], [255] searched R2 40 m away
+  // while R3 passed R1[115], and R3[240] took R1[125], a 180-degree alias, not R1[115]); taking
+  // the group's nearest trajectory and its two nearest submaps found R1[115]-R3[225] and
+  // R1[125]-R3[235] (0.01 and 0.14 m off), and R3 joined by them.
   int guide_min_points = 1000;
   double guide_max_distance_m = 8.0;
   FreeSpaceOptions free_space;
@@ -473,13 +477,15 @@ class ScanEncounters : public EncounterSource {
   // The pairs of trajectories, other than `pair`, between the same two groups as `pair` (their
   // kept candidates may confirm `pair`'s across the pairs).
   std::vector<Pair> PairsBetweenTheSameGroups(const Pair& pair, const GraphView& graph) const;
-  // The submap of `other` a global search of `key` is guided to (guide_*), if any.
-  std::optional<size_t> GuidedSubmap(PoseKey key, TrajectoryId other, const GraphView& graph) const;
-  // The submap of `submaps` nearest (guide_max_distance_m) where `hypothesis` (a candidate of
-  // key's trajectory against their group) puts key.
-  std::optional<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
-                                           const std::vector<Submap>& submaps,
-                                           const GraphView& graph) const;
+  // The submaps of `other` (at most `most`, nearest first) a global search of `key` is guided
+  // to (guide_*), if any; `nearest_m`: the first one's centre from where the hypothesis puts key.
+  std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, const GraphView& graph,
+                                    size_t most, double* nearest_m = nullptr) const;
+  // The submaps of `submaps` (at most `most`, nearest first) within guide_max_distance_m of
+  // where `hypothesis` (a candidate of key's trajectory against their group) puts key.
+  std::vector<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
+                                         const std::vector<Submap>& submaps, const GraphView& graph,
+                                         size_t most, double* nearest_m = nullptr) const;
   // The free-space test of the hypothesis of `set` (its first member the best supported).
   bool MapsContradict(const std::vector<Kept*>& set, const GraphView& graph) const;
   // First-join hypotheses refused by the free-space test. Not in snapshots (CandidateStats'

@@ -708,6 +708,55 @@ TEST_F(CrossPairFirstJoinTest, TwoCandidatesThatDisagreeThroughTheGroupDoNotJoin
   EXPECT_TRUE(Offer({Candidate(0, 38, 15), Candidate(1, 10, 17)}, 1.0).empty());
 }
 
+// The guided global search picks the group's trajectory too: R3 holds a map-verified hypothesis
+// against {R1, R2} (R2[10]-R3[35]); at keyframes where it puts R3 nearest a submap of R2, both
+// keyframes' searches go to R2, though the pair searched least (R1, then by id) would take the
+// first one. Without the hypothesis the two keyframes search R1 and R2 in turn.
+TEST_F(CrossPairFirstJoinTest, AGuidedSearchTakesTheGroupsTrajectoryNearestTheKeyframe) {
+  const ScanEncounterOptions defaults;
+  // Submap centres (keyframes 5, 15, ...) of R1 and R2, and R3's keyframes searched globally
+  // whose nearest centre is R2's, within the guide's reach and 1 m nearer than any of R1's.
+  const auto nearest_m = [&](size_t r, size_t j) {
+    double nearest = 1e9;
+    for (size_t c = 5; c + 5 < paths_[r].size(); c += 10) {
+      nearest = std::min(nearest, (paths_[r][c].translation() - paths_[2][j].translation()).norm());
+    }
+    return nearest;
+  };
+  std::vector<int32_t> near_r2;
+  for (size_t j = 40; j < paths_[2].size() && near_r2.size() < 2; j += 5) {
+    if (nearest_m(1, j) < defaults.guide_max_distance_m &&
+        nearest_m(1, j) + 1.0 < nearest_m(0, j)) {
+      near_r2.push_back(static_cast<int32_t>(j));
+    }
+  }
+  ASSERT_EQ(near_r2.size(), 2u);
+  const auto searches = [&](bool hypothesis) {
+    ScanEncounterOptions options;
+    options.first_join_hold_s = 1e6;  // the hypothesis stays kept
+    options.near_catch_up_every = 0;
+    options.max_global_per_keyframe = 1;  // one search per keyframe: the target shows
+    ScanEncounters source(options);
+    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
+    EncounterSourceOutput out;
+    source.Poll(100'000'000, graph, &out);
+    if (hypothesis) source.OfferCandidate(Candidate(1, 10, 35), graph, &out);
+    for (const int32_t j : near_r2) {
+      source.OnKeyframeAdded({TrajectoryId(2), j}, graph, &out);
+      source.Poll(100'000'000, graph, &out);
+    }
+    return std::make_pair(source.global_searches().PairSearches(TrajectoryId(2), TrajectoryId(0)),
+                          source.global_searches().PairSearches(TrajectoryId(2), TrajectoryId(1)));
+  };
+  std::printf(
+      "R3 keyframes %d and %d nearest R2's submaps (%.1f and %.1f m; R1's %.1f and %.1f m)\n",
+      near_r2[0], near_r2[1], nearest_m(1, static_cast<size_t>(near_r2[0])),
+      nearest_m(1, static_cast<size_t>(near_r2[1])), nearest_m(0, static_cast<size_t>(near_r2[0])),
+      nearest_m(0, static_cast<size_t>(near_r2[1])));
+  EXPECT_EQ(searches(/*hypothesis=*/true), std::make_pair(int64_t{0}, int64_t{2}));
+  EXPECT_EQ(searches(/*hypothesis=*/false), std::make_pair(int64_t{1}, int64_t{1}));
+}
+
 // The wide near search's acceptance on hand-made matches between the parallel tracks, joined
 // by R1 seeing R2 at their start: R2[j] seen from R1[i] is known to about 0.1 m at keyframe 20.
 class WideNearTest : public ::testing::Test {
