@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -13,6 +14,10 @@ namespace {
 
 // Fewer query points on walls than this say nothing about a direction.
 constexpr size_t kMinPointsOnWalls = 10;
+
+// Points summed between two looks at whether the rest can still lift a shifted score above the
+// best direction's so far (a power of two).
+constexpr size_t kPointsBetweenStops = 16;
 
 }  // namespace
 
@@ -50,18 +55,34 @@ std::vector<WallPoint> PointsOnWalls(const ReferenceField& field, const PointClo
 
 double ShiftedWallScore(const ReferenceField& field, const std::vector<WallPoint>& points,
                         const Eigen::Vector2d& shift, double sigma_m) {
+  return ShiftedWallScoreAbove(field, points, shift, sigma_m,
+                               -std::numeric_limits<double>::infinity());
+}
+
+double ShiftedWallScoreAbove(const ReferenceField& field, const std::vector<WallPoint>& points,
+                             const Eigen::Vector2d& shift, double sigma_m, double floor) {
   if (points.empty()) return 0.0;
   const double k = -0.5 / (sigma_m * sigma_m);
+  const size_t n = points.size();
+  const double count = static_cast<double>(n);
+  // Each point adds at most 1; a margin far above the sum's rounding keeps the stop exact (a
+  // mean above the floor is always finished, with the same additions in the same order).
+  const double stop = floor * count - 1e-9 * count;
   double sum = 0.0;
-  for (const WallPoint& w : points) {
+  for (size_t i = 0; i < n; ++i) {
+    const WallPoint& w = points[i];
     const Eigen::Vector2d q = w.point + shift;
     Eigen::Vector2d v;
     // Where the reference saw no surface near the shifted point (past the end of its view of
     // the wall, or off a feature into the open) the point keeps its own wall's line.
     const double d = field.Interpolate(q, &v) ? v.norm() : std::abs(w.normal.dot(q - w.foot));
     sum += std::exp(k * d * d);
+    if ((i & (kPointsBetweenStops - 1)) == kPointsBetweenStops - 1 &&
+        sum + static_cast<double>(n - 1 - i) < stop) {
+      return floor;
+    }
   }
-  return sum / static_cast<double>(points.size());
+  return sum / count;
 }
 
 std::optional<FlatDirection> MostFlatDirection(const ScanReference& reference,
@@ -76,18 +97,21 @@ std::optional<FlatDirection> MostFlatDirection(const ScanReference& reference,
   const double sigma = reference.options().likelihood_sigma_m;
   const double at_pose = ShiftedWallScore(field, on_walls, Eigen::Vector2d::Zero(), sigma);
   if (!(at_pose > 0.0)) return std::nullopt;
-  // The smaller of the scores shifted both ways along the direction at `angle`.
-  auto shifted = [&](double angle) {
+  // The smaller of the scores shifted both ways along the direction at `angle` when it is
+  // above `floor` (the best direction's so far), else a value at most `floor`: only a direction
+  // that beats the best is finished, so the other way is not scored once one way cannot.
+  auto shifted_above = [&](double angle, double floor) {
     const Eigen::Vector2d d = options.reach_m * Eigen::Vector2d(std::cos(angle), std::sin(angle));
-    return std::min(ShiftedWallScore(field, on_walls, d, sigma),
-                    ShiftedWallScore(field, on_walls, -d, sigma));
+    const double forward = ShiftedWallScoreAbove(field, on_walls, d, sigma, floor);
+    if (!(forward > floor)) return forward;
+    return std::min(forward, ShiftedWallScoreAbove(field, on_walls, -d, sigma, floor));
   };
   double step = kPi / options.directions;
   double best_angle = 0.0;
-  double best = shifted(0.0);
+  double best = shifted_above(0.0, -std::numeric_limits<double>::infinity());
   for (int i = 1; i < options.directions; ++i) {
     const double angle = i * step;
-    const double score = shifted(angle);
+    const double score = shifted_above(angle, best);
     if (score > best) {
       best = score;
       best_angle = angle;
@@ -99,7 +123,7 @@ std::optional<FlatDirection> MostFlatDirection(const ScanReference& reference,
     step *= 0.5;
     const double candidates[] = {best_angle - step, best_angle + step};
     for (const double angle : candidates) {
-      const double score = shifted(angle);
+      const double score = shifted_above(angle, best);
       if (score > best) {
         best = score;
         best_angle = angle;
