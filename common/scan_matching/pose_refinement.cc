@@ -124,28 +124,36 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
 double AnchoredCost::operator()(const Pose2& pose) const {
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
-  double cost = 0.0;
+  ReferenceField::Lookups& at = lookups_;
+  at.resize(query_.size());
   for (size_t j = 0; j < query_.size(); ++j) {
     const Eigen::Vector2d q = R * query_[j] + t;
-    // PointResidual's cost without its Jacobian (the same bits: only the value is needed
-    // here, at every point of every sample of the score distribution).
-    Eigen::Vector2d v;
-    Eigen::Vector2i cell;
-    if (field_.InterpolateInCell(q, &v, &cell) && v.squaredNorm() <= cutoff_sq_) {
-      Eigen::Vector2d n;
-      if (field_.NearestNormal(cell.x(), cell.y(), &n)) {
-        const double along_normal = -n.dot(v);
-        cost += along_normal * along_normal;
-      } else {
-        cost += v.squaredNorm();
+    at.qx[j] = q.x();
+    at.qy[j] = q.y();
+  }
+  // PointResidual's cost without its Jacobian (the same bits: only the value is needed here,
+  // at every point of every sample of the score distribution), the field's lookups batched.
+  field_.InterpolateWithNormals(&at);
+  double cost = 0.0;
+  for (size_t j = 0; j < query_.size(); ++j) {
+    if (at.found[j]) {
+      const Eigen::Vector2d v(at.vx[j], at.vy[j]);
+      if (v.squaredNorm() <= cutoff_sq_) {
+        if (at.has_normal[j]) {
+          const double along_normal = -Eigen::Vector2d(at.nx[j], at.ny[j]).dot(v);
+          cost += along_normal * along_normal;
+        } else {
+          cost += v.squaredNorm();
+        }
+        continue;
       }
-      continue;
     }
     const Association& a = associations_[j];
     if (!a.inlier) {
       cost += cutoff_sq_;
       continue;
     }
+    const Eigen::Vector2d q(at.qx[j], at.qy[j]);
     const double sq =
         a.has_normal ? std::pow(a.normal.dot(q - a.surface), 2) : (q - a.surface).squaredNorm();
     cost += std::min(sq, cutoff_sq_);
