@@ -59,8 +59,12 @@ double ShiftedWallScore(const ReferenceField& field, const std::vector<WallPoint
                                -std::numeric_limits<double>::infinity());
 }
 
+namespace {
+
+// ShiftedWallScoreAbove with the field's lookups in `at` (scratch), a chunk at a time.
 double ShiftedWallScoreAbove(const ReferenceField& field, const std::vector<WallPoint>& points,
-                             const Eigen::Vector2d& shift, double sigma_m, double floor) {
+                             const Eigen::Vector2d& shift, double sigma_m, double floor,
+                             ReferenceField::Lookups* at_scratch) {
   if (points.empty()) return 0.0;
   const double k = -0.5 / (sigma_m * sigma_m);
   const size_t n = points.size();
@@ -68,21 +72,38 @@ double ShiftedWallScoreAbove(const ReferenceField& field, const std::vector<Wall
   // Each point adds at most 1; a margin far above the sum's rounding keeps the stop exact (a
   // mean above the floor is always finished, with the same additions in the same order).
   const double stop = floor * count - 1e-9 * count;
+  ReferenceField::Lookups& at = *at_scratch;
   double sum = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    const WallPoint& w = points[i];
-    const Eigen::Vector2d q = w.point + shift;
-    Eigen::Vector2d v;
-    // Where the reference saw no surface near the shifted point (past the end of its view of
-    // the wall, or off a feature into the open) the point keeps its own wall's line.
-    const double d = field.Interpolate(q, &v) ? v.norm() : std::abs(w.normal.dot(q - w.foot));
-    sum += std::exp(k * d * d);
-    if ((i & (kPointsBetweenStops - 1)) == kPointsBetweenStops - 1 &&
-        sum + static_cast<double>(n - 1 - i) < stop) {
-      return floor;
+  for (size_t begin = 0; begin < n; begin += kPointsBetweenStops) {
+    const size_t end = std::min(n, begin + kPointsBetweenStops);
+    at.resize(end - begin);
+    for (size_t i = begin; i < end; ++i) {
+      const Eigen::Vector2d q = points[i].point + shift;
+      at.qx[i - begin] = q.x();
+      at.qy[i - begin] = q.y();
     }
+    field.InterpolateWithNormals(&at);
+    for (size_t i = begin; i < end; ++i) {
+      const WallPoint& w = points[i];
+      // Where the reference saw no surface near the shifted point (past the end of its view of
+      // the wall, or off a feature into the open) the point keeps its own wall's line.
+      const double d = at.found[i - begin]
+                           ? Eigen::Vector2d(at.vx[i - begin], at.vy[i - begin]).norm()
+                           : std::abs(w.normal.dot(
+                                 Eigen::Vector2d(at.qx[i - begin], at.qy[i - begin]) - w.foot));
+      sum += std::exp(k * d * d);
+    }
+    if (end < n && sum + static_cast<double>(n - end) < stop) return floor;
   }
   return sum / count;
+}
+
+}  // namespace
+
+double ShiftedWallScoreAbove(const ReferenceField& field, const std::vector<WallPoint>& points,
+                             const Eigen::Vector2d& shift, double sigma_m, double floor) {
+  ReferenceField::Lookups at;
+  return ShiftedWallScoreAbove(field, points, shift, sigma_m, floor, &at);
 }
 
 std::optional<FlatDirection> MostFlatDirection(const ScanReference& reference,
@@ -95,16 +116,18 @@ std::optional<FlatDirection> MostFlatDirection(const ScanReference& reference,
   const std::vector<WallPoint> on_walls = PointsOnWalls(field, query, pose);
   if (on_walls.size() < kMinPointsOnWalls) return std::nullopt;
   const double sigma = reference.options().likelihood_sigma_m;
-  const double at_pose = ShiftedWallScore(field, on_walls, Eigen::Vector2d::Zero(), sigma);
+  ReferenceField::Lookups at;
+  const double at_pose = ShiftedWallScoreAbove(field, on_walls, Eigen::Vector2d::Zero(), sigma,
+                                               -std::numeric_limits<double>::infinity(), &at);
   if (!(at_pose > 0.0)) return std::nullopt;
   // The smaller of the scores shifted both ways along the direction at `angle` when it is
   // above `floor` (the best direction's so far), else a value at most `floor`: only a direction
   // that beats the best is finished, so the other way is not scored once one way cannot.
   auto shifted_above = [&](double angle, double floor) {
     const Eigen::Vector2d d = options.reach_m * Eigen::Vector2d(std::cos(angle), std::sin(angle));
-    const double forward = ShiftedWallScoreAbove(field, on_walls, d, sigma, floor);
+    const double forward = ShiftedWallScoreAbove(field, on_walls, d, sigma, floor, &at);
     if (!(forward > floor)) return forward;
-    return std::min(forward, ShiftedWallScoreAbove(field, on_walls, -d, sigma, floor));
+    return std::min(forward, ShiftedWallScoreAbove(field, on_walls, -d, sigma, floor, &at));
   };
   double step = kPi / options.directions;
   double best_angle = 0.0;
