@@ -66,6 +66,10 @@ std::vector<WallPoint> PointsOnWalls(const ReferenceField& field, const PointClo
 // scans saw, and a point sliding off their view is no evidence against the shift).
 double ShiftedWallScore(const ReferenceField& field, const std::vector<WallPoint>& points,
                         const Eigen::Vector2d& shift, double sigma_m);
+// ShiftedWallScore when that is above `floor` (the same bits); otherwise a value at most
+// `floor` (the summing stops once the points left cannot lift the mean above it).
+double ShiftedWallScoreAbove(const ReferenceField& field, const std::vector<WallPoint>& points,
+                             const Eigen::Vector2d& shift, double sigma_m, double floor);
 
 // The most flat direction through `pose` (a refined match) for the query's points on walls, and
 // its score ratio; nullopt when even that one is not flat (min_score_ratio), or fewer than 10

@@ -86,5 +86,44 @@ TEST(FlatDirectionTest, RoomsHaveNone) {
   EXPECT_EQ(rooms, 6);
 }
 
+TEST(FlatDirectionTest, ShiftedWallScoreAboveIsTheScoreToTheBitOrAtMostTheFloor) {
+  // The flat search asks only whether a shift beats the best direction so far: above the floor
+  // the score is finished (the same bits), below it may stop early with a value at most the
+  // floor. Shifts all round at 0.1 and 0.4 m in a room, floors from 0 to past the top.
+  std::mt19937_64 rng(52);
+  const SyntheticWorld room = RandomRoom(52);
+  const Pose2 a = RandomFreePose(room, 0.8, &rng);
+  const Pose2 b = Compose(a, Pose2(0.2, -0.1, 0.05));
+  const SyntheticLaser laser = HalfCircleLaser(30.0);
+  const ScanReference reference({ScanToPointCloud(SimulateScan(room, laser, a, &rng))},
+                                LocalReferenceOptions());
+  const PointCloud query = ScanToPointCloud(SimulateScan(room, laser, b, &rng));
+  const ReferenceField& field = reference.field();
+  const std::vector<WallPoint> on_walls = PointsOnWalls(field, query, Between(a, b));
+  ASSERT_GT(on_walls.size(), 50u);
+  const double sigma = reference.options().likelihood_sigma_m;
+  int finished = 0;
+  int stopped = 0;
+  for (int i = 0; i < 36; ++i) {
+    const double angle = i * kPi / 18.0;
+    for (const double reach : {0.1, 0.4}) {
+      const Eigen::Vector2d shift = reach * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+      const double full = ShiftedWallScore(field, on_walls, shift, sigma);
+      for (const double floor : {0.0, 0.2, 0.4, 0.6, 0.8, 1.1, full}) {
+        const double above = ShiftedWallScoreAbove(field, on_walls, shift, sigma, floor);
+        if (full > floor) {
+          EXPECT_EQ(above, full);
+          ++finished;
+        } else {
+          EXPECT_LE(above, floor);
+          ++stopped;
+        }
+      }
+    }
+  }
+  EXPECT_GT(finished, 50);
+  EXPECT_GT(stopped, 50);
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -36,6 +36,10 @@ FreeSpaceMap::FreeSpaceMap(const std::vector<RayScan>& scans, const FreeSpaceOpt
   cells_.assign(static_cast<size_t>(width_ * height_), 0);
 
   const double margin = options_.wall_margin_m;
+  // (centre - p).norm() <= margin decided without the square root away from the margin's
+  // circle: the root's rounding is ~1e-16 relative, far inside these bounds.
+  const double surely_within_sq = margin * margin * (1.0 - 1e-9);
+  const double surely_beyond_sq = margin * margin * (1.0 + 1e-9);
   for (const RayScan& scan : scans) {
     for (const Eigen::Vector2d& p : scan.end_points) {
       const Eigen::Vector2d ray = p - scan.origin;
@@ -48,7 +52,10 @@ FreeSpaceMap::FreeSpaceMap(const std::vector<RayScan>& scans, const FreeSpaceOpt
              ++j) {
           const Eigen::Vector2d centre((static_cast<double>(i) + 0.5) * r,
                                        (static_cast<double>(j) + 0.5) * r);
-          if ((centre - p).norm() <= margin) Mark(i, j, kWall);
+          const double sq = (centre - p).squaredNorm();
+          if (sq <= surely_within_sq || (sq <= surely_beyond_sq && std::sqrt(sq) <= margin)) {
+            Mark(i, j, kWall);
+          }
         }
       }
     }

@@ -1,5 +1,6 @@
 #include "common/scan_matching/lattice_search.h"
 
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -290,6 +291,54 @@ TEST(LatticeSearchTest, FindsAPlantedPatternAndNothingAboveAnImpossibleScore) {
   // One step turns the far end of the L by 3 cm, less than a cell: +- 1 step is a tie.
   EXPECT_NEAR(pose.theta(), kPi / 2, 0.021);
   EXPECT_FALSE(BranchAndBound(pyramid, discretised, window, 1.0).has_value());
+}
+
+TEST(LatticeSearchTest, DiscretisedCellsAreCellOfToTheBit) {
+  // Every heading's cells and box are GridGeometry::CellOf of the point at that heading's pose
+  // (the vectorised path takes four points at a time, the rest one by one): random points, ones
+  // on cell borders at the centre heading, and points far outside the grid on both sides.
+  GridGeometry g;
+  g.origin = {-3.05, 1.7};
+  g.resolution = 0.05;
+  g.width = 200;
+  g.height = 150;
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> coordinate(-12.0, 12.0);
+  for (const size_t size : {0, 1, 3, 4, 7, 181, 362}) {
+    PointCloud query;
+    for (size_t i = 0; i < size; ++i) query.emplace_back(coordinate(rng), coordinate(rng));
+    SearchWindow window;
+    window.center = Pose2(0.35, -0.2, 0.3);
+    window.angle_step_rad = 0.013;
+    window.half_angles = 5;
+    if (size == 362) {
+      // Cell borders at heading 0 (the centre's rotation undone) and far points.
+      window.center = Pose2(0.0, 0.0, 0.0);
+      for (size_t i = 0; i < 100; ++i) {
+        query[i] = g.origin + g.resolution * Eigen::Vector2d(static_cast<double>(i % 10) - 3.0,
+                                                             static_cast<double>(i / 10));
+      }
+      query[100] = {1e7, -1e7};
+      query[101] = {-5e7, 3e7};  // cells within +-2^31 (the casts are exact there)
+    }
+    const DiscretisedQuery discretised(query, window, g);
+    ASSERT_EQ(discretised.num_points(), size);
+    for (int k = -window.half_angles; k <= window.half_angles; ++k) {
+      const Pose2 pose(window.center.x(), window.center.y(),
+                       window.center.theta() + k * window.angle_step_rad);
+      Eigen::Vector2i min = Eigen::Vector2i::Constant(std::numeric_limits<int>::max());
+      Eigen::Vector2i max = Eigen::Vector2i::Constant(std::numeric_limits<int>::min());
+      for (size_t i = 0; i < size; ++i) {
+        const Eigen::Vector2i cell = g.CellOf(pose.rotation() * query[i] + pose.translation());
+        ASSERT_EQ(discretised.xs(k)[i], cell.x()) << size << " " << k << " " << i;
+        ASSERT_EQ(discretised.ys(k)[i], cell.y()) << size << " " << k << " " << i;
+        min = min.cwiseMin(cell);
+        max = max.cwiseMax(cell);
+      }
+      EXPECT_EQ(discretised.box(k).min, min);
+      EXPECT_EQ(discretised.box(k).max, max);
+    }
+  }
 }
 
 TEST(LatticeSearchTest, AngleStep) {

@@ -35,12 +35,21 @@ bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double
   return true;
 }
 
-// Accumulates the normal equations at `pose`; returns the truncated cost.
+// Accumulates the normal equations at `pose`; returns the truncated cost. PointResidual for
+// every point, the field's lookups batched in `at` (scratch): the same bits.
 double Linearise(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
-                 double cutoff_m, Eigen::Matrix3d* H, Eigen::Vector3d* b, int* inliers) {
+                 double cutoff_m, Eigen::Matrix3d* H, Eigen::Vector3d* b, int* inliers,
+                 ReferenceField::Lookups* at) {
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
   const double cutoff_sq = cutoff_m * cutoff_m;
+  at->resize(query.size());
+  for (size_t j = 0; j < query.size(); ++j) {
+    const Eigen::Vector2d q = R * query[j] + t;
+    at->qx[j] = q.x();
+    at->qy[j] = q.y();
+  }
+  field.InterpolateWithNormals(at);
   b->setZero();
   *inliers = 0;
   double cost = 0.0;
@@ -50,11 +59,26 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
   // H's upper triangle, mirrored at the end: a_j a_i is a_i a_j to the bit, so the lower
   // triangle's sums were the same numbers added in the same order.
   double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
-  for (const Eigen::Vector2d& p : query) {
-    const Eigen::Vector2d rp = R * p;
-    if (!PointResidual(field, rp + t, cutoff_sq, &rows, &e, &de_dq)) {
+  for (size_t j = 0; j < query.size(); ++j) {
+    Eigen::Vector2d v(at->vx[j], at->vy[j]);
+    if (!at->found[j] || v.squaredNorm() > cutoff_sq) {
       cost += cutoff_sq;
       continue;
+    }
+    const Eigen::Vector2d rp = R * query[j];
+    if (at->has_normal[j]) {
+      const Eigen::Vector2d n(at->nx[j], at->ny[j]);
+      rows = 1;
+      e(0) = -n.dot(v);
+      de_dq.row(0) = n.transpose();
+    } else {
+      // Only a lone return's residual needs the field's derivative (four divisions per
+      // point): asked again with it, the same v.
+      Eigen::Matrix2d J;
+      field.Interpolate(Eigen::Vector2d(at->qx[j], at->qy[j]), &v, &J);
+      rows = 2;
+      e = -v;
+      de_dq = -J;
     }
     ++*inliers;
     // q = R p + t: dq/dxi = [I, (-rp.y, rp.x)].
@@ -124,28 +148,36 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
 double AnchoredCost::operator()(const Pose2& pose) const {
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
-  double cost = 0.0;
+  ReferenceField::Lookups& at = lookups_;
+  at.resize(query_.size());
   for (size_t j = 0; j < query_.size(); ++j) {
     const Eigen::Vector2d q = R * query_[j] + t;
-    // PointResidual's cost without its Jacobian (the same bits: only the value is needed
-    // here, at every point of every sample of the score distribution).
-    Eigen::Vector2d v;
-    Eigen::Vector2i cell;
-    if (field_.InterpolateInCell(q, &v, &cell) && v.squaredNorm() <= cutoff_sq_) {
-      Eigen::Vector2d n;
-      if (field_.NearestNormal(cell.x(), cell.y(), &n)) {
-        const double along_normal = -n.dot(v);
-        cost += along_normal * along_normal;
-      } else {
-        cost += v.squaredNorm();
+    at.qx[j] = q.x();
+    at.qy[j] = q.y();
+  }
+  // PointResidual's cost without its Jacobian (the same bits: only the value is needed here,
+  // at every point of every sample of the score distribution), the field's lookups batched.
+  field_.InterpolateWithNormals(&at);
+  double cost = 0.0;
+  for (size_t j = 0; j < query_.size(); ++j) {
+    if (at.found[j]) {
+      const Eigen::Vector2d v(at.vx[j], at.vy[j]);
+      if (v.squaredNorm() <= cutoff_sq_) {
+        if (at.has_normal[j]) {
+          const double along_normal = -Eigen::Vector2d(at.nx[j], at.ny[j]).dot(v);
+          cost += along_normal * along_normal;
+        } else {
+          cost += v.squaredNorm();
+        }
+        continue;
       }
-      continue;
     }
     const Association& a = associations_[j];
     if (!a.inlier) {
       cost += cutoff_sq_;
       continue;
     }
+    const Eigen::Vector2d q(at.qx[j], at.qy[j]);
     const double sq =
         a.has_normal ? std::pow(a.normal.dot(q - a.surface), 2) : (q - a.surface).squaredNorm();
     cost += std::min(sq, cutoff_sq_);
@@ -160,7 +192,8 @@ RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query
   Eigen::Matrix3d H;
   Eigen::Vector3d b;
   int inliers = 0;
-  double cost = Linearise(field, query, result.pose, options.cutoff_m, &H, &b, &inliers);
+  ReferenceField::Lookups lookups;
+  double cost = Linearise(field, query, result.pose, options.cutoff_m, &H, &b, &inliers, &lookups);
   result.hessian = H;
   result.inliers = inliers;
   // Levenberg-Marquardt: a step that does not lower the cost is retried with more damping
@@ -176,8 +209,8 @@ RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query
     Eigen::Matrix3d H_new;
     Eigen::Vector3d b_new;
     int inliers_new = 0;
-    const double cost_new =
-        Linearise(field, query, candidate, options.cutoff_m, &H_new, &b_new, &inliers_new);
+    const double cost_new = Linearise(field, query, candidate, options.cutoff_m, &H_new, &b_new,
+                                      &inliers_new, &lookups);
     result.iterations = iteration + 1;
     if (!(cost_new < cost)) {
       lambda *= 10.0;

@@ -67,6 +67,8 @@ class AnchoredCost {
   const PointCloud& query_;
   double cutoff_sq_;
   std::vector<Association> associations_;
+  // The points of the pose being costed and the field's answers (scratch: one cost at a time).
+  mutable ReferenceField::Lookups lookups_;
 };
 
 }  // namespace anchormap

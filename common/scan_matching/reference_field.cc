@@ -237,9 +237,172 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
     _mm_maskstore_epi32(primitive_b + index, take, ib);
   }
 }
+
+// The field's arrays InterpolateWithNormals reads.
+struct FieldArrays {
+  const float* vx;
+  const float* vy;
+  const int32_t* primitive_a;
+  const double* start_normals;  // x, y per vertex
+  double origin_x;
+  double origin_y;
+  double resolution;
+  int width;
+  int height;
+};
+
+// InterpolateImpl's blend of the four cell vectors (one coordinate), in its order.
+__attribute__((target("avx2"))) inline __m256d Bilinear(__m256d w00, __m256d w10, __m256d w01,
+                                                        __m256d w11, __m256d v00, __m256d v10,
+                                                        __m256d v01, __m256d v11) {
+  return _mm256_add_pd(
+      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(w00, v00), _mm256_mul_pd(w10, v10)),
+                    _mm256_mul_pd(w01, v01)),
+      _mm256_mul_pd(w11, v11));
+}
+
+// InterpolateImpl and NearestNormal for points [0, n - n % 4), four at a time: the same IEEE
+// operations in the same order (no FMA: the target is AVX2 alone), so the same bits. Lanes the
+// interpolation refuses read cell (0, 0), which exists whenever any lane is inside the grid.
+__attribute__((target("avx2"))) void InterpolateWithNormalsAvx2(const FieldArrays& f,
+                                                                ReferenceField::Lookups* out) {
+  const size_t n = out->qx.size();
+  const __m256d origin_x = _mm256_set1_pd(f.origin_x);
+  const __m256d origin_y = _mm256_set1_pd(f.origin_y);
+  const __m256d resolution = _mm256_set1_pd(f.resolution);
+  const __m256d half = _mm256_set1_pd(0.5);
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m256d width = _mm256_set1_pd(static_cast<double>(f.width));
+  const __m256d height = _mm256_set1_pd(static_cast<double>(f.height));
+  const __m128i width_i = _mm_set1_epi32(f.width);
+  const __m128i height_i = _mm_set1_epi32(f.height);
+  const __m128i minus_one = _mm_set1_epi32(-1);
+  // Gathers of every lane (the masked forms: GCC's plain ones leave their source undefined).
+  const __m128 no_float = _mm_setzero_ps();
+  const __m128 all_float = _mm_castsi128_ps(minus_one);
+  for (size_t i = 0; i + 4 <= n; i += 4) {
+    // CellOf's quotients, the four cell centres around the point from floor(u - 0.5).
+    const __m256d qx =
+        _mm256_div_pd(_mm256_sub_pd(_mm256_loadu_pd(&out->qx[i]), origin_x), resolution);
+    const __m256d qy =
+        _mm256_div_pd(_mm256_sub_pd(_mm256_loadu_pd(&out->qy[i]), origin_y), resolution);
+    const __m256d ux = _mm256_sub_pd(qx, half);
+    const __m256d uy = _mm256_sub_pd(qy, half);
+    const __m256d fx = _mm256_floor_pd(ux);
+    const __m256d fy = _mm256_floor_pd(uy);
+    // The scalar test's negation; ordered compares fail for NaN and the infinities fail a bound,
+    // which is its isfinite test.
+    const __m256d inside = _mm256_and_pd(
+        _mm256_and_pd(_mm256_cmp_pd(fx, zero, _CMP_GE_OQ), _mm256_cmp_pd(fy, zero, _CMP_GE_OQ)),
+        _mm256_and_pd(_mm256_cmp_pd(_mm256_add_pd(fx, one), width, _CMP_LT_OQ),
+                      _mm256_cmp_pd(_mm256_add_pd(fy, one), height, _CMP_LT_OQ)));
+    if (_mm256_testz_pd(inside, inside)) {
+      for (size_t j = 0; j < 4; ++j) out->found[i + j] = 0;
+      continue;
+    }
+    const __m128i ix = _mm256_cvttpd_epi32(_mm256_and_pd(fx, inside));
+    const __m128i iy = _mm256_cvttpd_epi32(_mm256_and_pd(fy, inside));
+    const __m128i i00 = _mm_add_epi32(_mm_mullo_epi32(iy, width_i), ix);
+    const __m128i i01 = _mm_add_epi32(i00, width_i);
+    const __m128i i10 = _mm_sub_epi32(i00, minus_one);
+    const __m128i i11 = _mm_sub_epi32(i01, minus_one);
+    const __m256d v00x = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vx, i00, all_float, 4));
+    const __m256d v10x = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vx, i10, all_float, 4));
+    const __m256d v01x = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vx, i01, all_float, 4));
+    const __m256d v11x = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vx, i11, all_float, 4));
+    const __m256d any_nan = _mm256_or_pd(_mm256_cmp_pd(v00x, v10x, _CMP_UNORD_Q),
+                                         _mm256_cmp_pd(v01x, v11x, _CMP_UNORD_Q));
+    const __m256d found = _mm256_andnot_pd(any_nan, inside);
+    const int found_bits = _mm256_movemask_pd(found);
+    if (found_bits == 0) {
+      for (size_t j = 0; j < 4; ++j) out->found[i + j] = 0;
+      continue;
+    }
+    const __m256d v00y = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vy, i00, all_float, 4));
+    const __m256d v10y = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vy, i10, all_float, 4));
+    const __m256d v01y = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vy, i01, all_float, 4));
+    const __m256d v11y = _mm256_cvtps_pd(_mm_mask_i32gather_ps(no_float, f.vy, i11, all_float, 4));
+    const __m256d tx = _mm256_sub_pd(ux, fx);
+    const __m256d ty = _mm256_sub_pd(uy, fy);
+    const __m256d sx = _mm256_sub_pd(one, tx);
+    const __m256d sy = _mm256_sub_pd(one, ty);
+    const __m256d w00 = _mm256_mul_pd(sx, sy);
+    const __m256d w10 = _mm256_mul_pd(tx, sy);
+    const __m256d w01 = _mm256_mul_pd(sx, ty);
+    const __m256d w11 = _mm256_mul_pd(tx, ty);
+    _mm256_storeu_pd(&out->vx[i], Bilinear(w00, w10, w01, w11, v00x, v10x, v01x, v11x));
+    _mm256_storeu_pd(&out->vy[i], Bilinear(w00, w10, w01, w11, v00y, v10y, v01y, v11y));
+    // NearestNormal at the point's own cell (CellOf), only where it was found.
+    const __m128i found_i = _mm256_cvtpd_epi32(_mm256_and_pd(found, one));  // 1 or 0
+    const __m128i cx = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qx), found));
+    const __m128i cy = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qy), found));
+    const __m128i contains =
+        _mm_and_si128(_mm_and_si128(_mm_cmpgt_epi32(cx, minus_one), _mm_cmpgt_epi32(cy, minus_one)),
+                      _mm_and_si128(_mm_cmpgt_epi32(width_i, cx), _mm_cmpgt_epi32(height_i, cy)));
+    const __m128i ask = _mm_and_si128(contains, _mm_cmpeq_epi32(found_i, _mm_set1_epi32(1)));
+    const __m128i cell = _mm_and_si128(_mm_add_epi32(_mm_mullo_epi32(cy, width_i), cx), ask);
+    // Cells not asked read nothing and hold no primitive (-1); absent normals read nothing.
+    const __m128i a = _mm_mask_i32gather_epi32(minus_one, f.primitive_a, cell, ask, 4);
+    const __m128i has_primitive = _mm_cmpgt_epi32(a, minus_one);
+    const __m256d with_primitive = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(has_primitive));
+    const __m128i pair = _mm_slli_epi32(_mm_and_si128(a, has_primitive), 1);
+    const __m256d nx = _mm256_mask_i32gather_pd(zero, f.start_normals, pair, with_primitive, 8);
+    const __m256d ny = _mm256_mask_i32gather_pd(zero, f.start_normals + 1, pair, with_primitive, 8);
+    // A unit normal is never zero; zero marks a lone return.
+    const __m256d zero_normal =
+        _mm256_and_pd(_mm256_cmp_pd(nx, zero, _CMP_EQ_OQ), _mm256_cmp_pd(ny, zero, _CMP_EQ_OQ));
+    const int normal_bits = _mm256_movemask_pd(_mm256_andnot_pd(zero_normal, with_primitive));
+    _mm256_storeu_pd(&out->nx[i], nx);
+    _mm256_storeu_pd(&out->ny[i], ny);
+    for (size_t j = 0; j < 4; ++j) {
+      out->found[i + j] = static_cast<uint8_t>((found_bits >> j) & 1);
+      out->has_normal[i + j] = static_cast<uint8_t>((normal_bits >> j) & 1);
+    }
+  }
+}
 #endif
 
 }  // namespace
+
+void ReferenceField::Lookups::resize(size_t n) {
+  qx.resize(n);
+  qy.resize(n);
+  vx.resize(n);
+  vy.resize(n);
+  nx.resize(n);
+  ny.resize(n);
+  found.resize(n);
+  has_normal.resize(n);
+}
+
+void ReferenceField::InterpolateWithNormals(Lookups* lookups) const {
+  const size_t n = lookups->qx.size();
+  size_t i = 0;
+#ifdef ANCHORMAP_HAS_AVX2_FIELD
+  if (HasAvx2() && !vx_.empty()) {
+    const FieldArrays arrays{
+        vx_.data(),           vy_.data(),
+        primitive_a_.data(),  start_normals_.empty() ? nullptr : start_normals_.front().data(),
+        geometry_.origin.x(), geometry_.origin.y(),
+        geometry_.resolution, geometry_.width,
+        geometry_.height};
+    InterpolateWithNormalsAvx2(arrays, lookups);
+    i = n - n % 4;
+  }
+#endif
+  for (; i < n; ++i) {
+    Eigen::Vector2d v = Eigen::Vector2d::Zero();
+    Eigen::Vector2i cell = Eigen::Vector2i::Zero();
+    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+    lookups->found[i] = InterpolateInCell({lookups->qx[i], lookups->qy[i]}, &v, &cell);
+    lookups->has_normal[i] = lookups->found[i] && NearestNormal(cell.x(), cell.y(), &normal);
+    lookups->vx[i] = v.x();
+    lookups->vy[i] = v.y();
+    lookups->nx[i] = normal.x();
+    lookups->ny[i] = normal.y();
+  }
+}
 
 void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<double>& centre_x,
                                   std::vector<float>* best_sq) {

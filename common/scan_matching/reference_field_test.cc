@@ -196,6 +196,70 @@ TEST(ReferenceFieldTest, InterpolateInCellIsInterpolateAndCellOfToTheBit) {
   EXPECT_GT(inside, 1000);
 }
 
+TEST(ReferenceFieldTest, InterpolateWithNormalsIsInterpolateInCellAndNearestNormalToTheBit) {
+  // A wall (joined returns: normals) and lone returns (none), points over the grid, past its
+  // edges, on cell borders and centres, and not finite; an odd count (the last points go one
+  // at a time): the batch gives each point's single calls' answers to the bit.
+  PointCloud scan;
+  for (int i = 0; i <= 30; ++i) scan.push_back({0.1 * i, 0.02 * i * (i % 7 == 0 ? 1 : -1)});
+  for (int i = 0; i < 5; ++i) scan.push_back({0.5 * i, 1.5 + 0.1 * (i % 2)});
+  const ReferenceField field({scan}, ReferenceFieldOptions{});
+  const GridGeometry& g = field.geometry();
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> x(g.origin.x() - 0.2, g.max_corner().x() + 0.2);
+  std::uniform_real_distribution<double> y(g.origin.y() - 0.2, g.max_corner().y() + 0.2);
+  ReferenceField::Lookups lookups;
+  for (int i = 0; i < 20001; ++i) {
+    lookups.qx.push_back(x(rng));
+    lookups.qy.push_back(y(rng));
+  }
+  for (int ix = 0; ix <= g.width; ++ix) {
+    for (int iy = 0; iy <= g.height; iy += 3) {
+      for (const Eigen::Vector2d& p :
+           {Eigen::Vector2d(g.origin + g.resolution * Eigen::Vector2d(ix, iy)),
+            g.CellCentre(ix, iy)}) {
+        lookups.qx.push_back(p.x());
+        lookups.qy.push_back(p.y());
+      }
+    }
+  }
+  for (const double bad : {std::nan(""), std::numeric_limits<double>::infinity(),
+                           -std::numeric_limits<double>::infinity()}) {
+    lookups.qx.push_back(bad);
+    lookups.qy.push_back(0.0);
+    lookups.qx.push_back(0.5);
+    lookups.qy.push_back(bad);
+  }
+  lookups.resize(lookups.qx.size());
+  field.InterpolateWithNormals(&lookups);
+  int found = 0;
+  int with_normal = 0;
+  for (size_t i = 0; i < lookups.qx.size(); ++i) {
+    const Eigen::Vector2d p(lookups.qx[i], lookups.qy[i]);
+    Eigen::Vector2d v = Eigen::Vector2d::Zero();
+    Eigen::Vector2i cell = Eigen::Vector2i::Zero();
+    const bool inside = field.InterpolateInCell(p, &v, &cell);
+    ASSERT_EQ(lookups.found[i] != 0, inside) << p.transpose();
+    if (!inside) continue;
+    ++found;
+    EXPECT_EQ(lookups.vx[i], v.x());
+    EXPECT_EQ(lookups.vy[i], v.y());
+    Eigen::Vector2d n = Eigen::Vector2d::Zero();
+    const bool has_normal = field.NearestNormal(cell.x(), cell.y(), &n);
+    ASSERT_EQ(lookups.has_normal[i] != 0, has_normal) << p.transpose();
+    if (!has_normal) continue;
+    ++with_normal;
+    EXPECT_EQ(lookups.nx[i], n.x());
+    EXPECT_EQ(lookups.ny[i], n.y());
+  }
+  EXPECT_GT(with_normal, 1000);
+  EXPECT_GT(found - with_normal, 100);
+  // An empty field finds nothing.
+  const ReferenceField empty(std::vector<PointCloud>{}, ReferenceFieldOptions{});
+  empty.InterpolateWithNormals(&lookups);
+  for (size_t i = 0; i < lookups.qx.size(); ++i) EXPECT_EQ(lookups.found[i], 0);
+}
+
 TEST(ReferenceFieldTest, LikelihoodIsAGaussianOfTheDistance) {
   const ReferenceField field({{{0.0, 0.0}}}, ReferenceFieldOptions{});
   const double sigma = 0.05;
