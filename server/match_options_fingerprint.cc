@@ -16,7 +16,7 @@ static_assert(sizeof(LoopClosureOptions) == 440,
               "new LoopClosureOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanEncounterOptions) == 528,
               "new ScanEncounterOptions field: add it to the fingerprint");
-static_assert(sizeof(SmootherOptions) == 120,
+static_assert(sizeof(SmootherOptions) == 128,
               "new SmootherOptions field: add it to the fingerprint");
 #endif
 
@@ -189,6 +189,7 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
   h->B(s.converge_periodic_batches);
   h->F(s.convergence_step);
   h->I(s.max_batch_iterations);
+  if (s.convergence_decrease != 0) h->F(s.convergence_decrease);  // only when set, as above
   h->F(s.dogleg_initial_radius);
   h->F(s.gauge_prior_sigma);
 }

@@ -307,8 +307,14 @@ class Smoother::Impl {
   void DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
                         UpdateResult* result);
   // Linearises `included` at the linearisation point, factors them in the current order
-  // and solves for delta; false (with result->status) on failure.
-  bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result);
+  // and solves for delta; false (with result->status) on failure. If given, `chi2` at the
+  // linearisation point and the decrease the Gauss-Newton model predicts (|d|^2).
+  bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result, double* chi2 = nullptr,
+                 double* predicted_decrease = nullptr);
+  // Halves delta while the Gauss-Newton step raised chi2 by more than it predicted to
+  // lower it (smoother_nonlinear.cc: why); the next iteration relinearises there.
+  void ShortenOvershootingStep(const std::vector<int64_t>& included, double chi2,
+                               double predicted_decrease);
   // chi2 at linearisation point + step (step empty: at the linearisation point).
   double Chi2Of(const std::vector<int64_t>& included,
                 const std::vector<Eigen::Vector3d>& step) const;

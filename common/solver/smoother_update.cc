@@ -544,7 +544,8 @@ void Smoother::Impl::PartialMergeStep(UpdateResult* result) {
   }
 }
 
-bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result) {
+bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResult* result,
+                               double* chi2, double* predicted_decrease) {
   std::vector<LinearizedFactor> linearized(included.size());
   std::vector<PositionedFactor> positioned(included.size());
   std::array<Pose2, kMaxFactorKeys> values;
@@ -563,6 +564,14 @@ bool Smoother::Impl::FactorAll(const std::vector<int64_t>& included, UpdateResul
   if (!batch_.Factor(static_cast<int>(position_to_var_.size()), positioned, &rows, &error)) {
     result->status = Status::Error(error);
     return false;
+  }
+  if (chi2) {
+    *chi2 = 0.0;
+    for (const LinearizedFactor& l : linearized) *chi2 += l.whitened_error.squaredNorm();
+  }
+  if (predicted_decrease) {
+    *predicted_decrease = 0.0;
+    for (const RBlockRow& row : rows) *predicted_decrease += row.rhs.squaredNorm();
   }
   FreshR().Assign(std::move(rows));
   r_->BackSubstitute(&delta_);

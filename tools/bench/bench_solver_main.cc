@@ -53,6 +53,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
                               chi2 excess of the step's estimate over it (0 = off)
   --fill-factor F             batch when nnz(R) grows by F since the last one (default 4,
                               --server-mode 1.5; 0 = off)
+  --convergence-decrease F    batch steps also stop when the chi2 decrease their step
+                              predicts is below F x chi2 (default 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
                               protocol for iterations_to_1e-4) instead of relinearising once
   --break-chain ID            drop the odometry edge (ID-1, ID): pose ID starts a new
@@ -131,6 +133,8 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.backsubstitution_threshold = ParseNumber(arg, value());
     } else if (arg == "--relinearize") {
       flags.smoother.relinearize_threshold = ParseNumber(arg, value());
+    } else if (arg == "--convergence-decrease") {
+      flags.smoother.convergence_decrease = ParseNumber(arg, value());
     } else if (arg == "--fill-factor") {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
     } else if (arg == "--relinearize-skip") {
