@@ -212,6 +212,9 @@ TEST(LoopClosuresTest, AWideSearchIsChargedByItsSize) {
   EXPECT_GT(sized_run.units_by_size, 0.0);
   EXPECT_GT(sized_run.over_budget, 0);
   EXPECT_LT(sized_run.wide_searches, flat_run.wide_searches);
+  LoopClosureOptions negative;
+  negative.budget_wide_nodes_per_unit = -1.0;
+  EXPECT_FALSE(negative.Validate().ok());
 }
 
 // A closure does not pause the wide search (wide_quiet_keyframes 0): it corrects the estimate
