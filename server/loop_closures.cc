@@ -10,6 +10,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "common/scan_matching/lattice_search.h"
 #include "common/scan_matching/point_cloud.h"
 #include "common/util/log.h"
 #include "server/held_matches.h"
@@ -68,6 +69,9 @@ Status LoopClosureOptions::Validate() const {
   if (!(budget_wide_units >= 0) || !std::isfinite(budget_wide_units)) {
     return Status::Error("loop.budget_wide_units must be finite and >= 0");
   }
+  if (!(budget_wide_nodes_per_unit >= 0) || !std::isfinite(budget_wide_nodes_per_unit)) {
+    return Status::Error("loop.budget_wide_nodes_per_unit must be finite and >= 0");
+  }
   return match.Validate();
 }
 
@@ -100,7 +104,36 @@ double EstimatedPath(const Smoother& smoother, TrajectoryId trajectory, int32_t 
   return path;
 }
 
+// SearchWindowAndFinish, except that a window holding no pose above the bar still gives a
+// result: score 0 (see FoundPose) with the search's stats, which the budget charges by.
+std::optional<MatchResult> WideSearch(const ScanReference& reference, const PointCloud& query,
+                                      const SearchWindow& window, const MatchOptions& options) {
+  if (reference.empty() || query.empty()) return std::nullopt;
+  const DiscretisedQuery discretised(query, window, reference.geometry());
+  LatticeSearchStats stats;
+  const std::optional<LatticePose> best =
+      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats);
+  MatchResult result;  // score 0: no pose
+  if (best) result = FinishMatch(reference, query, window, *best, options);
+  result.search = stats;
+  return result;
+}
+
+// Whether a wide search's result holds a pose (WideSearch: its score is above the bar, > 0).
+bool FoundPose(const MatchResult& wide) { return wide.score > 0.0; }
+
 }  // namespace
+
+void LoopClosures::ChargeWideBySize(const LatticeSearchStats& search) {
+  if (!budget_.bounded() || options_.budget_wide_nodes_per_unit <= 0) return;
+  const double units =
+      static_cast<double>(search.scored_nodes) / options_.budget_wide_nodes_per_unit;
+  if (units <= options_.budget_wide_units) return;
+  // The submit charged budget_wide_units already.
+  const double beyond = units - options_.budget_wide_units;
+  units_by_size_ += beyond;
+  budget_.Spend(beyond);
+}
 
 void LoopClosures::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
                                    EncounterSourceOutput* /*out*/) {
@@ -157,7 +190,8 @@ void LoopClosures::UseMatches(int64_t now_utime, bool all, const GraphView& grap
     const PendingMatch pending = std::move(matches_.front());
     matches_.pop_front();
     const std::optional<MatchResult> match = pending.result.get();
-    if (!match) {
+    if (pending.wide && match) ChargeWideBySize(match->search);
+    if (!match || (pending.wide && !FoundPose(*match))) {
       ++stats_.no_match;
       continue;
     }
@@ -639,7 +673,7 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     match.covariance_min_overlap =
         std::min(options_.wide_min_overlap, options_.wide_weak_min_overlap);
     auto job = [submap, query, window, match] {
-      return SearchWindowAndFinish(*submap, *query, window, match);
+      return WideSearch(*submap, *query, window, match);
     };
     pending.result =
         RunMatch(pool_, MatchTag{key, candidate, MatchKind::kLoopWide}, std::move(job));

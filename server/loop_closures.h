@@ -157,6 +157,13 @@ struct LoopClosureOptions {
   // burst), while 100 simulated robots ask ~150 units per second.
   MatchBudgetOptions budget{40.0, 120.0};
   double budget_wide_units = 8.0;
+  // A wide search's branch and bound costs what it scores: as a map grows, its place submaps
+  // hold more passes and more of the window's blocks score above the bar (20 robots: ~0.2 CPU
+  // s per search at 630 s of data, ~50 local matches). So once its result is used, a wide
+  // search whose scored nodes / budget_wide_nodes_per_unit exceed budget_wide_units pays the
+  // difference too (the bucket goes into debt; later tokens repay it): the budget bounds the
+  // wide searches' cost, not their number. 0: every wide search costs budget_wide_units.
+  double budget_wide_nodes_per_unit = 25000.0;
   MatchOptions match;
 
   Status Validate() const;
@@ -235,6 +242,8 @@ class LoopClosures : public EncounterSource {
   int64_t ambiguous() const { return ambiguous_; }          // of stats().gate_rejected
   int64_t saturated() const { return saturated_; }          // candidates not matched
   const MatchBudget& budget() const { return budget_; }
+  // Units charged beyond budget_wide_units for wide searches' size (budget_wide_nodes_per_unit).
+  double units_by_size() const { return units_by_size_; }
 
   // The source's state for snapshots (loop_closure_state.h, defined in loop_closure_state.cc):
   // ExportState waits for the matches in flight; ImportState is for a source given no input.
@@ -252,6 +261,8 @@ class LoopClosures : public EncounterSource {
   void ExamineKeyframe(PoseKey key, const GraphView& graph);
   // Uses the matches due at `now_utime` (all when `all`), in the order they were made.
   void UseMatches(int64_t now_utime, bool all, const GraphView& graph, EncounterSourceOutput* out);
+  // Charges a wide search's size beyond budget_wide_units (budget_wide_nodes_per_unit).
+  void ChargeWideBySize(const LatticeSearchStats& search);
   // Hands one candidate's match to the pool (wide: the branch-and-bound window search).
   // `drift`: added to the prediction's covariance (wide searches, see SubmitWide).
   void Submit(PoseKey candidate, PoseKey key, const PredictedRelativePose& predicted,
@@ -326,6 +337,7 @@ class LoopClosures : public EncounterSource {
   int64_t saturated_ = 0;
   MatchBudget budget_;
   double units_submitted_ = 0.0;  // budget units of the matches submitted so far
+  double units_by_size_ = 0.0;    // of them, charged for wide searches' size (not in snapshots)
 };
 
 }  // namespace anchormap

@@ -34,6 +34,9 @@ struct LoopRun {
   int64_t doubled_closures = 0;  // keyframe pairs joined by more than one closure
   int64_t ambiguous = 0;         // wide matches refused as ambiguous
   int64_t saturated = 0;         // candidates an entered closure near both ends made needless
+  double budget_spent = 0.0;     // units
+  double units_by_size = 0.0;    // of them, for wide searches' size
+  int64_t over_budget = 0;       // keyframes not examined
 };
 
 LoopRun RunPath(const testing::SyntheticWorld& world, const std::vector<Pose2>& path,
@@ -80,6 +83,9 @@ LoopRun RunPath(const testing::SyntheticWorld& world, const std::vector<Pose2>& 
     run.wide_searches = source->wide_searches();
     run.ambiguous = source->ambiguous();
     run.saturated = source->saturated();
+    run.budget_spent = source->budget().spent();
+    run.units_by_size = source->units_by_size();
+    run.over_budget = source->budget().skipped();
   }
   // Every loop closure's measurement against the truth.
   std::set<std::pair<int32_t, int32_t>> closed;
@@ -172,6 +178,43 @@ TEST(LoopClosuresTest, WideSearchClosesALoopAcrossLargeDrift) {
     EXPECT_LT(wide.mean_error_m, 0.3 * open.mean_error_m);
     EXPECT_LT(wide.mean_error_m, 0.3);
   }
+}
+
+// The budget charges a wide search by its branch and bound's scored nodes once its result is
+// used (budget_wide_nodes_per_unit), beyond the budget_wide_units charged when it was
+// submitted: the budget bounds the wide searches' cost, not their number.
+TEST(LoopClosuresTest, AWideSearchIsChargedByItsSize) {
+  const OdometryNoise drifting{0.01, 0.003, 0.002};
+  const std::vector<Pose2> path = RectanglePath({2.5, 2.0}, {17.5, 12.0}, 0.5, 1.3);
+  // 10 units per second: enough for this robot while a wide search costs 8 ...
+  LoopClosureOptions flat;
+  flat.budget = {10.0, 30.0};
+  flat.budget_wide_nodes_per_unit = 0.0;
+  // ... not once each costs its scored nodes / 100 (this small world's searches score far
+  // fewer nodes than the default's 8 units' worth, 200000: by default they pay 8, as on the
+  // real logs' typical search).
+  LoopClosureOptions by_size = flat;
+  by_size.budget_wide_nodes_per_unit = 100.0;
+  const LoopRun flat_run = RunPath(LoopWorld(), path, drifting, 1, flat);
+  const LoopRun sized_run = RunPath(LoopWorld(), path, drifting, 1, by_size);
+  std::printf(
+      "flat: %lld wide searches, %.0f units, %lld keyframes over budget; by size: %lld wide "
+      "searches, %.0f units (%.0f for size), %lld over budget\n",
+      static_cast<long long>(flat_run.wide_searches), flat_run.budget_spent,
+      static_cast<long long>(flat_run.over_budget), static_cast<long long>(sized_run.wide_searches),
+      sized_run.budget_spent, sized_run.units_by_size,
+      static_cast<long long>(sized_run.over_budget));
+  EXPECT_EQ(flat_run.over_budget, 0);
+  EXPECT_EQ(flat_run.units_by_size, 0.0);
+  ASSERT_GT(flat_run.wide_searches, 0);
+  // Measured: 12 wide searches, 126 units, none over budget; by size 2 wide searches, 46
+  // keyframes not examined.
+  EXPECT_GT(sized_run.units_by_size, 0.0);
+  EXPECT_GT(sized_run.over_budget, 0);
+  EXPECT_LT(sized_run.wide_searches, flat_run.wide_searches);
+  LoopClosureOptions negative;
+  negative.budget_wide_nodes_per_unit = -1.0;
+  EXPECT_FALSE(negative.Validate().ok());
 }
 
 // A closure does not pause the wide search (wide_quiet_keyframes 0): it corrects the estimate

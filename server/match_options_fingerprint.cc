@@ -12,7 +12,7 @@ namespace {
 static_assert(sizeof(MatchOptions) == 48, "new MatchOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
-static_assert(sizeof(LoopClosureOptions) == 440,
+static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanEncounterOptions) == 528,
               "new ScanEncounterOptions field: add it to the fingerprint");
@@ -106,6 +106,7 @@ void Add(Fnv1a* h, const LoopClosureOptions& o) {
   h->F(o.wide_weak_partner_max_sigma_m);
   Add(h, o.budget);
   h->F(o.budget_wide_units);
+  h->F(o.budget_wide_nodes_per_unit);
   Add(h, o.reference);
   Add(h, o.match);
 }

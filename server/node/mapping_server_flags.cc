@@ -89,8 +89,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "beyond (MB, estimated)");
   add("loop.budget_per_s", "loop-budget-per-s", &s.loop.budget.units_per_s,
       "loop closures: matching work per second of data, whole team (units: a local match 1, "
-      "a wide search 8); short of it the keyframes whose trajectory drove farthest since its "
-      "last served one go first (0 = no bound)");
+      "a wide search 8, or its branch and bound's scored nodes / 25000 when more); short of it "
+      "the keyframes whose trajectory drove farthest since its last served one go first (0 = "
+      "no bound)");
   add("loop.budget_burst", "loop-budget-burst", &s.loop.budget.burst,
       "loop closures: most matching work saved up (units)");
   add("scan.enabled", "scan-encounters", &s.scan_encounters,
