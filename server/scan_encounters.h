@@ -117,6 +117,14 @@ struct ScanEncounterOptions {
   // The true joining pairs measured on Intel, ACES and FR079 had one side at 0.44 or less
   // (FR079 2 robots: R1 0.00, turned round, with R2 0.64).
   double pcm_max_shared_view = 0.5;
+  // Two map-verified candidates from one place of the querying robot (Independent) count as
+  // two looks only when its two query scans share less than this of their view: one look
+  // matched twice confirms nothing, since an aliased corridor matches it at every stretch that
+  // looks alike (TwinCorridorWorld, R1 turning on the spot: every pair whose references passed
+  // shared 0.944 or more, searching every keyframe against every submap; it joined R2 10 m
+  // off). The one-place pairs of the benchmark logs split in two and three measured 0.31-0.89;
+  // the one that joins ACES split in three sequentially (R2[180]/R2[185]) 0.745.
+  double pcm_max_shared_look = 0.9;
   int max_kept = 200;  // lone candidates kept per pair of trajectories
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
