@@ -20,8 +20,9 @@
 //   agree (map-verified: few of either side's points in the other's seen free space) are
 //   tested with each trajectory's estimate widened for the drive and the turn between them.
 //   Two map-verified candidates also confirm each other from one place of one trajectory
-//   when they come from two query scans matched against two stretches of the other that
-//   share no keyframe and see other walls (the other robot saw the place twice). Once a
+//   when they come from two query scans, two looks rather than one (pcm_max_shared_look),
+//   matched against two stretches of the other that share no keyframe and see other walls
+//   (the other robot saw the place twice). Once a
 //   group holds two trajectories or more, two map-verified candidates of two pairs between the
 //   same groups (R1-R3 and R2-R3, R1 and R2 joined) confirm each other too: each side's
 //   relative pose comes from its group's joint estimate, and they must be at two places of
@@ -468,9 +469,9 @@ class ScanEncounters : public EncounterSource {
   };
   bool Localised(const EncounterCandidate& candidate) const;
   // Two kept candidates are independent evidence: at two places (TwoPlaces), or, both
-  // map-verified, two query scans matched against stretches of the other trajectory that
-  // share no keyframe and see other walls (one place of the querying robot, seen twice by
-  // the other).
+  // map-verified, two query scans that are two looks (pcm_max_shared_look) matched against
+  // stretches of the other trajectory that share no keyframe and see other walls (one place
+  // of the querying robot, seen twice by the other).
   bool Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const;
   // Across two pairs of trajectories between the same two groups (R1-R3 and R2-R3, R1 and R2
   // joined): both candidates map-verified and localised, at two places of both groups
