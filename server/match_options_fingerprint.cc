@@ -14,7 +14,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 528,
+static_assert(sizeof(ScanEncounterOptions) == 536,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 128,
               "new SmootherOptions field: add it to the fingerprint");
@@ -127,6 +127,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->I(o.pcm_min_separation);
   h->F(o.pcm_min_separation_m);
   h->F(o.pcm_max_shared_view);
+  h->F(o.pcm_max_shared_look);
   h->I(o.max_kept);
   h->F(o.alternative_ratio);
   h->F(o.first_join_max_sigma_m);

@@ -36,6 +36,7 @@ TEST(MatchOptionsFingerprintTest, ChangesWithTheOptionsThatChangeResults) {
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.submap_half_width = 4; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.global_budget.burst = 39.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.first_join_hold_s = 29.0; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.pcm_max_shared_look = 0.8; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.near_drift_per_m = 0.02; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.near_drift_rad_per_m = 0.002; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.near_catch_up_every = 0; }));

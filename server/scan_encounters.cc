@@ -888,6 +888,9 @@ bool ScanEncounters::Independent(const Kept& k1, const Kept& k2, const GraphView
   const PoseKey reference1 = c1.a_is_query ? c1.b : c1.a;
   const PoseKey reference2 = c2.a_is_query ? c2.b : c2.a;
   if (reference1.trajectory != reference2.trajectory) return false;
+  // Two looks, not one look twice: a query scan nearly the same as the other (a robot turning
+  // a little on the spot) matches every stretch of an aliased corridor alike.
+  if (SharedView(c1.query(), c2.query(), graph) >= options_.pcm_max_shared_look) return false;
   return ApartAndSeeingOtherWalls(reference1, reference2, graph);
 }
 

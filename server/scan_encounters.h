@@ -20,8 +20,9 @@
 //   agree (map-verified: few of either side's points in the other's seen free space) are
 //   tested with each trajectory's estimate widened for the drive and the turn between them.
 //   Two map-verified candidates also confirm each other from one place of one trajectory
-//   when they come from two query scans matched against two stretches of the other that
-//   share no keyframe and see other walls (the other robot saw the place twice). Once a
+//   when they come from two query scans, two looks rather than one (pcm_max_shared_look),
+//   matched against two stretches of the other that share no keyframe and see other walls
+//   (the other robot saw the place twice). Once a
 //   group holds two trajectories or more, two map-verified candidates of two pairs between the
 //   same groups (R1-R3 and R2-R3, R1 and R2 joined) confirm each other too: each side's
 //   relative pose comes from its group's joint estimate, and they must be at two places of
@@ -117,6 +118,14 @@ struct ScanEncounterOptions {
   // The true joining pairs measured on Intel, ACES and FR079 had one side at 0.44 or less
   // (FR079 2 robots: R1 0.00, turned round, with R2 0.64).
   double pcm_max_shared_view = 0.5;
+  // Two map-verified candidates from one place of the querying robot (Independent) count as
+  // two looks only when its two query scans share less than this of their view: one look
+  // matched twice confirms nothing, since an aliased corridor matches it at every stretch that
+  // looks alike (TwinCorridorWorld, R1 turning on the spot: every pair whose references passed
+  // shared 0.944 or more, searching every keyframe against every submap; it joined R2 10 m
+  // off). The one-place pairs of the benchmark logs split in two and three measured 0.31-0.89;
+  // the one that joins ACES split in three sequentially (R2[180]/R2[185]) 0.745.
+  double pcm_max_shared_look = 0.9;
   int max_kept = 200;  // lone candidates kept per pair of trajectories
   // A consistent set joins when (1 + its consistent kept candidates) is at least this
   // times (1 + the support) of every kept candidate outside it.
@@ -460,9 +469,9 @@ class ScanEncounters : public EncounterSource {
   };
   bool Localised(const EncounterCandidate& candidate) const;
   // Two kept candidates are independent evidence: at two places (TwoPlaces), or, both
-  // map-verified, two query scans matched against stretches of the other trajectory that
-  // share no keyframe and see other walls (one place of the querying robot, seen twice by
-  // the other).
+  // map-verified, two query scans that are two looks (pcm_max_shared_look) matched against
+  // stretches of the other trajectory that share no keyframe and see other walls (one place
+  // of the querying robot, seen twice by the other).
   bool Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const;
   // Across two pairs of trajectories between the same two groups (R1-R3 and R2-R3, R1 and R2
   // joined): both candidates map-verified and localised, at two places of both groups

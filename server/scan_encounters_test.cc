@@ -574,7 +574,8 @@ TEST_F(SharedViewFirstJoinTest, OnePlaceMatchedAgainstTwoStretchesJoins) {
 // seen by R1. Where the alias is map-verified (R1[12]-R2[12]: no point in the other's free
 // space; R1[20]-R2[16]: 0.026), R1's two stretches see the same walls (shared view 0.76); where
 // R1 sees other walls (R1[28], shared view 0.47), the hall stands in the other's free space
-// (R1[28]-R2[16]: 0.072, over the 0.045 bar). Taken as verified, it joins R2 10 m off.
+// (R1[28]-R2[16]: 0.072, over the 0.045 bar). Taken as verified, and R2's two query scans as
+// two looks (pcm_max_shared_look), it joins R2 10 m off.
 TEST_F(SharedViewFirstJoinTest, AnAliasAtOnePlaceDoesNotJoin) {
   Drive(testing::TwinCorridorWorld(), testing::StraightPath({19.0, 1.5}, {1.5, 1.5}, 0.5),
         testing::StraightPath({19.0, 11.5}, {1.5, 11.5}, 0.5));
@@ -594,7 +595,40 @@ TEST_F(SharedViewFirstJoinTest, AnAliasAtOnePlaceDoesNotJoin) {
   EXPECT_TRUE(Offer(other_walls).empty());
   const double shared_view = ScanEncounterOptions{}.pcm_max_shared_view;
   EXPECT_TRUE(Offer(other_walls, shared_view, /*join_max_conflict=*/1.0).empty());
-  EXPECT_EQ(Offer(other_walls, shared_view, 1.0, /*verify_max_conflict=*/1.0).size(), 2u);
+  // Taken as verified, R2's two query scans (R2[12], R2[16]: one look down the corridor) are
+  // still one look; as two looks too, it joins.
+  EXPECT_TRUE(Offer(other_walls, shared_view, 1.0, /*verify_max_conflict=*/1.0).empty());
+  ScanEncounterOptions unguarded;
+  unguarded.join_max_conflict = 1.0;
+  unguarded.verify_max_conflict = 1.0;
+  unguarded.pcm_max_shared_look = 1.01;
+  EXPECT_EQ(OfferWith(other_walls, unguarded).size(), 2u);
+}
+
+// One look matched twice: R1 turns on the spot in TwinCorridorWorld's south corridor and R2
+// drives the north one (as in CandidatesFromOneSpotDoNotJoinAnAliasedPlace). R1[15] and R1[35]
+// look the same way down the corridor; each matches a stretch of R2's copy (R2[5] and R2[25],
+// 10 m apart, other walls), both map-verified, as the round-by-round cursor found them. Seen
+// as two looks of one place they joined R2 10 m off; one look twice, they do not.
+TEST_F(SharedViewFirstJoinTest, OneLookMatchedAgainstTwoStretchesOfAnAliasDoesNotJoin) {
+  std::vector<Pose2> turning;
+  for (int i = 0; i < 40; ++i) turning.emplace_back(12.0, 1.5, 0.35 * i);
+  std::vector<Pose2> corridor = testing::StraightPath({19.0, 11.5}, {5.0, 11.5}, 0.5);
+  const std::vector<Pose2> back = testing::StraightPath({5.0, 11.5}, {12.0, 11.5}, 0.5);
+  corridor.insert(corridor.end(), back.begin() + 1, back.end());
+  Drive(testing::TwinCorridorWorld(), turning, corridor);
+  const Pose2 alias(0.0, -10.0, 0.0);
+  std::vector<EncounterCandidate> one_look = {Candidate(15, 5, alias), Candidate(35, 25, alias)};
+  for (EncounterCandidate& c : one_look) c.a_is_query = true;  // R1's scans matched
+  const double look = SharedView(TrajectoryId(0), 15, 35);
+  const double stretches = SharedView(TrajectoryId(1), 5, 25);
+  std::printf("one look: shared view R1[15]/R1[35] %.3f, R2[5]/R2[25] %.3f\n", look, stretches);
+  EXPECT_GE(look, ScanEncounterOptions{}.pcm_max_shared_look);  // measured 1.00
+  EXPECT_LT(stretches, ScanEncounterOptions{}.pcm_max_shared_view);
+  EXPECT_TRUE(Offer(one_look).empty());
+  ScanEncounterOptions as_two_looks;
+  as_two_looks.pcm_max_shared_look = 1.01;
+  EXPECT_EQ(OfferWith(one_look, as_two_looks).size(), 2u);
 }
 
 // Cross-pair confirmation on hand-made candidates with real scans: R1 and R2 lap LoopWorld from
