@@ -281,6 +281,8 @@ __attribute__((target("avx2"))) void InterpolateWithNormalsAvx2(const FieldArray
   // Gathers of every lane (the masked forms: GCC's plain ones leave their source undefined).
   const __m128 no_float = _mm_setzero_ps();
   const __m128 all_float = _mm_castsi128_ps(minus_one);
+  // A field without points has no normals (null): no offset from a null pointer (UBSan).
+  const double* normals_y = f.start_normals == nullptr ? nullptr : f.start_normals + 1;
   for (size_t i = 0; i + 4 <= n; i += 4) {
     // CellOf's quotients, the four cell centres around the point from floor(u - 0.5).
     const __m256d qx =
@@ -348,7 +350,7 @@ __attribute__((target("avx2"))) void InterpolateWithNormalsAvx2(const FieldArray
     const __m256d with_primitive = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(has_primitive));
     const __m128i pair = _mm_slli_epi32(_mm_and_si128(a, has_primitive), 1);
     const __m256d nx = _mm256_mask_i32gather_pd(zero, f.start_normals, pair, with_primitive, 8);
-    const __m256d ny = _mm256_mask_i32gather_pd(zero, f.start_normals + 1, pair, with_primitive, 8);
+    const __m256d ny = _mm256_mask_i32gather_pd(zero, normals_y, pair, with_primitive, 8);
     // A unit normal is never zero; zero marks a lone return.
     const __m256d zero_normal =
         _mm256_and_pd(_mm256_cmp_pd(nx, zero, _CMP_EQ_OQ), _mm256_cmp_pd(ny, zero, _CMP_EQ_OQ));
