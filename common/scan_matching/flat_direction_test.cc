@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -24,6 +25,26 @@ ScanReferenceOptions LocalReferenceOptions() {
   ScanReferenceOptions options;
   options.num_levels = 4;
   return options;
+}
+
+// A scan in a random room and the next one 0.2 m on, as a local map's reference and a query
+// with its true pose in the reference's frame.
+struct RoomScans {
+  ScanReference reference;
+  PointCloud query;
+  Pose2 truth;
+};
+
+RoomScans ScansInARandomRoom(uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const SyntheticWorld room = RandomRoom(seed);
+  const Pose2 a = RandomFreePose(room, 0.8, &rng);
+  const Pose2 b = Compose(a, Pose2(0.2, -0.1, 0.05));
+  const SyntheticLaser laser = HalfCircleLaser(30.0);
+  ScanReference reference({ScanToPointCloud(SimulateScan(room, laser, a, &rng))},
+                          LocalReferenceOptions());
+  PointCloud query = ScanToPointCloud(SimulateScan(room, laser, b, &rng));
+  return {std::move(reference), std::move(query), Between(a, b)};
 }
 
 // The axis's angle from the x axis, folded into [0, pi).
@@ -67,15 +88,7 @@ TEST(FlatDirectionTest, RoomsHaveNone) {
   // In a room every direction moves points off walls within a few centimetres.
   int rooms = 0;
   for (uint64_t seed = 0; seed < 6; ++seed) {
-    std::mt19937_64 rng(40 + seed);
-    const SyntheticWorld room = RandomRoom(40 + seed);
-    const Pose2 a = RandomFreePose(room, 0.8, &rng);
-    const Pose2 b = Compose(a, Pose2(0.2, -0.1, 0.05));
-    const SyntheticLaser laser = HalfCircleLaser(30.0);
-    const ScanReference reference({ScanToPointCloud(SimulateScan(room, laser, a, &rng))},
-                                  LocalReferenceOptions());
-    const PointCloud query = ScanToPointCloud(SimulateScan(room, laser, b, &rng));
-    const Pose2 truth = Between(a, b);
+    const auto [reference, query, truth] = ScansInARandomRoom(40 + seed);
     const auto most = MostFlatDirection(reference, query, truth, FlatDirectionOptions{});
     ASSERT_TRUE(most.has_value());
     std::printf("room %d: most flat score ratio %.3f\n", static_cast<int>(seed), most->score_ratio);
@@ -90,16 +103,9 @@ TEST(FlatDirectionTest, ShiftedWallScoreAboveIsTheScoreToTheBitOrAtMostTheFloor)
   // The flat search asks only whether a shift beats the best direction so far: above the floor
   // the score is finished (the same bits), below it may stop early with a value at most the
   // floor. Shifts all round at 0.1 and 0.4 m in a room, floors from 0 to past the top.
-  std::mt19937_64 rng(52);
-  const SyntheticWorld room = RandomRoom(52);
-  const Pose2 a = RandomFreePose(room, 0.8, &rng);
-  const Pose2 b = Compose(a, Pose2(0.2, -0.1, 0.05));
-  const SyntheticLaser laser = HalfCircleLaser(30.0);
-  const ScanReference reference({ScanToPointCloud(SimulateScan(room, laser, a, &rng))},
-                                LocalReferenceOptions());
-  const PointCloud query = ScanToPointCloud(SimulateScan(room, laser, b, &rng));
+  const auto [reference, query, truth] = ScansInARandomRoom(52);
   const ReferenceField& field = reference.field();
-  const std::vector<WallPoint> on_walls = PointsOnWalls(field, query, Between(a, b));
+  const std::vector<WallPoint> on_walls = PointsOnWalls(field, query, truth);
   ASSERT_GT(on_walls.size(), 50u);
   const double sigma = reference.options().likelihood_sigma_m;
   int finished = 0;
