@@ -311,10 +311,11 @@ class Smoother::Impl {
   // linearisation point and the decrease the Gauss-Newton model predicts (|d|^2).
   bool FactorAll(const std::vector<int64_t>& included, UpdateResult* result, double* chi2 = nullptr,
                  double* predicted_decrease = nullptr);
-  // Halves delta while the Gauss-Newton step raised chi2 by more than it predicted to
-  // lower it (smoother_nonlinear.cc: why); the next iteration relinearises there.
+  // Halves delta while the Gauss-Newton step (chi2 at it: step_chi2) raised chi2 by more
+  // than it predicted to lower it (smoother_nonlinear.cc: why); the next iteration
+  // relinearises there.
   void ShortenOvershootingStep(const std::vector<int64_t>& included, double chi2,
-                               double predicted_decrease);
+                               double predicted_decrease, double step_chi2);
   // chi2 at linearisation point + step (step empty: at the linearisation point).
   double Chi2Of(const std::vector<int64_t>& included,
                 const std::vector<Eigen::Vector3d>& step) const;

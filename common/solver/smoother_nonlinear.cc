@@ -47,24 +47,26 @@ void Smoother::Impl::GaussNewtonIterations(const std::vector<int64_t>& included,
     // the step did not raise chi2: a converged map's first step can (M3500's final batch
     // step: predicted 0.28, chi2 +0.06, a step of 0.8 rad), and the model is not to be
     // trusted there.
-    if (predicted_decrease < options_.convergence_decrease * chi2 &&
-        Chi2Of(included, delta_) <= chi2) {
-      break;
+    const bool last = it + 1 >= max_iterations;
+    const bool decrease_small = predicted_decrease < options_.convergence_decrease * chi2;
+    if (!last || decrease_small) {
+      // The chi2 at the step, evaluated once for both decisions.
+      const double step_chi2 = Chi2Of(included, delta_);
+      if (decrease_small && step_chi2 <= chi2) break;
+      if (!last) ShortenOvershootingStep(included, chi2, predicted_decrease, step_chi2);
     }
-    if (it + 1 < max_iterations) ShortenOvershootingStep(included, chi2, predicted_decrease);
   }
   stats_.iterations_to_convergence += result->iterations;
 }
 
 void Smoother::Impl::ShortenOvershootingStep(const std::vector<int64_t>& included, double chi2,
-                                             double predicted_decrease) {
+                                             double predicted_decrease, double step_chi2) {
   // A full Gauss-Newton step far from the optimum can raise chi2 by orders of magnitude,
   // and the next linearisation there is worse (the 20 x 300 simulation's final batch step:
   // chi2 1.6e6 -> 9.4e7 -> 1.9e11, 50 iterations, ending at 7.8e7). Only a step that
   // raised chi2 by more than it predicted to lower it is halved, until chi2 does not
   // rise: near the optimum the model holds and the steps stay full (M3500's first final
   // step: predicted 0.28, raised 0.06). The last iteration's delta stays R's solution.
-  double step_chi2 = Chi2Of(included, delta_);
   if (!(step_chi2 > chi2 + predicted_decrease)) return;
   for (int k = 0; k < 20 && !(step_chi2 <= chi2); ++k) {
     for (Eigen::Vector3d& d : delta_) d *= 0.5;
