@@ -5,6 +5,7 @@
 #include <future>
 #include <limits>
 #include <memory>
+#include <set>
 
 #include <Eigen/Eigenvalues>
 
@@ -118,6 +119,29 @@ EncounterCandidate OrientedLike(const EncounterCandidate& c, const EncounterCand
   return InOneFrame(smoother, c.a.trajectory, like.a.trajectory) ? c : Reversed(c);
 }
 
+// True when a and b will be in one frame once `constraints` are in the graph: each one's group
+// (its root once anchored, else itself) and those the constraints between trajectories tie to it.
+bool InOneFrameAfter(const Smoother& smoother, const std::vector<EncounterConstraint>& constraints,
+                     TrajectoryId a, TrajectoryId b) {
+  const auto frame = [&](TrajectoryId id) {
+    return smoother.IsAnchored(id) ? smoother.GroupRoot(id) : id;
+  };
+  std::set<TrajectoryId> reached{frame(a)};
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const EncounterConstraint& c : constraints) {
+      const TrajectoryId x = frame(c.a.trajectory);
+      const TrajectoryId y = frame(c.b.trajectory);
+      if (reached.count(x) != reached.count(y)) {
+        reached.insert(x);
+        reached.insert(y);
+        grew = true;
+      }
+    }
+  }
+  return reached.count(frame(b)) > 0;
+}
+
 }  // namespace
 
 Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options) {
@@ -185,8 +209,17 @@ void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
   if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   JoinQualified(/*flush=*/true, graph, out);
-  for (auto& [pair, kept] : kept_) GiveUpHeld(&kept, &stats_);
-  kept_.clear();
+  // The rest is given up, but for the kept candidates of the pairs this output brings into one
+  // frame: the server solves the join and flushes once more, and ResolveKept gates them then
+  // against the joined estimate, as the next keyframe would after a join mid-run.
+  for (auto it = kept_.begin(); it != kept_.end();) {
+    if (InOneFrameAfter(graph.smoother, out->constraints, it->first.first, it->first.second)) {
+      ++it;
+      continue;
+    }
+    GiveUpHeld(&it->second, &stats_);
+    it = kept_.erase(it);
+  }
   for (auto& [pair, held] : near_held_) GiveUpHeld(&held, &stats_);
   near_held_.clear();
 }
