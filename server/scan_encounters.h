@@ -44,7 +44,9 @@
 //   a drift term for the path both robots drove since the nearest tie between them
 //   (near_drift_*): a match only that gate accepts enters with a second one that agrees.
 //   When a pair first comes into one frame, the keyframes examined before are searched
-//   so once (near_catch_up_every). A pair already tied near here is not searched again
+//   so once (near_catch_up_every). A pair that joins at the end of input gets this catch-up
+//   and its kept candidates gated too: Flush keeps them, and MappingServer::Flush solves the
+//   join and calls Flush once more. A pair already tied near here is not searched again
 //   (near_saturation_m), and a keyframe searches at most near_max_partners joined
 //   trajectories, the nearest first: the work per keyframe does not grow with the team;
 //   and the near searches per second of data are bounded (near_budget,
