@@ -360,11 +360,19 @@ class ScanEncounters : public EncounterSource {
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
+  // A trajectory a global search of a keyframe takes, and its submaps a kept hypothesis guides
+  // the search to (GuidedSubmaps, at most GlobalTries of them; none: the next ones in turn).
+  struct GlobalTarget {
+    TrajectoryId other;
+    std::vector<size_t> guided;
+  };
   // The trajectories `key` is searched against: one of each other group (the pair
   // searched least so far), at most max_global_groups_per_keyframe groups.
-  std::vector<TrajectoryId> GlobalTargets(PoseKey key, const GraphView& graph) const;
-  // Submits the searches of `key` against `other`'s submaps; returns how many.
-  int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
+  std::vector<GlobalTarget> GlobalTargets(PoseKey key, const GraphView& graph) const;
+  // The submaps of `other` one keyframe's global search takes (max_global_per_keyframe).
+  size_t GlobalTries(TrajectoryId other) const;
+  // Submits the searches of `key` against the target's submaps; returns how many.
+  int SearchGlobally(PoseKey key, const GlobalTarget& target, const GraphView& graph);
   // The submap of `other` a near search of `key` would match against: the nearest one within
   // near_distance_m, unless the pair is quiet or saturated there (nullopt then).
   struct NearTarget {
