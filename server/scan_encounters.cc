@@ -449,19 +449,18 @@ int ScanEncounters::SearchGlobally(PoseKey key, const GlobalTarget& target,
     if (t < guided.size()) {
       index = guided[t];
     } else {
-      // Round by round: the cursor is the next submap, not a count of searches (modulo a list
-      // that grows, a count steps back by one for every round done, and a trajectory still
-      // driving was searched along one stretch for a while: ACES split in three
-      // simultaneously, R3 searched R1[85], [75] ... [25] while it passed R1[115] and never
-      // joined).
-      index = cursor % submaps.size();
-      cursor = index + 1;
+      // The cursor counts the searches: modulo a list that grows it steps back by one for
+      // every round done, so a trajectory still driving is searched along one stretch for a
+      // while (ACES split in three simultaneously: R3 searched R1[85], [75] ... [25] while it
+      // passed R1[115]). Taking the submaps round by round joined R3 there (0.0393, with the
+      // end-of-input join finished), but lost R1-R2's join on two of three rotated copies of
+      // that log and delayed FR079 split in three's joins (more global searches): kept.
+      index = cursor++ % submaps.size();
       // Not a guided submap a second time: the next one in turn instead.
       for (size_t skipped = 0; skipped + 1 < submaps.size() &&
                                std::find(guided.begin(), guided.end(), index) != guided.end();
            ++skipped) {
-        index = cursor % submaps.size();
-        cursor = index + 1;
+        index = cursor++ % submaps.size();
       }
     }
     Submap& submap = submaps[index];
