@@ -70,7 +70,10 @@ class EncounterSource {
   // background work.
   virtual void Poll(int64_t /*now_utime*/, const GraphView& /*graph*/,
                     EncounterSourceOutput* /*out*/) {}
-  // End of input: resolve what can be resolved, refuse the rest.
+  // End of input: resolve what can be resolved, refuse the rest, but for what `out`'s
+  // constraints may still resolve once in the graph (candidates kept for a pair they join).
+  // MappingServer calls it again, once, after solving a join it made: a source that kept
+  // something looks at it then.
   virtual void Flush(const GraphView& /*graph*/, EncounterSourceOutput* /*out*/) {}
   // Items waiting inside the source (for the status line).
   virtual size_t pending() const { return 0; }

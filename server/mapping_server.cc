@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
+#include <set>
 #include <string>
 
 #include "common/util/log.h"
@@ -281,10 +282,19 @@ void MappingServer::Flush() {
   Enqueue(admitted);
   Release(/*at_end=*/true, 0);
   SolvePending();  // the sources' last look reads a solved graph
-  EncounterSourceOutput found;
-  const GraphView graph{table_, smoother_, &smoother_, &ties_};
-  for (auto& source : sources_) source->Flush(graph, &found);
-  Commit(found, false, "flush");
+  // When what the sources resolve joins trajectories, the join is solved and they look once
+  // more, as at the next input after a join mid-run (a scan source gates the pair's kept
+  // candidates and near-searches the keyframes examined before it); a join made at that second
+  // look is not looked at again: two looks at most.
+  for (int look = 0; look < 2; ++look) {
+    if (look > 0) SolvePending();
+    const size_t frames = NumFrames();
+    EncounterSourceOutput found;
+    const GraphView graph{table_, smoother_, &smoother_, &ties_};
+    for (auto& source : sources_) source->Flush(graph, &found);
+    Commit(found, false, "flush");
+    if (NumFrames() == frames) break;
+  }
   // End of input: one batch step, so that the last map is the converged solution rather
   // than the incremental estimate (which relinearises only at batch steps).
   // The batch step folds in what a period left pending.
@@ -481,6 +491,16 @@ std::vector<const EncounterSource*> MappingServer::sources() const {
   std::vector<const EncounterSource*> out;
   for (const auto& source : sources_) out.push_back(source.get());
   return out;
+}
+
+size_t MappingServer::NumFrames() const {
+  std::set<std::pair<bool, TrajectoryId>> frames;
+  for (const TrajectoryRecord& record : table_.records()) {
+    const TrajectoryId id = record.solver_id;
+    frames.emplace(smoother_.IsAnchored(id),
+                   smoother_.IsAnchored(id) ? smoother_.GroupRoot(id) : id);
+  }
+  return frames.size();
 }
 
 int MappingServer::num_anchored() const {

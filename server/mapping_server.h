@@ -188,7 +188,8 @@ class MappingServer {
   // due again (DeliveryOptions::resend_period_s); counted as published.
   std::vector<ResendRequest> BuildResendRequests();
   // End of input: admits waiting keyframes (bridging gaps), resolves or refuses waiting
-  // encounters, updates, and finishes with a batch step (the converged solution).
+  // encounters (when that joins trajectories: solves and has the sources look once more at
+  // the joined pairs), updates, and finishes with a batch step (the converged solution).
   void Flush();
   // Runs the update that solve_period_s left pending, if any (Flush calls it; a caller
   // that needs the solved estimate now may too, at the price of determinism online).
@@ -291,6 +292,9 @@ class MappingServer {
   UpdateResult DeferredBatchStep();
   // Adds admitted keyframes to the smoother and tells the sources.
   void AddKeyframes(const std::vector<AdmittedKeyframe>& admitted, EncounterSourceOutput* found);
+  // The frames the graph's trajectories are in (an anchored group's, an unanchored
+  // trajectory's own): fewer after a join.
+  size_t NumFrames() const;
   // Adds the sources' constraints, counts their refusals, updates the smoother if anything
   // changed.
   void Commit(const EncounterSourceOutput& found, bool changed, const std::string& context);

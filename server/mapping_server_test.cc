@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "common/util/log.h"
+#include "server/relative_pose.h"
 #include "tests/testing/map_difference.h"
 #include "tests/testing/straight_keyframes.h"
 
@@ -946,6 +947,67 @@ TEST_F(MappingServerTest, ARestartResumesTheHoldAndPatienceClocks) {
     if (resumed) server.ResumeClocks(20'000'000);
     server.Tick(21'000'000);
     EXPECT_EQ(server.order_stats().silences, resumed ? 0 : 1);
+  }
+}
+
+// A source that, at the end of input, ties R1[0] to R2[0] at its first look and R2[1] to R3[0]
+// at its second (as many as `joins`), and records what each look saw.
+class JoinsAtTheEnd : public EncounterSource {
+ public:
+  struct Look {
+    bool r1_r2_one_frame = false;
+    bool r2_r3_one_frame = false;
+    bool group_change_pending = false;
+  };
+  explicit JoinsAtTheEnd(int joins) : joins_(joins) {}
+  std::string name() const override { return "end"; }
+  void Flush(const GraphView& graph, EncounterSourceOutput* out) override {
+    const TrajectoryId r1(0), r2(1), r3(2);
+    looks_.push_back({InOneFrame(graph.smoother, r1, r2), InOneFrame(graph.smoother, r2, r3),
+                      graph.smoother.GroupChangePending()});
+    if (static_cast<int>(looks_.size()) > joins_) return;
+    EncounterConstraint c;
+    c.a = looks_.size() == 1 ? PoseKey{r1, 0} : PoseKey{r2, 1};
+    c.b = looks_.size() == 1 ? PoseKey{r2, 0} : PoseKey{r3, 0};
+    c.measured_T_a_b = Pose2(0.0, 3.0, 0.0);
+    c.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+    c.source = name();
+    c.kind = ConstraintKind::kScanEncounter;
+    out->constraints.push_back(c);
+  }
+  const std::vector<Look>& looks() const { return looks_; }
+
+ private:
+  int joins_;
+  std::vector<Look> looks_;
+};
+
+// A join the sources make at the end of input is finished as one made mid-run: solved, then
+// the sources look once more (a scan source gates the pair's kept candidates then). One more
+// look only: a join made at the second is solved by the final batch step, not looked at.
+TEST_F(MappingServerTest, AJoinMadeAtTheEndOfInputIsSolvedAndLookedAtOnceMore) {
+  for (const int joins : {0, 1, 2}) {
+    MappingServer server(ExactTieOptions());
+    auto owned = std::make_unique<JoinsAtTheEnd>(joins);
+    const JoinsAtTheEnd* source = owned.get();
+    server.AddEncounterSource(std::move(owned));
+    for (int32_t seq = 0; seq < 5; ++seq) {
+      for (const char* robot : {"R1", "R2", "R3"}) {
+        ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe(robot, 1, seq)).ok());
+      }
+    }
+    server.Flush();
+    // No join at the end: one look, as before.
+    ASSERT_EQ(source->looks().size(), joins == 0 ? 1u : 2u) << joins << " joins";
+    EXPECT_FALSE(source->looks()[0].r1_r2_one_frame);
+    if (joins > 0) {
+      EXPECT_TRUE(source->looks()[1].r1_r2_one_frame);  // the second look sees the join solved
+      EXPECT_FALSE(source->looks()[1].group_change_pending);
+      EXPECT_FALSE(source->looks()[1].r2_r3_one_frame);
+    }
+    EXPECT_EQ(InOneFrame(server.smoother(), TrajectoryId(1), TrajectoryId(2)), joins == 2);
+    EXPECT_EQ(server.stats().encounters_added, joins);
+    EXPECT_FALSE(server.solve_pending());
   }
 }
 

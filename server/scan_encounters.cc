@@ -5,6 +5,7 @@
 #include <future>
 #include <limits>
 #include <memory>
+#include <set>
 
 #include <Eigen/Eigenvalues>
 
@@ -118,6 +119,29 @@ EncounterCandidate OrientedLike(const EncounterCandidate& c, const EncounterCand
   return InOneFrame(smoother, c.a.trajectory, like.a.trajectory) ? c : Reversed(c);
 }
 
+// True when a and b will be in one frame once `constraints` are in the graph: each one's group
+// (its root once anchored, else itself) and those the constraints between trajectories tie to it.
+bool InOneFrameAfter(const Smoother& smoother, const std::vector<EncounterConstraint>& constraints,
+                     TrajectoryId a, TrajectoryId b) {
+  const auto frame = [&](TrajectoryId id) {
+    return smoother.IsAnchored(id) ? smoother.GroupRoot(id) : id;
+  };
+  std::set<TrajectoryId> reached{frame(a)};
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const EncounterConstraint& c : constraints) {
+      const TrajectoryId x = frame(c.a.trajectory);
+      const TrajectoryId y = frame(c.b.trajectory);
+      if (reached.count(x) != reached.count(y)) {
+        reached.insert(x);
+        reached.insert(y);
+        grew = true;
+      }
+    }
+  }
+  return reached.count(frame(b)) > 0;
+}
+
 }  // namespace
 
 Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options) {
@@ -185,8 +209,17 @@ void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   Examine(graph, out);
   if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   JoinQualified(/*flush=*/true, graph, out);
-  for (auto& [pair, kept] : kept_) GiveUpHeld(&kept, &stats_);
-  kept_.clear();
+  // The rest is given up, but for the kept candidates of the pairs this output brings into one
+  // frame: the server solves the join and flushes once more, and ResolveKept gates them then
+  // against the joined estimate, as the next keyframe would after a join mid-run.
+  for (auto it = kept_.begin(); it != kept_.end();) {
+    if (InOneFrameAfter(graph.smoother, out->constraints, it->first.first, it->first.second)) {
+      ++it;
+      continue;
+    }
+    GiveUpHeld(&it->second, &stats_);
+    it = kept_.erase(it);
+  }
   for (auto& [pair, held] : near_held_) GiveUpHeld(&held, &stats_);
   near_held_.clear();
 }
@@ -311,22 +344,23 @@ void ScanEncounters::CatchUpJoined(const GraphView& graph) {
 void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
   const int most_per_target = std::max(0, options_.max_global_per_keyframe);
   for (std::optional<PoseKey> key = global_queue_.Next(); key; key = global_queue_.Next()) {
-    const std::vector<TrajectoryId> targets = GlobalTargets(*key, graph);
+    const std::vector<GlobalTarget> targets = GlobalTargets(*key, graph);
     int cost = 0;
-    for (const TrajectoryId other : targets) {
-      cost +=
-          static_cast<int>(std::min(submaps_[other].size(), static_cast<size_t>(most_per_target)));
+    for (const GlobalTarget& target : targets) {
+      cost += static_cast<int>(
+          std::min(submaps_[target.other].size(), static_cast<size_t>(most_per_target)));
     }
     // Waits for tokens (every keyframe's cost is at most the burst, so it will be served
     // unless a newer keyframe of its trajectory replaces it).
     if (cost > 0 && !global_queue_.CanAfford(cost)) return;
     int spent = 0;
-    for (const TrajectoryId other : targets) spent += SearchGlobally(*key, other, graph);
+    for (const GlobalTarget& target : targets) spent += SearchGlobally(*key, target, graph);
     global_queue_.Served(*key, spent);
   }
 }
 
-std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const GraphView& graph) const {
+std::vector<ScanEncounters::GlobalTarget> ScanEncounters::GlobalTargets(
+    PoseKey key, const GraphView& graph) const {
   // A trajectory's group: its root once anchored, else itself (its own frame).
   const auto group_of = [&](TrajectoryId id) {
     return std::make_pair(graph.smoother.IsAnchored(id),
@@ -346,13 +380,18 @@ std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const Graph
   }
   // A group's trajectory is, instead, the one a kept hypothesis guides the search to (the
   // nearest guided submap, then the smaller id), when there is one: the trajectory searched
-  // least is far from the place the hypothesis puts the keyframe.
+  // least is far from the place the hypothesis puts the keyframe. The guided submaps are
+  // those SearchGlobally takes (computed once: they do not change in between).
   std::map<std::pair<bool, TrajectoryId>, std::pair<double, TrajectoryId>> guided;
+  std::map<TrajectoryId, std::vector<size_t>> guided_submaps;
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
     if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
     double distance_m = 0.0;
-    if (GuidedSubmaps(key, id, graph, 1, &distance_m).empty()) continue;
+    std::vector<size_t> submaps =
+        GuidedSubmaps(key, id, graph, std::max<size_t>(1, GlobalTries(id)), &distance_m);
+    if (submaps.empty()) continue;
+    guided_submaps.emplace(id, std::move(submaps));
     const std::pair<double, TrajectoryId> rank{distance_m, id};
     const auto [it, inserted] = guided.emplace(group_of(id), rank);
     if (!inserted && rank < it->second) it->second = rank;
@@ -365,14 +404,28 @@ std::vector<TrajectoryId> ScanEncounters::GlobalTargets(PoseKey key, const Graph
   std::sort(ranked.begin(), ranked.end());
   const size_t take = std::min(
       ranked.size(), static_cast<size_t>(std::max(0, options_.max_global_groups_per_keyframe)));
-  std::vector<TrajectoryId> targets;
-  for (size_t i = 0; i < take; ++i) targets.push_back(ranked[i].second);
+  std::vector<GlobalTarget> targets;
+  for (size_t i = 0; i < take; ++i) {
+    const auto it = guided_submaps.find(ranked[i].second);
+    targets.push_back(
+        {ranked[i].second, it != guided_submaps.end() ? it->second : std::vector<size_t>{}});
+  }
   // Searched in id order, as before the budget (the order the matches are used in).
-  std::sort(targets.begin(), targets.end());
+  std::sort(targets.begin(), targets.end(),
+            [](const GlobalTarget& x, const GlobalTarget& y) { return x.other < y.other; });
   return targets;
 }
 
-int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph) {
+size_t ScanEncounters::GlobalTries(TrajectoryId other) const {
+  const auto submaps = submaps_.find(other);
+  if (submaps == submaps_.end()) return 0;
+  return std::min(submaps->second.size(),
+                  static_cast<size_t>(std::max(0, options_.max_global_per_keyframe)));
+}
+
+int ScanEncounters::SearchGlobally(PoseKey key, const GlobalTarget& target,
+                                   const GraphView& graph) {
+  const TrajectoryId other = target.other;
   std::vector<Submap>& submaps = submaps_[other];
   if (submaps.empty()) return 0;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
@@ -385,11 +438,11 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
   search.match.min_score = options_.global_min_score;
   search.match.covariance_min_overlap = options_.global_min_overlap;  // UseMatches' bar
   size_t& cursor = global_cursor_[{key.trajectory, other}];
-  const size_t tries =
-      std::min(submaps.size(), static_cast<size_t>(options_.max_global_per_keyframe));
+  const size_t tries = GlobalTries(other);
   // The submaps nearest where the best kept hypothesis, if any, puts the keyframe, instead of
   // the next ones in turn: the same number of searches.
-  const std::vector<size_t> guided = GuidedSubmaps(key, other, graph, tries);
+  std::vector<size_t> guided = target.guided;
+  if (guided.size() > tries) guided.resize(tries);
   int submitted = 0;
   for (size_t t = 0; t < tries; ++t) {
     size_t index = 0;
@@ -399,8 +452,9 @@ int ScanEncounters::SearchGlobally(PoseKey key, TrajectoryId other, const GraphV
       // The cursor counts the searches: modulo a list that grows it steps back by one for
       // every round done, so a trajectory still driving is searched along one stretch for a
       // while (ACES split in three simultaneously: R3 searched R1[85], [75] ... [25] while it
-      // passed R1[115]). Taking the submaps round by round joined R3 there, but also the
-      // aliased twin corridors of CandidatesFromOneSpotDoNotJoinAnAliasedPlace: kept.
+      // passed R1[115]). Taking the submaps round by round joined R3 there (0.0393, with the
+      // end-of-input join finished), but lost R1-R2's join on two of three rotated copies of
+      // that log and delayed FR079 split in three's joins (more global searches): kept.
       index = cursor++ % submaps.size();
       // Not a guided submap a second time: the next one in turn instead.
       for (size_t skipped = 0; skipped + 1 < submaps.size() &&

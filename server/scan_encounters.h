@@ -44,7 +44,9 @@
 //   a drift term for the path both robots drove since the nearest tie between them
 //   (near_drift_*): a match only that gate accepts enters with a second one that agrees.
 //   When a pair first comes into one frame, the keyframes examined before are searched
-//   so once (near_catch_up_every). A pair already tied near here is not searched again
+//   so once (near_catch_up_every). A pair that joins at the end of input gets this catch-up
+//   and its kept candidates gated too: Flush keeps them, and MappingServer::Flush solves the
+//   join and calls Flush once more. A pair already tied near here is not searched again
 //   (near_saturation_m), and a keyframe searches at most near_max_partners joined
 //   trajectories, the nearest first: the work per keyframe does not grow with the team;
 //   and the near searches per second of data are bounded (near_budget,
@@ -358,11 +360,19 @@ class ScanEncounters : public EncounterSource {
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
   // Serves the keyframes waiting for a global search while the budget lasts.
   void ServeGlobalQueue(const GraphView& graph);
+  // A trajectory a global search of a keyframe takes, and its submaps a kept hypothesis guides
+  // the search to (GuidedSubmaps, at most GlobalTries of them; none: the next ones in turn).
+  struct GlobalTarget {
+    TrajectoryId other;
+    std::vector<size_t> guided;
+  };
   // The trajectories `key` is searched against: one of each other group (the pair
   // searched least so far), at most max_global_groups_per_keyframe groups.
-  std::vector<TrajectoryId> GlobalTargets(PoseKey key, const GraphView& graph) const;
-  // Submits the searches of `key` against `other`'s submaps; returns how many.
-  int SearchGlobally(PoseKey key, TrajectoryId other, const GraphView& graph);
+  std::vector<GlobalTarget> GlobalTargets(PoseKey key, const GraphView& graph) const;
+  // The submaps of `other` one keyframe's global search takes (max_global_per_keyframe).
+  size_t GlobalTries(TrajectoryId other) const;
+  // Submits the searches of `key` against the target's submaps; returns how many.
+  int SearchGlobally(PoseKey key, const GlobalTarget& target, const GraphView& graph);
   // The submap of `other` a near search of `key` would match against: the nearest one within
   // near_distance_m, unless the pair is quiet or saturated there (nullopt then).
   struct NearTarget {

@@ -347,6 +347,68 @@ TEST_F(FirstJoinTest, TheJoiningSetAgreesPairwise) {
   EXPECT_EQ(joined[1].a.index, 20);
 }
 
+// Offers hand-made candidates to a scan source as the server runs, each once both its
+// keyframes are solved.
+class OffersWhenSolved : public EncounterSource {
+ public:
+  OffersWhenSolved(ScanEncounters* target, std::vector<EncounterCandidate> candidates)
+      : target_(target), candidates_(std::move(candidates)) {}
+  std::string name() const override { return "offers"; }
+  void Poll(int64_t /*now*/, const GraphView& graph, EncounterSourceOutput* out) override {
+    while (next_ < candidates_.size() && graph.covariances->HasCovariance(candidates_[next_].a) &&
+           graph.covariances->HasCovariance(candidates_[next_].b)) {
+      target_->OfferCandidate(candidates_[next_++], graph, out);
+    }
+  }
+
+ private:
+  ScanEncounters* target_;
+  std::vector<EncounterCandidate> candidates_;
+  size_t next_ = 0;
+};
+
+// R1 and R2 on the parallel tracks join only at the end of input (a hold longer than the run),
+// by two localised candidates that agree. A corridor match kept beside them (free along the
+// corridor: no part in a first join) is then gated against the joined estimate, as at the next
+// keyframe after a join mid-run: the true one enters, one 1 m off across the tracks is refused.
+// Before, the end of input gave it up unexamined.
+TEST(EndOfInputJoinTest, TheKeptCandidatesOfAPairJoinedAtTheEndAreGatedAgainstTheJoin) {
+  for (const double across_m : {0.0, 1.0}) {
+    MappingServerOptions options;
+    options.loop_closures = false;
+    options.scan_encounters = false;
+    MappingServer server(options);
+    ScanEncounterOptions scan_options;
+    scan_options.first_join_hold_s = 1e6;
+    auto owned = std::make_unique<ScanEncounters>(scan_options);
+    ScanEncounters* source = owned.get();
+    server.AddEncounterSource(std::move(owned));
+    const auto localised = [](int32_t i) {
+      return ParallelTracksCandidate(i, i, 0.0, 0.0, kLocalised.cwiseAbs2().asDiagonal());
+    };
+    server.AddEncounterSource(std::make_unique<OffersWhenSolved>(
+        source,
+        std::vector<EncounterCandidate>{
+            localised(5),
+            ParallelTracksCandidate(15, 15, 0.0, across_m, kAlongCorridor.cwiseAbs2().asDiagonal()),
+            localised(25)}));
+    for (int32_t seq = 0; seq < 40; ++seq) {
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R1", 1, seq, 0)).ok());
+      ASSERT_TRUE(server.OnKeyframe(testing::StraightKeyframe("R2", 2, seq, 0)).ok());
+    }
+    ASSERT_FALSE(InOneFrame(server.smoother(), TrajectoryId(0), TrajectoryId(1)));
+    server.Flush();
+    ASSERT_TRUE(InOneFrame(server.smoother(), TrajectoryId(0), TrajectoryId(1)));
+    const CandidateStats& stats = source->stats();
+    const bool truth = across_m == 0.0;
+    EXPECT_EQ(stats.accepted, truth ? 3 : 2) << across_m << " m across";
+    EXPECT_EQ(stats.gate_rejected, truth ? 0 : 1);
+    EXPECT_EQ(stats.unconfirmed, 0);
+    EXPECT_EQ(stats.kept, 0);
+    EXPECT_EQ(server.stats().encounters_added, stats.accepted);
+  }
+}
+
 // The first-join rule on hand-made candidates between robots with real scans: what the
 // keyframes see decides whether two candidates are two places (pcm_max_shared_view).
 class SharedViewFirstJoinTest : public ::testing::Test {
