@@ -66,12 +66,13 @@ double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2
 std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
                                                  const PointCloud& query,
                                                  const SearchWindow& window,
-                                                 const MatchOptions& options) {
+                                                 const MatchOptions& options, bool bytes) {
   if (reference.empty() || query.empty()) return std::nullopt;
   const DiscretisedQuery discretised(query, window, reference.geometry());
   LatticeSearchStats stats;
   const std::optional<LatticePose> best =
-      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats);
+      BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats,
+                     bytes ? reference.byte_bounds() : nullptr);
   if (!best) return std::nullopt;
   MatchResult result = FinishMatch(reference, query, window, *best, options);
   result.search = stats;

@@ -71,11 +71,12 @@ struct MatchResult {
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,
                                       const Pose2& guess, const LocalMatchOptions& options);
 
-// Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part).
+// Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part); `bytes`: the
+// lattice search's inner bounds on reference.byte_bounds() (the same match).
 std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
                                                  const PointCloud& query,
                                                  const SearchWindow& window,
-                                                 const MatchOptions& options);
+                                                 const MatchOptions& options, bool bytes = false);
 
 // Steps 2-4 for a lattice pose found by a search (exposed for tests and benchmarks).
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,

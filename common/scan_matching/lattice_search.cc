@@ -347,6 +347,144 @@ double ScoreWithParent(const MaxGridPyramid& grids, int level, const Discretised
                 : MeanAbove<false, false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
 }
 
+// Branch and bound's inner nodes on ByteMaxGrids: MeanAbove's stops on integer sums (exact in
+// any order, so the AVX2 path and the portable one stop alike), the mean returned in the
+// floats' units, sum / (kScale n): at least the float level's mean, since every byte is.
+// `parent_sums` and `sums` count bytes.
+template <bool Inside>
+int64_t SumBytes(const ByteMaxGrids::LevelView& l, const int32_t* xs, const int32_t* ys,
+                 size_t begin, size_t end, int x0, int y0) {
+  int64_t sum = 0;
+  for (size_t i = begin; i < end; ++i) {
+    const int x = xs[i] + x0;
+    const int y = ys[i] + y0;
+    if (!Inside && (static_cast<unsigned>(x) >= static_cast<unsigned>(l.width) ||
+                    static_cast<unsigned>(y) >= static_cast<unsigned>(l.height))) {
+      continue;
+    }
+    sum += l.values[static_cast<size_t>(y) * static_cast<size_t>(l.width) + static_cast<size_t>(x)];
+  }
+  return sum;
+}
+
+// The stop after a chunk: the bytes summed so far plus the most the rest can add (the parent's
+// bytes over the same points, or max_value each) below floor * kScale * n, less a margin far
+// above the double's rounding of these whole numbers.
+struct ByteStop {
+  double stop;
+  double count_scaled;  // kScale * n
+  ByteStop(size_t n, double floor) {
+    count_scaled = static_cast<double>(n) * ByteMaxGrids::kScale;
+    stop = floor * count_scaled - 1e-9 * count_scaled;
+  }
+};
+
+template <bool Inside>
+double ByteMeanAbove(const ByteMaxGrids::LevelView& l, const DiscretisedQuery& query, int k, int x0,
+                     int y0, double floor, int max_value, const double* parent_sums, double* sums) {
+  const size_t n = query.num_points();
+  const ByteStop stop(n, floor);
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  int64_t sum = 0;
+  for (size_t chunk = 0; chunk < chunks; ++chunk) {
+    const size_t begin = chunk * kChunk;
+    const size_t end = std::min(n, begin + kChunk);
+    sum += SumBytes<Inside>(l, query.xs(k), query.ys(k), begin, end, x0, y0);
+    if (sums != nullptr) sums[chunk] = static_cast<double>(sum);
+    if (end == n) break;
+    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
+                                               : static_cast<double>(n - end) * max_value;
+    const double most = static_cast<double>(sum) + rest;
+    if (most < stop.stop) return std::min(floor, most / stop.count_scaled);
+  }
+  return static_cast<double>(sum) / stop.count_scaled;
+}
+
+#ifdef ANCHORMAP_HAS_AVX2_SUM
+// ByteMeanAbove with eight points per gather: four bytes read at each cell (ByteMaxGrids keeps
+// three readable bytes past the last), the low one kept; a chunk's 32 points add at most
+// 4 x 255 per 32-bit lane.
+template <bool Inside>
+__attribute__((target("avx2"))) double ByteMeanAboveAvx2(const ByteMaxGrids::LevelView& l,
+                                                         const DiscretisedQuery& query, int k,
+                                                         int x0, int y0, double floor,
+                                                         int max_value, const double* parent_sums,
+                                                         double* sums) {
+  const size_t n = query.num_points();
+  const ByteStop stop(n, floor);
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  const int32_t* xs = query.xs(k);
+  const int32_t* ys = query.ys(k);
+  const int* base = reinterpret_cast<const int*>(l.values);
+  const __m256i shift_x = _mm256_set1_epi32(x0);
+  const __m256i shift_y = _mm256_set1_epi32(y0);
+  const __m256i width = _mm256_set1_epi32(l.width);
+  const __m256i low_byte = _mm256_set1_epi32(0xFF);
+  // Unsigned "x < width" as a signed compare of both sides with the sign bit flipped.
+  const __m256i sign = _mm256_set1_epi32(static_cast<int>(0x80000000u));
+  const __m256i width_flipped = _mm256_xor_si256(width, sign);
+  const __m256i height_flipped = _mm256_xor_si256(_mm256_set1_epi32(l.height), sign);
+  int64_t sum = 0;
+  for (size_t chunk = 0; chunk < chunks; ++chunk) {
+    const size_t begin = chunk * kChunk;
+    const size_t end = std::min(n, begin + kChunk);
+    __m256i lanes = _mm256_setzero_si256();
+    size_t i = begin;
+    for (; i + 8 <= end; i += 8) {
+      const __m256i x =
+          _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(xs + i)), shift_x);
+      const __m256i y =
+          _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(ys + i)), shift_y);
+      const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(y, width), x);
+      __m256i v;
+      if (Inside) {
+        v = _mm256_i32gather_epi32(base, index, 1);
+      } else {
+        const __m256i in_x = _mm256_cmpgt_epi32(width_flipped, _mm256_xor_si256(x, sign));
+        const __m256i in_y = _mm256_cmpgt_epi32(height_flipped, _mm256_xor_si256(y, sign));
+        v = _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), base, index,
+                                        _mm256_and_si256(in_x, in_y), 1);
+      }
+      lanes = _mm256_add_epi32(lanes, _mm256_and_si256(v, low_byte));
+    }
+    const __m128i pairs =
+        _mm_add_epi32(_mm256_castsi256_si128(lanes), _mm256_extracti128_si256(lanes, 1));
+    const __m128i quads = _mm_add_epi32(pairs, _mm_shuffle_epi32(pairs, _MM_SHUFFLE(1, 0, 3, 2)));
+    const __m128i total = _mm_add_epi32(quads, _mm_shuffle_epi32(quads, _MM_SHUFFLE(2, 3, 0, 1)));
+    sum += _mm_cvtsi128_si32(total);
+    sum += SumBytes<Inside>(l, xs, ys, i, end, x0, y0);  // the last points (fewer than eight)
+    if (sums != nullptr) sums[chunk] = static_cast<double>(sum);
+    if (end == n) break;
+    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
+                                               : static_cast<double>(n - end) * max_value;
+    const double most = static_cast<double>(sum) + rest;
+    if (most < stop.stop) return std::min(floor, most / stop.count_scaled);
+  }
+  return static_cast<double>(sum) / stop.count_scaled;
+}
+#endif
+
+double ByteScore(const ByteMaxGrids& bytes, int level, const DiscretisedQuery& query, int k, int dx,
+                 int dy, double floor, const double* parent_sums, double* sums) {
+  if (query.num_points() == 0) return 0.0;
+  const ByteMaxGrids::LevelView l = bytes.level(level);
+  const int x0 = dx + l.offset;
+  const int y0 = dy + l.offset;
+  const DiscretisedQuery::Box& box = query.box(k);
+  const bool inside = box.min.x() + x0 >= 0 && box.min.y() + y0 >= 0 &&
+                      box.max.x() + x0 < l.width && box.max.y() + y0 < l.height;
+  const int max_value = bytes.max_value();
+#ifdef ANCHORMAP_HAS_AVX2_SUM
+  if (HasAvx2()) {
+    return inside
+               ? ByteMeanAboveAvx2<true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
+               : ByteMeanAboveAvx2<false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
+  }
+#endif
+  return inside ? ByteMeanAbove<true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
+                : ByteMeanAbove<false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
+}
+
 }  // namespace
 
 double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
@@ -408,8 +546,14 @@ bool Precedes(int k, int dx, int dy, const LatticePose& other) {
 class BranchAndBoundSearch {
  public:
   BranchAndBoundSearch(const MaxGridPyramid& grids, const DiscretisedQuery& query,
-                       const SearchWindow& window, double min_score, LatticeSearchStats* stats)
+                       const SearchWindow& window, double min_score, LatticeSearchStats* stats,
+                       const ByteMaxGrids* bytes)
       : grids_(grids),
+        // Bytes for the inner nodes only where the leaves' sums are exact: then a node's mean
+        // on the bytes is at least every leaf's score as the floats give it, bit for bit.
+        bytes_(bytes != nullptr && grids.exact_sums() && query.num_points() < (size_t{1} << 22)
+                   ? bytes
+                   : nullptr),
         query_(query),
         window_(window),
         best_score_(min_score),
@@ -535,6 +679,20 @@ class BranchAndBoundSearch {
     }
     // Only whether a node can reach the best leaf so far matters: its score is finished only
     // when it does.
+    if (bytes_ == nullptr) {
+      return ScoreWithParent(grids_, level, query_, k, dx, dy, best_score_, parent_sums, sums);
+    }
+    if (level > 0) {
+      return ByteScore(*bytes_, level, query_, k, dx, dy, best_score_, parent_sums, sums);
+    }
+    // A leaf below a node scored on the bytes: its sums in the floats' units.
+    if (parent_sums != nullptr) {
+      scaled_parent_sums_.resize(chunks_);
+      for (size_t c = 0; c < chunks_; ++c) {
+        scaled_parent_sums_[c] = parent_sums[c] / ByteMaxGrids::kScale;
+      }
+      parent_sums = scaled_parent_sums_.data();
+    }
     return ScoreWithParent(grids_, level, query_, k, dx, dy, best_score_, parent_sums, sums);
   }
 
@@ -627,6 +785,7 @@ class BranchAndBoundSearch {
   };
 
   const MaxGridPyramid& grids_;
+  const ByteMaxGrids* bytes_;  // null: every level on the floats
   const DiscretisedQuery& query_;
   const SearchWindow& window_;
   double best_score_;
@@ -636,14 +795,16 @@ class BranchAndBoundSearch {
   std::vector<std::vector<Node>> nodes_;
   std::vector<std::vector<double>> sums_;
   std::vector<std::vector<Deviation>> deviations_;  // per group size (log2), per group
+  std::vector<double> scaled_parent_sums_;
 };
 
 }  // namespace
 
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
-                                          double min_score, LatticeSearchStats* stats) {
-  return BranchAndBoundSearch(grids, query, window, min_score, stats).Run();
+                                          double min_score, LatticeSearchStats* stats,
+                                          const ByteMaxGrids* bytes) {
+  return BranchAndBoundSearch(grids, query, window, min_score, stats, bytes).Run();
 }
 
 }  // namespace anchormap

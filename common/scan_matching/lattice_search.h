@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
+#include "common/scan_matching/byte_max_grids.h"
 #include "common/scan_matching/max_grid_pyramid.h"
 #include "common/scan_matching/point_cloud.h"
 
@@ -94,9 +95,12 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
                                             const SearchWindow& window, double min_score,
                                             LatticeSearchStats* stats = nullptr);
 
-// The same best lattice pose, by branch and bound over all the pyramid's levels.
+// The same best lattice pose, by branch and bound over all the pyramid's levels. With `bytes`
+// (ByteMaxGrids of `grids`, used when grids.exact_sums()) the inner nodes are bounded on the
+// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ.
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
-                                          double min_score, LatticeSearchStats* stats = nullptr);
+                                          double min_score, LatticeSearchStats* stats = nullptr,
+                                          const ByteMaxGrids* bytes = nullptr);
 
 }  // namespace anchormap

@@ -46,4 +46,11 @@ ScanReference::ScanReference(const std::vector<std::shared_ptr<const ScanSurface
       likelihood_(field_, options.likelihood_sigma_m),
       pyramid_(likelihood_, options.num_levels) {}
 
+const ByteMaxGrids* ScanReference::byte_bounds() const {
+  if (!pyramid_.exact_sums()) return nullptr;
+  std::call_once(bytes_->once,
+                 [this] { bytes_->grids = std::make_unique<ByteMaxGrids>(pyramid_); });
+  return bytes_->grids.get();
+}
+
 }  // namespace anchormap

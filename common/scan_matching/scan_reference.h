@@ -5,10 +5,12 @@
 // Building costs O(reference points x (max distance / resolution)^2) plus O(levels x cells).
 
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "common/scan_matching/byte_max_grids.h"
 #include "common/scan_matching/likelihood_grid.h"
 #include "common/scan_matching/max_grid_pyramid.h"
 #include "common/scan_matching/point_cloud.h"
@@ -45,6 +47,10 @@ class ScanReference {
   const MaxGridPyramid& pyramid() const { return pyramid_; }
   const GridGeometry& geometry() const { return field_.geometry(); }
   bool empty() const { return field_.num_points() == 0; }
+  // The pyramid as bytes for the global searches' inner nodes (byte_max_grids.h), built on the
+  // first call (once, though several match workers search one submap at a time); null when the
+  // pyramid's sums are not exact.
+  const ByteMaxGrids* byte_bounds() const;
 
  private:
   static ReferenceFieldOptions FieldOptions(const ScanReferenceOptions& options);
@@ -53,6 +59,11 @@ class ScanReference {
   ReferenceField field_;
   LikelihoodGrid likelihood_;
   MaxGridPyramid pyramid_;
+  struct LazyBytes {
+    std::once_flag once;
+    std::unique_ptr<const ByteMaxGrids> grids;
+  };
+  std::unique_ptr<LazyBytes> bytes_ = std::make_unique<LazyBytes>();
 };
 
 }  // namespace anchormap
