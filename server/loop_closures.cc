@@ -347,16 +347,9 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
   }
   const Eigen::Matrix3d covariance =
       WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
-  // The drift the estimate may not know of grows with the path from the keyframe the closure
-  // ties (the refined one), not from the keyframe the search was drawn around, which may lie
-  // far back: 20 x 300 simulation, R5 (keyframes 316-336 of one straight corridor): drawn
-  // 130 m of path back (drift 3.9 m), the match 7 m off (a repeated room) passed at chi2 3.2;
-  // with the 10.6 m path to 316 (0.32 m) its chi2 is 451.
-  const Eigen::Matrix3d drift = WideDriftCovariance(
-      EstimatedPath(graph.smoother, candidate.trajectory, candidate.index, pending.key.index),
-      options_);
-  if (Mahalanobis2(predicted->T_a_b, match->pose, predicted->covariance + drift + covariance) >
-      options_.gate_chi2) {
+  const double tied_path_m =
+      EstimatedPath(graph.smoother, candidate.trajectory, candidate.index, pending.key.index);
+  if (!GateRefinedWide(*predicted, match->pose, covariance, tied_path_m, options_).passes) {
     ++stats_.gate_rejected;
     return std::nullopt;
   }
@@ -404,6 +397,22 @@ bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, dou
 Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options) {
   const double m = options.drift_per_m * path_m, rad = options.drift_rad_per_m * path_m;
   return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal().toDenseMatrix();
+}
+
+RefinedWideGate GateRefinedWide(const PredictedRelativePose& predicted, const Pose2& match,
+                                const Eigen::Matrix3d& match_covariance, double tied_path_m,
+                                const LoopClosureOptions& options) {
+  // The drift the estimate may not know of grows with the path from the keyframe the closure
+  // ties (the refined one), not from the keyframe the search was drawn around, which may lie
+  // far back: 20 x 300 simulation, R5 (keyframes 316-336 of one straight corridor): drawn
+  // 130 m of path back (drift 3.9 m), the match 7 m off (a repeated room) passed at chi2 3.2;
+  // with the 10.6 m path to 316 (0.32 m) its chi2 is 451.
+  const Eigen::Matrix3d drift = WideDriftCovariance(tied_path_m, options);
+  RefinedWideGate gate;
+  gate.drift_sigma_m = std::sqrt(drift(0, 0));
+  gate.chi2 = Mahalanobis2(predicted.T_a_b, match, predicted.covariance + drift + match_covariance);
+  gate.passes = !(gate.chi2 > options.gate_chi2);
+  return gate;
 }
 
 double WidePairInconsistency2(const PredictedRelativePose& candidates, const Pose2& first,

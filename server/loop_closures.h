@@ -198,6 +198,18 @@ bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, dou
                       const LoopClosureOptions& options);
 // The drift model's covariance for a path of `path_m` (drift_per_m, drift_rad_per_m).
 Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options);
+// The gate of a refined wide match (RefineWide): the match against the estimate's prediction
+// of the keyframe it ties, with the drift model added for `tied_path_m`, the path from that
+// keyframe to the query (not from the keyframe the search was drawn around, which may lie far
+// further back: see the test).
+struct RefinedWideGate {
+  double drift_sigma_m = 0.0;  // the drift model's allowance, 1 sigma per axis
+  double chi2 = 0.0;
+  bool passes = false;  // chi2 <= gate_chi2
+};
+RefinedWideGate GateRefinedWide(const PredictedRelativePose& predicted, const Pose2& match,
+                                const Eigen::Matrix3d& match_covariance, double tied_path_m,
+                                const LoopClosureOptions& options);
 // The chi-square inconsistency of two wide closures (first: candidate a1 to query b1
 // measured as `first`; second: a2 to b2) through the estimate's relative poses a1-a2
 // (`candidates`) and b1-b2 (`queries`). The queries' relative heading is widened by the

@@ -395,6 +395,34 @@ TEST(LoopClosuresTest, AWidePairAllowsTheQueriesPathToHaveDrifted) {
   }
 }
 
+// A refined wide match is gated with the drift of the path from the keyframe it ties, not
+// from the keyframe the search was drawn around. 20 x 300 simulation (seed 2), R5 in a
+// straight corridor of repeated rooms: key 336 was searched around keyframe 37, 130 m of path
+// back (drift 3.9 m), and refined to keyframe 316, 10.6 m back (0.32 m), predicted 10.64 m
+// ahead; the match, a room 7 m off, measured 3.63 m at the covariance floor. With the searched
+// path it passed (chi2 3.2) and entered with a second such closure; with the tied path it is
+// refused (chi2 451). The prediction's covariance (8 cm, 3 mrad) stands in for the estimate's.
+TEST(LoopClosuresTest, ARefinedWideMatchIsGatedWithTheDriftOfThePathItTies) {
+  const LoopClosureOptions options;
+  const PredictedRelativePose predicted{Pose2(10.640, 0.0, 0.0),
+                                        Eigen::Vector3d(0.0064, 0.0064, 9e-6).asDiagonal()};
+  const Eigen::Matrix3d floor = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+  const Pose2 aliased(3.627, -0.067, -0.009);
+  const RefinedWideGate tied = GateRefinedWide(predicted, aliased, floor, 10.63, options);
+  EXPECT_NEAR(tied.drift_sigma_m, 0.319, 0.001);
+  EXPECT_NEAR(tied.chi2, 453.5, 1.0);  // the trace: 451
+  EXPECT_FALSE(tied.passes);
+  const RefinedWideGate searched = GateRefinedWide(predicted, aliased, floor, 130.3, options);
+  EXPECT_NEAR(searched.drift_sigma_m, 3.909, 0.001);
+  EXPECT_NEAR(searched.chi2, 3.2, 0.05);
+  EXPECT_TRUE(searched.passes);
+  // The true place, a few cm and mrad from the prediction, passes with the tied path.
+  const RefinedWideGate right =
+      GateRefinedWide(predicted, Pose2(10.60, 0.03, 0.004), floor, 10.63, options);
+  EXPECT_LT(right.chi2, 1.0);
+  EXPECT_TRUE(right.passes);
+}
+
 // An open loop draws two passes of one place 3 m apart in the place submap: the query, matched
 // on the first pass, lies by the drawing at the second pass's keyframe. The keyframe chosen for
 // the refinement is the one whose own scan the query matches, the first pass's.
