@@ -39,6 +39,10 @@
 // around the prediction (the "rival"), and when that match agrees with the estimate's own
 // covariance (without the drift model) at a pose distinct from the wide match's, the estimate
 // is borne out where it is and the wide match is refused (counted in gate and as "ambiguous").
+// The rival can check the estimate only where the map has been: a wide pair enters only when
+// the estimate puts one of its queries within max_distance_m of an older keyframe. A place
+// reached for the first time can match a look-alike of it in the window, and two such matches
+// agree (the periodic corridor's north end matched the south corridor's, 10 m away).
 // The keyframes examined are bounded by a matching budget per second of data, whole team
 // (`budget`, server/match_budget.h): with many robots, those whose trajectory drove farthest
 // since its last examined keyframe go first, and the rest are not examined.
@@ -196,6 +200,11 @@ double LargestTranslationSigma(const Eigen::Matrix3d& covariance);
 // along it).
 bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
                       const LoopClosureOptions& options);
+// Whether the estimate puts `key` within radius_m of a keyframe of its trajectory at least
+// min_index_gap older: in a place the map has been, where the rival match can check the
+// estimate (see OfferWide).
+bool EstimatedWhereTheMapHasBeen(const Smoother& smoother, PoseKey key, int min_index_gap,
+                                 double radius_m);
 // The drift model's covariance for a path of `path_m` (drift_per_m, drift_rad_per_m).
 Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options);
 // The gate of a refined wide match (RefineWide): the match against the estimate's prediction
