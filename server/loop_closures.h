@@ -39,6 +39,10 @@
 // around the prediction (the "rival"), and when that match agrees with the estimate's own
 // covariance (without the drift model) at a pose distinct from the wide match's, the estimate
 // is borne out where it is and the wide match is refused (counted in gate and as "ambiguous").
+// The rival can check the estimate only where the map has been: a wide pair enters only when
+// the estimate puts one of its queries within max_distance_m of an older keyframe. A place
+// reached for the first time can match a look-alike of it in the window, and two such matches
+// agree (the periodic corridor's north end matched the south corridor's, 10 m away).
 // The keyframes examined are bounded by a matching budget per second of data, whole team
 // (`budget`, server/match_budget.h): with many robots, those whose trajectory drove farthest
 // since its last examined keyframe go first, and the rest are not examined.
@@ -196,8 +200,25 @@ double LargestTranslationSigma(const Eigen::Matrix3d& covariance);
 // along it).
 bool WidePairMayEnter(const WideEvidence& first, const WideEvidence& second, double separation_m,
                       const LoopClosureOptions& options);
+// Whether the estimate puts `key` within radius_m of a keyframe of its trajectory at least
+// min_index_gap older: in a place the map has been, where the rival match can check the
+// estimate (see OfferWide).
+bool EstimatedWhereTheMapHasBeen(const Smoother& smoother, PoseKey key, int min_index_gap,
+                                 double radius_m);
 // The drift model's covariance for a path of `path_m` (drift_per_m, drift_rad_per_m).
 Eigen::Matrix3d WideDriftCovariance(double path_m, const LoopClosureOptions& options);
+// The gate of a refined wide match (RefineWide): the match against the estimate's prediction
+// of the keyframe it ties, with the drift model added for `tied_path_m`, the path from that
+// keyframe to the query (not from the keyframe the search was drawn around, which may lie far
+// further back: see the test).
+struct RefinedWideGate {
+  double drift_sigma_m = 0.0;  // the drift model's allowance, 1 sigma per axis
+  double chi2 = 0.0;
+  bool passes = false;  // chi2 <= gate_chi2
+};
+RefinedWideGate GateRefinedWide(const PredictedRelativePose& predicted, const Pose2& match,
+                                const Eigen::Matrix3d& match_covariance, double tied_path_m,
+                                const LoopClosureOptions& options);
 // The chi-square inconsistency of two wide closures (first: candidate a1 to query b1
 // measured as `first`; second: a2 to b2) through the estimate's relative poses a1-a2
 // (`candidates`) and b1-b2 (`queries`). The queries' relative heading is widened by the

@@ -322,6 +322,60 @@ TEST(LoopClosuresTest, WideSearchRefusesALookAlikePlaceWhenThePredictionMatchesT
   EXPECT_GT(ambiguous, 0);
 }
 
+// A wide pair needs a query the estimate puts where the map has been (OfferWide). A robot
+// that drove the periodic corridor's ring (south corridor east, round the east end, north
+// corridor west, as in the test above) reaches the north corridor's west end for the first
+// time; there its scans fit the south corridor's end moved 10 m, within the drift model's
+// window (3 sigma of 3.3-3.5 m after 113 m of path; the refined matches' chi2 7.8-8.8), and the
+// rival match finds nothing where the estimate puts the query. Two such matches agreed and
+// entered (measured, seeds 1-3 of the ring driven twice: every closure 10.00 m off, mean error
+// 5.5 m against 0.05-0.16 m with odometry alone; refused as below, 0.023-0.038 m, the worst
+// closure 0.03 m). The estimate puts those queries 10 m from any older keyframe; the second
+// pass of the south corridor, where the estimate can be checked, closes the loop.
+TEST(LoopClosuresTest, AWideQueryIsCheckedWhereTheMapHasBeen) {
+  std::vector<Pose2> path = testing::StraightPath({-8.5, 1.5}, {48.5, 1.5}, 0.5);
+  for (const auto& leg : {testing::StraightPath({48.5, 1.5}, {48.5, 11.5}, 0.5),
+                          testing::StraightPath({48.5, 11.5}, {-8.5, 11.5}, 0.5),
+                          testing::StraightPath({-8.5, 11.5}, {-8.5, 1.5}, 0.5),
+                          testing::StraightPath({-8.5, 1.5}, {0.0, 1.5}, 0.5)}) {
+    path.insert(path.end(), leg.begin() + 1, leg.end());
+  }
+  Smoother smoother;
+  const TrajectoryId trajectory(0);
+  for (int i = 0; i < static_cast<int>(path.size()); ++i) {
+    const PoseKey key{trajectory, i};
+    ASSERT_TRUE(smoother.AddPose(key, Between(path[0], path[static_cast<size_t>(i)])).ok());
+    if (i == 0) continue;
+    ASSERT_TRUE(
+        smoother
+            .AddBetween({trajectory, i - 1}, key,
+                        Between(path[static_cast<size_t>(i) - 1], path[static_cast<size_t>(i)]),
+                        Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal())
+            .ok());
+  }
+  ASSERT_TRUE(smoother.Update().status.ok());
+  const LoopClosureOptions options;
+  auto checked = [&](int index) {
+    return EstimatedWhereTheMapHasBeen(smoother, {trajectory, index}, options.min_index_gap,
+                                       options.max_distance_m);
+  };
+  // The aliased queries: the north corridor's west end, (-1, 11.5) to (-4, 11.5).
+  for (int index = 233; index <= 239; ++index) {
+    ASSERT_NEAR(path[static_cast<size_t>(index)].y(), 11.5, 1e-9);
+    EXPECT_FALSE(checked(index)) << index;
+  }
+  // The west corridor, first driven on the way back: still new, 4 m and more from the start.
+  EXPECT_FALSE(checked(250));
+  // The south corridor again: the first pass lies under the estimate.
+  for (int index = 270; index < static_cast<int>(path.size()); ++index) {
+    EXPECT_TRUE(checked(index)) << index;
+  }
+  // Along the first pass, only the keyframes min_index_gap back count (not the robot's own
+  // recent path).
+  EXPECT_FALSE(checked(100));
+  EXPECT_FALSE(checked(static_cast<int>(path.size()) + 5));  // no such keyframe
+}
+
 // A weak wide match (overlap 0.65-0.8) enters only with a strong second from another place:
 // two queries 0.5 m apart see one spot (an alias that fits one fits the other); 1.73 m apart
 // is the weak pair that closed ACES's first long loop (keyframes 427 and 435). Two weak
@@ -393,6 +447,34 @@ TEST(LoopClosuresTest, AWidePairAllowsTheQueriesPathToHaveDrifted) {
               options.wide_pair_chi2)
         << apart;
   }
+}
+
+// A refined wide match is gated with the drift of the path from the keyframe it ties, not
+// from the keyframe the search was drawn around. 20 x 300 simulation (seed 2), R5 in a
+// straight corridor of repeated rooms: key 336 was searched around keyframe 37, 130 m of path
+// back (drift 3.9 m), and refined to keyframe 316, 10.6 m back (0.32 m), predicted 10.64 m
+// ahead; the match, a room 7 m off, measured 3.63 m at the covariance floor. With the searched
+// path it passed (chi2 3.2) and entered with a second such closure; with the tied path it is
+// refused (chi2 451). The prediction's covariance (8 cm, 3 mrad) stands in for the estimate's.
+TEST(LoopClosuresTest, ARefinedWideMatchIsGatedWithTheDriftOfThePathItTies) {
+  const LoopClosureOptions options;
+  const PredictedRelativePose predicted{Pose2(10.640, 0.0, 0.0),
+                                        Eigen::Vector3d(0.0064, 0.0064, 9e-6).asDiagonal()};
+  const Eigen::Matrix3d floor = Eigen::Vector3d(4e-4, 4e-4, 2.5e-5).asDiagonal();
+  const Pose2 aliased(3.627, -0.067, -0.009);
+  const RefinedWideGate tied = GateRefinedWide(predicted, aliased, floor, 10.63, options);
+  EXPECT_NEAR(tied.drift_sigma_m, 0.319, 0.001);
+  EXPECT_NEAR(tied.chi2, 453.5, 1.0);  // the trace: 451
+  EXPECT_FALSE(tied.passes);
+  const RefinedWideGate searched = GateRefinedWide(predicted, aliased, floor, 130.3, options);
+  EXPECT_NEAR(searched.drift_sigma_m, 3.909, 0.001);
+  EXPECT_NEAR(searched.chi2, 3.2, 0.05);
+  EXPECT_TRUE(searched.passes);
+  // The true place, a few cm and mrad from the prediction, passes with the tied path.
+  const RefinedWideGate right =
+      GateRefinedWide(predicted, Pose2(10.60, 0.03, 0.004), floor, 10.63, options);
+  EXPECT_LT(right.chi2, 1.0);
+  EXPECT_TRUE(right.passes);
 }
 
 // An open loop draws two passes of one place 3 m apart in the place submap: the query, matched
