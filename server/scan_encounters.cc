@@ -314,6 +314,19 @@ int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool ne
 
 void ScanEncounters::CatchUpJoined(const GraphView& graph) {
   const std::deque<TrajectoryRecord>& records = graph.table.records();
+  // The same frames as at the last call: every pair in one frame is in near_joined_ already.
+  std::vector<RecordFrame> frames;
+  frames.reserve(records.size());
+  for (const TrajectoryRecord& record : records) {
+    const bool anchored = graph.smoother.IsAnchored(record.solver_id);
+    frames.push_back({record.solver_id, anchored,
+                      anchored ? graph.smoother.GroupRoot(record.solver_id) : record.solver_id});
+  }
+  if (frames == caught_up_frames_) {
+    near_joined_known_ = true;
+    return;
+  }
+  caught_up_frames_ = std::move(frames);
   std::set<std::pair<int64_t, int32_t>> waiting;
   for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
   for (size_t i = 0; i < records.size(); ++i) {

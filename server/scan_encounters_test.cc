@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -802,6 +803,35 @@ TEST_F(CrossPairFirstJoinTest, TwoCandidatesThatDisagreeThroughTheGroupDoNotJoin
   EXPECT_TRUE(Offer(disagree, /*verify_max_conflict=*/1.0).empty());
   // Both at R3's one place (R3[15] and R3[17], 1 m apart) are one piece of evidence.
   EXPECT_TRUE(Offer({Candidate(0, 38, 15), Candidate(1, 10, 17)}, 1.0).empty());
+}
+
+// The pairs in one frame are caught up once: R1-R2 at the first poll, then none while the frames
+// stay the same, and R1-R3 and R2-R3 once an encounter brings R3 into their frame.
+TEST_F(CrossPairFirstJoinTest, APairIsCaughtUpWhenItComesIntoOneFrame) {
+  using Pair = ScanEncounterState::Pair;
+  const TrajectoryId r1(0), r2(1), r3(2);
+  ScanEncounterOptions options;
+  options.near_catch_up_every = 10;  // a few searches per pair: the test is of the pairs
+  ScanEncounters source(options);
+  EncounterSourceOutput out;
+  const auto poll = [&] {
+    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
+    source.Poll(100'000'000, graph, &out);
+    return source.ExportState().near_joined;
+  };
+  EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}}));
+  EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}}));
+  Encounter seen;
+  seen.utime = 1'000'000;
+  seen.observer = "R1";
+  seen.observer_trajectory_id = 1;
+  seen.observed = "R3";
+  seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[2][0]);
+  seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+  ASSERT_TRUE(server_->OnEncounter(seen).ok());
+  server_->Flush();
+  ASSERT_TRUE(InOneFrame(server_->smoother(), r1, r3));
+  EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}, {r1, r3}, {r2, r3}}));
 }
 
 // The guided global search picks the group's trajectory too: R3 holds a map-verified hypothesis
