@@ -208,6 +208,39 @@ double SumCells(const MaxGridPyramid::LevelView& l, const int32_t* xs, const int
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define ANCHORMAP_HAS_AVX2_SUM 1
+// The cells of eight query points on a level of `width` x `height` shifted by (x0, y0): their
+// row-major indices and which of them lie on the level (the float and the byte sums' gathers).
+class CellsOfEightAvx2 {
+ public:
+  __attribute__((target("avx2"), always_inline))
+  CellsOfEightAvx2(int x0, int y0, int width, int height)
+      : shift_x_(_mm256_set1_epi32(x0)),
+        shift_y_(_mm256_set1_epi32(y0)),
+        width_(_mm256_set1_epi32(width)),
+        sign_(_mm256_set1_epi32(static_cast<int>(0x80000000u))),
+        width_flipped_(_mm256_xor_si256(width_, sign_)),
+        height_flipped_(_mm256_xor_si256(_mm256_set1_epi32(height), sign_)) {}
+
+  // Points i .. i + 7: their cells' indices, and (with `inside`) the mask of those on the level.
+  __attribute__((target("avx2"), always_inline)) __m256i Index(const int32_t* xs, const int32_t* ys,
+                                                               size_t i, __m256i* inside) const {
+    const __m256i x =
+        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(xs + i)), shift_x_);
+    const __m256i y =
+        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(ys + i)), shift_y_);
+    if (inside != nullptr) {
+      // Unsigned "x < width" as a signed compare of both sides with the sign bit flipped.
+      const __m256i in_x = _mm256_cmpgt_epi32(width_flipped_, _mm256_xor_si256(x, sign_));
+      const __m256i in_y = _mm256_cmpgt_epi32(height_flipped_, _mm256_xor_si256(y, sign_));
+      *inside = _mm256_and_si256(in_x, in_y);
+    }
+    return _mm256_add_epi32(_mm256_mullo_epi32(y, width_), x);
+  }
+
+ private:
+  __m256i shift_x_, shift_y_, width_, sign_, width_flipped_, height_flipped_;
+};
+
 // SumCells for exact sums, eight points at a time by AVX2 gathers (the order of the additions
 // does not matter there: every partial sum is exact). Cells outside the level read nothing
 // and add 0.
@@ -215,30 +248,19 @@ template <bool Inside>
 __attribute__((target("avx2"), always_inline)) inline double SumCellsAvx2(
     const MaxGridPyramid::LevelView& l, const int32_t* xs, const int32_t* ys, size_t begin,
     size_t end, int x0, int y0, double sum) {
-  const __m256i shift_x = _mm256_set1_epi32(x0);
-  const __m256i shift_y = _mm256_set1_epi32(y0);
-  const __m256i width = _mm256_set1_epi32(l.width);
-  // Unsigned "x < width" as a signed compare of both sides with the sign bit flipped.
-  const __m256i sign = _mm256_set1_epi32(static_cast<int>(0x80000000u));
-  const __m256i width_flipped = _mm256_xor_si256(width, sign);
-  const __m256i height_flipped = _mm256_xor_si256(_mm256_set1_epi32(l.height), sign);
+  const CellsOfEightAvx2 cells(x0, y0, l.width, l.height);
   __m256d low = _mm256_setzero_pd();
   __m256d high = _mm256_setzero_pd();
   size_t i = begin;
   for (; i + 8 <= end; i += 8) {
-    const __m256i x =
-        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(xs + i)), shift_x);
-    const __m256i y =
-        _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(ys + i)), shift_y);
-    const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(y, width), x);
     __m256 v;
     if (Inside) {
-      v = _mm256_i32gather_ps(l.values, index, 4);
+      v = _mm256_i32gather_ps(l.values, cells.Index(xs, ys, i, nullptr), 4);
     } else {
-      const __m256i in_x = _mm256_cmpgt_epi32(width_flipped, _mm256_xor_si256(x, sign));
-      const __m256i in_y = _mm256_cmpgt_epi32(height_flipped, _mm256_xor_si256(y, sign));
-      const __m256 mask = _mm256_castsi256_ps(_mm256_and_si256(in_x, in_y));
-      v = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), l.values, index, mask, 4);
+      __m256i inside;
+      const __m256i index = cells.Index(xs, ys, i, &inside);
+      v = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), l.values, index,
+                                   _mm256_castsi256_ps(inside), 4);
     }
     low = _mm256_add_pd(low, _mm256_cvtps_pd(_mm256_castps256_ps128(v)));
     high = _mm256_add_pd(high, _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
@@ -416,14 +438,8 @@ __attribute__((target("avx2"))) double ByteMeanAboveAvx2(const ByteMaxGrids::Lev
   const int32_t* xs = query.xs(k);
   const int32_t* ys = query.ys(k);
   const int* base = reinterpret_cast<const int*>(l.values);
-  const __m256i shift_x = _mm256_set1_epi32(x0);
-  const __m256i shift_y = _mm256_set1_epi32(y0);
-  const __m256i width = _mm256_set1_epi32(l.width);
+  const CellsOfEightAvx2 cells(x0, y0, l.width, l.height);
   const __m256i low_byte = _mm256_set1_epi32(0xFF);
-  // Unsigned "x < width" as a signed compare of both sides with the sign bit flipped.
-  const __m256i sign = _mm256_set1_epi32(static_cast<int>(0x80000000u));
-  const __m256i width_flipped = _mm256_xor_si256(width, sign);
-  const __m256i height_flipped = _mm256_xor_si256(_mm256_set1_epi32(l.height), sign);
   int64_t sum = 0;
   for (size_t chunk = 0; chunk < chunks; ++chunk) {
     const size_t begin = chunk * kChunk;
@@ -431,19 +447,13 @@ __attribute__((target("avx2"))) double ByteMeanAboveAvx2(const ByteMaxGrids::Lev
     __m256i lanes = _mm256_setzero_si256();
     size_t i = begin;
     for (; i + 8 <= end; i += 8) {
-      const __m256i x =
-          _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(xs + i)), shift_x);
-      const __m256i y =
-          _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(ys + i)), shift_y);
-      const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(y, width), x);
       __m256i v;
       if (Inside) {
-        v = _mm256_i32gather_epi32(base, index, 1);
+        v = _mm256_i32gather_epi32(base, cells.Index(xs, ys, i, nullptr), 1);
       } else {
-        const __m256i in_x = _mm256_cmpgt_epi32(width_flipped, _mm256_xor_si256(x, sign));
-        const __m256i in_y = _mm256_cmpgt_epi32(height_flipped, _mm256_xor_si256(y, sign));
-        v = _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), base, index,
-                                        _mm256_and_si256(in_x, in_y), 1);
+        __m256i inside;
+        const __m256i index = cells.Index(xs, ys, i, &inside);
+        v = _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), base, index, inside, 1);
       }
       lanes = _mm256_add_epi32(lanes, _mm256_and_si256(v, low_byte));
     }
