@@ -718,19 +718,24 @@ class CrossPairFirstJoinTest : public ::testing::Test {
     for (size_t i = 0; i < paths_[0].size(); ++i) {
       for (const std::vector<Keyframe>& k : keyframes) ASSERT_TRUE(server_->OnKeyframe(k[i]).ok());
       if (i == 0) {
-        Encounter seen;
-        seen.utime = 1'000'000;
-        seen.observer = "R1";
-        seen.observer_trajectory_id = 1;
-        seen.observed = "R2";
-        seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[1][0]);
-        seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
-        ASSERT_TRUE(server_->OnEncounter(seen).ok());
+        ASSERT_TRUE(server_->OnEncounter(SeenByR1AtTheStart(1)).ok());
       }
     }
     server_->Flush();
     ASSERT_TRUE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
     ASSERT_FALSE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(2)));
+  }
+
+  // A direct encounter at the start: R1 sees robot `observed` (1: R2, 2: R3) where it stands.
+  Encounter SeenByR1AtTheStart(size_t observed) const {
+    Encounter seen;
+    seen.utime = 1'000'000;
+    seen.observer = "R1";
+    seen.observer_trajectory_id = 1;
+    seen.observed = "R" + std::to_string(observed + 1);
+    seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[observed][0]);
+    seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+    return seen;
   }
 
   // R3[j] seen from keyframe i of trajectory `from` (0: R1, 1: R2) as the world has it, R3
@@ -821,14 +826,7 @@ TEST_F(CrossPairFirstJoinTest, APairIsCaughtUpWhenItComesIntoOneFrame) {
   };
   EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}}));
   EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}}));
-  Encounter seen;
-  seen.utime = 1'000'000;
-  seen.observer = "R1";
-  seen.observer_trajectory_id = 1;
-  seen.observed = "R3";
-  seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[2][0]);
-  seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
-  ASSERT_TRUE(server_->OnEncounter(seen).ok());
+  ASSERT_TRUE(server_->OnEncounter(SeenByR1AtTheStart(2)).ok());
   server_->Flush();
   ASSERT_TRUE(InOneFrame(server_->smoother(), r1, r3));
   EXPECT_EQ(poll(), (std::set<Pair>{{r1, r2}, {r1, r3}, {r2, r3}}));
