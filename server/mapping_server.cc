@@ -8,6 +8,7 @@
 
 #include "common/util/log.h"
 #include "server/match_options_fingerprint.h"
+#include "server/relative_pose.h"
 
 namespace anchormap {
 
@@ -494,11 +495,9 @@ std::vector<const EncounterSource*> MappingServer::sources() const {
 }
 
 size_t MappingServer::NumFrames() const {
-  std::set<std::pair<bool, TrajectoryId>> frames;
+  std::set<TrajectoryFrame> frames;
   for (const TrajectoryRecord& record : table_.records()) {
-    const TrajectoryId id = record.solver_id;
-    frames.emplace(smoother_.IsAnchored(id),
-                   smoother_.IsAnchored(id) ? smoother_.GroupRoot(id) : id);
+    frames.insert(FrameOf(smoother_, record.solver_id));
   }
   return frames.size();
 }

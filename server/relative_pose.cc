@@ -15,6 +15,11 @@ bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b) {
          smoother.GroupRoot(a) == smoother.GroupRoot(b);
 }
 
+TrajectoryFrame FrameOf(const Smoother& smoother, TrajectoryId id) {
+  const bool anchored = smoother.IsAnchored(id);
+  return {anchored, anchored ? smoother.GroupRoot(id) : id};
+}
+
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b) {
   if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
   // Only from a solved graph: a covariance read across a pending merge or anchor would

@@ -6,6 +6,7 @@
 // is gated against before it may enter the graph.
 
 #include <optional>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -26,6 +27,11 @@ std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, Pos
 
 // True when a and b are expressed in one frame (same trajectory, or one anchored group).
 bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);
+
+// The frame a trajectory is expressed in, comparable: (true, the group's root) once anchored,
+// else (false, itself). InOneFrame(a, b) is FrameOf(a) == FrameOf(b).
+using TrajectoryFrame = std::pair<bool, TrajectoryId>;
+TrajectoryFrame FrameOf(const Smoother& smoother, TrajectoryId id);
 
 // Squared Mahalanobis distance of `measured` from `predicted` under `covariance`
 // (the sum of both sides' covariances); +inf when it is not invertible.

@@ -123,15 +123,12 @@ EncounterCandidate OrientedLike(const EncounterCandidate& c, const EncounterCand
 // (its root once anchored, else itself) and those the constraints between trajectories tie to it.
 bool InOneFrameAfter(const Smoother& smoother, const std::vector<EncounterConstraint>& constraints,
                      TrajectoryId a, TrajectoryId b) {
-  const auto frame = [&](TrajectoryId id) {
-    return smoother.IsAnchored(id) ? smoother.GroupRoot(id) : id;
-  };
-  std::set<TrajectoryId> reached{frame(a)};
+  std::set<TrajectoryFrame> reached{FrameOf(smoother, a)};
   for (bool grew = true; grew;) {
     grew = false;
     for (const EncounterConstraint& c : constraints) {
-      const TrajectoryId x = frame(c.a.trajectory);
-      const TrajectoryId y = frame(c.b.trajectory);
+      const TrajectoryFrame x = FrameOf(smoother, c.a.trajectory);
+      const TrajectoryFrame y = FrameOf(smoother, c.b.trajectory);
       if (reached.count(x) != reached.count(y)) {
         reached.insert(x);
         reached.insert(y);
@@ -139,7 +136,7 @@ bool InOneFrameAfter(const Smoother& smoother, const std::vector<EncounterConstr
       }
     }
   }
-  return reached.count(frame(b)) > 0;
+  return reached.count(FrameOf(smoother, b)) > 0;
 }
 
 }  // namespace
@@ -315,12 +312,10 @@ int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool ne
 void ScanEncounters::CatchUpJoined(const GraphView& graph) {
   const std::deque<TrajectoryRecord>& records = graph.table.records();
   // The same frames as at the last call: every pair in one frame is in near_joined_ already.
-  std::vector<RecordFrame> frames;
+  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> frames;
   frames.reserve(records.size());
   for (const TrajectoryRecord& record : records) {
-    const bool anchored = graph.smoother.IsAnchored(record.solver_id);
-    frames.push_back({record.solver_id, anchored,
-                      anchored ? graph.smoother.GroupRoot(record.solver_id) : record.solver_id});
+    frames.emplace_back(record.solver_id, FrameOf(graph.smoother, record.solver_id));
   }
   if (frames == caught_up_frames_) {
     near_joined_known_ = true;
@@ -374,28 +369,23 @@ void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
 
 std::vector<ScanEncounters::GlobalTarget> ScanEncounters::GlobalTargets(
     PoseKey key, const GraphView& graph) const {
-  // A trajectory's group: its root once anchored, else itself (its own frame).
-  const auto group_of = [&](TrajectoryId id) {
-    return std::make_pair(graph.smoother.IsAnchored(id),
-                          graph.smoother.IsAnchored(id) ? graph.smoother.GroupRoot(id) : id);
-  };
   // Per other group, the trajectory whose pair with key's was searched least (then the
   // smaller id); then the groups whose best pair was searched least.
-  std::map<std::pair<bool, TrajectoryId>, std::pair<int64_t, TrajectoryId>> best;
+  std::map<TrajectoryFrame, std::pair<int64_t, TrajectoryId>> best;
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
     if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
     const auto submaps = submaps_.find(id);
     if (submaps == submaps_.end() || submaps->second.empty()) continue;
     const std::pair<int64_t, TrajectoryId> rank{global_queue_.PairSearches(key.trajectory, id), id};
-    const auto [it, inserted] = best.emplace(group_of(id), rank);
+    const auto [it, inserted] = best.emplace(FrameOf(graph.smoother, id), rank);
     if (!inserted && rank < it->second) it->second = rank;
   }
   // A group's trajectory is, instead, the one a kept hypothesis guides the search to (the
   // nearest guided submap, then the smaller id), when there is one: the trajectory searched
   // least is far from the place the hypothesis puts the keyframe. The guided submaps are
   // those SearchGlobally takes (computed once: they do not change in between).
-  std::map<std::pair<bool, TrajectoryId>, std::pair<double, TrajectoryId>> guided;
+  std::map<TrajectoryFrame, std::pair<double, TrajectoryId>> guided;
   std::map<TrajectoryId, std::vector<size_t>> guided_submaps;
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
@@ -406,7 +396,7 @@ std::vector<ScanEncounters::GlobalTarget> ScanEncounters::GlobalTargets(
     if (submaps.empty()) continue;
     guided_submaps.emplace(id, std::move(submaps));
     const std::pair<double, TrajectoryId> rank{distance_m, id};
-    const auto [it, inserted] = guided.emplace(group_of(id), rank);
+    const auto [it, inserted] = guided.emplace(FrameOf(graph.smoother, id), rank);
     if (!inserted && rank < it->second) it->second = rank;
   }
   std::vector<std::pair<int64_t, TrajectoryId>> ranked;

@@ -79,6 +79,7 @@
 #include "server/match_budget.h"
 #include "server/match_pool.h"
 #include "server/position_index.h"
+#include "server/relative_pose.h"
 #include "server/scan_encounter_state.h"
 #include "server/submap_cache.h"
 
@@ -535,19 +536,11 @@ class ScanEncounters : public EncounterSource {
   // that held none: the pairs in one frame then are taken as caught up.
   std::set<Pair> near_joined_;
   bool near_joined_known_ = true;
-  // Each record's frame (solver id, anchored, group root) at the last CatchUpJoined, in the
-  // table's order. While it is the same, no pair is newly in one frame and the walk over all
-  // pairs (quadratic in the robots, at every keyframe: 15 % of the replay at 100 robots) is
+  // Each record's frame (its solver id, FrameOf) at the last CatchUpJoined, in the table's
+  // order. While it is the same, no pair is newly in one frame and the walk over all pairs
+  // (quadratic in the robots, at every keyframe: 15 % of the replay at 100 robots) is
   // skipped. A cache, not in snapshots: empty after ImportState.
-  struct RecordFrame {
-    TrajectoryId trajectory;
-    bool anchored = false;
-    TrajectoryId root;
-    bool operator==(const RecordFrame& o) const {
-      return trajectory == o.trajectory && anchored == o.anchored && root == o.root;
-    }
-  };
-  std::vector<RecordFrame> caught_up_frames_;
+  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> caught_up_frames_;
   CandidateStats stats_;
 };
 
