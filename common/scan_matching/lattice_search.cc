@@ -7,9 +7,8 @@
 #include <optional>
 #include <vector>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#elif defined(__SSE2__)
+#include "common/scan_matching/avx2_dispatch.h"
+#if !defined(ANCHORMAP_AVX2_DISPATCH) && defined(__SSE2__)
 #include <emmintrin.h>
 #endif
 
@@ -28,16 +27,7 @@ double AngleStepForRange(double resolution_m, double max_range_m) {
 
 namespace {
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define ANCHORMAP_HAS_AVX2_DISCRETISE 1
-bool HasAvx2ForQuery() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-}
-
+#ifdef ANCHORMAP_AVX2_DISPATCH
 // The cells of points [0, n - n % 4) at one heading, four at a time: R p + t as Eigen computes
 // it ((R00 x + R01 y) + t), CellOf's quotients, and floor as the SSE2 path takes it (truncation,
 // one less where that is above the quotient): the same cells. Widens [min, max] to hold them.
@@ -104,9 +94,9 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
   boxes_.resize(headings);
   xs_.resize(headings);
   ys_.resize(headings);
-#ifdef ANCHORMAP_HAS_AVX2_DISCRETISE
+#ifdef ANCHORMAP_AVX2_DISPATCH
   // The points' x and y apart, for four at a time.
-  const bool avx2 = HasAvx2ForQuery();
+  const bool avx2 = CpuHasAvx2();
   std::vector<double> px;
   std::vector<double> py;
   if (avx2) {
@@ -135,7 +125,7 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
     box.min.setConstant(std::numeric_limits<int>::max());
     box.max.setConstant(std::numeric_limits<int>::min());
     size_t i = 0;
-#ifdef ANCHORMAP_HAS_AVX2_DISCRETISE
+#ifdef ANCHORMAP_AVX2_DISPATCH
     if (avx2) {
       DiscretiseHeadingAvx2(px.data(), py.data(), query.size(), R, t, geometry, xs.data(),
                             ys.data(), &box.min, &box.max);
@@ -206,8 +196,7 @@ double SumCells(const MaxGridPyramid::LevelView& l, const int32_t* xs, const int
   return sum;
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define ANCHORMAP_HAS_AVX2_SUM 1
+#ifdef ANCHORMAP_AVX2_DISPATCH
 // The cells of eight query points on a level of `width` x `height` shifted by (x0, y0): their
 // row-major indices and which of them lie on the level (the float and the byte sums' gathers).
 class CellsOfEightAvx2 {
@@ -271,13 +260,6 @@ __attribute__((target("avx2"), always_inline)) inline double SumCellsAvx2(
   // The last points (fewer than eight), one at a time.
   return SumCells<Inside, /*Exact=*/false>(l, xs, ys, i, end, x0, y0, sum);
 }
-bool HasAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-}
 #endif
 
 // The points' sums are taken in chunks; after each, whether the rest can still lift the mean
@@ -287,7 +269,7 @@ bool HasAvx2() {
 // at every point is at least theirs. `sums` (optional) receives this node's running sums, for
 // its children. A margin far above the sums' rounding keeps the stop exact: a mean above the
 // floor is always finished.
-#ifdef ANCHORMAP_HAS_AVX2_SUM
+#ifdef ANCHORMAP_AVX2_DISPATCH
 // MeanAbove for exact sums on AVX2, in one function with its chunks' sums (a call and the
 // sums' set-up per chunk of 32 points were a sixth of the lattice search's time): the same
 // stops on the same running sums (exact: any order gives the same bits).
@@ -321,8 +303,8 @@ __attribute__((target("avx2"))) double MeanAboveAvx2(const MaxGridPyramid::Level
 template <bool Inside, bool Exact>
 double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& query, int k, int x0,
                  int y0, double floor, double max_value, const double* parent_sums, double* sums) {
-#ifdef ANCHORMAP_HAS_AVX2_SUM
-  if (Exact && HasAvx2()) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (Exact && CpuHasAvx2()) {
     return MeanAboveAvx2<Inside>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);
   }
 #endif
@@ -422,7 +404,7 @@ double ByteMeanAbove(const ByteMaxGrids::LevelView& l, const DiscretisedQuery& q
   return static_cast<double>(sum) / stop.count_scaled;
 }
 
-#ifdef ANCHORMAP_HAS_AVX2_SUM
+#ifdef ANCHORMAP_AVX2_DISPATCH
 // ByteMeanAbove with eight points per gather: four bytes read at each cell (ByteMaxGrids keeps
 // three readable bytes past the last), the low one kept; a chunk's 32 points add at most
 // 4 x 255 per 32-bit lane.
@@ -484,8 +466,8 @@ double ByteScore(const ByteMaxGrids& bytes, int level, const DiscretisedQuery& q
   const bool inside = box.min.x() + x0 >= 0 && box.min.y() + y0 >= 0 &&
                       box.max.x() + x0 < l.width && box.max.y() + y0 < l.height;
   const int max_value = bytes.max_value();
-#ifdef ANCHORMAP_HAS_AVX2_SUM
-  if (HasAvx2()) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx2()) {
     return inside
                ? ByteMeanAboveAvx2<true>(l, query, k, x0, y0, floor, max_value, parent_sums, sums)
                : ByteMeanAboveAvx2<false>(l, query, k, x0, y0, floor, max_value, parent_sums, sums);

@@ -8,9 +8,7 @@
 
 #include <Eigen/Eigenvalues>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
+#include "common/scan_matching/avx2_dispatch.h"
 
 namespace anchormap {
 
@@ -173,16 +171,7 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
 
 namespace {
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define ANCHORMAP_HAS_AVX2_FIELD 1
-bool HasAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-}
-
+#ifdef ANCHORMAP_AVX2_DISPATCH
 // AddPrimitive's row of cells [first, last], four at a time (the last four masked): the same
 // IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2 alone), so
 // the same bits. `centre_x` has three entries past the grid's last column.
@@ -381,8 +370,8 @@ void ReferenceField::Lookups::resize(size_t n) {
 void ReferenceField::InterpolateWithNormals(Lookups* lookups) const {
   const size_t n = lookups->qx.size();
   size_t i = 0;
-#ifdef ANCHORMAP_HAS_AVX2_FIELD
-  if (HasAvx2() && !vx_.empty()) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx2() && !vx_.empty()) {
     const FieldArrays arrays{
         vx_.data(),           vy_.data(),
         primitive_a_.data(),  start_normals_.empty() ? nullptr : start_normals_.front().data(),
@@ -432,8 +421,8 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
     const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
     if (!(dy <= reach)) continue;
     const int row_index = geometry_.Index(0, iy);
-#ifdef ANCHORMAP_HAS_AVX2_FIELD
-    if (HasAvx2()) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+    if (CpuHasAvx2()) {
       AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
                         b_index, best, vx_.data(), vy_.data(), primitive_a_.data(),
                         primitive_b_.data());
