@@ -9,6 +9,26 @@ namespace anchormap {
 
 namespace {
 
+// The residual of an inlier at q whose lookup gave the field vector v and, on a wall, the wall's
+// normal (null for a lone return).
+void ResidualOfInlier(const ReferenceField& field, const Eigen::Vector2d& q, Eigen::Vector2d v,
+                      const Eigen::Vector2d* normal, int* rows, Eigen::Vector2d* e,
+                      Eigen::Matrix2d* de_dq) {
+  if (normal != nullptr) {
+    *rows = 1;
+    (*e)(0) = -normal->dot(v);
+    de_dq->row(0) = normal->transpose();
+    return;
+  }
+  // Only a lone return's residual needs the field's derivative (four divisions per point):
+  // asked again with it, the same v.
+  Eigen::Matrix2d J;
+  field.Interpolate(q, &v, &J);
+  *rows = 2;
+  *e = -v;
+  *de_dq = -J;
+}
+
 // One query point's residual e at q and its derivative with respect to q: with a surface
 // normal n, the point-to-line distance e = -n.v (one row, the wall's direction left free);
 // without (a lone reference return), the point-to-point vector e = -v (two rows). False for an
@@ -19,20 +39,23 @@ bool PointResidual(const ReferenceField& field, const Eigen::Vector2d& q, double
   Eigen::Vector2i cell;
   if (!field.InterpolateInCell(q, &v, &cell) || v.squaredNorm() > cutoff_sq) return false;
   Eigen::Vector2d n;
-  if (field.NearestNormal(cell.x(), cell.y(), &n)) {
-    *rows = 1;
-    (*e)(0) = -n.dot(v);
-    de_dq->row(0) = n.transpose();
-    return true;
-  }
-  // Only a lone return's residual needs the field's derivative (four divisions per point):
-  // asked again with it, the same v.
-  Eigen::Matrix2d J;
-  field.Interpolate(q, &v, &J);
-  *rows = 2;
-  *e = -v;
-  *de_dq = -J;
+  const bool on_wall = field.NearestNormal(cell.x(), cell.y(), &n);
+  ResidualOfInlier(field, q, v, on_wall ? &n : nullptr, rows, e, de_dq);
   return true;
+}
+
+// The field's lookups of the query's points at `pose` (R p + t), batched in `at`.
+void LookUpAtPose(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+                  ReferenceField::Lookups* at) {
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  at->resize(query.size());
+  for (size_t j = 0; j < query.size(); ++j) {
+    const Eigen::Vector2d q = R * query[j] + t;
+    at->qx[j] = q.x();
+    at->qy[j] = q.y();
+  }
+  field.InterpolateWithNormals(at);
 }
 
 // Accumulates the normal equations at `pose`; returns the truncated cost. PointResidual for
@@ -41,15 +64,8 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
                  double cutoff_m, Eigen::Matrix3d* H, Eigen::Vector3d* b, int* inliers,
                  ReferenceField::Lookups* at) {
   const Eigen::Matrix2d R = pose.rotation();
-  const Eigen::Vector2d t = pose.translation();
   const double cutoff_sq = cutoff_m * cutoff_m;
-  at->resize(query.size());
-  for (size_t j = 0; j < query.size(); ++j) {
-    const Eigen::Vector2d q = R * query[j] + t;
-    at->qx[j] = q.x();
-    at->qy[j] = q.y();
-  }
-  field.InterpolateWithNormals(at);
+  LookUpAtPose(field, query, pose, at);
   b->setZero();
   *inliers = 0;
   double cost = 0.0;
@@ -60,26 +76,15 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
   // triangle's sums were the same numbers added in the same order.
   double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
   for (size_t j = 0; j < query.size(); ++j) {
-    Eigen::Vector2d v(at->vx[j], at->vy[j]);
+    const Eigen::Vector2d v(at->vx[j], at->vy[j]);
     if (!at->found[j] || v.squaredNorm() > cutoff_sq) {
       cost += cutoff_sq;
       continue;
     }
     const Eigen::Vector2d rp = R * query[j];
-    if (at->has_normal[j]) {
-      const Eigen::Vector2d n(at->nx[j], at->ny[j]);
-      rows = 1;
-      e(0) = -n.dot(v);
-      de_dq.row(0) = n.transpose();
-    } else {
-      // Only a lone return's residual needs the field's derivative (four divisions per
-      // point): asked again with it, the same v.
-      Eigen::Matrix2d J;
-      field.Interpolate(Eigen::Vector2d(at->qx[j], at->qy[j]), &v, &J);
-      rows = 2;
-      e = -v;
-      de_dq = -J;
-    }
+    const Eigen::Vector2d n(at->nx[j], at->ny[j]);
+    ResidualOfInlier(field, Eigen::Vector2d(at->qx[j], at->qy[j]), v,
+                     at->has_normal[j] ? &n : nullptr, &rows, &e, &de_dq);
     ++*inliers;
     // q = R p + t: dq/dxi = [I, (-rp.y, rp.x)].
     Eigen::Matrix<double, 2, 3> dq;
@@ -146,18 +151,10 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
 }
 
 double AnchoredCost::operator()(const Pose2& pose) const {
-  const Eigen::Matrix2d R = pose.rotation();
-  const Eigen::Vector2d t = pose.translation();
-  ReferenceField::Lookups& at = lookups_;
-  at.resize(query_.size());
-  for (size_t j = 0; j < query_.size(); ++j) {
-    const Eigen::Vector2d q = R * query_[j] + t;
-    at.qx[j] = q.x();
-    at.qy[j] = q.y();
-  }
   // PointResidual's cost without its Jacobian (the same bits: only the value is needed here,
   // at every point of every sample of the score distribution), the field's lookups batched.
-  field_.InterpolateWithNormals(&at);
+  ReferenceField::Lookups& at = lookups_;
+  LookUpAtPose(field_, query_, pose, &at);
   double cost = 0.0;
   for (size_t j = 0; j < query_.size(); ++j) {
     if (at.found[j]) {
