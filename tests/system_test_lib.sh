@@ -98,7 +98,8 @@ wait_for_outboxes() {
 # server's acknowledgements), CMD runs (e.g. a paused server resumed), and the agents are
 # waited for; S seconds later (default 0; the last maps go out) each daemon in turn
 # (relay, server: the server admits what waits, ends with a batch step and publishes the
-# final map) gets SIGINT and is waited for; 0.5 s later the loggers. Returns 1, saying
+# final map) gets SIGINT and is waited for; then, once they have caught up
+# (wait_for_loggers), the loggers. Returns 1, saying
 # which, when an agent or daemon did not exit cleanly.
 stop_run() {
   local after="" settle=0
@@ -124,9 +125,57 @@ stop_run() {
   for pid in "${daemons[@]}"; do
     kill -INT "$pid"; wait "$pid" || { log "a daemon (pid $pid) did not exit cleanly"; status=1; }
   done
-  sleep 0.5
   if [ ${#loggers[@]} -gt 0 ]; then
+    wait_for_loggers 30 "${loggers[@]}" || log "the loggers were still behind after 30 s"
     kill -INT "${loggers[@]}"; wait "${loggers[@]}"
   fi
   return $status
 }
+
+# udp_bytes_unread: the bytes waiting in this network namespace's UDP sockets (/proc/net/udp's
+# rx_queue, hex), i.e. datagrams the kernel has delivered but no reader has taken yet.
+udp_bytes_unread() {
+  local sum=0 queues
+  while read -r _ _ _ _ queues _; do
+    [[ $queues == *:* ]] && sum=$((sum + 16#${queues#*:}))
+  done < <(tail -n +2 /proc/net/udp)
+  echo $sum
+}
+
+# lcmlog_sizes PIDS...: the sizes of the .lcmlog files the given processes hold open.
+lcmlog_sizes() {
+  local pid fd
+  for pid in "$@"; do
+    for fd in /proc/"$pid"/fd/*; do
+      fd=$(readlink "$fd" 2>/dev/null) || continue
+      case $fd in *.lcmlog) stat -c %s "$fd" ;; esac
+    done
+  done | tr '\n' ' '
+}
+
+# wait_for_loggers MAX_S LOGGER_PIDS...: waits until the loggers have read every datagram
+# sent to them (no UDP socket in the namespace holds unread bytes) and their files have not
+# grown for 0.5 s (lcm-logger flushes every 0.1 s); false after MAX_S s. On a starved
+# machine a logger can be seconds behind the daemon it records, and a logger stopped early
+# loses the final map the daemon published as it exited.
+wait_for_loggers() {
+  local max=$(($1 * 10)) tries=0 quiet=0 sizes last=""
+  shift
+  while [ $tries -lt $max ]; do
+    sizes=$(lcmlog_sizes "$@")
+    if [ "$(udp_bytes_unread)" -eq 0 ] && [ "$sizes" = "$last" ]; then
+      quiet=$((quiet + 1))
+      [ $quiet -ge 5 ] && return 0
+    else
+      quiet=0
+    fi
+    last=$sizes
+    sleep 0.1
+    tries=$((tries + 1))
+  done
+  return 1
+}
+
+# The functions a test's namespace body (run by `bash -c`) calls.
+export -f log poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
+  udp_bytes_unread lcmlog_sizes wait_for_loggers
