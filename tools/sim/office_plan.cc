@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include "tools/sim/random.h"
+
 namespace anchormap::sim {
 namespace {
 
@@ -53,50 +55,197 @@ class TileBuilder {
   double half_door_;
 };
 
+// What makes one tile unlike the others and unlike its own half-turn: where each door sits
+// along its wall, furniture in room corners and cabinets along the ring corridor. Real
+// buildings are not exact periodic lattices; an exactly repeated tile (and the tile's point
+// symmetry about its centre) would make places that no scan can tell apart.
+class TileVariation {
+ public:
+  TileVariation(const OfficePlanOptions& options, int region)
+      : rng_(options.seed, static_cast<uint64_t>(region), RngStream::kOfficeLayout),
+        varied_(options.varied_tiles) {}
+
+  bool varied() const { return varied_; }
+  // `nominal`, or a uniform draw in [low, high] when the tile is varied.
+  double Jitter(double nominal, double low, double high) {
+    return varied_ ? rng_.Uniform(low, high) : nominal;
+  }
+  Rng& rng() { return rng_; }
+
+ private:
+  Rng rng_;
+  bool varied_;
+};
+
+// A closed rectangle [x0, x1] x [y0, y1] (tile frame) as four walls.
+void AddBox(TileBuilder& b, double x0, double y0, double x1, double y1) {
+  b.Horizontal(y0, x0, x1);
+  b.Horizontal(y1, x0, x1);
+  b.Vertical(x0, y0, y1);
+  b.Vertical(x1, y0, y1);
+}
+
+// A room corner (x, y) and the directions (+-1, +-1) into the room.
+struct Corner {
+  double x;
+  double y;
+  double sx;
+  double sy;
+};
+
+// Furniture in a room's corners: each corner with probability 0.6 (and one drawn corner
+// when none was), a box 0.5-1.5 m along one wall and 0.4-0.9 m deep. The corners given are
+// away from the room's doors, so a box never narrows a way in.
+void FurnishRoom(TileBuilder& b, TileVariation& v, std::initializer_list<Corner> corners) {
+  Rng& rng = v.rng();
+  auto box = [&](const Corner& c) {
+    const double long_side = rng.Uniform(0.5, 1.5);
+    const double short_side = rng.Uniform(0.4, 0.9);
+    const bool along_x = rng.Bernoulli(0.5);
+    const double dx = c.sx * (along_x ? long_side : short_side);
+    const double dy = c.sy * (along_x ? short_side : long_side);
+    AddBox(b, std::min(c.x, c.x + dx), std::min(c.y, c.y + dy), std::max(c.x, c.x + dx),
+           std::max(c.y, c.y + dy));
+  };
+  bool any = false;
+  for (const Corner& c : corners) {
+    if (!rng.Bernoulli(0.6)) continue;
+    box(c);
+    any = true;
+  }
+  if (!any) box(*(corners.begin() + rng.Index(corners.size())));
+}
+
+// Cabinets 0.2-0.4 m deep and 0.6-1.8 m long against one side of a straight corridor wall
+// from `from` to `to` (running coordinate), none within 0.4 m of a keep-out interval (doors,
+// openings, corridor places) or of another cabinet. `side` is +1 or -1: into which
+// half-plane of the wall they stand. `horizontal`: the wall is y = `at`, else x = `at`.
+void AddCabinets(TileBuilder& b, TileVariation& v, bool horizontal, double at, double from,
+                 double to, double side, Doors keep_out) {
+  Rng& rng = v.rng();
+  const int count = static_cast<int>(rng.Index(3));  // 0-2 per wall
+  for (int i = 0; i < count; ++i) {
+    for (int attempt = 0; attempt < 20; ++attempt) {
+      const double length = rng.Uniform(0.6, 1.8);
+      const double depth = rng.Uniform(0.2, 0.4);
+      const double start = rng.Uniform(from, to - length);
+      const double end = start + length;
+      bool clear = true;
+      for (const auto& [a, c] : keep_out) clear = clear && (end + 0.4 <= a || start - 0.4 >= c);
+      if (!clear) continue;
+      keep_out.push_back({start, end});
+      const double face = at + side * depth;
+      if (horizontal) {
+        AddBox(b, start, std::min(at, face), end, std::max(at, face));
+      } else {
+        AddBox(b, std::min(at, face), start, std::max(at, face), end);
+      }
+      break;
+    }
+  }
+}
+
 void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) {
   const int region = ty * options.tiles_x + tx;
   TileBuilder b(plan, Eigen::Vector2d(tx * kOfficeTileWidthM, ty * kOfficeTileHeightM),
                 options.door_width_m);
+  TileVariation v(options, region);
   const double w = kOfficeTileWidthM;
   const double h = kOfficeTileHeightM;
+  const double door = options.door_width_m;
+  const double half_door = 0.5 * door;
 
   // Outer walls: each tile draws its south and west wall (a door when a neighbour lies
-  // beyond), and the north / east wall only on the last row / column.
+  // beyond), and the north / east wall only on the last row / column. These doors stay
+  // where they are: the neighbour's corner furniture is placed knowing them.
   b.Horizontal(0.0, 0.0, w, ty > 0 ? b.Door(20.0) : Doors{});
   b.Vertical(0.0, 0.0, h, tx > 0 ? b.Door(11.0) : Doors{});
   if (ty == options.tiles_y - 1) b.Horizontal(h, 0.0, w);
   if (tx == options.tiles_x - 1) b.Vertical(w, 0.0, h);
 
   // Rooms around the ring corridor [7, 33] x [7, 23]; the ring's inner edge is the
-  // central block [9.5, 30.5] x [9.5, 20.5].
-  const Doors band_doors = {{8.0, 8.0 + options.door_width_m},
-                            {13.5 - 0.5 * options.door_width_m, 13.5 + 0.5 * options.door_width_m},
-                            {20.0 - 0.5 * options.door_width_m, 20.0 + 0.5 * options.door_width_m},
-                            {26.5 - 0.5 * options.door_width_m, 26.5 + 0.5 * options.door_width_m},
-                            {32.0 - options.door_width_m, 32.0}};
-  b.Horizontal(7.0, 0.0, w, band_doors);
-  b.Horizontal(23.0, 0.0, w, band_doors);
+  // central block [9.5, 30.5] x [9.5, 20.5]. The south and north bands' rooms have their
+  // doors onto the ring each at its own place along the room's wall.
+  auto band_doors = [&]() {
+    const double a = v.Jitter(8.0, 7.3, 10.0 - 0.4 - door);
+    const double e = v.Jitter(32.0 - door, 30.4, 32.7 - door);
+    return Doors{{a, a + door},
+                 {v.Jitter(13.5, 11.6, 15.4) - half_door, 0.0},
+                 {v.Jitter(20.0, 18.5, 21.5) - half_door, 0.0},
+                 {v.Jitter(26.5, 24.6, 28.4) - half_door, 0.0},
+                 {e, e + door}};
+  };
+  Doors south_doors = band_doors();
+  Doors north_doors = band_doors();
+  for (Doors* doors : {&south_doors, &north_doors}) {
+    for (int i = 1; i <= 3; ++i) (*doors)[i].second = (*doors)[i].first + door;
+  }
+  b.Horizontal(7.0, 0.0, w, south_doors);
+  b.Horizontal(23.0, 0.0, w, north_doors);
   for (double x : {10.0, 17.0, 23.0, 30.0}) {
     b.Vertical(x, 0.0, 7.0);
     b.Vertical(x, 23.0, h);
   }
-  b.Vertical(7.0, 7.0, 23.0, b.Door(11.0, 19.0));
-  b.Vertical(33.0, 7.0, 23.0, b.Door(11.0, 19.0));
+  const double west_low = v.Jitter(11.0, 9.0, 13.0);
+  const double west_high = v.Jitter(19.0, 17.0, 21.0);
+  const double east_low = v.Jitter(11.0, 9.0, 13.0);
+  const double east_high = v.Jitter(19.0, 17.0, 21.0);
+  b.Vertical(7.0, 7.0, 23.0, b.Door(west_low, west_high));
+  b.Vertical(33.0, 7.0, 23.0, b.Door(east_low, east_high));
   b.Horizontal(15.0, 0.0, 7.0);
   b.Horizontal(15.0, 33.0, w);
 
   // Central block: two halves split by the cross corridor x in [18.75, 21.25], each half
   // split into two rooms at y = 15; doors onto the ring and onto the cross corridor.
-  b.Horizontal(9.5, 9.5, 18.75, b.Door(14.1));
-  b.Horizontal(20.5, 9.5, 18.75, b.Door(14.1));
-  b.Horizontal(9.5, 21.25, 30.5, b.Door(25.9));
-  b.Horizontal(20.5, 21.25, 30.5, b.Door(25.9));
+  const double block_sw = v.Jitter(14.1, 11.0, 17.2);
+  const double block_nw = v.Jitter(14.1, 11.0, 17.2);
+  const double block_se = v.Jitter(25.9, 22.8, 29.0);
+  const double block_ne = v.Jitter(25.9, 22.8, 29.0);
+  b.Horizontal(9.5, 9.5, 18.75, b.Door(block_sw));
+  b.Horizontal(20.5, 9.5, 18.75, b.Door(block_nw));
+  b.Horizontal(9.5, 21.25, 30.5, b.Door(block_se));
+  b.Horizontal(20.5, 21.25, 30.5, b.Door(block_ne));
   b.Vertical(9.5, 9.5, 20.5);
   b.Vertical(30.5, 9.5, 20.5);
-  b.Vertical(18.75, 9.5, 20.5, b.Door(12.25, 17.75));
-  b.Vertical(21.25, 9.5, 20.5, b.Door(12.25, 17.75));
+  b.Vertical(18.75, 9.5, 20.5, b.Door(v.Jitter(12.25, 11.0, 13.5), v.Jitter(17.75, 16.5, 19.0)));
+  b.Vertical(21.25, 9.5, 20.5, b.Door(v.Jitter(12.25, 11.0, 13.5), v.Jitter(17.75, 16.5, 19.0)));
   b.Horizontal(15.0, 9.5, 18.75);
   b.Horizontal(15.0, 21.25, 30.5);
+
+  if (v.varied()) {
+    // Room furniture, in the corners of the wall opposite each room's door (the outer
+    // wall's doors between tiles are at x = 20 and y = 11, clear of these boxes).
+    for (const auto& [x0, x1] : {std::pair{0.0, 10.0}, std::pair{10.0, 17.0}, std::pair{17.0, 23.0},
+                                 std::pair{23.0, 30.0}, std::pair{30.0, 40.0}}) {
+      FurnishRoom(b, v, {{x0, 0.0, +1.0, +1.0}, {x1, 0.0, -1.0, +1.0}});
+      FurnishRoom(b, v, {{x0, h, +1.0, -1.0}, {x1, h, -1.0, -1.0}});
+    }
+    for (const auto& [y0, y1] : {std::pair{7.0, 15.0}, std::pair{15.0, 23.0}}) {
+      FurnishRoom(b, v, {{0.0, y0, +1.0, +1.0}, {0.0, y1, +1.0, -1.0}});
+      FurnishRoom(b, v, {{w, y0, -1.0, +1.0}, {w, y1, -1.0, -1.0}});
+    }
+    // Central rooms: the corner on the block's outer wall at y = 15 touches no door.
+    FurnishRoom(b, v, {{9.5, 15.0, +1.0, -1.0}});
+    FurnishRoom(b, v, {{9.5, 15.0, +1.0, +1.0}});
+    FurnishRoom(b, v, {{30.5, 15.0, -1.0, -1.0}});
+    FurnishRoom(b, v, {{30.5, 15.0, -1.0, +1.0}});
+
+    // Cabinets along the ring's straight stretches, clear of doors, of the cross
+    // corridor's mouths and of the corridor places at its mid-points.
+    auto keep_out = [&](const Doors& doors, std::initializer_list<double> places) {
+      Doors out = doors;
+      for (double p : places) out.push_back({p - 1.5, p + 1.5});
+      return out;
+    };
+    AddCabinets(b, v, true, 7.0, 9.5, 30.5, +1.0, keep_out(south_doors, {20.0}));
+    AddCabinets(b, v, true, 23.0, 9.5, 30.5, -1.0, keep_out(north_doors, {20.0}));
+    AddCabinets(b, v, false, 7.0, 9.5, 20.5, +1.0, keep_out(b.Door(west_low, west_high), {15.0}));
+    AddCabinets(b, v, false, 33.0, 9.5, 20.5, -1.0, keep_out(b.Door(east_low, east_high), {15.0}));
+    AddCabinets(b, v, true, 9.5, 9.5, 30.5, -1.0,
+                keep_out(b.Door(block_sw, block_se), {18.75, 20.0, 21.25}));
+    AddCabinets(b, v, true, 20.5, 9.5, 30.5, +1.0,
+                keep_out(b.Door(block_nw, block_ne), {18.75, 20.0, 21.25}));
+  }
 
   // Room centres (start places and destinations).
   for (double x : {5.0, 13.5, 20.0, 26.5, 35.0}) {
