@@ -164,39 +164,53 @@ void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) 
   if (tx == options.tiles_x - 1) b.Vertical(w, 0.0, h);
 
   // Rooms around the ring corridor [7, 33] x [7, 23]; the ring's inner edge is the
-  // central block [9.5, 30.5] x [9.5, 20.5]. The south and north bands' rooms have their
-  // doors onto the ring each at its own place along the room's wall.
-  auto band_doors = [&]() {
-    const double a = v.Jitter(8.0, 7.3, 10.0 - 0.4 - door);
-    const double e = v.Jitter(32.0 - door, 30.4, 32.7 - door);
-    return Doors{{a, a + door},
-                 {v.Jitter(13.5, 11.6, 15.4) - half_door, 0.0},
-                 {v.Jitter(20.0, 18.5, 21.5) - half_door, 0.0},
-                 {v.Jitter(26.5, 24.6, 28.4) - half_door, 0.0},
-                 {e, e + door}};
+  // central block [9.5, 30.5] x [9.5, 20.5]. In a varied tile every room has its own size
+  // (the walls between rooms move by up to 1.5 m: a room's own walls are most of what a
+  // robot in it sees, so furniture alone leaves rooms alike) and its own door place.
+  // South and north bands: five rooms each, split at x = `split` (nominal 10, 17, 23, 30;
+  // the middle room keeps the door between tiles at x = 20 clear of its corner boxes).
+  struct Band {
+    double split[4];
+    Doors doors;
   };
-  Doors south_doors = band_doors();
-  Doors north_doors = band_doors();
-  for (Doors* doors : {&south_doors, &north_doors}) {
-    for (int i = 1; i <= 3; ++i) (*doors)[i].second = (*doors)[i].first + door;
-  }
-  b.Horizontal(7.0, 0.0, w, south_doors);
-  b.Horizontal(23.0, 0.0, w, north_doors);
-  for (double x : {10.0, 17.0, 23.0, 30.0}) {
-    b.Vertical(x, 0.0, 7.0);
-    b.Vertical(x, 23.0, h);
-  }
-  const double west_low = v.Jitter(11.0, 9.0, 13.0);
-  const double west_high = v.Jitter(19.0, 17.0, 21.0);
-  const double east_low = v.Jitter(11.0, 9.0, 13.0);
-  const double east_high = v.Jitter(19.0, 17.0, 21.0);
+  auto band = [&]() {
+    Band band{{v.Jitter(10.0, 9.5, 11.5), v.Jitter(17.0, 16.0, 17.5), v.Jitter(23.0, 22.5, 24.0),
+               v.Jitter(30.0, 28.5, 30.5)},
+              {}};
+    const double edges[6] = {0.0, band.split[0], band.split[1], band.split[2], band.split[3], w};
+    const double nominal[5] = {8.8, 13.5, 20.0, 26.5, 31.2};
+    for (int i = 0; i < 5; ++i) {
+      // Onto the ring [7, 33], 0.4 m clear of the room's side walls.
+      const double low = std::max(edges[i], 7.0) + half_door + 0.4;
+      const double high = std::min(edges[i + 1], 33.0) - half_door - 0.4;
+      const double centre = v.Jitter(nominal[i], low, high);
+      band.doors.push_back({centre - half_door, centre + half_door});
+    }
+    return band;
+  };
+  const Band south = band();
+  const Band north = band();
+  b.Horizontal(7.0, 0.0, w, south.doors);
+  b.Horizontal(23.0, 0.0, w, north.doors);
+  for (double x : south.split) b.Vertical(x, 0.0, 7.0);
+  for (double x : north.split) b.Vertical(x, 23.0, h);
+  // West and east: two rooms each, split at y = 15 (varied by up to 1.5 m).
+  const double west_split = v.Jitter(15.0, 13.5, 16.5);
+  const double east_split = v.Jitter(15.0, 13.5, 16.5);
+  const double west_low = v.Jitter(11.0, 8.4, west_split - 1.2);
+  const double west_high = v.Jitter(19.0, west_split + 1.2, 21.6);
+  const double east_low = v.Jitter(11.0, 8.4, east_split - 1.2);
+  const double east_high = v.Jitter(19.0, east_split + 1.2, 21.6);
   b.Vertical(7.0, 7.0, 23.0, b.Door(west_low, west_high));
   b.Vertical(33.0, 7.0, 23.0, b.Door(east_low, east_high));
-  b.Horizontal(15.0, 0.0, 7.0);
-  b.Horizontal(15.0, 33.0, w);
+  b.Horizontal(west_split, 0.0, 7.0);
+  b.Horizontal(east_split, 33.0, w);
 
   // Central block: two halves split by the cross corridor x in [18.75, 21.25], each half
-  // split into two rooms at y = 15; doors onto the ring and onto the cross corridor.
+  // split into two rooms at y = 15 (varied by up to 1.5 m); doors onto the ring and onto
+  // the cross corridor.
+  const double block_w_split = v.Jitter(15.0, 13.5, 16.5);
+  const double block_e_split = v.Jitter(15.0, 13.5, 16.5);
   const double block_sw = v.Jitter(14.1, 11.0, 17.2);
   const double block_nw = v.Jitter(14.1, 11.0, 17.2);
   const double block_se = v.Jitter(25.9, 22.8, 29.0);
@@ -207,28 +221,36 @@ void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) 
   b.Horizontal(20.5, 21.25, 30.5, b.Door(block_ne));
   b.Vertical(9.5, 9.5, 20.5);
   b.Vertical(30.5, 9.5, 20.5);
-  b.Vertical(18.75, 9.5, 20.5, b.Door(v.Jitter(12.25, 11.0, 13.5), v.Jitter(17.75, 16.5, 19.0)));
-  b.Vertical(21.25, 9.5, 20.5, b.Door(v.Jitter(12.25, 11.0, 13.5), v.Jitter(17.75, 16.5, 19.0)));
-  b.Horizontal(15.0, 9.5, 18.75);
-  b.Horizontal(15.0, 21.25, 30.5);
+  b.Vertical(18.75, 9.5, 20.5,
+             b.Door(v.Jitter(12.25, 10.7, block_w_split - 1.2),
+                    v.Jitter(17.75, block_w_split + 1.2, 19.3)));
+  b.Vertical(21.25, 9.5, 20.5,
+             b.Door(v.Jitter(12.25, 10.7, block_e_split - 1.2),
+                    v.Jitter(17.75, block_e_split + 1.2, 19.3)));
+  b.Horizontal(block_w_split, 9.5, 18.75);
+  b.Horizontal(block_e_split, 21.25, 30.5);
 
   if (v.varied()) {
     // Room furniture, in the corners of the wall opposite each room's door (the outer
     // wall's doors between tiles are at x = 20 and y = 11, clear of these boxes).
-    for (const auto& [x0, x1] : {std::pair{0.0, 10.0}, std::pair{10.0, 17.0}, std::pair{17.0, 23.0},
-                                 std::pair{23.0, 30.0}, std::pair{30.0, 40.0}}) {
-      FurnishRoom(b, v, {{x0, 0.0, +1.0, +1.0}, {x1, 0.0, -1.0, +1.0}});
-      FurnishRoom(b, v, {{x0, h, +1.0, -1.0}, {x1, h, -1.0, -1.0}});
+    for (const Band* side : {&south, &north}) {
+      const double y = side == &south ? 0.0 : h;
+      const double sy = side == &south ? +1.0 : -1.0;
+      const double edges[6] = {0.0, side->split[0], side->split[1], side->split[2], side->split[3],
+                               w};
+      for (int i = 0; i < 5; ++i) {
+        FurnishRoom(b, v, {{edges[i], y, +1.0, sy}, {edges[i + 1], y, -1.0, sy}});
+      }
     }
-    for (const auto& [y0, y1] : {std::pair{7.0, 15.0}, std::pair{15.0, 23.0}}) {
-      FurnishRoom(b, v, {{0.0, y0, +1.0, +1.0}, {0.0, y1, +1.0, -1.0}});
-      FurnishRoom(b, v, {{w, y0, -1.0, +1.0}, {w, y1, -1.0, -1.0}});
-    }
-    // Central rooms: the corner on the block's outer wall at y = 15 touches no door.
-    FurnishRoom(b, v, {{9.5, 15.0, +1.0, -1.0}});
-    FurnishRoom(b, v, {{9.5, 15.0, +1.0, +1.0}});
-    FurnishRoom(b, v, {{30.5, 15.0, -1.0, -1.0}});
-    FurnishRoom(b, v, {{30.5, 15.0, -1.0, +1.0}});
+    FurnishRoom(b, v, {{0.0, 7.0, +1.0, +1.0}, {0.0, west_split, +1.0, -1.0}});
+    FurnishRoom(b, v, {{0.0, west_split, +1.0, +1.0}, {0.0, 23.0, +1.0, -1.0}});
+    FurnishRoom(b, v, {{w, 7.0, -1.0, +1.0}, {w, east_split, -1.0, -1.0}});
+    FurnishRoom(b, v, {{w, east_split, -1.0, +1.0}, {w, 23.0, -1.0, -1.0}});
+    // Central rooms: the corner on the block's outer wall at the split touches no door.
+    FurnishRoom(b, v, {{9.5, block_w_split, +1.0, -1.0}});
+    FurnishRoom(b, v, {{9.5, block_w_split, +1.0, +1.0}});
+    FurnishRoom(b, v, {{30.5, block_e_split, -1.0, -1.0}});
+    FurnishRoom(b, v, {{30.5, block_e_split, -1.0, +1.0}});
 
     // Cabinets along the ring's straight stretches, clear of doors, of the cross
     // corridor's mouths and of the corridor places at its mid-points.
@@ -237,8 +259,8 @@ void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) 
       for (double p : places) out.push_back({p - 1.5, p + 1.5});
       return out;
     };
-    AddCabinets(b, v, true, 7.0, 9.5, 30.5, +1.0, keep_out(south_doors, {20.0}));
-    AddCabinets(b, v, true, 23.0, 9.5, 30.5, -1.0, keep_out(north_doors, {20.0}));
+    AddCabinets(b, v, true, 7.0, 9.5, 30.5, +1.0, keep_out(south.doors, {20.0}));
+    AddCabinets(b, v, true, 23.0, 9.5, 30.5, -1.0, keep_out(north.doors, {20.0}));
     AddCabinets(b, v, false, 7.0, 9.5, 20.5, +1.0, keep_out(b.Door(west_low, west_high), {15.0}));
     AddCabinets(b, v, false, 33.0, 9.5, 20.5, -1.0, keep_out(b.Door(east_low, east_high), {15.0}));
     AddCabinets(b, v, true, 9.5, 9.5, 30.5, -1.0,
@@ -248,17 +270,20 @@ void AddTile(int tx, int ty, const OfficePlanOptions& options, FloorPlan* plan) 
   }
 
   // Room centres (start places and destinations).
-  for (double x : {5.0, 13.5, 20.0, 26.5, 35.0}) {
-    b.Place(x, 3.5, region, true);
-    b.Place(x, 26.5, region, true);
+  for (const Band* side : {&south, &north}) {
+    const double y = side == &south ? 3.5 : 26.5;
+    const double edges[6] = {0.0, side->split[0], side->split[1], side->split[2], side->split[3],
+                             w};
+    for (int i = 0; i < 5; ++i) b.Place(0.5 * (edges[i] + edges[i + 1]), y, region, true);
   }
-  for (double y : {11.0, 19.0}) {
-    b.Place(3.5, y, region, true);
-    b.Place(36.5, y, region, true);
-  }
-  for (double x : {14.1, 25.9}) {
-    for (double y : {12.25, 17.75}) b.Place(x, y, region, true);
-  }
+  b.Place(3.5, 0.5 * (7.0 + west_split), region, true);
+  b.Place(3.5, 0.5 * (west_split + 23.0), region, true);
+  b.Place(36.5, 0.5 * (7.0 + east_split), region, true);
+  b.Place(36.5, 0.5 * (east_split + 23.0), region, true);
+  b.Place(14.1, 0.5 * (9.5 + block_w_split), region, true);
+  b.Place(14.1, 0.5 * (block_w_split + 20.5), region, true);
+  b.Place(25.9, 0.5 * (9.5 + block_e_split), region, true);
+  b.Place(25.9, 0.5 * (block_e_split + 20.5), region, true);
   // Corridor places: ring corners, ring mid-points, the cross corridor's centre.
   for (double x : {8.25, 20.0, 31.75}) {
     b.Place(x, 8.25, region, false);
