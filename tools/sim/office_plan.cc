@@ -55,10 +55,11 @@ class TileBuilder {
   double half_door_;
 };
 
-// What makes one tile unlike the others and unlike its own half-turn: where each door sits
-// along its wall, furniture in room corners and cabinets along the ring corridor. Real
-// buildings are not exact periodic lattices; an exactly repeated tile (and the tile's point
-// symmetry about its centre) would make places that no scan can tell apart.
+// What makes one tile unlike the others and unlike its own half-turn: where the walls between
+// rooms stand, where each door sits along its wall, furniture in room corners and cabinets
+// along the ring corridor. Real buildings are not exact periodic lattices; an exactly
+// repeated tile (and the tile's point symmetry about its centre) would make places that no
+// scan can tell apart.
 class TileVariation {
  public:
   TileVariation(const OfficePlanOptions& options, int region)
