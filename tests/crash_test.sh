@@ -54,6 +54,9 @@ case $MODE in
     SOURCES="--loop-closures true --scan-encounters true --scan-global-searches-per-s 0.25 --scan-global-burst 10"
     SNAPSHOTS="--snapshot-every-s 1 --snapshot-every-events 100"
     DURATION_S=40
+    # Simulation seed 4: in the office's first 40 s its robots revisit places (9 loop closures
+    # and 4 scan encounters offline); seed 1's routes there give no loop-closure candidate.
+    SIM_SEED=4
     LIFE_MIN_MS=2000
     LIFE_SPAN_MS=1500 ;;
   *) echo "crash_test: mode $MODE is not snapshots or scan" >&2; exit 2 ;;
@@ -157,7 +160,7 @@ main() {
   require_player_and_netns "the crash test needs a private network for its multicast bus"
   make_work_dir
   local work=$WORK
-  simulate $ROBOTS $DURATION_S
+  simulate $ROBOTS $DURATION_S "${SIM_SEED:-1}"
 
   export -f inside_namespace stop_run outboxes_show outboxes_empty wait_for_outboxes start_server milliseconds_as_seconds \
     wait_until_listening log

@@ -21,10 +21,10 @@ make_work_dir() {
   fi
 }
 
-# simulate ROBOTS DURATION_S: the simulator's seed-1 run into $WORK/sim.lcmlog (its
-# summary in $WORK/sim.txt).
+# simulate ROBOTS DURATION_S [SEED]: the simulator's run (seed 1 unless given) into
+# $WORK/sim.lcmlog (its summary in $WORK/sim.txt).
 simulate() {
-  "$BIN/anchormap-sim" --robots "$1" --seed 1 --duration-s "$2" --output "$WORK/sim.lcmlog" \
+  "$BIN/anchormap-sim" --robots "$1" --seed "${3:-1}" --duration-s "$2" --output "$WORK/sim.lcmlog" \
     >"$WORK/sim.txt" || { log "anchormap-sim failed"; exit 1; }
 }
 

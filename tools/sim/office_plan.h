@@ -5,8 +5,13 @@
 // different directions meet head-on, which is what makes encounters frequent.
 //
 // For many robots the tile is repeated on a grid; neighbouring tiles connect through doors
-// in their shared outer walls, so the world stays one connected building.
+// in their shared outer walls, so the world stays one connected building. Each tile draws
+// from the seed where its rooms' doors sit along their walls, furniture in room corners
+// and cabinets along the ring corridor, so that no tile is an exact copy of another or of
+// its own half-turn (an exact lattice is ambiguous by construction: no scan can tell the
+// copies apart).
 
+#include <cstdint>
 #include <string>
 
 #include "common/util/status.h"
@@ -18,6 +23,8 @@ struct OfficePlanOptions {
   int tiles_x = 1;            // tiles side by side in x
   int tiles_y = 1;            // tiles in y
   double door_width_m = 1.6;  // every door; must exceed twice the robots' clearance
+  uint64_t seed = 1;          // draws each tile's variation (the simulator's seed)
+  bool varied_tiles = true;   // false: every tile the same bare plan (layout tests)
 
   // Empty when valid, else the reason.
   Status Validate() const;

@@ -20,6 +20,7 @@ enum class RngStream : uint64_t {
   kLaser = 3,
   kEncounter = 4,
   kWorld = 5,
+  kOfficeLayout = 6,  // per office tile: its doors' places and furniture
 };
 
 class Rng {

@@ -10,8 +10,9 @@ namespace anchormap::sim {
 Status Simulator::Create(const SimOptions& options, std::unique_ptr<Simulator>* simulator) {
   std::unique_ptr<Simulator> sim(new Simulator(options));
   if (options.world == "office") {
-    sim->plan_ =
-        BuildOfficePlan(OfficeTilesForRobots(options.robots, options.office_robots_per_tile));
+    OfficePlanOptions office = OfficeTilesForRobots(options.robots, options.office_robots_per_tile);
+    office.seed = options.seed;
+    sim->plan_ = BuildOfficePlan(office);
   } else if (Status status = LoadPgmWorld(options.world, options.world_resolution_m, &sim->plan_);
              !status.ok()) {
     return status;
