@@ -151,6 +151,42 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   }
 }
 
+std::vector<std::vector<int>> Smoother::Impl::PendingRowColumns() const {
+  // IncrementalStep's grounding and appending, on copies.
+  std::vector<char> grounded = grounded_;
+  const size_t known = grounded.size();
+  grounded.resize(vars_.size());
+  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
+  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
+  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
+  std::unordered_map<int, int> appended;  // pending variable -> its position to be
+  for (int v : pending_vars_) {
+    if (grounded[v]) appended.emplace(v, r_->size() + static_cast<int>(appended.size()));
+  }
+  std::vector<std::vector<int>> columns(ready.size());
+  for (size_t k = 0; k < ready.size(); ++k) {
+    const FactorRecord& f = factors_[ready[k]];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const int var = f.vars[j];
+      columns[k].push_back(vars_[var].position >= 0 ? vars_[var].position : appended.at(var));
+    }
+  }
+  return columns;
+}
+
+bool Smoother::Impl::GivensUpdateWouldOutgrowFill() const {
+  if (!(options_.batch_when_fill_grows > 0) || nonzeros_after_batch_ == 0 ||
+      pending_factors_.empty()) {
+    return false;
+  }
+  // ChooseStep's test after the update, nonzeros > factor x nonzeros_after_batch, made on
+  // the fill the update would add.
+  const double room = options_.batch_when_fill_grows * static_cast<double>(nonzeros_after_batch_) -
+                      static_cast<double>(r_->NonZeros());
+  return r_->ForecastElimination(PendingRowColumns(), static_cast<int64_t>(std::floor(room)))
+      .exceeded;
+}
+
 void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
                                        const std::vector<LinearizedFactor>& jacobians,
                                        int first_new) {
@@ -671,8 +707,13 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
 
   // 1. The kind of step, from the statistics (batch_policy.h).
   ++updates_since_batch_;
-  const StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
-                                              r_->NonZeros(), nonzeros_after_batch_});
+  StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
+                                        r_->NonZeros(), nonzeros_after_batch_});
+  // The fill test before the Givens updates too: a batch step (a fresh ordering) instead
+  // of an update that would fill R past it (the next update would reorder anyway).
+  if (kind == StepKind::kIncremental && GivensUpdateWouldOutgrowFill()) {
+    kind = StepKind::kBatchOnFill;
+  }
   if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {
     // 2a. Groups joined: a partial step over the anchors (relative formulation).
     PartialMergeStep(&result);
