@@ -204,11 +204,11 @@ class Smoother::Impl {
   // The block columns of each row IncrementalStep would eliminate now (new variables at
   // the positions it would append them at), in its order; nothing changes.
   std::vector<std::vector<int>> PendingRowColumns() const;
-  // Whether IncrementalStep would grow R past the fill at which the next update reorders
-  // (batch_when_fill_grows since the last ordering), forecast on the patterns before any
-  // arithmetic: eliminating rows through an ordering that no longer fits the graph can
-  // fill R towards dense (minutes, gigabytes), which the check after the update is too
-  // late to prevent. Only for R within that fill (an incremental update's case).
+  // Whether IncrementalStep would add more non-zeros to R than R had after its last
+  // ordering, forecast on the patterns before any arithmetic: eliminating many rows
+  // through an ordering that no longer fits the graph can fill R towards dense (minutes,
+  // gigabytes), which the fill trigger (batch_when_fill_grows), tested after the update,
+  // is too late to prevent.
   bool GivensUpdateWouldOutgrowFill() const;
   // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold, and
   // those at `forced` positions, and re-eliminates only the block rows that depend on them

@@ -179,12 +179,12 @@ bool Smoother::Impl::GivensUpdateWouldOutgrowFill() const {
       pending_factors_.empty()) {
     return false;
   }
-  // ChooseStep's test after the update, nonzeros > factor x nonzeros_after_batch, made on
-  // the fill the update would add.
-  const double room = options_.batch_when_fill_grows * static_cast<double>(nonzeros_after_batch_) -
-                      static_cast<double>(r_->NonZeros());
-  return r_->ForecastElimination(PendingRowColumns(), static_cast<int64_t>(std::floor(room)))
-      .exceeded;
+  // More fill than the whole R had after its ordering: the Givens update would cost more
+  // than the batch step (whose factorisation is about that size), and R would be past the
+  // fill trigger after it. Below that, the trigger after the update stays the test: taking
+  // every crossing one update early shortened the cycles between fill batch steps
+  // (city10000: 94 batch steps instead of 90, 3.5-4 % more CPU).
+  return r_->ForecastElimination(PendingRowColumns(), nonzeros_after_batch_).exceeded;
 }
 
 void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
@@ -709,8 +709,8 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   ++updates_since_batch_;
   StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
                                         r_->NonZeros(), nonzeros_after_batch_});
-  // The fill test before the Givens updates too: a batch step (a fresh ordering) instead
-  // of an update that would fill R past it (the next update would reorder anyway).
+  // A batch step (a fresh ordering) instead of Givens updates that would fill R more than
+  // a batch step costs (the next update would reorder anyway).
   if (kind == StepKind::kIncremental && GivensUpdateWouldOutgrowFill()) {
     kind = StepKind::kBatchOnFill;
   }

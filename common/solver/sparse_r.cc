@@ -282,19 +282,23 @@ SparseR::EliminationForecast SparseR::ForecastElimination(
     const RBlockRow& row = c < size() ? rows_[c] : kEmptyRow;
     merged.clear();
     for (const auto& entry : row.right) merged.push_back(entry.first);
+    // The meeting carries leave; the first one's slot is kept for the merged carry (its
+    // vector's capacity reused: no allocation per row).
     int triples = 0;
-    size_t kept = 0;
+    size_t kept = 0, slot = carries.size();
     for (size_t i = 0; i < carries.size(); ++i) {
-      if (carries[i].columns.front() != c) {
-        if (kept != i) carries[kept] = std::move(carries[i]);
-        ++kept;
-        continue;
+      const bool meets = carries[i].columns.front() == c;
+      if (meets) {
+        triples += carries[i].triples;
+        merged_next.clear();
+        std::set_union(merged.begin(), merged.end(), carries[i].columns.begin() + 1,
+                       carries[i].columns.end(), std::back_inserter(merged_next));
+        merged.swap(merged_next);
+        if (slot < carries.size()) continue;
+        slot = kept;
       }
-      triples += carries[i].triples;
-      merged_next.clear();
-      std::set_union(merged.begin(), merged.end(), carries[i].columns.begin() + 1,
-                     carries[i].columns.end(), std::back_inserter(merged_next));
-      merged.swap(merged_next);
+      if (kept != i) std::swap(carries[kept], carries[i]);
+      ++kept;
     }
     carries.resize(kept);
     ++forecast.block_rows;
@@ -308,7 +312,13 @@ SparseR::EliminationForecast SparseR::ForecastElimination(
     // An empty row takes the first triple whole (its rotations are exact swaps), the
     // others go on; nothing goes on past the last column.
     const int going_on = merged.empty() ? 0 : triples - (was_empty ? 1 : 0);
-    if (going_on > 0) carries.push_back({merged, going_on});
+    if (going_on > 0) {
+      carries[slot].columns.swap(merged);
+      carries[slot].triples = going_on;
+    } else {
+      std::swap(carries[slot], carries.back());
+      carries.pop_back();
+    }
   }
   return forecast;
 }
