@@ -201,6 +201,15 @@ class Smoother::Impl {
   // Givens updates of the pending measurements; `solve` false leaves delta as it was
   // (a partial merge step solves after it).
   void IncrementalStep(bool solve, UpdateResult* result);
+  // The block columns of each row IncrementalStep would eliminate now (new variables at
+  // the positions it would append them at), in its order; nothing changes.
+  std::vector<std::vector<int>> PendingRowColumns() const;
+  // Whether IncrementalStep would add more non-zeros to R than R had after its last
+  // ordering, forecast on the patterns before any arithmetic: eliminating many rows
+  // through an ordering that no longer fits the graph can fill R towards dense (minutes,
+  // gigabytes), which the fill trigger (batch_when_fill_grows), tested after the update,
+  // is too late to prevent.
+  bool GivensUpdateWouldOutgrowFill() const;
   // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold, and
   // those at `forced` positions, and re-eliminates only the block rows that depend on them
   // (them, the variables they share factors with, and their ancestors in the elimination

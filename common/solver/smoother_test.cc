@@ -333,6 +333,50 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
   }
 }
 
+TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
+  // The server's configuration (the CG correction, reordering at 1.5x fill). A chain of
+  // poses, then one update closing 16 loops between the start and the end of the chain
+  // on different poses: eliminated through the chain's ordering, each row between them
+  // would take every later closure's column (R several times its size); the update is a
+  // batch step (a fresh ordering) instead, and the estimate is the optimum all the same.
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_iterations = 5;
+  options.relinearize_when_correction_stalls = true;
+  options.correction_cg_iterations = 50;
+  Smoother smoother(options);
+  testing::RandomGraphOptions g;
+  g.poses = 120;
+  g.loop_closures = 0;
+  g.seed = 3;
+  const PoseGraph graph = testing::RandomGraph(g);
+  const TrajectoryId t(0);
+  for (int i = 0; i < g.poses; ++i) {
+    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
+    ASSERT_TRUE(smoother.Update().status.ok());
+  }
+  const int64_t batch_steps = smoother.stats().batch_steps_on_fill;
+  const int64_t nonzeros = smoother.stats().nnz_r;
+  for (int i = 0; i < 16; ++i) {
+    const int j = g.poses - 1 - 2 * i;
+    ASSERT_TRUE(smoother
+                    .AddBetween({t, i}, {t, j},
+                                Between(graph.vertices[i].pose, graph.vertices[j].pose),
+                                kCovariance)
+                    .ok());
+  }
+  const UpdateResult result = smoother.Update();
+  ASSERT_TRUE(result.status.ok());
+  EXPECT_TRUE(result.batch_step);
+  EXPECT_EQ(smoother.stats().batch_steps_on_fill, batch_steps + 1);
+  // A fresh ordering of the chain with its 16 closures, not the rows between them filled.
+  EXPECT_LT(smoother.stats().nnz_r, 2 * nonzeros);
+
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+}
+
 TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   SmootherOptions options;
   options.convergence_step = 1e-13;  // R linearised at the estimate itself

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -149,6 +150,56 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
       innovation_ += FactorChi2(f.factor, values.data());
     }
   }
+}
+
+std::vector<std::vector<int>> Smoother::Impl::PendingRowColumns() const {
+  // IncrementalStep's grounding and appending, on copies.
+  std::vector<char> grounded = grounded_;
+  const size_t known = grounded.size();
+  grounded.resize(vars_.size());
+  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
+  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
+  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
+  std::unordered_map<int, int> appended;  // pending variable -> its position to be
+  for (int v : pending_vars_) {
+    if (grounded[v]) appended.emplace(v, r_->size() + static_cast<int>(appended.size()));
+  }
+  std::vector<std::vector<int>> columns(ready.size());
+  for (size_t k = 0; k < ready.size(); ++k) {
+    const FactorRecord& f = factors_[ready[k]];
+    for (int j = 0; j < f.num_vars; ++j) {
+      const int var = f.vars[j];
+      columns[k].push_back(vars_[var].position >= 0 ? vars_[var].position : appended.at(var));
+    }
+  }
+  return columns;
+}
+
+bool Smoother::Impl::GivensUpdateWouldOutgrowFill() const {
+  if (!(options_.batch_when_fill_grows > 0) || nonzeros_after_batch_ == 0 ||
+      pending_factors_.empty()) {
+    return false;
+  }
+  // More fill than the whole R had after its ordering: the Givens update would cost more
+  // than the batch step (whose factorisation is about that size), and R would be past the
+  // fill trigger after it. Below that, the trigger after the update stays the test: taking
+  // every crossing one update early shortened the cycles between fill batch steps
+  // (city10000: 94 batch steps instead of 90, 3.5-4 % more CPU).
+  const std::vector<std::vector<int>> columns = PendingRowColumns();
+  // A bound first, without the walk: every row met lies from the lowest column on, and row
+  // c can take at most the blocks right of it and a diagonal (an update near the end of the
+  // ordering, e.g. odometry alone, cannot fill much).
+  int lowest = std::numeric_limits<int>::max(), end = r_->size();
+  for (const std::vector<int>& row : columns) {
+    for (int q : row) {
+      lowest = std::min(lowest, q);
+      end = std::max(end, q + 1);
+    }
+  }
+  if (lowest >= end) return false;
+  const int64_t span = end - lowest;
+  if (9 * span * (span - 1) / 2 + 6 * span <= nonzeros_after_batch_) return false;
+  return r_->ForecastElimination(columns, nonzeros_after_batch_).exceeded;
 }
 
 void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
@@ -671,8 +722,13 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
 
   // 1. The kind of step, from the statistics (batch_policy.h).
   ++updates_since_batch_;
-  const StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
-                                              r_->NonZeros(), nonzeros_after_batch_});
+  StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
+                                        r_->NonZeros(), nonzeros_after_batch_});
+  // A batch step (a fresh ordering) instead of Givens updates that would fill R more than
+  // a batch step costs (the next update would reorder anyway).
+  if (kind == StepKind::kIncremental && GivensUpdateWouldOutgrowFill()) {
+    kind = StepKind::kBatchOnFill;
+  }
   if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {
     // 2a. Groups joined: a partial step over the anchors (relative formulation).
     PartialMergeStep(&result);

@@ -252,6 +252,77 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
   return leftover;
 }
 
+SparseR::EliminationForecast SparseR::ForecastElimination(
+    const std::vector<std::vector<int>>& columns_of_rows, int64_t max_fill) const {
+  // Eliminate's walk on patterns: the lowest leading column c of the carries; the carries
+  // leading with c merge, and R's row c and the merged carry both take the union of their
+  // columns right of c. Each row is met once (c only grows), so R's own patterns are read.
+  struct Pattern {
+    std::vector<int> columns;  // sorted
+    int triples = 0;
+  };
+  std::vector<Pattern> carries;
+  carries.reserve(columns_of_rows.size());
+  for (const std::vector<int>& columns : columns_of_rows) {
+    Pattern carry;
+    carry.columns = columns;
+    std::sort(carry.columns.begin(), carry.columns.end());
+    carry.columns.erase(std::unique(carry.columns.begin(), carry.columns.end()),
+                        carry.columns.end());
+    carry.triples = 1;
+    if (!carry.columns.empty()) carries.push_back(std::move(carry));
+  }
+  EliminationForecast forecast;
+  std::vector<int> merged, merged_next;
+  while (!carries.empty()) {
+    int c = carries.front().columns.front();
+    for (const Pattern& carry : carries) c = std::min(c, carry.columns.front());
+    // Columns from size() on are variables the update appends: empty rows.
+    static const RBlockRow kEmptyRow;
+    const RBlockRow& row = c < size() ? rows_[c] : kEmptyRow;
+    merged.clear();
+    for (const auto& entry : row.right) merged.push_back(entry.first);
+    // The meeting carries leave; the first one's slot is kept for the merged carry (its
+    // vector's capacity reused: no allocation per row).
+    int triples = 0;
+    size_t kept = 0, slot = carries.size();
+    for (size_t i = 0; i < carries.size(); ++i) {
+      const bool meets = carries[i].columns.front() == c;
+      if (meets) {
+        triples += carries[i].triples;
+        merged_next.clear();
+        std::set_union(merged.begin(), merged.end(), carries[i].columns.begin() + 1,
+                       carries[i].columns.end(), std::back_inserter(merged_next));
+        merged.swap(merged_next);
+        if (slot < carries.size()) continue;
+        slot = kept;
+      }
+      if (kept != i) std::swap(carries[kept], carries[i]);
+      ++kept;
+    }
+    carries.resize(kept);
+    ++forecast.block_rows;
+    const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
+    forecast.fill += kBlockNonZeros * static_cast<int64_t>(merged.size() - row.right.size()) +
+                     (was_empty ? kDiagonalNonZeros : 0);
+    if (forecast.fill > max_fill) {
+      forecast.exceeded = true;
+      return forecast;
+    }
+    // An empty row takes the first triple whole (its rotations are exact swaps), the
+    // others go on; nothing goes on past the last column.
+    const int going_on = merged.empty() ? 0 : triples - (was_empty ? 1 : 0);
+    if (going_on > 0) {
+      carries[slot].columns.swap(merged);
+      carries[slot].triples = going_on;
+    } else {
+      std::swap(carries[slot], carries.back());
+      carries.pop_back();
+    }
+  }
+  return forecast;
+}
+
 void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,
                           const std::vector<int>& kept, std::vector<RBlockRow> rows,
                           const std::vector<std::pair<int, Eigen::Vector3d>>& rhs) {

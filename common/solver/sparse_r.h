@@ -62,6 +62,19 @@ class SparseR {
   // per measurement. Returns the summed leftover.
   double Eliminate(std::vector<NewRows> rows, std::vector<int>* touched);
 
+  // What Eliminate would do to R's structure, given only the new rows' columns (no
+  // arithmetic, R unchanged; columns from size() on count as appended empty rows): the
+  // scalar non-zeros it would add and the block rows it would meet. The walk stops as soon
+  // as the added non-zeros exceed `max_fill` (`exceeded`), so its cost stays below that
+  // fill plus the rows it reads. Exact zeros aside (they drop blocks), it is Eliminate's.
+  struct EliminationForecast {
+    int64_t fill = 0;        // scalar non-zeros added (an upper bound: exact zeros aside)
+    int64_t block_rows = 0;  // block rows visited
+    bool exceeded = false;   // stopped early: fill > max_fill
+  };
+  EliminationForecast ForecastElimination(const std::vector<std::vector<int>>& columns_of_rows,
+                                          int64_t max_fill) const;
+
   // Partial re-elimination: replaces the block rows from `p0` on. `new_position[q - p0]`
   // is the new position of old position q >= p0. The old rows `kept` (ascending) stay
   // valid and move to positions p0, p0 + 1, ... with their columns renumbered; `rows`

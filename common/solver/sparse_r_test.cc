@@ -2,6 +2,7 @@
 #include "common/solver/sparse_r_testing.h"
 
 #include <algorithm>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -195,6 +196,53 @@ TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
   const auto y = SolveTransposed(copy, g);
   const Eigen::VectorXd expected = DenseR(r).transpose().triangularView<Eigen::Lower>().solve(gd);
   for (int p = 0; p < 8; ++p) EXPECT_LT((y[p] - expected.segment<3>(3 * p)).norm(), 1e-10);
+}
+
+TEST(SparseRTest, ForecastIsTheFillAndRowsOfTheEliminationAndStopsPastItsBudget) {
+  // A chain, then updates of several measurements (loop closures, some on variables the
+  // update appends): the forecast, made before the variables are appended, must be the
+  // non-zeros and block rows Eliminate then adds and meets.
+  std::mt19937 rng(5);
+  SparseR r;
+  r.Append(60);
+  r.Eliminate(RandomBetweenRows(0, -1, &rng), nullptr);
+  for (int p = 1; p < 60; ++p) r.Eliminate(RandomBetweenRows(p, p - 1, &rng), nullptr);
+  int64_t largest_fill = 0;
+  for (int update = 0; update < 6; ++update) {
+    const int n = r.size();
+    std::vector<NewRows> rows;
+    rows.push_back(RandomBetweenRows(n, n - 1, &rng));           // a new pose
+    rows.push_back(RandomBetweenRows(n + 1, n, &rng));           // and one after it
+    rows.push_back(RandomBetweenRows(n + 1, 7 * update, &rng));  // closed on an old one
+    std::uniform_int_distribution<int> any(0, n - 1);
+    for (int k = 0; k < 2; ++k) {
+      const int a = any(rng);
+      const int b = any(rng);
+      if (a != b) rows.push_back(RandomBetweenRows(a, b, &rng));
+    }
+    std::vector<std::vector<int>> columns;
+    for (const NewRows& row : rows) {
+      columns.emplace_back();
+      for (const auto& [q, block] : row.blocks) columns.back().push_back(q);
+    }
+    const SparseR::EliminationForecast forecast =
+        r.ForecastElimination(columns, std::numeric_limits<int64_t>::max());
+    const int64_t nonzeros = r.NonZeros();
+    const int64_t met = r.eliminated_block_rows();
+    EXPECT_FALSE(forecast.exceeded);
+    if (forecast.fill > 0) {
+      const SparseR::EliminationForecast cut = r.ForecastElimination(columns, forecast.fill - 1);
+      EXPECT_TRUE(cut.exceeded);
+      EXPECT_LE(cut.block_rows, forecast.block_rows);
+      EXPECT_FALSE(r.ForecastElimination(columns, forecast.fill).exceeded);
+    }
+    r.Append(2);
+    r.Eliminate(rows, nullptr);
+    EXPECT_EQ(forecast.fill, r.NonZeros() - nonzeros) << update;
+    EXPECT_EQ(forecast.block_rows, r.eliminated_block_rows() - met) << update;
+    largest_fill = std::max(largest_fill, forecast.fill);
+  }
+  EXPECT_GT(largest_fill, 9 * 20);  // closures on old variables filled rows
 }
 
 }  // namespace
