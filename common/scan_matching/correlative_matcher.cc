@@ -79,6 +79,16 @@ std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
   return result;
 }
 
+namespace {
+
+// The refinement's cut-off: three point sigmas, at least two cells, within the field's reach.
+double RefinementCutoff(const ScanReference& reference, const MatchOptions& options) {
+  return std::min(std::max(3.0 * options.point_sigma_m, 2.0 * reference.geometry().resolution),
+                  reference.field().options().max_distance_m);
+}
+
+}  // namespace
+
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
                         const SearchWindow& window, const LatticePose& lattice,
                         const MatchOptions& options) {
@@ -88,23 +98,29 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   result.score = lattice.score;
   result.lattice_pose = LatticeToPose(window, reference.geometry().resolution, lattice);
   result.pose = result.lattice_pose;
-  const double resolution = reference.geometry().resolution;
-  const double field_reach = reference.field().options().max_distance_m;
   RefinementOptions refine;
-  refine.cutoff_m = std::min(std::max(3.0 * options.point_sigma_m, 2.0 * resolution), field_reach);
-  RefinementResult refined;
+  refine.cutoff_m = RefinementCutoff(reference, options);
   if (options.refine) {
-    refined = RefinePose(reference.field(), query, result.lattice_pose, refine);
+    result.refinement = RefinePose(reference.field(), query, result.lattice_pose, refine);
   } else {
-    refined = RefinePose(reference.field(), query, result.lattice_pose,
-                         RefinementOptions{refine.cutoff_m, 0, 0.0});
+    result.refinement = RefinePose(reference.field(), query, result.lattice_pose,
+                                   RefinementOptions{refine.cutoff_m, 0, 0.0});
   }
-  result.pose = refined.pose;
+  result.pose = result.refinement.pose;
   result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
-  if (!options.covariance || result.score < options.covariance_min_score ||
-      result.overlap < options.covariance_min_overlap) {
-    return result;
+  if (options.covariance) AddCovariance(reference, query, options, &result);
+  return result;
+}
+
+void AddCovariance(const ScanReference& reference, const PointCloud& query,
+                   const MatchOptions& options, MatchResult* result) {
+  if (result->score < options.covariance_min_score ||
+      result->overlap < options.covariance_min_overlap) {
+    return;
   }
+  const RefinementResult& refined = result->refinement;
+  const double resolution = reference.geometry().resolution;
+  const double cutoff_m = RefinementCutoff(reference, options);
   ScoreCovarianceOptions covariance;
   // The noise of one point along the surface normal, estimated from the residuals (the
   // a-posteriori variance factor of least squares), so that the covariance follows the sensor
@@ -112,7 +128,7 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   // reference's, interpolated ((1 - t)^2 + t^2 of it). The option is the fallback for too few
   // inliers and the refinement's cut-off scale.
   const ReferenceNoiseTerms reference_noise =
-      ComputeReferenceNoiseTerms(reference.field(), query, result.pose, refine.cutoff_m);
+      ComputeReferenceNoiseTerms(reference.field(), query, result->pose, cutoff_m);
   covariance.point_sigma_m = refined.inliers >= kMinInliersForVariance
                                  ? std::sqrt(std::max(refined.residual_variance, 1e-8) /
                                              (1.0 + reference_noise.interpolation_gain))
@@ -120,14 +136,13 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   if (!options.refine) {
     // The lattice's own resolution bounds the estimate: a uniform error over one cell.
     covariance.floor_sigma_xy_m = resolution / std::sqrt(12.0);
-    covariance.floor_sigma_theta_rad = window.angle_step_rad / std::sqrt(12.0);
+    covariance.floor_sigma_theta_rad = result->window.angle_step_rad / std::sqrt(12.0);
   }
   // The query's noise through the score distribution, the reference's by propagation.
   const Eigen::Matrix3d hessian = DegeneracyFiltered(refined.hessian, query);
-  result.covariance =
-      ScoreDistributionCovariance(reference.field(), query, result.pose, hessian, covariance) +
+  result->covariance =
+      ScoreDistributionCovariance(reference.field(), query, result->pose, hessian, covariance) +
       ReferenceNoiseCovariance(reference_noise, hessian, covariance.point_sigma_m, covariance);
-  return result;
 }
 
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,

@@ -19,6 +19,7 @@
 #include "common/geometry/pose2.h"
 #include "common/scan_matching/lattice_search.h"
 #include "common/scan_matching/point_cloud.h"
+#include "common/scan_matching/pose_refinement.h"
 #include "common/scan_matching/scan_reference.h"
 #include "common/util/status.h"
 
@@ -34,7 +35,7 @@ struct MatchOptions {
   double overlap_distance_m = 0.1;
   bool refine = true;
   // False: `covariance` is left at the identity (the score distribution is most of a match's
-  // cost); FinishMatch on the result's window and lattice pose gives it later, identically.
+  // cost); AddCovariance on the result gives it later, identically.
   bool covariance = true;
   // A result below either bar keeps the identity as its covariance: the caller that set them
   // discards such a match unused (a fifth of the servers' matches; the covariance is most of
@@ -64,6 +65,9 @@ struct MatchResult {
   // this result again (e.g. with the covariance, when the search skipped it).
   SearchWindow window;
   LatticePose lattice;
+  // The refinement that gave `pose` (its Hessian, inliers and residual variance are the
+  // covariance's input): AddCovariance needs no second refinement.
+  RefinementResult refinement;
 };
 
 // Matches `query` (points in its body frame) around T_reference_query `guess`. Options must be
@@ -82,6 +86,13 @@ std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
                         const SearchWindow& window, const LatticePose& lattice,
                         const MatchOptions& options);
+
+// Step 3 for a result FinishMatch finished with options.covariance false: the covariance it
+// gives with options.covariance true (the same bits, from result->refinement: a keyframe's
+// covariance was a second refinement of the same lattice pose). Needs the same reference,
+// query and other options.
+void AddCovariance(const ScanReference& reference, const PointCloud& query,
+                   const MatchOptions& options, MatchResult* result);
 
 // The fraction of `query` at T_reference_query `pose` within `distance_m` of the surface.
 double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2& pose,

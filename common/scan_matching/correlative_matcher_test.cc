@@ -129,6 +129,36 @@ TEST(CorrelativeMatcherTest, RefinementBeatsTheLattice) {
   EXPECT_LT(sum_refined, 0.5 * sum_lattice);
 }
 
+TEST(CorrelativeMatcherTest, AddCovarianceGivesFinishMatchsCovarianceToTheBit) {
+  // A match finished without its covariance, then given it from its own refinement, equals
+  // the match finished with it (the local map's keyframes took a second refinement for this).
+  std::mt19937_64 rng(13);
+  const SyntheticLaser laser = MountedLaser(181, kPi, 0.01);
+  for (int i = 0; i < 4; ++i) {
+    const SyntheticWorld world = RandomRoom(300 + i);
+    const Trial trial = MakeTrial(world, laser, 0.3, 0.15, &rng);
+    const ScanReference reference({trial.reference}, LocalReferenceOptions());
+    LocalMatchOptions options;
+    const std::optional<MatchResult> full =
+        MatchLocal(reference, trial.query, trial.guess, options);
+    options.match.covariance = false;
+    std::optional<MatchResult> later = MatchLocal(reference, trial.query, trial.guess, options);
+    ASSERT_TRUE(full.has_value() && later.has_value()) << "trial " << i;
+    EXPECT_EQ(later->covariance, Eigen::Matrix3d::Identity());
+    options.match.covariance = true;
+    AddCovariance(reference, trial.query, options.match, &*later);
+    EXPECT_EQ(later->pose.vector(), full->pose.vector()) << "trial " << i;
+    EXPECT_EQ(later->covariance, full->covariance) << "trial " << i;
+    EXPECT_NE(later->covariance, Eigen::Matrix3d::Identity());
+    // Below the covariance's bars it stays the identity, as FinishMatch leaves it.
+    options.match.covariance_min_overlap = 1.01;
+    MatchResult below = *later;
+    below.covariance = Eigen::Matrix3d::Identity();
+    AddCovariance(reference, trial.query, options.match, &below);
+    EXPECT_EQ(below.covariance, Eigen::Matrix3d::Identity());
+  }
+}
+
 TEST(CorrelativeMatcherTest, CovarianceShowsACorridorsBlindDirection) {
   // A straight corridor 2 m wide, longer than the laser's 8 m reach: a shift along it is
   // invisible. The covariance must say so (large along x, small across), and stay SPD.

@@ -128,10 +128,7 @@ LocalMapUpdate LocalMapMatcher::AddScan(const PointCloud& points, const Pose2& T
   if (update.matched && search.match.covariance != options_.match.match.covariance &&
       (moved || needs_covariance(update.pose))) {
     // Against the reference the pose was found in, before a new keyframe changes it.
-    const LatticeSearchStats stats = update.match->search;
-    update.match = FinishMatch(*reference_, near, update.match->window, update.match->lattice,
-                               options_.match.match);
-    update.match->search = stats;
+    AddCovariance(*reference_, near, options_.match.match, &*update.match);
     has_covariance = true;
   }
   if (update.matched && update.flat && has_covariance) {

@@ -58,14 +58,38 @@ void LookUpAtPose(const ReferenceField& field, const PointCloud& query, const Po
   field.InterpolateWithNormals(at);
 }
 
-// Accumulates the normal equations at `pose`; returns the truncated cost. PointResidual for
-// every point, the field's lookups batched in `at` (scratch): the same bits.
-double Linearise(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
-                 double cutoff_m, Eigen::Matrix3d* H, Eigen::Vector3d* b, int* inliers,
-                 ReferenceField::Lookups* at) {
+// The truncated cost of the query at the pose `at` was looked up at: every point's
+// ResidualOfInlier squared row by row, or cutoff^2 for an outlier, summed in query order
+// (NormalEquations' cost, the same bits). A step LM rejects needs only this: more than half
+// of an FR079 replay's steps, whose normal equations were built and thrown away.
+double CostOfLookups(const ReferenceField::Lookups& at, double cutoff_sq) {
+  double cost = 0.0;
+  for (size_t j = 0; j < at.qx.size(); ++j) {
+    const Eigen::Vector2d v(at.vx[j], at.vy[j]);
+    if (!at.found[j] || v.squaredNorm() > cutoff_sq) {
+      cost += cutoff_sq;
+      continue;
+    }
+    if (at.has_normal[j]) {
+      const double e = -Eigen::Vector2d(at.nx[j], at.ny[j]).dot(v);
+      cost += e * e;
+    } else {
+      // A lone return's residual is -v (ResidualOfInlier asks the field again only for the
+      // derivative, and gets the same v).
+      cost += v(0) * v(0);
+      cost += v(1) * v(1);
+    }
+  }
+  return cost;
+}
+
+// Accumulates the normal equations at the pose `at` was looked up at (`pose`); returns the
+// truncated cost (CostOfLookups'). PointResidual for every point: the same bits.
+double NormalEquations(const ReferenceField& field, const PointCloud& query, const Pose2& pose,
+                       double cutoff_m, const ReferenceField::Lookups& at, Eigen::Matrix3d* H,
+                       Eigen::Vector3d* b, int* inliers) {
   const Eigen::Matrix2d R = pose.rotation();
   const double cutoff_sq = cutoff_m * cutoff_m;
-  LookUpAtPose(field, query, pose, at);
   b->setZero();
   *inliers = 0;
   double cost = 0.0;
@@ -76,15 +100,15 @@ double Linearise(const ReferenceField& field, const PointCloud& query, const Pos
   // triangle's sums were the same numbers added in the same order.
   double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
   for (size_t j = 0; j < query.size(); ++j) {
-    const Eigen::Vector2d v(at->vx[j], at->vy[j]);
-    if (!at->found[j] || v.squaredNorm() > cutoff_sq) {
+    const Eigen::Vector2d v(at.vx[j], at.vy[j]);
+    if (!at.found[j] || v.squaredNorm() > cutoff_sq) {
       cost += cutoff_sq;
       continue;
     }
     const Eigen::Vector2d rp = R * query[j];
-    const Eigen::Vector2d n(at->nx[j], at->ny[j]);
-    ResidualOfInlier(field, Eigen::Vector2d(at->qx[j], at->qy[j]), v,
-                     at->has_normal[j] ? &n : nullptr, &rows, &e, &de_dq);
+    const Eigen::Vector2d n(at.nx[j], at.ny[j]);
+    ResidualOfInlier(field, Eigen::Vector2d(at.qx[j], at.qy[j]), v, at.has_normal[j] ? &n : nullptr,
+                     &rows, &e, &de_dq);
     ++*inliers;
     // q = R p + t: dq/dxi = [I, (-rp.y, rp.x)].
     Eigen::Matrix<double, 2, 3> dq;
@@ -190,7 +214,10 @@ RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query
   Eigen::Vector3d b;
   int inliers = 0;
   ReferenceField::Lookups lookups;
-  double cost = Linearise(field, query, result.pose, options.cutoff_m, &H, &b, &inliers, &lookups);
+  const double cutoff_sq = options.cutoff_m * options.cutoff_m;
+  LookUpAtPose(field, query, result.pose, &lookups);
+  double cost =
+      NormalEquations(field, query, result.pose, options.cutoff_m, lookups, &H, &b, &inliers);
   result.hessian = H;
   result.inliers = inliers;
   // Levenberg-Marquardt: a step that does not lower the cost is retried with more damping
@@ -203,17 +230,19 @@ RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query
     const Eigen::Vector3d step = damped.ldlt().solve(b);
     if (!step.allFinite()) break;
     const Pose2 candidate = Pose2::FromVector(result.pose.vector() + step);
-    Eigen::Matrix3d H_new;
-    Eigen::Vector3d b_new;
-    int inliers_new = 0;
-    const double cost_new = Linearise(field, query, candidate, options.cutoff_m, &H_new, &b_new,
-                                      &inliers_new, &lookups);
+    LookUpAtPose(field, query, candidate, &lookups);
+    const double cost_new = CostOfLookups(lookups, cutoff_sq);
     result.iterations = iteration + 1;
     if (!(cost_new < cost)) {
       lambda *= 10.0;
       if (lambda > 1e6) break;
       continue;
     }
+    Eigen::Matrix3d H_new;
+    Eigen::Vector3d b_new;
+    int inliers_new = 0;
+    NormalEquations(field, query, candidate, options.cutoff_m, lookups, &H_new, &b_new,
+                    &inliers_new);
     lambda = std::max(lambda * 0.1, 1e-9);
     result.pose = candidate;
     result.hessian = H_new;
