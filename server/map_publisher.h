@@ -82,7 +82,8 @@ class MapPublisher {
   // `map` as chunks and a header for the bus: the chunks that changed since the last call,
   // or every chunk when `full` or when map_full_period_s has passed since the last full one.
   MapChunker::Split SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full = false);
-  // Non-const smoother: covariance recovery memoises inside it.
+  // Non-const smoother: it keeps the covariance solves' scratch. Each anchor's marginal is
+  // one sparse solve through the rows below it in R (Smoother::ProjectedCovariance).
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,
                                            int64_t utime, int64_t update) const;
   // The grid moved toward the current estimate (UpdateGrid; all the way when `complete`),

@@ -96,7 +96,9 @@ TEST_F(MapPublisherTest, AnchorCovariancesAreTheSmoothersMarginals) {
   EXPECT_EQ(out.anchors[1].robot, "B");
   EXPECT_EQ(out.anchors[1].trajectory_id, 8);
   const Eigen::Matrix3d expected = smoother_.MarginalCovariance(Key(AnchorKey{TrajectoryId(1)}));
-  EXPECT_LT((out.anchors[1].covariance - expected).norm(), 1e-15);
+  // The same marginal by a sparse solve instead of the block recursion: round-off apart.
+  EXPECT_LT((out.anchors[1].covariance - expected).norm(), 1e-12 * expected.norm());
+  EXPECT_EQ(out.anchors[1].covariance, out.anchors[1].covariance.transpose());
   // B's anchor is known through one encounter and A's odometry: looser than A's, which
   // carries the group's gauge prior.
   EXPECT_GT(out.anchors[1].covariance.trace(), out.anchors[0].covariance.trace());

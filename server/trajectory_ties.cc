@@ -2,8 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <queue>
-#include <unordered_set>
+#include <functional>
 #include <utility>
 
 namespace anchormap {
@@ -37,6 +36,47 @@ TrajectoryId TrajectoryTies::Root(TrajectoryId trajectory) const {
   return trajectory;
 }
 
+bool TrajectoryTies::SettledSet::Insert(uint64_t id) {
+  if (2 * (filled_.size() + 1) > slots_.size()) Grow();
+  const size_t mask = slots_.size() - 1;
+  for (size_t slot = static_cast<size_t>((id * 0x9E3779B97F4A7C15ull) >> shift_);;
+       slot = (slot + 1) & mask) {
+    if (slots_[slot] == id) return false;
+    if (slots_[slot] == kEmpty) {
+      slots_[slot] = id;
+      filled_.push_back(slot);
+      return true;
+    }
+  }
+}
+
+bool TrajectoryTies::SettledSet::Contains(uint64_t id) const {
+  if (slots_.empty()) return false;
+  const size_t mask = slots_.size() - 1;
+  for (size_t slot = static_cast<size_t>((id * 0x9E3779B97F4A7C15ull) >> shift_);;
+       slot = (slot + 1) & mask) {
+    if (slots_[slot] == id) return true;
+    if (slots_[slot] == kEmpty) return false;
+  }
+}
+
+void TrajectoryTies::SettledSet::Clear() {
+  for (size_t slot : filled_) slots_[slot] = kEmpty;
+  filled_.clear();
+}
+
+void TrajectoryTies::SettledSet::Grow() {
+  std::vector<uint64_t> ids;
+  ids.reserve(filled_.size());
+  for (size_t slot : filled_) ids.push_back(slots_[slot]);
+  const size_t capacity = slots_.empty() ? 256 : 2 * slots_.size();
+  slots_.assign(capacity, kEmpty);
+  shift_ = 64;
+  for (size_t c = capacity; c > 1; c >>= 1) --shift_;
+  filled_.clear();
+  for (uint64_t id : ids) Insert(id);
+}
+
 std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
                                                     const std::function<double(PoseKey)>& driven,
                                                     double limit) const {
@@ -49,25 +89,30 @@ std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
   // Dijkstra over the tied keyframes. Along one trajectory the drive between two keyframes
   // is the difference of the paths driven to them, so each tied keyframe needs edges only to
   // its neighbours by index there (and to `to`, when in its trajectory).
-  using Node = std::pair<int64_t, int32_t>;  // (trajectory, index)
-  using Item = std::pair<double, Node>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  // A min-heap on (distance, node) (std::priority_queue's operations on a kept vector).
+  std::vector<Item>& queue = queue_;
+  queue.clear();
+  settled_.Clear();
+  const std::greater<Item> later;
   // Settled nodes; a node settled is not queued again (the heap's order is total, so the
   // others come out as they would).
-  std::unordered_set<uint64_t> settled;
   const auto id = [](const Node& node) {
     return (static_cast<uint64_t>(node.first) << 32) ^ static_cast<uint32_t>(node.second);
   };
   const auto push = [&](double distance, const Node& node) {
-    if (settled.count(id(node)) == 0) queue.push({distance, node});
+    if (!settled_.Contains(id(node))) {
+      queue.push_back({distance, node});
+      std::push_heap(queue.begin(), queue.end(), later);
+    }
   };
   // `from` itself may be tied: then it is a node with its partners.
-  queue.push({0.0, {from.trajectory.value(), from.index}});
+  queue.push_back({0.0, {from.trajectory.value(), from.index}});
   while (!queue.empty()) {
-    const auto [distance, node] = queue.top();
-    queue.pop();
+    std::pop_heap(queue.begin(), queue.end(), later);
+    const auto [distance, node] = queue.back();
+    queue.pop_back();
     if ((best && distance >= *best) || distance > limit) break;
-    if (!settled.insert(id(node)).second) continue;
+    if (!settled_.Insert(id(node))) continue;
     const PoseKey key{TrajectoryId(node.first), node.second};
     const auto trajectory = ends_.find(node.first);
     const double driven_key = driven(key);

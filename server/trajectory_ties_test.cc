@@ -52,6 +52,28 @@ TEST(TrajectoryTiesTest, ALimitAnswersOnlyDrivesWithinIt) {
   EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kA, 9}, OneMetreEach, 5.0));  // 6 m along A
 }
 
+// The search keeps its queue and settled set between calls: a long search (a ladder of 300
+// ties between two trajectories, so the settled set grows several times) leaves nothing
+// behind that changes the next answers.
+TEST(TrajectoryTiesTest, RepeatedSearchesGiveTheSameDrives) {
+  TrajectoryTies ties;
+  for (int32_t i = 0; i < 300; ++i) ties.Add({kA, 2 * i}, {kB, 2 * i + 1});
+  ties.Add({kB, 1000}, {kC, 0});
+  // B[1000] to C[7]: tied at C[0], then 7 m along C.
+  const auto far = [&] { return ties.ShortestDrive({kA, 0}, {kC, 7}, OneMetreEach); };
+  const auto near = [&] { return ties.ShortestDrive({kA, 42}, {kB, 45}, OneMetreEach); };
+  const auto bounded = [&] { return ties.ShortestDrive({kA, 3}, {kA, 9}, OneMetreEach, 5.0); };
+  for (int round = 0; round < 3; ++round) {
+    // A[0] to B[1]: tied; then up B to B[1000] (999 m), then 7 m along C.
+    ASSERT_TRUE(far());
+    EXPECT_DOUBLE_EQ(*far(), 1006.0);
+    // A[42] to B[45]: A[42]'s tie goes to B[43], then 2 m along B.
+    ASSERT_TRUE(near());
+    EXPECT_DOUBLE_EQ(*near(), 2.0);
+    EXPECT_FALSE(bounded());
+  }
+}
+
 TEST(TrajectoryTiesTest, ConnectedFollowsChainsOfTies) {
   TrajectoryTies ties;
   const TrajectoryId kD(3);
