@@ -159,23 +159,26 @@ lcmlog_sizes() {
 # machine a logger can be seconds behind the daemon it records, and a logger stopped early
 # loses the final map the daemon published as it exited.
 wait_for_loggers() {
-  local max=$(($1 * 10)) tries=0 quiet=0 sizes last=""
+  local max=$1 quiet=0 last=""
   shift
-  while [ $tries -lt $max ]; do
-    sizes=$(lcmlog_sizes "$@")
-    if [ "$(udp_bytes_unread)" -eq 0 ] && [ "$sizes" = "$last" ]; then
-      quiet=$((quiet + 1))
-      [ $quiet -ge 5 ] && return 0
-    else
-      quiet=0
-    fi
-    last=$sizes
-    sleep 0.1
-    tries=$((tries + 1))
-  done
-  return 1
+  poll_until "$max" loggers_quiet_for_half_a_second "$@"
+}
+
+# One look of wait_for_loggers (bash's locals are seen by the functions a function calls: it
+# counts in the caller's `quiet` and `last`): true at the fifth look in a row, 0.1 s apart,
+# that finds no unread datagram and the loggers' files as large as at the look before.
+loggers_quiet_for_half_a_second() {
+  local sizes
+  sizes=$(lcmlog_sizes "$@")
+  if [ "$(udp_bytes_unread)" -eq 0 ] && [ "$sizes" = "$last" ]; then
+    quiet=$((quiet + 1))
+  else
+    quiet=0
+  fi
+  last=$sizes
+  [ $quiet -ge 5 ]
 }
 
 # The functions a test's namespace body (run by `bash -c`) calls.
 export -f log poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
-  udp_bytes_unread lcmlog_sizes wait_for_loggers
+  udp_bytes_unread lcmlog_sizes wait_for_loggers loggers_quiet_for_half_a_second
