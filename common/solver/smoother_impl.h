@@ -197,6 +197,9 @@ class Smoother::Impl {
   void SetValue(int var, const Pose2& value);
 
   std::vector<int64_t> GroundPendingFactors(std::vector<char>* grounded) const;
+  // `grounded` (grounded_, or a copy of it) brought up to the variables now known, then the
+  // pending factors an incremental step would eliminate now (GroundPendingFactors).
+  std::vector<int64_t> FactorsReadyForGivens(std::vector<char>* grounded) const;
   void TakeOutOfPending(const std::vector<int64_t>& done);
   // Givens updates of the pending measurements; `solve` false leaves delta as it was
   // (a partial merge step solves after it).

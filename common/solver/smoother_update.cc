@@ -67,15 +67,19 @@ void Smoother::Impl::TakeOutOfPending(const std::vector<int64_t>& done) {
   pending_vars_.swap(vars);
 }
 
-void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
+std::vector<int64_t> Smoother::Impl::FactorsReadyForGivens(std::vector<char>* grounded) const {
   // grounded[v] == (v is in R), kept between updates so that an update costs what it
   // touches: only new and pending variables need a fresh look (a batch step clears it).
+  const size_t known = grounded->size();
+  grounded->resize(vars_.size());
+  for (size_t v = known; v < vars_.size(); ++v) (*grounded)[v] = vars_[v].position >= 0;
+  for (int v : pending_vars_) (*grounded)[v] = vars_[v].position >= 0;
+  return GroundPendingFactors(grounded);
+}
+
+void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   std::vector<char>& grounded = grounded_;
-  const size_t known = grounded.size();
-  grounded.resize(vars_.size());
-  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
-  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
-  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
+  const std::vector<int64_t> ready = FactorsReadyForGivens(&grounded);
 
   SparseR& R = MutableR();
   const int first_new = R.size();
@@ -155,11 +159,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
 std::vector<std::vector<int>> Smoother::Impl::PendingRowColumns() const {
   // IncrementalStep's grounding and appending, on copies.
   std::vector<char> grounded = grounded_;
-  const size_t known = grounded.size();
-  grounded.resize(vars_.size());
-  for (size_t v = known; v < vars_.size(); ++v) grounded[v] = vars_[v].position >= 0;
-  for (int v : pending_vars_) grounded[v] = vars_[v].position >= 0;
-  const std::vector<int64_t> ready = GroundPendingFactors(&grounded);
+  const std::vector<int64_t> ready = FactorsReadyForGivens(&grounded);
   std::unordered_map<int, int> appended;  // pending variable -> its position to be
   for (int v : pending_vars_) {
     if (grounded[v]) appended.emplace(v, r_->size() + static_cast<int>(appended.size()));
