@@ -578,6 +578,16 @@ class BranchAndBoundSearch {
     return best_;
   }
 
+  // The window's centre as the best leaf so far when it scores above the bar: any better leaf,
+  // or an equal one earlier in (k, dy, dx) order, still replaces it (Descend).
+  void ScoreCentreFirst() {
+    const double centre = Score(0, 0, 0, 0, nullptr, nullptr);
+    if (centre > best_score_) {
+      best_score_ = centre;
+      best_ = LatticePose{0, 0, 0, centre};
+    }
+  }
+
  private:
   int LastHeading(int k, int g) const { return std::min(k + (1 << g) - 1, window_.half_angles); }
 
@@ -795,8 +805,10 @@ class BranchAndBoundSearch {
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats,
-                                          const ByteMaxGrids* bytes) {
-  return BranchAndBoundSearch(grids, query, window, min_score, stats, bytes).Run();
+                                          const ByteMaxGrids* bytes, bool centre_first) {
+  BranchAndBoundSearch search(grids, query, window, min_score, stats, bytes);
+  if (centre_first) search.ScoreCentreFirst();
+  return search.Run();
 }
 
 }  // namespace anchormap

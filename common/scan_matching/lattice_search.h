@@ -97,10 +97,14 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
 
 // The same best lattice pose, by branch and bound over all the pyramid's levels. With `bytes`
 // (ByteMaxGrids of `grids`, used when grids.exact_sums()) the inner nodes are bounded on the
-// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ.
+// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ. With
+// `centre_first`, the window's centre (a local match's guess) is scored before any node: a
+// good guess's score prunes from the first node on (the same best pose; the nodes scored
+// differ).
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats = nullptr,
-                                          const ByteMaxGrids* bytes = nullptr);
+                                          const ByteMaxGrids* bytes = nullptr,
+                                          bool centre_first = false);
 
 }  // namespace anchormap

@@ -184,6 +184,16 @@ void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query
   if (pyramid.num_levels() > 1) {
     EXPECT_LT(bnb_stats.leaves, all_stats.leaves);
   }
+  // The window's centre scored first (a local match's guess): the same pose, ties included.
+  const auto centre_first =
+      BranchAndBound(pyramid, query, window, min_score, nullptr, nullptr, /*centre_first=*/true);
+  EXPECT_EQ(all.has_value(), centre_first.has_value());
+  if (all && centre_first) {
+    EXPECT_EQ(centre_first->score, all->score);
+    EXPECT_EQ(centre_first->k, all->k);
+    EXPECT_EQ(centre_first->dx, all->dx);
+    EXPECT_EQ(centre_first->dy, all->dy);
+  }
   if (bytes == nullptr) return;
   // The inner nodes on the bytes (the global search's way): the same pose.
   LatticeSearchStats byte_stats;
