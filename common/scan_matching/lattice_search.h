@@ -83,6 +83,10 @@ double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQue
 double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
                          int k, int dx, int dy, double floor);
 
+// max |a[i] - b[i]| over i < n, 0 for none: how far any point's cell moves along one axis
+// between two headings (a heading group's deviation; exposed for tests).
+int MaxCellMove(const int32_t* a, const int32_t* b, size_t n);
+
 struct LatticeSearchStats {
   int64_t scored_nodes = 0;  // scores computed (any level)
   int64_t leaves = 0;        // level-0 scores computed

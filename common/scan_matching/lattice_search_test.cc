@@ -1,7 +1,10 @@
 #include "common/scan_matching/lattice_search.h"
 
+#include <algorithm>
+#include <cstdlib>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -256,6 +259,27 @@ TEST(LatticeSearchTest, HeadingGroupsFindTheExhaustivePoseOnEveryLevelCount) {
         ExpectSamePose(pyramid, discretised, window, min_score,
                        levels == 7 && step_factor == 1.0 ? &bytes : nullptr);
       }
+    }
+  }
+}
+
+TEST(LatticeSearchTest, MaxCellMoveIsTheLargestDifference) {
+  // Against the definition, one difference at a time: lengths around the vectorised eight
+  // (tails), differences of both signs, the largest anywhere.
+  std::mt19937_64 rng(5);
+  std::uniform_int_distribution<int32_t> cell(-4000, 4000);
+  for (size_t n = 0; n <= 41; ++n) {
+    for (int trial = 0; trial < 20; ++trial) {
+      std::vector<int32_t> a(n);
+      std::vector<int32_t> b(n);
+      for (size_t i = 0; i < n; ++i) {
+        a[i] = cell(rng);
+        b[i] = a[i] + cell(rng) % 9;
+      }
+      if (n > 0 && trial % 2 == 0) b[rng() % n] = a[0] - 3000;  // one far move, somewhere
+      int expected = 0;
+      for (size_t i = 0; i < n; ++i) expected = std::max(expected, std::abs(a[i] - b[i]));
+      ASSERT_EQ(MaxCellMove(a.data(), b.data(), n), expected) << n << " " << trial;
     }
   }
 }
