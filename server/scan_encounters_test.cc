@@ -695,14 +695,12 @@ TEST_F(SharedViewFirstJoinTest, OneLookMatchedAgainstTwoStretchesOfAnAliasDoesNo
   EXPECT_EQ(OfferWith(one_look, as_two_looks).size(), 2u);
 }
 
-// Cross-pair confirmation on hand-made candidates with real scans: R1 and R2 lap LoopWorld from
-// two corners and are joined by a direct encounter at their first keyframes; R3 laps it from a
-// third corner and is not. A candidate R1-R3 and one R2-R3 are two places of R3 against the
-// group {R1, R2}: their consistency is tested through the group's joint estimate between R1's
-// and R2's keyframes (as ACES split in three sequentially: R2[65]-R3[125] and R1[115]-R3[230]).
-class CrossPairFirstJoinTest : public ::testing::Test {
+// Three robots lap LoopWorld from three corners (real scans, hand-made candidates).
+class ThreeLapsTest : public ::testing::Test {
  protected:
-  void SetUp() override {
+  // The three robots' keyframes to a server with no sources of its own; with `r1_sees_r2`, R1
+  // reports seeing R2 at their first keyframes (R1 and R2 join).
+  void Drive(bool r1_sees_r2) {
     paths_ = {testing::LoopWorldLap(0, 60), testing::LoopWorldLap(50, 60),
               testing::LoopWorldLap(25, 60)};
     MappingServerOptions options;
@@ -718,12 +716,12 @@ class CrossPairFirstJoinTest : public ::testing::Test {
     }
     for (size_t i = 0; i < paths_[0].size(); ++i) {
       for (const std::vector<Keyframe>& k : keyframes) ASSERT_TRUE(server_->OnKeyframe(k[i]).ok());
-      if (i == 0) {
+      if (i == 0 && r1_sees_r2) {
         ASSERT_TRUE(server_->OnEncounter(SeenByR1AtTheStart(1)).ok());
       }
     }
     server_->Flush();
-    ASSERT_TRUE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
+    ASSERT_EQ(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)), r1_sees_r2);
     ASSERT_FALSE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(2)));
   }
 
@@ -753,6 +751,18 @@ class CrossPairFirstJoinTest : public ::testing::Test {
     return c;
   }
 
+  std::vector<std::vector<Pose2>> paths_;
+  std::unique_ptr<MappingServer> server_;
+};
+
+// Cross-pair confirmation: R1 and R2 are joined by a direct encounter at their first keyframes;
+// R3 is not. A candidate R1-R3 and one R2-R3 are two places of R3 against the group {R1, R2}:
+// their consistency is tested through the group's joint estimate between R1's and R2's keyframes
+// (as ACES split in three sequentially: R2[65]-R3[125] and R1[115]-R3[230]).
+class CrossPairFirstJoinTest : public ThreeLapsTest {
+ protected:
+  void SetUp() override { Drive(/*r1_sees_r2=*/true); }
+
   std::vector<EncounterConstraint> Offer(
       const std::vector<EncounterCandidate>& candidates,
       double verify_max_conflict = ScanEncounterOptions{}.verify_max_conflict) {
@@ -769,9 +779,6 @@ class CrossPairFirstJoinTest : public ::testing::Test {
     source.Flush(graph, &out);
     return out.constraints;
   }
-
-  std::vector<std::vector<Pose2>> paths_;
-  std::unique_ptr<MappingServer> server_;
 };
 
 TEST_F(CrossPairFirstJoinTest, TwoPlacesOfTheThirdAgainstTheJoinedPairJoin) {
@@ -887,39 +894,13 @@ TEST_F(CrossPairFirstJoinTest, AGuidedSearchTakesTheGroupsTrajectoryNearestTheKe
 // When a direct encounter then joins R1 and R2, the hypothesis places R3's past keyframes in
 // their frame, and those it puts near R1's submaps are searched there (R3 passed R1's south and
 // east sides before R1 and R2 joined); a match found so confirms R2[10]-R3[35] across the pairs.
-class LookBackTest : public ::testing::Test {
+class LookBackTest : public ThreeLapsTest {
  protected:
-  void SetUp() override {
-    paths_ = {testing::LoopWorldLap(0, 60), testing::LoopWorldLap(50, 60),
-              testing::LoopWorldLap(25, 60)};
-    MappingServerOptions options;
-    options.loop_closures = false;
-    options.scan_encounters = false;
-    server_ = std::make_unique<MappingServer>(options);
-    const OdometryNoise noise{0.002, 0.001};
-    std::vector<std::vector<Keyframe>> keyframes;
-    for (size_t r = 0; r < paths_.size(); ++r) {
-      keyframes.push_back(DriveKeyframes(testing::LoopWorld(), paths_[r],
-                                         "R" + std::to_string(r + 1), static_cast<int64_t>(r + 1),
-                                         1'000'000, noise, 21 + r));
-    }
-    for (size_t i = 0; i < paths_[0].size(); ++i) {
-      for (const std::vector<Keyframe>& k : keyframes) ASSERT_TRUE(server_->OnKeyframe(k[i]).ok());
-    }
-    server_->Flush();
-    ASSERT_FALSE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
-  }
+  void SetUp() override { Drive(/*r1_sees_r2=*/false); }
 
   // R1 reports seeing R2 where both start: R1 and R2 join.
   void JoinR1AndR2() {
-    Encounter seen;
-    seen.utime = 1'000'000;
-    seen.observer = "R1";
-    seen.observer_trajectory_id = 1;
-    seen.observed = "R2";
-    seen.T_observer_observed = Compose(paths_[0][0].Inverse(), paths_[1][0]);
-    seen.covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
-    ASSERT_TRUE(server_->OnEncounter(seen).ok());
+    ASSERT_TRUE(server_->OnEncounter(SeenByR1AtTheStart(1)).ok());
     server_->Flush();
     ASSERT_TRUE(InOneFrame(server_->smoother(), TrajectoryId(0), TrajectoryId(1)));
   }
@@ -978,9 +959,6 @@ class LookBackTest : public ::testing::Test {
     looked.emitted = out.constraints;
     return looked;
   }
-
-  std::vector<std::vector<Pose2>> paths_;
-  std::unique_ptr<MappingServer> server_;
 };
 
 TEST_F(LookBackTest, AGroupChangeLooksBackWhereTheHypothesisPutsThePastKeyframes) {
