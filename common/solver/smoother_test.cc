@@ -262,10 +262,8 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
   // Against factor 1, more updates are skipped, and every update's estimate stays within
   // its budget of the dense optimum of its factors (measured worst 7.7e-3 and 2.5e-2).
   auto run = [](double factor, double* worst_excess) {
-    SmootherOptions options = ServerModeOptions();
+    SmootherOptions options = ServerModeWithCorrectionOptions();
     options.correction_tolerance = 1e-2;
-    options.correction_cg_iterations = 50;
-    options.relinearize_when_correction_stalls = true;
     options.correction_skip_factor = factor;
     Smoother smoother(options);
     testing::RandomGraphOptions g;
@@ -300,10 +298,7 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
   // The conjugate-gradient correction's mode places each new variable by the factor that
   // determines it, relative to its neighbours' estimates: a pose added before its
   // predecessor (so ordered before it in R) must still see the predecessor placed first.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_cg_iterations = 50;
-  options.relinearize_when_correction_stalls = true;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   Smoother ascending(options), descending(options);
   const TrajectoryId t(0);
   AddRandomTrajectory(&ascending, t, 30, 5, true);
@@ -339,11 +334,7 @@ TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   // on different poses: eliminated through the chain's ordering, each row between them
   // would take every later closure's column (R several times its size); the update is a
   // batch step (a fresh ordering) instead, and the estimate is the optimum all the same.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_iterations = 5;
-  options.relinearize_when_correction_stalls = true;
-  options.correction_cg_iterations = 50;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   Smoother smoother(options);
   testing::RandomGraphOptions g;
   g.poses = 120;
