@@ -368,6 +368,58 @@ TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
 }
 
+TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
+  // The update above, with the batch step that replaces its Givens updates failing (its
+  // ordering): the Givens updates stopped at the budget and were taken back, so the
+  // smoother is exactly as before the update (estimates, chi2, R's size), and the next
+  // update makes the batch step and ends at the optimum.
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  testing::RandomGraphOptions g;
+  g.poses = 120;
+  g.loop_closures = 0;
+  g.seed = 3;
+  const PoseGraph graph = testing::RandomGraph(g);
+  const TrajectoryId t(0);
+  for (int i = 0; i < g.poses; ++i) {
+    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
+    ASSERT_TRUE(smoother.Update().status.ok());
+  }
+  for (int i = 0; i < 16; ++i) {
+    const int j = g.poses - 1 - 2 * i;
+    ASSERT_TRUE(smoother
+                    .AddBetween({t, i}, {t, j},
+                                Between(graph.vertices[i].pose, graph.vertices[j].pose),
+                                kCovariance)
+                    .ok());
+  }
+  std::vector<Pose2> before;
+  for (int i = 0; i < g.poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
+  const double chi2_before = smoother.Chi2();
+  const SmootherStats stats_before = smoother.stats();
+  FailNextOrderingsForTesting(1);
+  const UpdateResult failed = smoother.Update();
+  FailNextOrderingsForTesting(0);
+  ASSERT_FALSE(failed.status.ok());
+  EXPECT_EQ(smoother.stats().failed_batch_steps, stats_before.failed_batch_steps + 1);
+  EXPECT_EQ(smoother.stats().nnz_r, stats_before.nnz_r);
+  EXPECT_EQ(smoother.Chi2(), chi2_before);
+  for (int i = 0; i < g.poses; ++i) {
+    const Pose2 value = smoother.Value(PoseKey{t, i});
+    EXPECT_EQ(value.x(), before[i].x()) << i;
+    EXPECT_EQ(value.y(), before[i].y()) << i;
+    EXPECT_EQ(value.theta(), before[i].theta()) << i;
+  }
+
+  const UpdateResult result = smoother.Update();
+  ASSERT_TRUE(result.status.ok());
+  EXPECT_TRUE(result.batch_step);
+  // The failed batch step is counted as tried, as every batch step is.
+  EXPECT_EQ(smoother.stats().batch_steps_on_fill, stats_before.batch_steps_on_fill + 2);
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+}
+
 TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   SmootherOptions options;
   options.convergence_step = 1e-13;  // R linearised at the estimate itself
