@@ -46,14 +46,7 @@ namespace anchormap {
 // same maps on the real logs and the demo (docs/ARCHITECTURE.md, "Correcting the estimate").
 // anchormap-bench-solver's equivalent: --server-mode --correct 1e-4 --correct-iterations 5
 // --relinearize-on-stall --correct-cg 50.
-inline SmootherOptions DefaultServerSmootherOptions() {
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_iterations = 5;
-  options.relinearize_when_correction_stalls = true;
-  options.correction_cg_iterations = 50;
-  return options;
-}
+inline SmootherOptions DefaultServerSmootherOptions() { return ServerModeWithCorrectionOptions(); }
 
 struct MappingServerOptions {
   SmootherOptions smoother = DefaultServerSmootherOptions();

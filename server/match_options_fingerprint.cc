@@ -14,7 +14,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 536,
+static_assert(sizeof(ScanEncounterOptions) == 544,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 128,
               "new SmootherOptions field: add it to the fingerprint");
@@ -143,6 +143,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.verify_drift_rad_per_rad);
   h->I(o.guide_min_points);
   h->F(o.guide_max_distance_m);
+  h->I(o.look_back_max_per_change);
   h->F(o.free_space.resolution_m);
   h->F(o.free_space.wall_margin_m);
   h->F(o.near_distance_m);

@@ -112,6 +112,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   near_joined_ = s.near_joined;
   near_joined_known_ = s.near_joined_known;
   caught_up_frames_.clear();
+  looked_back_frames_.clear();
 }
 
 }  // namespace anchormap

@@ -58,6 +58,8 @@ Status ScanEncounterOptions::Validate() const {
   }
   if (guide_min_points < 0 || !(guide_max_distance_m >= 0))
     return Status::Error("scan guided search: guide_min_points and guide_max_distance_m >= 0");
+  if (look_back_max_per_change < 0)
+    return Status::Error("scan.look_back_max_per_change must be >= 0");
   if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
     return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
   if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
@@ -190,8 +192,8 @@ std::string ScanEncounters::StatsLine() const {
          " global_searches " + std::to_string(global_queue_.searches()) + " global_replaced " +
          std::to_string(global_queue_.dropped()) + " near_saturated " +
          std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) +
-         " near_over_budget " + std::to_string(near_budget_.skipped()) + " " +
-         references_.stats().Summary(name());
+         " near_over_budget " + std::to_string(near_budget_.skipped()) + " look_backs " +
+         std::to_string(look_backs_) + " " + references_.stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -226,6 +228,7 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   ResolveKept(graph, out);
   BuildSubmaps(graph);
   CatchUpJoined(graph);
+  LookBackOnGroupChange(graph);
   std::deque<PoseKey> still_waiting;
   std::vector<BudgetRequest> ready;
   for (const PoseKey key : waiting_) {
@@ -522,12 +525,20 @@ std::vector<size_t> ScanEncounters::GuidedSubmaps(PoseKey key, TrajectoryId othe
     return {};
   }
   // The kept candidate of key's trajectory against the target's group whose own maps agree
-  // best (measured once, when it was offered).
+  // best.
+  const Kept* best = BestHypothesis(
+      key.trajectory, [&](TrajectoryId id) { return InOneFrame(smoother, id, other); });
+  if (best == nullptr) return {};
+  return GuidedByHypothesis(key, best->candidate, submaps->second, graph, most, nearest_m);
+}
+
+const ScanEncounters::Kept* ScanEncounters::BestHypothesis(
+    TrajectoryId query, const std::function<bool(TrajectoryId)>& accept) const {
   const Kept* best = nullptr;
   for (const auto& [pair, kept] : kept_) {
-    const bool first = pair.first == key.trajectory;
-    if (!first && pair.second != key.trajectory) continue;
-    if (!InOneFrame(smoother, first ? pair.second : pair.first, other)) continue;
+    const bool first = pair.first == query;
+    if (!first && pair.second != query) continue;
+    if (!accept(first ? pair.second : pair.first)) continue;
     for (const Kept& k : kept) {
       if (!k.localised || k.conflict_points < options_.guide_min_points ||
           k.conflict > options_.verify_max_conflict) {
@@ -536,8 +547,134 @@ std::vector<size_t> ScanEncounters::GuidedSubmaps(PoseKey key, TrajectoryId othe
       if (best == nullptr || k.conflict < best->conflict) best = &k;
     }
   }
-  if (best == nullptr) return {};
-  return GuidedByHypothesis(key, best->candidate, submaps->second, graph, most, nearest_m);
+  return best;
+}
+
+void ScanEncounters::LookBackOnGroupChange(const GraphView& graph) {
+  const Smoother& smoother = graph.smoother;
+  const std::deque<TrajectoryRecord>& records = graph.table.records();
+  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> frames;
+  frames.reserve(records.size());
+  for (const TrajectoryRecord& record : records) {
+    frames.emplace_back(record.solver_id, FrameOf(smoother, record.solver_id));
+  }
+  if (frames == looked_back_frames_) return;
+  const std::map<TrajectoryId, TrajectoryFrame> before(looked_back_frames_.begin(),
+                                                       looked_back_frames_.end());
+  looked_back_frames_ = std::move(frames);
+  if (before.empty() || options_.look_back_max_per_change < 1) return;
+  // Two trajectories newly in one frame (a trajectory new since counts as alone before).
+  const auto newly_joined = [&](TrajectoryId x, TrajectoryId y) {
+    const auto bx = before.find(x);
+    const auto by = before.find(y);
+    return x != y && InOneFrame(smoother, x, y) &&
+           (bx == before.end() || by == before.end() || bx->second != by->second);
+  };
+  // Per (query, other) pair its looks, nearest first; the pairs take turns up to the cap (a
+  // pair with many keyframes near does not crowd out another's).
+  std::vector<std::vector<LookBack>> per_pair;
+  for (const TrajectoryRecord& query : records) {
+    for (const TrajectoryRecord& other : records) {
+      const TrajectoryId y = other.solver_id;
+      if (y == query.solver_id || InOneFrame(smoother, query.solver_id, y)) continue;
+      // The query's best hypothesis against a trajectory that came into y's frame.
+      const Kept* hypothesis =
+          BestHypothesis(query.solver_id, [&](TrajectoryId x) { return newly_joined(x, y); });
+      if (hypothesis == nullptr) continue;
+      std::vector<LookBack> pair_looks = LookBacks(hypothesis->candidate, y, graph);
+      if (pair_looks.empty()) continue;
+      std::sort(pair_looks.begin(), pair_looks.end(), [](const LookBack& l1, const LookBack& l2) {
+        return l1.distance != l2.distance ? l1.distance < l2.distance : l1.key.index < l2.key.index;
+      });
+      per_pair.push_back(std::move(pair_looks));
+    }
+  }
+  std::vector<LookBack> looks;
+  const size_t most = static_cast<size_t>(options_.look_back_max_per_change);
+  for (size_t turn = 0; looks.size() < most; ++turn) {
+    bool any = false;
+    for (const std::vector<LookBack>& pair_looks : per_pair) {
+      if (turn >= pair_looks.size() || looks.size() >= most) continue;
+      looks.push_back(pair_looks[turn]);
+      any = true;
+    }
+    if (!any) break;
+  }
+  GlobalSearchOptions search;
+  search.match = options_.match;
+  search.match.min_score = options_.global_min_score;
+  search.match.covariance_min_overlap = options_.global_min_overlap;  // UseMatches' bar
+  for (const LookBack& look : looks) {
+    const Submap& submap = submaps_[look.other][look.submap];
+    const TrajectoryRecord* record = graph.table.FindBySolverId(look.key.trajectory);
+    std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
+    if (record == nullptr || !reference) continue;
+    auto query = std::make_shared<const PointCloud>(
+        KeyframePoints(*record, look.key.index, options_.max_range_m));
+    if (query->empty()) continue;
+    // A global search of the submap, as a guided one: the hypothesis chose the submap, not the
+    // pose in it, so a match that agrees with the hypothesis is evidence of its own. Not paid
+    // from the global searches' tokens (bounded by the cap per group change instead): charged,
+    // the searches after it moved by the cap's tokens and FR079 split in three
+    // simultaneously joined R3 48 s later, with more searches.
+    Submit(
+        look.key, submap.center, /*global=*/true, /*wide=*/false,
+        record->utimes[static_cast<size_t>(look.key.index)],
+        [reference, query, search] { return GlobalSearch(*reference, *query, search); },
+        now_utime_);
+    ++look_backs_;
+  }
+}
+
+std::vector<ScanEncounters::LookBack> ScanEncounters::LookBacks(
+    const EncounterCandidate& hypothesis, TrajectoryId other, const GraphView& graph) {
+  const Smoother& smoother = graph.smoother;
+  const std::vector<Submap>& submaps = submaps_[other];
+  // Oriented with a in the group, b the querying trajectory's keyframe.
+  const EncounterCandidate c =
+      InOneFrame(smoother, hypothesis.a.trajectory, other) ? hypothesis : Reversed(hypothesis);
+  const TrajectoryRecord* record = graph.table.FindBySolverId(c.b.trajectory);
+  if (record == nullptr || submaps.empty() || !smoother.HasPose(c.a) || !smoother.HasPose(c.b)) {
+    return {};
+  }
+  std::set<int32_t> waiting;
+  for (const PoseKey key : waiting_) {
+    if (key.trajectory == c.b.trajectory) waiting.insert(key.index);
+  }
+  // The query trajectory's frame placed in the group's frame by the hypothesis.
+  const Pose2 T_global_frame =
+      Compose(Compose(smoother.GlobalPose(c.a), c.T_a_b), smoother.FramePose(c.b).Inverse());
+  const double reach = options_.near_distance_m + options_.near_wide_max_window_m;
+  const double driven_hypothesis = DrivenTo(c.b, graph);
+  std::vector<LookBack> looks;
+  for (int32_t k = 0; k < record->num_keyframes(); ++k) {
+    const PoseKey key{c.b.trajectory, k};
+    if (key == c.b || waiting.count(k) > 0 || !graph.covariances->HasCovariance(key) ||
+        record->scans[static_cast<size_t>(k)].ranges.empty()) {
+      continue;
+    }
+    const Pose2 T_global_key = Compose(T_global_frame, smoother.FramePose(key));
+    std::optional<LookBack> nearest;
+    for (size_t i = 0; i < submaps.size(); ++i) {
+      const Submap& submap = submaps[i];
+      if (submap.drawing.num_points == 0 || !smoother.HasPose(submap.center)) continue;
+      const double d =
+          (smoother.GlobalPose(submap.center).translation() - T_global_key.translation()).norm();
+      if (d < reach && (!nearest || d < nearest->distance)) {
+        nearest = LookBack{d, key, other, i};
+      }
+    }
+    if (!nearest) continue;
+    // The drift of the query's path from the hypothesis's keyframe and of the group's from its
+    // keyframe to the submap, through the ties (the near search's window drift).
+    const Eigen::Matrix3d covariance =
+        c.covariance + NearDriftOf(std::abs(DrivenTo(key, graph) - driven_hypothesis), options_) +
+        NearWindowDrift(c.a, submaps[nearest->submap].center, graph);
+    const double three_sigma = std::min(3.0 * LargestSigma(covariance.topLeftCorner<2, 2>()),
+                                        options_.near_wide_max_window_m);
+    if (nearest->distance <= options_.near_distance_m + three_sigma) looks.push_back(*nearest);
+  }
+  return looks;
 }
 
 std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, TrajectoryId other,
@@ -626,14 +763,15 @@ const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphVi
 }
 
 void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
-                            MatchPool::Job job) {
+                            MatchPool::Job job, std::optional<int64_t> due_from_utime) {
   PendingMatch pending;
   pending.key = key;
   pending.center = center;
   pending.global = global;
   pending.wide = wide;
   pending.key_utime = key_utime;
-  pending.due_utime = pool_ ? schedule_.DueUtime(key_utime) : std::numeric_limits<int64_t>::min();
+  pending.due_utime = pool_ ? schedule_.DueUtime(due_from_utime.value_or(key_utime))
+                            : std::numeric_limits<int64_t>::min();
   pending.result =
       RunMatch(pool_, MatchTag{key, center, global ? MatchKind::kScanGlobal : MatchKind::kScanNear},
                std::move(job));

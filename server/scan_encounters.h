@@ -8,7 +8,9 @@
 //   in up to max_global_per_keyframe of the other's submaps, taken in turn (or near where a
 //   kept hypothesis puts the keyframe: guide_*), against at
 //   most max_global_groups_per_keyframe other groups and within a team-wide budget per
-//   second of data (GlobalSearchQueue: the cost does not grow with the team). A match with
+//   second of data (GlobalSearchQueue: the cost does not grow with the team); when groups
+//   change, past keyframes a kept hypothesis puts near a submap of a trajectory newly in its
+//   group are searched there once (look_back_*). A match with
 //   enough score and overlap is a candidate, not yet a constraint: a first encounter
 //   joins two groups only when two candidates of the same pair of trajectories at
 //   different places agree through each trajectory's own estimate (pairwise consistency,
@@ -57,6 +59,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -195,6 +198,22 @@ struct ScanEncounterOptions {
   // R1[125]-R3[235] (0.01 and 0.14 m off), and R3 joined by them.
   int guide_min_points = 1000;
   double guide_max_distance_m = 8.0;
+  // Looking back when groups change: when trajectory X comes into one frame with Y, a
+  // trajectory Q outside their frame may have passed Y's places before, when nothing could
+  // guide a search there (ACES split in three simultaneously: R3 passed R1's places at 400-460
+  // s, before R1 and R2 joined at 481 s, and its one true candidate, R2[65]-R3[135], kept no
+  // partner). Q's hypothesis against X (its kept candidate whose own maps agree best, as the
+  // guided search takes) then places Q's past keyframes in the group's frame: those it puts
+  // within near_distance_m of a submap of Y, plus 3 sigma of the drift of both paths from the
+  // hypothesis's keyframes (near_drift_*, up to near_wide_max_window_m), are searched globally
+  // in that submap, nearest first, the (Q, Y) pairs by turns, at most look_back_max_per_change
+  // per group change (0: never), outside the global searches' budget: groups only merge, so a
+  // run makes at most look_back_max_per_change x (trajectories - 1) of them (the simulated 100
+  // robots x 180 s: 32). The hypothesis picks the submap, not the pose in it: a match is a
+  // candidate like any global search's (the same bars, verification, pairwise consistency and
+  // gates). ACES split in three simultaneously: R3[237] matched R1[125] (conflict 0.024) and
+  // joined R3 with R2[65]-R3[135].
+  int look_back_max_per_change = 16;
   FreeSpaceOptions free_space;
   // Joined trajectories: window search near the prediction.
   double near_distance_m = 4.0;
@@ -317,6 +336,7 @@ class ScanEncounters : public EncounterSource {
   int64_t joins_contradicted() const { return joins_contradicted_; }
   int64_t near_saturated() const { return near_saturated_; }
   int64_t near_capped() const { return near_capped_; }
+  int64_t look_backs() const { return look_backs_; }
   const GlobalSearchQueue& global_searches() const { return global_queue_; }
   const MatchBudget& near_budget() const { return near_budget_; }
 
@@ -390,9 +410,23 @@ class ScanEncounters : public EncounterSource {
   double DrivenTo(PoseKey key, const GraphView& graph);
   // Near-searches the keyframes examined before a pair came into one frame (once per pair).
   void CatchUpJoined(const GraphView& graph);
-  // Hands a match of keyframe `key` against the submap around `center` to the pool.
+  // When groups changed since the last call: the look back (look_back_max_per_change).
+  void LookBackOnGroupChange(const GraphView& graph);
+  // A past keyframe of a trajectory outside a group to search in a submap of the group.
+  struct LookBack {
+    double distance = 0.0;  // from where the hypothesis puts the keyframe to the submap's centre
+    PoseKey key;
+    TrajectoryId other;
+    size_t submap = 0;  // in submaps_[other]
+  };
+  // The past keyframes of `hypothesis`'s querying trajectory that it puts within reach of a
+  // submap of `other` (a trajectory of the hypothesis's group), each with its nearest submap.
+  std::vector<LookBack> LookBacks(const EncounterCandidate& hypothesis, TrajectoryId other,
+                                  const GraphView& graph);
+  // Hands a match of keyframe `key` against the submap around `center` to the pool (used
+  // lag_s after key_utime, or after `due_from_utime` when given: a past keyframe's).
   void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
-              MatchPool::Job job);
+              MatchPool::Job job, std::optional<int64_t> due_from_utime = std::nullopt);
 
   // Uses the matches due now (all when `all`), in the order they were made.
   void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
@@ -497,6 +531,11 @@ class ScanEncounters : public EncounterSource {
   // The pairs of trajectories, other than `pair`, between the same two groups as `pair` (their
   // kept candidates may confirm `pair`'s across the pairs).
   std::vector<Pair> PairsBetweenTheSameGroups(const Pair& pair, const GraphView& graph) const;
+  // The kept candidate of `query`'s trajectory against a trajectory `accept` takes (of a group
+  // the query's is not in) whose own maps agree best (guide_min_points, verify_max_conflict;
+  // measured once, when offered), if any.
+  const Kept* BestHypothesis(TrajectoryId query,
+                             const std::function<bool(TrajectoryId)>& accept) const;
   // The submaps of `other` (at most `most`, nearest first) a global search of `key` is guided
   // to (guide_*), if any; `nearest_m`: the first one's centre from where the hypothesis puts key.
   std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, const GraphView& graph,
@@ -541,6 +580,11 @@ class ScanEncounters : public EncounterSource {
   // (quadratic in the robots, at every keyframe: 15 % of the replay at 100 robots) is
   // skipped. A cache, not in snapshots: empty after ImportState.
   std::vector<std::pair<TrajectoryId, TrajectoryFrame>> caught_up_frames_;
+  // The same at the last LookBackOnGroupChange, which looks back only for the trajectories
+  // newly in one frame since (a cache, not in snapshots: after ImportState the first call
+  // only records them).
+  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> looked_back_frames_;
+  int64_t look_backs_ = 0;  // searches submitted (a count, not in snapshots)
   CandidateStats stats_;
 };
 

@@ -210,10 +210,9 @@ TEST(PerUpdateOracleTest, ServerModeWithCorrection) {
   // The estimate corrected toward the nonlinear optimum with R as the preconditioner,
   // drift looked at only when that stalls: R must stay exact (check 1) although the
   // estimate is no longer theta + delta, and the estimate within the server's tolerance.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_iterations = 5;
-  options.relinearize_when_correction_stalls = true;
+  // Fixed-point steps instead of the server's conjugate gradients.
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_cg_iterations = 0;
   RunPerUpdateOracle(options, kServerChi2);
 }
 
@@ -221,10 +220,7 @@ TEST(PerUpdateOracleTest, ServerModeWithConjugateGradientCorrection) {
   // The correction by conjugate gradients: R only preconditions it, the estimate moves
   // only by correction steps (old variables keep their estimate when R's solution
   // changes, partial steps on a stall keep it too). R must stay exact all the same.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_cg_iterations = 50;
-  options.relinearize_when_correction_stalls = true;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   RunPerUpdateOracle(options, kServerChi2);
 }
 

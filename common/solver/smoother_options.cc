@@ -15,6 +15,15 @@ SmootherOptions ServerModeOptions() {
   return options;
 }
 
+SmootherOptions ServerModeWithCorrectionOptions() {
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_iterations = 5;
+  options.relinearize_when_correction_stalls = true;
+  options.correction_cg_iterations = 50;
+  return options;
+}
+
 const char* ToString(Formulation formulation) {
   switch (formulation) {
     case Formulation::kRelative:

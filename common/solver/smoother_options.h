@@ -156,6 +156,12 @@ struct SmootherOptions {
 // convergence). Why no clock: a batch step costs the whole map, and one every 10 updates
 // made the cost per update grow with the map (issue 12).
 SmootherOptions ServerModeOptions();
+// The mapping server's solver: ServerModeOptions() with the estimate corrected after each
+// update by conjugate gradients (R^T R preconditions; tolerance 1e-4 x chi2, at most 5 outer
+// steps and 50 CG iterations, partial steps only when the correction stalls).
+// anchormap-bench-solver's equivalent: --server-mode --correct 1e-4 --correct-iterations 5
+// --relinearize-on-stall --correct-cg 50.
+SmootherOptions ServerModeWithCorrectionOptions();
 
 const char* ToString(Formulation formulation);
 std::optional<Formulation> ParseFormulation(const std::string& text);

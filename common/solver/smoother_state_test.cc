@@ -206,10 +206,7 @@ TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
 TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheConjugateGradientCorrection) {
   // The estimate is then theta + delta + correction with the correction carried across
   // updates: it must be in the state too.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_cg_iterations = 50;
-  options.relinearize_when_correction_stalls = true;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   ExpectImportedStatesContinueExactly(options);
 }
 
@@ -218,10 +215,7 @@ TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheConjugateGradientC
 // smoother restored from the state just before it (whose first pass linearises every
 // factor) makes the same update to the bit.
 TEST(SmootherStateTest, EveryCorrectedUpdateIsWhatAFullGradientPassGives) {
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_cg_iterations = 50;
-  options.relinearize_when_correction_stalls = true;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   const std::vector<Edit> edits = Mission();
   Smoother live(options);
   int compared = 0;

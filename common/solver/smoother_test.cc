@@ -262,10 +262,8 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
   // Against factor 1, more updates are skipped, and every update's estimate stays within
   // its budget of the dense optimum of its factors (measured worst 7.7e-3 and 2.5e-2).
   auto run = [](double factor, double* worst_excess) {
-    SmootherOptions options = ServerModeOptions();
+    SmootherOptions options = ServerModeWithCorrectionOptions();
     options.correction_tolerance = 1e-2;
-    options.correction_cg_iterations = 50;
-    options.relinearize_when_correction_stalls = true;
     options.correction_skip_factor = factor;
     Smoother smoother(options);
     testing::RandomGraphOptions g;
@@ -300,10 +298,7 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
   // The conjugate-gradient correction's mode places each new variable by the factor that
   // determines it, relative to its neighbours' estimates: a pose added before its
   // predecessor (so ordered before it in R) must still see the predecessor placed first.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_cg_iterations = 50;
-  options.relinearize_when_correction_stalls = true;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   Smoother ascending(options), descending(options);
   const TrajectoryId t(0);
   AddRandomTrajectory(&ascending, t, 30, 5, true);
@@ -339,11 +334,7 @@ TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   // on different poses: eliminated through the chain's ordering, each row between them
   // would take every later closure's column (R several times its size); the update is a
   // batch step (a fresh ordering) instead, and the estimate is the optimum all the same.
-  SmootherOptions options = ServerModeOptions();
-  options.correction_tolerance = 1e-4;
-  options.correction_iterations = 5;
-  options.relinearize_when_correction_stalls = true;
-  options.correction_cg_iterations = 50;
+  SmootherOptions options = ServerModeWithCorrectionOptions();
   Smoother smoother(options);
   testing::RandomGraphOptions g;
   g.poses = 120;
@@ -372,6 +363,58 @@ TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   // A fresh ordering of the chain with its 16 closures, not the rows between them filled.
   EXPECT_LT(smoother.stats().nnz_r, 2 * nonzeros);
 
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+}
+
+TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
+  // The update above, with the batch step that replaces its Givens updates failing (its
+  // ordering): the Givens updates stopped at the budget and were taken back, so the
+  // smoother is exactly as before the update (estimates, chi2, R's size), and the next
+  // update makes the batch step and ends at the optimum.
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  testing::RandomGraphOptions g;
+  g.poses = 120;
+  g.loop_closures = 0;
+  g.seed = 3;
+  const PoseGraph graph = testing::RandomGraph(g);
+  const TrajectoryId t(0);
+  for (int i = 0; i < g.poses; ++i) {
+    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
+    ASSERT_TRUE(smoother.Update().status.ok());
+  }
+  for (int i = 0; i < 16; ++i) {
+    const int j = g.poses - 1 - 2 * i;
+    ASSERT_TRUE(smoother
+                    .AddBetween({t, i}, {t, j},
+                                Between(graph.vertices[i].pose, graph.vertices[j].pose),
+                                kCovariance)
+                    .ok());
+  }
+  std::vector<Pose2> before;
+  for (int i = 0; i < g.poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
+  const double chi2_before = smoother.Chi2();
+  const SmootherStats stats_before = smoother.stats();
+  FailNextOrderingsForTesting(1);
+  const UpdateResult failed = smoother.Update();
+  FailNextOrderingsForTesting(0);
+  ASSERT_FALSE(failed.status.ok());
+  EXPECT_EQ(smoother.stats().failed_batch_steps, stats_before.failed_batch_steps + 1);
+  EXPECT_EQ(smoother.stats().nnz_r, stats_before.nnz_r);
+  EXPECT_EQ(smoother.Chi2(), chi2_before);
+  for (int i = 0; i < g.poses; ++i) {
+    const Pose2 value = smoother.Value(PoseKey{t, i});
+    EXPECT_EQ(value.x(), before[i].x()) << i;
+    EXPECT_EQ(value.y(), before[i].y()) << i;
+    EXPECT_EQ(value.theta(), before[i].theta()) << i;
+  }
+
+  const UpdateResult result = smoother.Update();
+  ASSERT_TRUE(result.status.ok());
+  EXPECT_TRUE(result.batch_step);
+  // The failed batch step is counted as tried, as every batch step is.
+  EXPECT_EQ(smoother.stats().batch_steps_on_fill, stats_before.batch_steps_on_fill + 2);
   const DenseOracle oracle(smoother.ActiveFactors());
   const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
   EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));

@@ -77,7 +77,7 @@ std::vector<int64_t> Smoother::Impl::FactorsReadyForGivens(std::vector<char>* gr
   return GroundPendingFactors(grounded);
 }
 
-void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
+bool Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result, int64_t max_fill) {
   std::vector<char>& grounded = grounded_;
   const std::vector<int64_t> ready = FactorsReadyForGivens(&grounded);
 
@@ -93,6 +93,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
   R.Append(appended);
   delta_.resize(R.size(), Eigen::Vector3d::Zero());
 
+  const double innovation_before = innovation_;
   std::vector<int> touched;
   std::array<Pose2, kMaxFactorKeys> values;
   std::vector<NewRows> new_rows;
@@ -123,10 +124,24 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
     new_rows.push_back(std::move(rows));
   }
   // All at once: their paths up R share the rows near the root.
-  R.Eliminate(std::move(new_rows), &touched);
+  double leftover = 0.0;
+  if (!R.EliminateWithin(std::move(new_rows), max_fill, &touched, &leftover)) {
+    // Past the budget: R is as it was; the rest of this step is taken back.
+    for (int64_t id : ready) TakeOutOfR(id);
+    for (int p = first_new; p < R.size(); ++p) {
+      const int var = position_to_var_[p];
+      vars_[var].position = -1;
+      correction_[var] = Eigen::Vector3d::Zero();
+    }
+    position_to_var_.resize(first_new);
+    R.Truncate(first_new);
+    delta_.resize(first_new);
+    innovation_ = innovation_before;
+    return false;
+  }
   TakeOutOfPending(ready);
 
-  if (!solve) return;
+  if (!solve) return true;
   if (keep_estimate) {
     // R only preconditions the correction and the old variables keep their estimate: R's
     // new solution for them would only be taken back by their correction, so delta stays
@@ -154,52 +169,7 @@ void Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result) {
       innovation_ += FactorChi2(f.factor, values.data());
     }
   }
-}
-
-std::vector<std::vector<int>> Smoother::Impl::PendingRowColumns() const {
-  // IncrementalStep's grounding and appending, on copies.
-  std::vector<char> grounded = grounded_;
-  const std::vector<int64_t> ready = FactorsReadyForGivens(&grounded);
-  std::unordered_map<int, int> appended;  // pending variable -> its position to be
-  for (int v : pending_vars_) {
-    if (grounded[v]) appended.emplace(v, r_->size() + static_cast<int>(appended.size()));
-  }
-  std::vector<std::vector<int>> columns(ready.size());
-  for (size_t k = 0; k < ready.size(); ++k) {
-    const FactorRecord& f = factors_[ready[k]];
-    for (int j = 0; j < f.num_vars; ++j) {
-      const int var = f.vars[j];
-      columns[k].push_back(vars_[var].position >= 0 ? vars_[var].position : appended.at(var));
-    }
-  }
-  return columns;
-}
-
-bool Smoother::Impl::GivensUpdateWouldOutgrowFill() const {
-  if (!(options_.batch_when_fill_grows > 0) || nonzeros_after_batch_ == 0 ||
-      pending_factors_.empty()) {
-    return false;
-  }
-  // More fill than the whole R had after its ordering: the Givens update would cost more
-  // than the batch step (whose factorisation is about that size), and R would be past the
-  // fill trigger after it. Below that, the trigger after the update stays the test: taking
-  // every crossing one update early shortened the cycles between fill batch steps
-  // (city10000: 94 batch steps instead of 90, 3.5-4 % more CPU).
-  const std::vector<std::vector<int>> columns = PendingRowColumns();
-  // A bound first, without the walk: every row met lies from the lowest column on, and row
-  // c can take at most the blocks right of it and a diagonal (an update near the end of the
-  // ordering, e.g. odometry alone, cannot fill much).
-  int lowest = std::numeric_limits<int>::max(), end = r_->size();
-  for (const std::vector<int>& row : columns) {
-    for (int q : row) {
-      lowest = std::min(lowest, q);
-      end = std::max(end, q + 1);
-    }
-  }
-  if (lowest >= end) return false;
-  const int64_t span = end - lowest;
-  if (9 * span * (span - 1) / 2 + 6 * span <= nonzeros_after_batch_) return false;
-  return r_->ForecastElimination(columns, nonzeros_after_batch_).exceeded;
+  return true;
 }
 
 void Smoother::Impl::PlaceNewVariables(const std::vector<int64_t>& ready,
@@ -724,9 +694,10 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   ++updates_since_batch_;
   StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
                                         r_->NonZeros(), nonzeros_after_batch_});
-  // A batch step (a fresh ordering) instead of Givens updates that would fill R more than
-  // a batch step costs (the next update would reorder anyway).
-  if (kind == StepKind::kIncremental && GivensUpdateWouldOutgrowFill()) {
+  if (kind == StepKind::kIncremental &&
+      !IncrementalStep(/*solve=*/true, &result, GivensFillBudget())) {
+    // The Givens updates would fill R more than a batch step costs (the next update would
+    // reorder anyway): nothing changed, a batch step (a fresh ordering) takes the factors.
     kind = StepKind::kBatchOnFill;
   }
   if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {
@@ -755,8 +726,7 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
       RelinearizeUntilCorrected(&result);
     }
   } else {
-    // 2c. Givens updates, then relinearisation where estimates drifted.
-    IncrementalStep(/*solve=*/true, &result);
+    // 2c. Givens updates (done above), then relinearisation where estimates drifted.
     stats_.incremental_seconds += Seconds(start);
     if (nonzeros_after_batch_ == 0 && options_.relinearize_when_correction_stalls) {
       // Few partial steps reorder R in this mode: batch on fill from the first update on

@@ -36,6 +36,13 @@ void SparseR::Append(int count) {
   row_revision_.resize(rows_.size(), revision_);
 }
 
+void SparseR::Truncate(int n) {
+  BeginChange();
+  rows_.resize(n);
+  column_rows_.resize(n);
+  row_revision_.resize(n);
+}
+
 void SparseR::Assign(std::vector<RBlockRow> rows) {
   BeginChange();
   rows_ = std::move(rows);
@@ -55,7 +62,45 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
 }
 
 double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) {
-  BeginChange();
+  double leftover = 0.0;
+  EliminateWithin(std::move(rows), std::numeric_limits<int64_t>::max(), touched, &leftover);
+  return leftover;
+}
+
+bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
+                              std::vector<int>* touched, double* leftover_out) {
+  // While the budget could still be passed, the new block rows are written aside (staged_),
+  // so that an update past it leaves R as it was: the fill is known at each row met before
+  // any arithmetic there (the union of the columns), so the walk stops at once. As soon as
+  // the rows left cannot pass it (row c' can gain at most the blocks right of it and a
+  // diagonal), the staged rows are committed and the rest is written in place, as without
+  // a budget: the dense rows near the root, where most of the work is, are never staged.
+  const int64_t n = size();
+  auto most_fill_from = [n](int64_t c) {  // of the block rows c..n-1
+    const int64_t k = n - c;
+    return kBlockNonZeros * k * (k - 1) / 2 + kDiagonalNonZeros * k;
+  };
+  bool staging = true;
+  int staged = 0;
+  staged_positions_.clear();
+  new_references_.clear();
+  int64_t fill = 0, met_rows = 0, met_columns = 0;  // met: work counters
+  // Commits the staged rows (in the order they were met; their old storage is kept for the
+  // next call) and starts writing in place.
+  auto commit = [&]() {
+    BeginChange();
+    for (int i = 0; i < staged; ++i) {
+      const int c = staged_positions_[i];
+      RBlockRow& row = rows_[c];
+      row.diagonal = staged_[i].diagonal;
+      row.right.swap(staged_[i].right);
+      row.rhs = staged_[i].rhs;
+      Stamp(c);
+      if (touched) touched->push_back(c);
+    }
+    for (const auto& [q, c] : new_references_) column_rows_[q].push_back(c);
+    staging = false;
+  };
   // Each measurement starts as its own carry: a row-major panel by sorted column (a key
   // repeated within one measurement has its blocks summed).
   auto by_column = [](const auto& x, const auto& y) { return x.first < y.first; };
@@ -98,9 +143,8 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
         triples += carries_[i].triples;
       }
     }
+    if (staging && fill + most_fill_from(c) <= max_fill) commit();
     RBlockRow& row = rows_[c];
-    Stamp(c);
-    if (touched) touched->push_back(c);
     const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
 
     // Union of the columns right of c in R's row and in the meeting carries (all sorted).
@@ -118,8 +162,12 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
     for (int k = 0, r = 0; r < static_cast<int>(row.right.size()); ++k) {
       if (union_columns_[k] == row.right[r].first) union_in_row_[k] = r++;
     }
-    ++eliminated_block_rows_;
-    eliminated_block_columns_ += m + 1;
+    const size_t old_right = row.right.size();
+    fill +=
+        kBlockNonZeros * static_cast<int64_t>(m - old_right) + (was_empty ? kDiagonalNonZeros : 0);
+    if (fill > max_fill) return false;  // still staging: nothing written
+    ++met_rows;
+    met_columns += m + 1;
     const int width = 3 + 3 * m + 1;
     const int panel_rows = 3 + 3 * triples;
     if (work_.rows() < panel_rows || work_.cols() < width) {
@@ -176,22 +224,33 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
       EliminateBlockRow(work_.data(), work_.row(3 + 3 * t).data(), stride, width);
     }
 
-    // Write back R's row (new fill registers in the column index).
-    const size_t old_right = row.right.size();
+    // R's new row, staged or in place (new fill registers in the column index).
     if (static_cast<size_t>(m) != old_right) {
       for (int k = 0; k < m; ++k) {
-        if (union_in_row_[k] < 0) column_rows_[union_columns_[k]].push_back(c);
+        if (union_in_row_[k] >= 0) continue;
+        if (staging) {
+          new_references_.emplace_back(union_columns_[k], c);
+        } else {
+          column_rows_[union_columns_[k]].push_back(c);
+        }
       }
     }
-    row.diagonal = work_.block<3, 3>(0, 0);
-    row.right.resize(m);
-    for (int k = 0; k < m; ++k) {
-      row.right[k].first = union_columns_[k];
-      row.right[k].second = work_.block<3, 3>(0, 3 + 3 * k);
+    RBlockRow* out = &row;
+    if (staging) {
+      if (static_cast<int>(staged_.size()) == staged) staged_.emplace_back();
+      out = &staged_[staged++];
+      staged_positions_.push_back(c);
+    } else {
+      Stamp(c);
+      if (touched) touched->push_back(c);
     }
-    row.rhs = work_.block<3, 1>(0, width - 1);
-    nonzeros_ +=
-        kBlockNonZeros * static_cast<int64_t>(m - old_right) + (was_empty ? kDiagonalNonZeros : 0);
+    out->diagonal = work_.block<3, 3>(0, 0);
+    out->right.resize(m);
+    for (int k = 0; k < m; ++k) {
+      out->right[k].first = union_columns_[k];
+      out->right[k].second = work_.block<3, 3>(0, 3 + 3 * k);
+    }
+    out->rhs = work_.block<3, 1>(0, width - 1);
 
     // The meeting carries continue as one: the triples that still have a block anywhere,
     // over the columns where some row is not zero. A triple with no block left has only
@@ -249,78 +308,13 @@ double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) 
     const int rhs = 3 * static_cast<int>(merged.columns.size());
     for (int r = 0; r < kept_rows; ++r) merged.panel(r, rhs) = work_(3 + r, width - 1);
   }
-  return leftover;
-}
 
-SparseR::EliminationForecast SparseR::ForecastElimination(
-    const std::vector<std::vector<int>>& columns_of_rows, int64_t max_fill) const {
-  // Eliminate's walk on patterns: the lowest leading column c of the carries; the carries
-  // leading with c merge, and R's row c and the merged carry both take the union of their
-  // columns right of c. Each row is met once (c only grows), so R's own patterns are read.
-  struct Pattern {
-    std::vector<int> columns;  // sorted
-    int triples = 0;
-  };
-  std::vector<Pattern> carries;
-  carries.reserve(columns_of_rows.size());
-  for (const std::vector<int>& columns : columns_of_rows) {
-    Pattern carry;
-    carry.columns = columns;
-    std::sort(carry.columns.begin(), carry.columns.end());
-    carry.columns.erase(std::unique(carry.columns.begin(), carry.columns.end()),
-                        carry.columns.end());
-    carry.triples = 1;
-    if (!carry.columns.empty()) carries.push_back(std::move(carry));
-  }
-  EliminationForecast forecast;
-  std::vector<int> merged, merged_next;
-  while (!carries.empty()) {
-    int c = carries.front().columns.front();
-    for (const Pattern& carry : carries) c = std::min(c, carry.columns.front());
-    // Columns from size() on are variables the update appends: empty rows.
-    static const RBlockRow kEmptyRow;
-    const RBlockRow& row = c < size() ? rows_[c] : kEmptyRow;
-    merged.clear();
-    for (const auto& entry : row.right) merged.push_back(entry.first);
-    // The meeting carries leave; the first one's slot is kept for the merged carry (its
-    // vector's capacity reused: no allocation per row).
-    int triples = 0;
-    size_t kept = 0, slot = carries.size();
-    for (size_t i = 0; i < carries.size(); ++i) {
-      const bool meets = carries[i].columns.front() == c;
-      if (meets) {
-        triples += carries[i].triples;
-        merged_next.clear();
-        std::set_union(merged.begin(), merged.end(), carries[i].columns.begin() + 1,
-                       carries[i].columns.end(), std::back_inserter(merged_next));
-        merged.swap(merged_next);
-        if (slot < carries.size()) continue;
-        slot = kept;
-      }
-      if (kept != i) std::swap(carries[kept], carries[i]);
-      ++kept;
-    }
-    carries.resize(kept);
-    ++forecast.block_rows;
-    const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
-    forecast.fill += kBlockNonZeros * static_cast<int64_t>(merged.size() - row.right.size()) +
-                     (was_empty ? kDiagonalNonZeros : 0);
-    if (forecast.fill > max_fill) {
-      forecast.exceeded = true;
-      return forecast;
-    }
-    // An empty row takes the first triple whole (its rotations are exact swaps), the
-    // others go on; nothing goes on past the last column.
-    const int going_on = merged.empty() ? 0 : triples - (was_empty ? 1 : 0);
-    if (going_on > 0) {
-      carries[slot].columns.swap(merged);
-      carries[slot].triples = going_on;
-    } else {
-      std::swap(carries[slot], carries.back());
-      carries.pop_back();
-    }
-  }
-  return forecast;
+  if (staging) commit();  // within the budget
+  nonzeros_ += fill;
+  eliminated_block_rows_ += met_rows;
+  eliminated_block_columns_ += met_columns;
+  *leftover_out = leftover;
+  return true;
 }
 
 void SparseR::ReplaceTail(int p0, const std::vector<int>& new_position,

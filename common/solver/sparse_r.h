@@ -49,6 +49,9 @@ class SparseR {
   int size() const { return static_cast<int>(rows_.size()); }
   // Appends `count` empty block rows/columns at the end (new variables).
   void Append(int count);
+  // Removes the block rows from `n` on; they must be empty and unreferenced (appended for an
+  // update that did not take place).
+  void Truncate(int n);
   // Replaces the whole matrix (after a batch factorisation).
   void Assign(std::vector<RBlockRow> rows);
 
@@ -62,18 +65,13 @@ class SparseR {
   // per measurement. Returns the summed leftover.
   double Eliminate(std::vector<NewRows> rows, std::vector<int>* touched);
 
-  // What Eliminate would do to R's structure, given only the new rows' columns (no
-  // arithmetic, R unchanged; columns from size() on count as appended empty rows): the
-  // scalar non-zeros it would add and the block rows it would meet. The walk stops as soon
-  // as the added non-zeros exceed `max_fill` (`exceeded`), so its cost stays below that
-  // fill plus the rows it reads. Exact zeros aside (they drop blocks), it is Eliminate's.
-  struct EliminationForecast {
-    int64_t fill = 0;        // scalar non-zeros added (an upper bound: exact zeros aside)
-    int64_t block_rows = 0;  // block rows visited
-    bool exceeded = false;   // stopped early: fill > max_fill
-  };
-  EliminationForecast ForecastElimination(const std::vector<std::vector<int>>& columns_of_rows,
-                                          int64_t max_fill) const;
+  // The same with a budget: if the rows would add more than `max_fill` scalar non-zeros to
+  // R, R is left exactly as it was and false is returned (the walk stops at the row where
+  // the fill passes the budget, before its arithmetic); else true and the leftover in
+  // `leftover`. A Givens update that fills R past its last ordering's size is dearer than
+  // the batch step that would reorder it.
+  bool EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, std::vector<int>* touched,
+                       double* leftover);
 
   // Partial re-elimination: replaces the block rows from `p0` on. `new_position[q - p0]`
   // is the new position of old position q >= p0. The old rows `kept` (ascending) stay
@@ -156,6 +154,11 @@ class SparseR {
   std::vector<int> merged_columns_;
   std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
   std::vector<int> meeting_;       // carries whose leading column is the current row
+  // The block rows an elimination writes, before its commit: their positions, the rows
+  // (storage reused between calls) and the (column, row) references of their new fill.
+  std::vector<int> staged_positions_;
+  std::vector<RBlockRow> staged_;
+  std::vector<std::pair<int, int>> new_references_;
   std::vector<char> scratch_dirty_;
   InstanceId instance_id_;
   uint64_t revision_ = 0;

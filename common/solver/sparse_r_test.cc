@@ -198,15 +198,31 @@ TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
   for (int p = 0; p < 8; ++p) EXPECT_LT((y[p] - expected.segment<3>(3 * p)).norm(), 1e-10);
 }
 
-TEST(SparseRTest, ForecastIsTheFillAndRowsOfTheEliminationAndStopsPastItsBudget) {
+TEST(SparseRTest, EliminationPastItsBudgetLeavesRAsItWas) {
   // A chain, then updates of several measurements (loop closures, some on variables the
-  // update appends): the forecast, made before the variables are appended, must be the
-  // non-zeros and block rows Eliminate then adds and meets.
+  // update appends): with a budget one non-zero below the fill the update adds, R stays
+  // exactly as it was; with the fill itself, R is what an unbudgeted elimination gives.
   std::mt19937 rng(5);
   SparseR r;
   r.Append(60);
   r.Eliminate(RandomBetweenRows(0, -1, &rng), nullptr);
   for (int p = 1; p < 60; ++p) r.Eliminate(RandomBetweenRows(p, p - 1, &rng), nullptr);
+  auto same = [](const SparseR& a, const SparseR& b) {
+    if (a.size() != b.size() || a.NonZeros() != b.NonZeros()) return false;
+    for (int p = 0; p < a.size(); ++p) {
+      const RBlockRow &x = a.row(p), &y = b.row(p);
+      if (x.diagonal != y.diagonal || x.rhs != y.rhs || x.right.size() != y.right.size() ||
+          a.RowsReferencing(p) != b.RowsReferencing(p)) {
+        return false;
+      }
+      for (size_t k = 0; k < x.right.size(); ++k) {
+        if (x.right[k].first != y.right[k].first || x.right[k].second != y.right[k].second) {
+          return false;
+        }
+      }
+    }
+    return true;
+  };
   int64_t largest_fill = 0;
   for (int update = 0; update < 6; ++update) {
     const int n = r.size();
@@ -220,27 +236,25 @@ TEST(SparseRTest, ForecastIsTheFillAndRowsOfTheEliminationAndStopsPastItsBudget)
       const int b = any(rng);
       if (a != b) rows.push_back(RandomBetweenRows(a, b, &rng));
     }
-    std::vector<std::vector<int>> columns;
-    for (const NewRows& row : rows) {
-      columns.emplace_back();
-      for (const auto& [q, block] : row.blocks) columns.back().push_back(q);
-    }
-    const SparseR::EliminationForecast forecast =
-        r.ForecastElimination(columns, std::numeric_limits<int64_t>::max());
-    const int64_t nonzeros = r.NonZeros();
-    const int64_t met = r.eliminated_block_rows();
-    EXPECT_FALSE(forecast.exceeded);
-    if (forecast.fill > 0) {
-      const SparseR::EliminationForecast cut = r.ForecastElimination(columns, forecast.fill - 1);
-      EXPECT_TRUE(cut.exceeded);
-      EXPECT_LE(cut.block_rows, forecast.block_rows);
-      EXPECT_FALSE(r.ForecastElimination(columns, forecast.fill).exceeded);
-    }
     r.Append(2);
-    r.Eliminate(rows, nullptr);
-    EXPECT_EQ(forecast.fill, r.NonZeros() - nonzeros) << update;
-    EXPECT_EQ(forecast.block_rows, r.eliminated_block_rows() - met) << update;
-    largest_fill = std::max(largest_fill, forecast.fill);
+    SparseR unbudgeted = r;
+    std::vector<int> touched_unbudgeted;
+    const double leftover_unbudgeted = unbudgeted.Eliminate(rows, &touched_unbudgeted);
+    const int64_t fill = unbudgeted.NonZeros() - r.NonZeros();
+    ASSERT_GT(fill, 0);
+    const SparseR before = r;
+    std::vector<int> touched;
+    double leftover = -1.0;
+    EXPECT_FALSE(r.EliminateWithin(rows, fill - 1, &touched, &leftover)) << update;
+    EXPECT_TRUE(same(r, before)) << update;
+    EXPECT_TRUE(touched.empty());
+    EXPECT_EQ(r.eliminated_block_rows(), before.eliminated_block_rows());
+    EXPECT_TRUE(r.EliminateWithin(rows, fill, &touched, &leftover)) << update;
+    EXPECT_TRUE(same(r, unbudgeted)) << update;
+    EXPECT_EQ(touched, touched_unbudgeted);
+    EXPECT_EQ(leftover, leftover_unbudgeted);
+    EXPECT_EQ(r.eliminated_block_rows(), unbudgeted.eliminated_block_rows());
+    largest_fill = std::max(largest_fill, fill);
   }
   EXPECT_GT(largest_fill, 9 * 20);  // closures on old variables filled rows
 }
