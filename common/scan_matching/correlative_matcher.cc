@@ -66,13 +66,14 @@ double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2
 std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
                                                  const PointCloud& query,
                                                  const SearchWindow& window,
-                                                 const MatchOptions& options, bool bytes) {
+                                                 const MatchOptions& options, bool bytes,
+                                                 bool centre_first) {
   if (reference.empty() || query.empty()) return std::nullopt;
   const DiscretisedQuery discretised(query, window, reference.geometry());
   LatticeSearchStats stats;
   const std::optional<LatticePose> best =
       BranchAndBound(reference.pyramid(), discretised, window, options.min_score, &stats,
-                     bytes ? reference.byte_bounds() : nullptr);
+                     bytes ? reference.byte_bounds() : nullptr, centre_first);
   if (!best) return std::nullopt;
   MatchResult result = FinishMatch(reference, query, window, *best, options);
   result.search = stats;
@@ -156,7 +157,10 @@ std::optional<MatchResult> MatchLocal(const ScanReference& reference, const Poin
       static_cast<int>(std::ceil(options.angular_window_rad / window.angle_step_rad));
   window.half_cells_x = static_cast<int>(std::ceil(options.linear_window_m / resolution));
   window.half_cells_y = window.half_cells_x;
-  return SearchWindowAndFinish(reference, query, window, options.match);
+  // The guess first: usually near the best, its score prunes most of the window at once
+  // (fr079-3s's agents 1.06-1.12 -> 1.00-1.02 ms/scan).
+  return SearchWindowAndFinish(reference, query, window, options.match, /*bytes=*/false,
+                               /*centre_first=*/true);
 }
 
 }  // namespace anchormap

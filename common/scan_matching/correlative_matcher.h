@@ -76,11 +76,13 @@ std::optional<MatchResult> MatchLocal(const ScanReference& reference, const Poin
                                       const Pose2& guess, const LocalMatchOptions& options);
 
 // Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part); `bytes`: the
-// lattice search's inner bounds on reference.byte_bounds() (the same match).
+// lattice search's inner bounds on reference.byte_bounds(); `centre_first`: the window's centre
+// scored first (BranchAndBound; the same match either way).
 std::optional<MatchResult> SearchWindowAndFinish(const ScanReference& reference,
                                                  const PointCloud& query,
                                                  const SearchWindow& window,
-                                                 const MatchOptions& options, bool bytes = false);
+                                                 const MatchOptions& options, bool bytes = false,
+                                                 bool centre_first = false);
 
 // Steps 2-4 for a lattice pose found by a search (exposed for tests and benchmarks).
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,

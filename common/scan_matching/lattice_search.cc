@@ -163,7 +163,9 @@ double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQue
 namespace {
 
 // Points summed between two looks at whether the rest can still lift the mean above the floor.
-constexpr size_t kChunk = 32;
+// Each look costs a horizontal sum and a branch: on FR079's global searches 64 took 4-5 % less
+// time than 32 (16: 12 % more, 96 and 128 about as 64), the same nodes scored.
+constexpr size_t kChunk = 64;
 
 // The sum of the level's values at cells[begin, end) shifted by (x0, y0) in stored indices:
 // `Inside` when every shifted cell lies within the stored level (no bounds checks), `Exact`
@@ -263,40 +265,78 @@ __attribute__((target("avx2"), always_inline)) inline double SumCellsAvx2(
 #endif
 
 // The points' sums are taken in chunks; after each, whether the rest can still lift the mean
-// above `floor`. The rest is bounded by max_value per point, or, given the node's parent in the
-// branch and bound (`parent_sums`: its running sums at the chunk ends), by the parent's sum over
-// the same points: a parent's block of translations holds its children's, so its max-grid value
-// at every point is at least theirs. `sums` (optional) receives this node's running sums, for
-// its children. A margin far above the sums' rounding keeps the stop exact: a mean above the
-// floor is always finished.
-#ifdef ANCHORMAP_AVX2_DISPATCH
-// MeanAbove for exact sums on AVX2, in one function with its chunks' sums (a call and the
-// sums' set-up per chunk of 32 points were a sixth of the lattice search's time): the same
-// stops on the same running sums (exact: any order gives the same bits).
-template <bool Inside>
-__attribute__((target("avx2"))) double MeanAboveAvx2(const MaxGridPyramid::LevelView& l,
-                                                     const DiscretisedQuery& query, int k, int x0,
-                                                     int y0, double floor, double max_value,
-                                                     const double* parent_sums, double* sums) {
-  const size_t n = query.num_points();
+// above `floor`. The rest is bounded by the most one point adds, or, given the node's parent in
+// the branch and bound (`parent_sums`: its running sums at the chunk ends), by the parent's sum
+// over the same points: a parent's block of translations holds its children's, so its max-grid
+// value at every point is at least theirs. `sums` (optional) receives this node's running sums,
+// for its children. A margin far above the sums' rounding keeps the stop exact: a mean above
+// the floor is always finished.
+struct ChunkStop {
+  double count;           // the mean's divisor: the points, in the sums' units
+  double stop;            // the running sum plus the rest below this: stop
+  double rest_per_point;  // the most one point adds, in the sums' units
+};
+
+// Sums of float values of at most max_value.
+ChunkStop FloatStop(size_t n, double floor, double max_value) {
   const double count = static_cast<double>(n);
-  const double stop = floor * count - 1e-9 * count * std::max(1.0, max_value);
+  return {count, floor * count - 1e-9 * count * std::max(1.0, max_value), max_value};
+}
+
+// Sums of ByteMaxGrids' bytes (whole 1/kScale units, exact in any order) of at most max_value;
+// the mean in the floats' units, sum / (kScale n): at least the float level's mean, since every
+// byte is.
+ChunkStop ByteStop(size_t n, double floor, int max_value) {
+  const double count = static_cast<double>(n) * ByteMaxGrids::kScale;
+  return {count, floor * count - 1e-9 * count, static_cast<double>(max_value)};
+}
+
+// The one chunked loop of the four ways to sum (floats or bytes, portable or AVX2):
+// `sum_chunk(begin, end, sum)` is `sum` plus the values of points [begin, end). The AVX2 callers
+// are `flatten`ed, so that their target's chunk sums are inlined into this loop.
+template <typename SumChunk>
+inline double ChunkedMean(size_t n, const ChunkStop& stop, double floor, const double* parent_sums,
+                          double* sums, const SumChunk& sum_chunk) {
   const size_t chunks = (n + kChunk - 1) / kChunk;
-  const int32_t* xs = query.xs(k);
-  const int32_t* ys = query.ys(k);
   double sum = 0.0;
   for (size_t chunk = 0; chunk < chunks; ++chunk) {
     const size_t begin = chunk * kChunk;
     const size_t end = std::min(n, begin + kChunk);
-    sum = SumCellsAvx2<Inside>(l, xs, ys, begin, end, x0, y0, sum);
+    sum = sum_chunk(begin, end, sum);
     if (sums != nullptr) sums[chunk] = sum;
     if (end == n) break;
     const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
-                                               : static_cast<double>(n - end) * max_value;
+                                               : static_cast<double>(n - end) * stop.rest_per_point;
     const double most = sum + rest;
-    if (most < stop) return std::min(floor, most / count);
+    if (most < stop.stop) return std::min(floor, most / stop.count);
   }
-  return sum / count;
+  return sum / stop.count;
+}
+
+#ifdef ANCHORMAP_AVX2_DISPATCH
+// A chunk's exact float sum by AVX2 gathers (SumCellsAvx2).
+template <bool Inside>
+struct FloatChunkAvx2 {
+  const MaxGridPyramid::LevelView& l;
+  const int32_t* xs;
+  const int32_t* ys;
+  int x0;
+  int y0;
+  __attribute__((target("avx2"))) double operator()(size_t begin, size_t end, double sum) const {
+    return SumCellsAvx2<Inside>(l, xs, ys, begin, end, x0, y0, sum);
+  }
+};
+
+// MeanAbove for exact sums on AVX2, the chunks' sums inlined into the loop (a call and the
+// sums' set-up per chunk of 32 points were a sixth of the lattice search's time): the same
+// stops on the same running sums (exact: any order gives the same bits).
+template <bool Inside>
+__attribute__((target("avx2"), flatten)) double MeanAboveAvx2(
+    const MaxGridPyramid::LevelView& l, const DiscretisedQuery& query, int k, int x0, int y0,
+    double floor, double max_value, const double* parent_sums, double* sums) {
+  const size_t n = query.num_points();
+  return ChunkedMean(n, FloatStop(n, floor, max_value), floor, parent_sums, sums,
+                     FloatChunkAvx2<Inside>{l, query.xs(k), query.ys(k), x0, y0});
 }
 #endif
 
@@ -309,22 +349,12 @@ double MeanAbove(const MaxGridPyramid::LevelView& l, const DiscretisedQuery& que
   }
 #endif
   const size_t n = query.num_points();
-  const double count = static_cast<double>(n);
-  const double stop = floor * count - 1e-9 * count * std::max(1.0, max_value);
-  const size_t chunks = (n + kChunk - 1) / kChunk;
-  double sum = 0.0;
-  for (size_t chunk = 0; chunk < chunks; ++chunk) {
-    const size_t begin = chunk * kChunk;
-    const size_t end = std::min(n, begin + kChunk);
-    sum = SumCells<Inside, Exact>(l, query.xs(k), query.ys(k), begin, end, x0, y0, sum);
-    if (sums != nullptr) sums[chunk] = sum;
-    if (end == n) break;
-    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
-                                               : static_cast<double>(n - end) * max_value;
-    const double most = sum + rest;
-    if (most < stop) return std::min(floor, most / count);
-  }
-  return sum / count;
+  const int32_t* xs = query.xs(k);
+  const int32_t* ys = query.ys(k);
+  return ChunkedMean(n, FloatStop(n, floor, max_value), floor, parent_sums, sums,
+                     [&](size_t begin, size_t end, double sum) {
+                       return SumCells<Inside, Exact>(l, xs, ys, begin, end, x0, y0, sum);
+                     });
 }
 
 size_t NumChunks(const DiscretisedQuery& query) {
@@ -352,9 +382,8 @@ double ScoreWithParent(const MaxGridPyramid& grids, int level, const Discretised
 }
 
 // Branch and bound's inner nodes on ByteMaxGrids: MeanAbove's stops on integer sums (exact in
-// any order, so the AVX2 path and the portable one stop alike), the mean returned in the
-// floats' units, sum / (kScale n): at least the float level's mean, since every byte is.
-// `parent_sums` and `sums` count bytes.
+// any order, so the AVX2 path and the portable one stop alike). `parent_sums` and `sums` count
+// bytes.
 template <bool Inside>
 int64_t SumBytes(const ByteMaxGrids::LevelView& l, const int32_t* xs, const int32_t* ys,
                  size_t begin, size_t end, int x0, int y0) {
@@ -371,61 +400,35 @@ int64_t SumBytes(const ByteMaxGrids::LevelView& l, const int32_t* xs, const int3
   return sum;
 }
 
-// The stop after a chunk: the bytes summed so far plus the most the rest can add (the parent's
-// bytes over the same points, or max_value each) below floor * kScale * n, less a margin far
-// above the double's rounding of these whole numbers.
-struct ByteStop {
-  double stop;
-  double count_scaled;  // kScale * n
-  ByteStop(size_t n, double floor) {
-    count_scaled = static_cast<double>(n) * ByteMaxGrids::kScale;
-    stop = floor * count_scaled - 1e-9 * count_scaled;
-  }
-};
-
 template <bool Inside>
 double ByteMeanAbove(const ByteMaxGrids::LevelView& l, const DiscretisedQuery& query, int k, int x0,
                      int y0, double floor, int max_value, const double* parent_sums, double* sums) {
   const size_t n = query.num_points();
-  const ByteStop stop(n, floor);
-  const size_t chunks = (n + kChunk - 1) / kChunk;
-  int64_t sum = 0;
-  for (size_t chunk = 0; chunk < chunks; ++chunk) {
-    const size_t begin = chunk * kChunk;
-    const size_t end = std::min(n, begin + kChunk);
-    sum += SumBytes<Inside>(l, query.xs(k), query.ys(k), begin, end, x0, y0);
-    if (sums != nullptr) sums[chunk] = static_cast<double>(sum);
-    if (end == n) break;
-    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
-                                               : static_cast<double>(n - end) * max_value;
-    const double most = static_cast<double>(sum) + rest;
-    if (most < stop.stop) return std::min(floor, most / stop.count_scaled);
-  }
-  return static_cast<double>(sum) / stop.count_scaled;
+  const int32_t* xs = query.xs(k);
+  const int32_t* ys = query.ys(k);
+  // Whole numbers below 2^53: the double running sum is the integer one.
+  return ChunkedMean(n, ByteStop(n, floor, max_value), floor, parent_sums, sums,
+                     [&](size_t begin, size_t end, double sum) {
+                       return sum +
+                              static_cast<double>(SumBytes<Inside>(l, xs, ys, begin, end, x0, y0));
+                     });
 }
 
 #ifdef ANCHORMAP_AVX2_DISPATCH
-// ByteMeanAbove with eight points per gather: four bytes read at each cell (ByteMaxGrids keeps
-// three readable bytes past the last), the low one kept; a chunk's 32 points add at most
-// 4 x 255 per 32-bit lane.
+// A chunk's byte sum with eight points per gather: four bytes read at each cell (ByteMaxGrids
+// keeps three readable bytes past the last), the low one kept; a chunk's 64 points add at most
+// 8 x 255 per 32-bit lane.
 template <bool Inside>
-__attribute__((target("avx2"))) double ByteMeanAboveAvx2(const ByteMaxGrids::LevelView& l,
-                                                         const DiscretisedQuery& query, int k,
-                                                         int x0, int y0, double floor,
-                                                         int max_value, const double* parent_sums,
-                                                         double* sums) {
-  const size_t n = query.num_points();
-  const ByteStop stop(n, floor);
-  const size_t chunks = (n + kChunk - 1) / kChunk;
-  const int32_t* xs = query.xs(k);
-  const int32_t* ys = query.ys(k);
-  const int* base = reinterpret_cast<const int*>(l.values);
-  const CellsOfEightAvx2 cells(x0, y0, l.width, l.height);
-  const __m256i low_byte = _mm256_set1_epi32(0xFF);
-  int64_t sum = 0;
-  for (size_t chunk = 0; chunk < chunks; ++chunk) {
-    const size_t begin = chunk * kChunk;
-    const size_t end = std::min(n, begin + kChunk);
+struct ByteChunkAvx2 {
+  const ByteMaxGrids::LevelView& l;
+  const int32_t* xs;
+  const int32_t* ys;
+  int x0;
+  int y0;
+  CellsOfEightAvx2 cells;
+  __attribute__((target("avx2"))) double operator()(size_t begin, size_t end, double sum) const {
+    const int* base = reinterpret_cast<const int*>(l.values);
+    const __m256i low_byte = _mm256_set1_epi32(0xFF);
     __m256i lanes = _mm256_setzero_si256();
     size_t i = begin;
     for (; i + 8 <= end; i += 8) {
@@ -443,16 +446,21 @@ __attribute__((target("avx2"))) double ByteMeanAboveAvx2(const ByteMaxGrids::Lev
         _mm_add_epi32(_mm256_castsi256_si128(lanes), _mm256_extracti128_si256(lanes, 1));
     const __m128i quads = _mm_add_epi32(pairs, _mm_shuffle_epi32(pairs, _MM_SHUFFLE(1, 0, 3, 2)));
     const __m128i total = _mm_add_epi32(quads, _mm_shuffle_epi32(quads, _MM_SHUFFLE(2, 3, 0, 1)));
-    sum += _mm_cvtsi128_si32(total);
-    sum += SumBytes<Inside>(l, xs, ys, i, end, x0, y0);  // the last points (fewer than eight)
-    if (sums != nullptr) sums[chunk] = static_cast<double>(sum);
-    if (end == n) break;
-    const double rest = parent_sums != nullptr ? parent_sums[chunks - 1] - parent_sums[chunk]
-                                               : static_cast<double>(n - end) * max_value;
-    const double most = static_cast<double>(sum) + rest;
-    if (most < stop.stop) return std::min(floor, most / stop.count_scaled);
+    // The last points (fewer than eight) one at a time.
+    const int64_t chunk = _mm_cvtsi128_si32(total) + SumBytes<Inside>(l, xs, ys, i, end, x0, y0);
+    return sum + static_cast<double>(chunk);
   }
-  return static_cast<double>(sum) / stop.count_scaled;
+};
+
+// ByteMeanAbove with ByteChunkAvx2's sums inlined into the loop.
+template <bool Inside>
+__attribute__((target("avx2"), flatten)) double ByteMeanAboveAvx2(
+    const ByteMaxGrids::LevelView& l, const DiscretisedQuery& query, int k, int x0, int y0,
+    double floor, int max_value, const double* parent_sums, double* sums) {
+  const size_t n = query.num_points();
+  const ByteChunkAvx2<Inside> sum_chunk{
+      l, query.xs(k), query.ys(k), x0, y0, CellsOfEightAvx2(x0, y0, l.width, l.height)};
+  return ChunkedMean(n, ByteStop(n, floor, max_value), floor, parent_sums, sums, sum_chunk);
 }
 #endif
 
@@ -509,6 +517,25 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
 }
 
 namespace {
+
+#ifdef ANCHORMAP_AVX2_DISPATCH
+// MaxCellMove eight cells at a time (the maximum of whole numbers: any order, the same).
+__attribute__((target("avx2"))) int MaxCellMoveAvx2(const int32_t* a, const int32_t* b, size_t n) {
+  __m256i most = _mm256_setzero_si256();
+  size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256i va = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a + i));
+    const __m256i vb = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(b + i));
+    most = _mm256_max_epi32(most, _mm256_abs_epi32(_mm256_sub_epi32(va, vb)));
+  }
+  alignas(32) int32_t lanes[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), most);
+  int result = 0;
+  for (const int32_t lane : lanes) result = std::max(result, lane);
+  for (; i < n; ++i) result = std::max(result, std::abs(a[i] - b[i]));
+  return result;
+}
+#endif
 
 // Heading groups are split down to blocks of 2^kSingleHeadingBlock cells; there each heading of
 // a group goes on alone (measured on FR079's global searches: 3 gave the fewest point sums, 2 and
@@ -578,6 +605,16 @@ class BranchAndBoundSearch {
     return best_;
   }
 
+  // The window's centre as the best leaf so far when it scores above the bar: any better leaf,
+  // or an equal one earlier in (k, dy, dx) order, still replaces it (Descend).
+  void ScoreCentreFirst() {
+    const double centre = Score(0, 0, 0, 0, nullptr, nullptr);
+    if (centre > best_score_) {
+      best_score_ = centre;
+      best_ = LatticePose{0, 0, 0, centre};
+    }
+  }
+
  private:
   int LastHeading(int k, int g) const { return std::min(k + (1 << g) - 1, window_.half_angles); }
 
@@ -610,15 +647,9 @@ class BranchAndBoundSearch {
     d.x = 0;
     d.y = 0;
     const size_t n = query_.num_points();
-    const int32_t* cx = query_.xs(d.centre);
-    const int32_t* cy = query_.ys(d.centre);
     for (int h = k; h <= last; ++h) {
-      const int32_t* xs = query_.xs(h);
-      const int32_t* ys = query_.ys(h);
-      for (size_t i = 0; i < n; ++i) {
-        d.x = std::max(d.x, std::abs(xs[i] - cx[i]));
-        d.y = std::max(d.y, std::abs(ys[i] - cy[i]));
-      }
+      d.x = std::max(d.x, MaxCellMove(query_.xs(h), query_.xs(d.centre), n));
+      d.y = std::max(d.y, MaxCellMove(query_.ys(h), query_.ys(d.centre), n));
     }
     return d;
   }
@@ -792,11 +823,22 @@ class BranchAndBoundSearch {
 
 }  // namespace
 
+int MaxCellMove(const int32_t* a, const int32_t* b, size_t n) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx2()) return MaxCellMoveAvx2(a, b, n);
+#endif
+  int most = 0;
+  for (size_t i = 0; i < n; ++i) most = std::max(most, std::abs(a[i] - b[i]));
+  return most;
+}
+
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats,
-                                          const ByteMaxGrids* bytes) {
-  return BranchAndBoundSearch(grids, query, window, min_score, stats, bytes).Run();
+                                          const ByteMaxGrids* bytes, bool centre_first) {
+  BranchAndBoundSearch search(grids, query, window, min_score, stats, bytes);
+  if (centre_first) search.ScoreCentreFirst();
+  return search.Run();
 }
 
 }  // namespace anchormap

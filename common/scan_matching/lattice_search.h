@@ -83,6 +83,10 @@ double ScoreOnLevel(const MaxGridPyramid& grids, int level, const DiscretisedQue
 double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const DiscretisedQuery& query,
                          int k, int dx, int dy, double floor);
 
+// max |a[i] - b[i]| over i < n, 0 for none: how far any point's cell moves along one axis
+// between two headings (a heading group's deviation; exposed for tests).
+int MaxCellMove(const int32_t* a, const int32_t* b, size_t n);
+
 struct LatticeSearchStats {
   int64_t scored_nodes = 0;  // scores computed (any level)
   int64_t leaves = 0;        // level-0 scores computed
@@ -97,10 +101,14 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
 
 // The same best lattice pose, by branch and bound over all the pyramid's levels. With `bytes`
 // (ByteMaxGrids of `grids`, used when grids.exact_sums()) the inner nodes are bounded on the
-// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ.
+// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ. With
+// `centre_first`, the window's centre (a local match's guess) is scored before any node: a
+// good guess's score prunes from the first node on (the same best pose; the nodes scored
+// differ).
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats = nullptr,
-                                          const ByteMaxGrids* bytes = nullptr);
+                                          const ByteMaxGrids* bytes = nullptr,
+                                          bool centre_first = false);
 
 }  // namespace anchormap

@@ -1,7 +1,10 @@
 #include "common/scan_matching/lattice_search.h"
 
+#include <algorithm>
+#include <cstdlib>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -184,6 +187,16 @@ void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query
   if (pyramid.num_levels() > 1) {
     EXPECT_LT(bnb_stats.leaves, all_stats.leaves);
   }
+  // The window's centre scored first (a local match's guess): the same pose, ties included.
+  const auto centre_first =
+      BranchAndBound(pyramid, query, window, min_score, nullptr, nullptr, /*centre_first=*/true);
+  EXPECT_EQ(all.has_value(), centre_first.has_value());
+  if (all && centre_first) {
+    EXPECT_EQ(centre_first->score, all->score);
+    EXPECT_EQ(centre_first->k, all->k);
+    EXPECT_EQ(centre_first->dx, all->dx);
+    EXPECT_EQ(centre_first->dy, all->dy);
+  }
   if (bytes == nullptr) return;
   // The inner nodes on the bytes (the global search's way): the same pose.
   LatticeSearchStats byte_stats;
@@ -246,6 +259,27 @@ TEST(LatticeSearchTest, HeadingGroupsFindTheExhaustivePoseOnEveryLevelCount) {
         ExpectSamePose(pyramid, discretised, window, min_score,
                        levels == 7 && step_factor == 1.0 ? &bytes : nullptr);
       }
+    }
+  }
+}
+
+TEST(LatticeSearchTest, MaxCellMoveIsTheLargestDifference) {
+  // Against the definition, one difference at a time: lengths around the vectorised eight
+  // (tails), differences of both signs, the largest anywhere.
+  std::mt19937_64 rng(5);
+  std::uniform_int_distribution<int32_t> cell(-4000, 4000);
+  for (size_t n = 0; n <= 41; ++n) {
+    for (int trial = 0; trial < 20; ++trial) {
+      std::vector<int32_t> a(n);
+      std::vector<int32_t> b(n);
+      for (size_t i = 0; i < n; ++i) {
+        a[i] = cell(rng);
+        b[i] = a[i] + cell(rng) % 9;
+      }
+      if (n > 0 && trial % 2 == 0) b[rng() % n] = a[0] - 3000;  // one far move, somewhere
+      int expected = 0;
+      for (size_t i = 0; i < n; ++i) expected = std::max(expected, std::abs(a[i] - b[i]));
+      ASSERT_EQ(MaxCellMove(a.data(), b.data(), n), expected) << n << " " << trial;
     }
   }
 }

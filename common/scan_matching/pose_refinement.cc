@@ -94,8 +94,12 @@ double NormalEquations(const ReferenceField& field, const PointCloud& query, con
   *inliers = 0;
   double cost = 0.0;
   int rows = 0;
-  Eigen::Vector2d e;
-  Eigen::Matrix2d de_dq;
+  // Zeroed, though only the first `rows` rows are read: a wall's point sets one row of de_dq
+  // and the product below multiplies both. Left uninitialised, the second row held whatever
+  // the stack did, subnormal numbers too, whose microcode assists made this loop ~7 % of an
+  // FR079 replay's CPU.
+  Eigen::Vector2d e = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d de_dq = Eigen::Matrix2d::Zero();
   // H's upper triangle, mirrored at the end: a_j a_i is a_i a_j to the bit, so the lower
   // triangle's sums were the same numbers added in the same order.
   double h00 = 0.0, h01 = 0.0, h02 = 0.0, h11 = 0.0, h12 = 0.0, h22 = 0.0;
