@@ -714,9 +714,7 @@ std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, 
 bool ScanEncounters::Saturated(PoseKey key, PoseKey center, const GraphView& graph) {
   if (graph.ties == nullptr || options_.near_saturation_m <= 0) return false;
   const auto driven_to = [this, &graph](PoseKey k) { return DrivenTo(k, graph); };
-  const std::optional<double> drive =
-      graph.ties->ShortestDrive(key, center, driven_to, options_.near_saturation_m);
-  return drive && *drive < options_.near_saturation_m;
+  return graph.ties->DriveBelow(key, center, driven_to, options_.near_saturation_m);
 }
 
 bool ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {

@@ -7,18 +7,32 @@
 
 namespace anchormap {
 
+int32_t TrajectoryTies::NodeOf(PoseKey key) {
+  Tied& tied = ends_[key.trajectory.value()];
+  const auto at = std::lower_bound(tied.indices.begin(), tied.indices.end(), key.index);
+  const auto position = at - tied.indices.begin();
+  if (at != tied.indices.end() && *at == key.index) {
+    return tied.nodes[static_cast<size_t>(position)];
+  }
+  const int32_t node = static_cast<int32_t>(nodes_.size());
+  Node added;
+  added.key = key;
+  if (position > 0) added.below = tied.nodes[static_cast<size_t>(position - 1)];
+  if (at != tied.indices.end()) added.above = tied.nodes[static_cast<size_t>(position)];
+  if (added.below != kNone) nodes_[static_cast<size_t>(added.below)].above = node;
+  if (added.above != kNone) nodes_[static_cast<size_t>(added.above)].below = node;
+  nodes_.push_back(std::move(added));
+  tied.indices.insert(at, key.index);
+  tied.nodes.insert(tied.nodes.begin() + position, node);
+  return node;
+}
+
 void TrajectoryTies::Add(PoseKey a, PoseKey b) {
   if (a.trajectory == b.trajectory) return;
-  for (const auto& [end, partner] : {std::make_pair(a, b), std::make_pair(b, a)}) {
-    Tied& tied = ends_[end.trajectory.value()];
-    const auto at = std::lower_bound(tied.indices.begin(), tied.indices.end(), end.index);
-    const auto position = at - tied.indices.begin();
-    if (at == tied.indices.end() || *at != end.index) {
-      tied.indices.insert(at, end.index);
-      tied.partners.insert(tied.partners.begin() + position, std::vector<PoseKey>());
-    }
-    tied.partners[static_cast<size_t>(position)].push_back(partner);
-  }
+  const int32_t node_a = NodeOf(a);
+  const int32_t node_b = NodeOf(b);
+  nodes_[static_cast<size_t>(node_a)].partners.push_back(node_b);
+  nodes_[static_cast<size_t>(node_b)].partners.push_back(node_a);
   ++size_;
   const TrajectoryId root = std::min(Root(a.trajectory), Root(b.trajectory));
   // Both ends' trajectories and their old roots point at the joint root (keeps chains short).
@@ -26,6 +40,13 @@ void TrajectoryTies::Add(PoseKey a, PoseKey b) {
        {Root(a.trajectory), Root(b.trajectory), a.trajectory, b.trajectory}) {
     if (t != root) parent_[t] = root;
   }
+}
+
+void TrajectoryTies::Clear() {
+  nodes_.clear();
+  ends_.clear();
+  parent_.clear();
+  size_ = 0;
 }
 
 TrajectoryId TrajectoryTies::Root(TrajectoryId trajectory) const {
@@ -36,111 +57,108 @@ TrajectoryId TrajectoryTies::Root(TrajectoryId trajectory) const {
   return trajectory;
 }
 
-bool TrajectoryTies::SettledSet::Insert(uint64_t id) {
-  if (2 * (filled_.size() + 1) > slots_.size()) Grow();
-  const size_t mask = slots_.size() - 1;
-  for (size_t slot = static_cast<size_t>((id * 0x9E3779B97F4A7C15ull) >> shift_);;
-       slot = (slot + 1) & mask) {
-    if (slots_[slot] == id) return false;
-    if (slots_[slot] == kEmpty) {
-      slots_[slot] = id;
-      filled_.push_back(slot);
-      return true;
-    }
-  }
-}
-
-bool TrajectoryTies::SettledSet::Contains(uint64_t id) const {
-  if (slots_.empty()) return false;
-  const size_t mask = slots_.size() - 1;
-  for (size_t slot = static_cast<size_t>((id * 0x9E3779B97F4A7C15ull) >> shift_);;
-       slot = (slot + 1) & mask) {
-    if (slots_[slot] == id) return true;
-    if (slots_[slot] == kEmpty) return false;
-  }
-}
-
-void TrajectoryTies::SettledSet::Clear() {
-  for (size_t slot : filled_) slots_[slot] = kEmpty;
-  filled_.clear();
-}
-
-void TrajectoryTies::SettledSet::Grow() {
-  std::vector<uint64_t> ids;
-  ids.reserve(filled_.size());
-  for (size_t slot : filled_) ids.push_back(slots_[slot]);
-  const size_t capacity = slots_.empty() ? 256 : 2 * slots_.size();
-  slots_.assign(capacity, kEmpty);
-  shift_ = 64;
-  for (size_t c = capacity; c > 1; c >>= 1) --shift_;
-  filled_.clear();
-  for (uint64_t id : ids) Insert(id);
+double TrajectoryTies::DrivenOf(int32_t node, const std::function<double(PoseKey)>& driven) const {
+  const Node& n = nodes_[static_cast<size_t>(node)];
+  if (std::isnan(n.driven)) n.driven = driven(n.key);
+  return n.driven;
 }
 
 std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
                                                     const std::function<double(PoseKey)>& driven,
                                                     double limit) const {
+  const std::optional<double> best = Search(from, to, driven, limit, /*below=*/false);
+  return best && *best <= limit ? best : std::nullopt;
+}
+
+bool TrajectoryTies::DriveBelow(PoseKey from, PoseKey to,
+                                const std::function<double(PoseKey)>& driven, double limit) const {
+  const std::optional<double> best = Search(from, to, driven, limit, /*below=*/true);
+  return best && *best < limit;
+}
+
+std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
+                                             const std::function<double(PoseKey)>& driven,
+                                             double limit, bool below) const {
   const double driven_to = driven(to);
   std::optional<double> best;
   if (from.trajectory == to.trajectory) best = std::abs(driven(from) - driven_to);
-  const auto within_limit = [&](std::optional<double> drive) {
-    return drive && *drive <= limit ? drive : std::nullopt;
-  };
+  if (below && best && *best < limit) return best;
   // Dijkstra over the tied keyframes. Along one trajectory the drive between two keyframes
   // is the difference of the paths driven to them, so each tied keyframe needs edges only to
   // its neighbours by index there (and to `to`, when in its trajectory).
-  // A min-heap on (distance, node) (std::priority_queue's operations on a kept vector).
   std::vector<Item>& queue = queue_;
   queue.clear();
-  settled_.Clear();
-  const std::greater<Item> later;
-  // Settled nodes; a node settled is not queued again (the heap's order is total, so the
-  // others come out as they would).
-  const auto id = [](const Node& node) {
-    return (static_cast<uint64_t>(node.first) << 32) ^ static_cast<uint32_t>(node.second);
+  if (settled_in_.size() < nodes_.size()) settled_in_.resize(nodes_.size(), 0);
+  if (++search_ == 0) {  // the stamps wrapped: none of them is this search's
+    std::fill(settled_in_.begin(), settled_in_.end(), 0);
+    search_ = 1;
+  }
+  // A min-heap on (distance, trajectory, index): a total order, so the nodes come out as they
+  // did when the queue held keys (a node settled is not queued again).
+  const auto later = [](const Item& a, const Item& b) {
+    if (a.distance != b.distance) return a.distance > b.distance;
+    if (a.trajectory != b.trajectory) return a.trajectory > b.trajectory;
+    return a.index > b.index;
   };
-  const auto push = [&](double distance, const Node& node) {
-    if (!settled_.Contains(id(node))) {
-      queue.push_back({distance, node});
-      std::push_heap(queue.begin(), queue.end(), later);
-    }
+  const auto push = [&](double distance, int32_t node) {
+    if (settled_in_[static_cast<size_t>(node)] == search_) return;
+    const PoseKey& key = nodes_[static_cast<size_t>(node)].key;
+    queue.push_back({distance, key.trajectory.value(), key.index, node});
+    std::push_heap(queue.begin(), queue.end(), later);
   };
-  // `from` itself may be tied: then it is a node with its partners.
-  queue.push_back({0.0, {from.trajectory.value(), from.index}});
-  while (!queue.empty()) {
-    std::pop_heap(queue.begin(), queue.end(), later);
-    const auto [distance, node] = queue.back();
-    queue.pop_back();
-    if ((best && distance >= *best) || distance > limit) break;
-    if (!settled_.Insert(id(node))) continue;
-    const PoseKey key{TrajectoryId(node.first), node.second};
-    const auto trajectory = ends_.find(node.first);
-    const double driven_key = driven(key);
-    if (key.trajectory == to.trajectory) {
-      const double total = distance + std::abs(driven_key - driven_to);
-      if (!best || total < *best) best = total;
-    }
-    if (trajectory == ends_.end()) continue;
+  // `from` itself may be tied: then it is that node, with its partners. Untied, it is settled
+  // first (at 0) and nothing queues it again.
+  int32_t start = kNone;
+  int32_t start_below = kNone, start_above = kNone;
+  if (const auto trajectory = ends_.find(from.trajectory.value()); trajectory != ends_.end()) {
     const std::vector<int32_t>& indices = trajectory->second.indices;
-    // Its neighbours by index among the trajectory's tied keyframes (the one above first).
-    const auto at = std::lower_bound(indices.begin(), indices.end(), key.index);
-    const bool tied_here = at != indices.end() && *at == key.index;
-    const auto above = tied_here ? at + 1 : at;
-    if (above != indices.end()) {
-      const PoseKey next{key.trajectory, *above};
-      push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
-    }
-    if (at != indices.begin()) {
-      const PoseKey next{key.trajectory, *(at - 1)};
-      push(distance + std::abs(driven_key - driven(next)), {node.first, next.index});
-    }
-    if (!tied_here) continue;
-    for (const PoseKey& other :
-         trajectory->second.partners[static_cast<size_t>(at - indices.begin())]) {
-      push(distance, {other.trajectory.value(), other.index});
+    const auto at = std::lower_bound(indices.begin(), indices.end(), from.index);
+    const size_t position = static_cast<size_t>(at - indices.begin());
+    if (at != indices.end() && *at == from.index) {
+      start = trajectory->second.nodes[position];
+    } else {
+      if (at != indices.end()) start_above = trajectory->second.nodes[position];
+      if (position > 0) start_below = trajectory->second.nodes[position - 1];
     }
   }
-  return within_limit(best);
+  queue.push_back({0.0, from.trajectory.value(), from.index, start});
+  while (!queue.empty()) {
+    std::pop_heap(queue.begin(), queue.end(), later);
+    const Item item = queue.back();
+    queue.pop_back();
+    const double distance = item.distance;
+    if ((best && distance >= *best) || distance > limit) break;
+    double driven_key = 0.0;
+    int32_t next_below = kNone, next_above = kNone;
+    const Node* node = nullptr;
+    if (item.node == kNone) {
+      driven_key = driven(from);
+      next_below = start_below;
+      next_above = start_above;
+    } else {
+      if (settled_in_[static_cast<size_t>(item.node)] == search_) continue;
+      settled_in_[static_cast<size_t>(item.node)] = search_;
+      node = &nodes_[static_cast<size_t>(item.node)];
+      driven_key = DrivenOf(item.node, driven);
+      next_below = node->below;
+      next_above = node->above;
+    }
+    if (item.trajectory == to.trajectory.value()) {
+      const double total = distance + std::abs(driven_key - driven_to);
+      if (!best || total < *best) best = total;
+      if (below && *best < limit) return best;
+    }
+    // Its neighbours by index among the trajectory's tied keyframes (the one above first).
+    if (next_above != kNone) {
+      push(distance + std::abs(driven_key - DrivenOf(next_above, driven)), next_above);
+    }
+    if (next_below != kNone) {
+      push(distance + std::abs(driven_key - DrivenOf(next_below, driven)), next_below);
+    }
+    if (node == nullptr) continue;
+    for (const int32_t partner : node->partners) push(distance, partner);
+  }
+  return best;
 }
 
 }  // namespace anchormap

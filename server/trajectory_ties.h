@@ -23,10 +23,7 @@ class TrajectoryTies {
   // Keyframe a of one trajectory tied to keyframe b of another (a loop closure, within one
   // trajectory, is no tie: ignored).
   void Add(PoseKey a, PoseKey b);
-  void Clear() {
-    ends_.clear();
-    parent_.clear();
-  }
+  void Clear();
   int64_t size() const { return size_; }
 
   // The shortest drive from `from` to `to`: along each trajectory (`driven(key)`, the path
@@ -35,51 +32,67 @@ class TrajectoryTies {
   // nullopt when no chain of ties connects the two trajectories, or (given `limit`) when
   // the shortest drive is longer than `limit`: the search stops there, so a bounded
   // question ("tied within a few metres of here?") costs the ties near here, not all of them.
+  // `driven` must give every keyframe the same value at every call (the odometry's path is
+  // fixed): the search keeps each tied keyframe's value once asked.
   // Not for two threads at once (it keeps its scratch space between calls).
   std::optional<double> ShortestDrive(PoseKey from, PoseKey to,
                                       const std::function<double(PoseKey)>& driven,
                                       double limit = std::numeric_limits<double>::infinity()) const;
+  // Whether the shortest drive is below `limit` (strictly): the same answer as ShortestDrive's
+  // value < limit, given as soon as one chain of ties below it is found (a saturation check
+  // in a place many passes tie together then stops at its first short chain).
+  bool DriveBelow(PoseKey from, PoseKey to, const std::function<double(PoseKey)>& driven,
+                  double limit) const;
   // Whether a chain of ties connects the two trajectories (each is connected to itself): what a
   // bounded ShortestDrive's nullopt leaves open, answered without a search.
   bool Connected(TrajectoryId a, TrajectoryId b) const { return Root(a) == Root(b); }
 
  private:
-  // Per trajectory: its tied keyframes' indices, ascending, and for each the keyframes tied
-  // to it. Flat arrays, not ordered maps: the search reads a trajectory's tied keyframes at
-  // every keyframe it settles, and with 20 robots after a few hundred seconds of data the
-  // maps' pointer chasing was most of the search's time (8 % of the server's CPU at 450 s).
+  // A tied keyframe: its neighbours among its trajectory's tied keyframes by index (kNone at
+  // the ends) and the keyframes tied to it, all as positions in nodes_, so that the search
+  // follows edges without lookups (with 20 robots after a few hundred seconds of data the
+  // tied keyframes of a place number thousands, and the search settles all of them).
+  static constexpr int32_t kNone = -1;
+  struct Node {
+    PoseKey key;
+    int32_t below = kNone;
+    int32_t above = kNone;
+    std::vector<int32_t> partners;
+    // driven(key), once asked (NaN before).
+    mutable double driven = std::numeric_limits<double>::quiet_NaN();
+  };
+  // Per trajectory: its tied keyframes' indices, ascending, and their nodes.
   struct Tied {
     std::vector<int32_t> indices;
-    std::vector<std::vector<PoseKey>> partners;
+    std::vector<int32_t> nodes;
   };
+  // The node of `key`, added when new.
+  int32_t NodeOf(PoseKey key);
+  double DrivenOf(int32_t node, const std::function<double(PoseKey)>& driven) const;
+  // Dijkstra from `from`; with `below`, stops at the first drive to `to` under `limit`.
+  std::optional<double> Search(PoseKey from, PoseKey to,
+                               const std::function<double(PoseKey)>& driven, double limit,
+                               bool below) const;
+
+  std::vector<Node> nodes_;
   std::unordered_map<int64_t, Tied> ends_;
   // Union-find over the trajectories the ties connect (absent: alone).
   TrajectoryId Root(TrajectoryId trajectory) const;
   std::map<TrajectoryId, TrajectoryId> parent_;
   int64_t size_ = 0;
 
-  // ShortestDrive's scratch, kept between calls: its queue (a heap) and the keyframes it
-  // settled, as an open-addressing set of (trajectory, index) ids cleared through the list
-  // of the slots it filled. A std::priority_queue and a std::unordered_set per call spent
-  // a third of its samples in malloc (100 robots, 90-120 s of data).
-  using Node = std::pair<int64_t, int32_t>;  // (trajectory, index)
-  using Item = std::pair<double, Node>;
-  class SettledSet {
-   public:
-    // Adds `id`; false when it was already in.
-    bool Insert(uint64_t id);
-    bool Contains(uint64_t id) const;
-    void Clear();
-
-   private:
-    static constexpr uint64_t kEmpty = ~uint64_t{0};
-    void Grow();
-    std::vector<uint64_t> slots_;
-    std::vector<size_t> filled_;
-    int shift_ = 64;
+  // The search's scratch, kept between calls: its queue (a min-heap on distance, then
+  // trajectory and index, as before the nodes had positions: the same order of settling) and
+  // a stamp per node, the search's number when it settled there.
+  struct Item {
+    double distance;
+    int64_t trajectory;
+    int32_t index;
+    int32_t node;
   };
   mutable std::vector<Item> queue_;
-  mutable SettledSet settled_;
+  mutable std::vector<uint32_t> settled_in_;
+  mutable uint32_t search_ = 0;
 };
 
 }  // namespace anchormap

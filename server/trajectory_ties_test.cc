@@ -2,6 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
 namespace anchormap {
 namespace {
 
@@ -111,6 +117,77 @@ TEST(TrajectoryTiesTest, TiesAddedInAnyIndexOrderAreSearchedByIndex) {
   EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 50}, {kB, 88}, OneMetreEach), 12.0);
   EXPECT_DOUBLE_EQ(*ties.ShortestDrive({kA, 50}, {kB, 12}, OneMetreEach), 12.0);
   EXPECT_EQ(ties.size(), 4);
+}
+
+// Random ties between four trajectories of 60 keyframes with uneven steps, against the
+// brute force (Floyd-Warshall over every keyframe, its drives along each trajectory and its
+// ties): the search's drives, bounded and not, and DriveBelow's answers, after every tie
+// added (ties to keyframes between, above and below earlier ones, and repeated).
+TEST(TrajectoryTiesTest, DrivesEqualTheBruteForceAsTiesArrive) {
+  constexpr int kTrajectories = 4, kKeyframes = 60;
+  std::mt19937 random(7);
+  std::vector<double> step(kTrajectories * kKeyframes);
+  for (double& s : step) s = std::uniform_real_distribution<double>(0.1, 2.0)(random);
+  const auto driven = [&](PoseKey key) {
+    double path = 0.0;
+    for (int i = 1; i <= key.index; ++i) {
+      path += step[static_cast<size_t>(key.trajectory.value() * kKeyframes + i)];
+    }
+    return path;
+  };
+  const auto node = [](PoseKey key) {
+    return static_cast<size_t>(key.trajectory.value() * kKeyframes + key.index);
+  };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const size_t n = kTrajectories * kKeyframes;
+  std::vector<double> direct(n * n, kInf);
+  for (int t = 0; t < kTrajectories; ++t) {
+    for (int i = 0; i < kKeyframes; ++i) {
+      for (int j = 0; j < kKeyframes; ++j) {
+        const PoseKey a{TrajectoryId(t), i}, b{TrajectoryId(t), j};
+        direct[node(a) * n + node(b)] = std::abs(driven(a) - driven(b));
+      }
+    }
+  }
+  std::uniform_int_distribution<int> trajectory(0, kTrajectories - 1), index(0, kKeyframes - 1);
+  TrajectoryTies ties;
+  int checked = 0, below = 0;
+  for (int tie = 0; tie < 40; ++tie) {
+    const PoseKey a{TrajectoryId(trajectory(random)), index(random)};
+    const PoseKey b{TrajectoryId(trajectory(random)), index(random)};
+    ties.Add(a, b);
+    if (a.trajectory != b.trajectory) {
+      direct[node(a) * n + node(b)] = direct[node(b) * n + node(a)] = 0.0;
+    }
+    std::vector<double> d = direct;
+    for (size_t k = 0; k < n; ++k) {
+      for (size_t i = 0; i < n; ++i) {
+        for (size_t j = 0; j < n; ++j)
+          d[i * n + j] = std::min(d[i * n + j], d[i * n + k] + d[k * n + j]);
+      }
+    }
+    for (int query = 0; query < 30; ++query) {
+      const PoseKey from{TrajectoryId(trajectory(random)), index(random)};
+      const PoseKey to{TrajectoryId(trajectory(random)), index(random)};
+      const double truth = d[node(from) * n + node(to)];
+      const std::optional<double> drive = ties.ShortestDrive(from, to, driven);
+      ASSERT_EQ(drive.has_value(), std::isfinite(truth));
+      if (drive) {
+        EXPECT_NEAR(*drive, truth, 1e-9);
+      }
+      for (const double limit : {2.0, 5.0, 20.0}) {
+        const std::optional<double> bounded = ties.ShortestDrive(from, to, driven, limit);
+        EXPECT_EQ(bounded.has_value(), truth <= limit + 1e-9 && std::isfinite(truth));
+        const bool is_below = ties.DriveBelow(from, to, driven, limit);
+        EXPECT_EQ(is_below, drive && *drive < limit);
+        below += is_below ? 1 : 0;
+        ++checked;
+      }
+    }
+  }
+  // Both answers occur (the test asks something).
+  EXPECT_GT(below, checked / 10);
+  EXPECT_LT(below, checked - checked / 10);
 }
 
 }  // namespace

@@ -310,8 +310,17 @@ Status Smoother::ImportState(SmootherState state) { return impl_->ImportState(st
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 CorrectionWork Smoother::correction_work() const { return impl_->correction_work(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
+  // GlobalPose per keyframe, with the anchor's estimate looked up once (the map publication
+  // asks every keyframe of every trajectory twice per second of data): the same bits.
+  const bool anchored =
+      impl_->options().formulation == Formulation::kRelative && impl_->IsAnchored(t);
+  const Pose2 anchor = anchored ? impl_->Estimate(AnchorKey{t}) : Pose2();
   std::vector<Pose2> poses;
-  for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) poses.push_back(impl_->GlobalPose({t, i}));
+  poses.reserve(static_cast<size_t>(impl_->NumPoses(t)));
+  for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) {
+    const Pose2 local = impl_->Estimate(PoseKey{t, i});
+    poses.push_back(anchored ? Compose(anchor, local) : local);
+  }
   return poses;
 }
 

@@ -258,5 +258,32 @@ TEST(SmootherStateTest, AStateOfAnotherGraphIsRefusedAndChangesNothing) {
   EXPECT_TRUE(shorter.Update().status.ok());  // still the fresh smoother it was
 }
 
+// GlobalTrajectory (the map publication's read of every keyframe, the anchor looked up once per
+// trajectory) gives every keyframe's GlobalPose to the bit, for trajectories anchored and not,
+// with the correction carried across updates.
+TEST(SmootherStateTest, GlobalTrajectoryIsEveryKeyframesGlobalPose) {
+  SmootherOptions options = ServerModeOptions();
+  options.correction_tolerance = 1e-4;
+  options.correction_cg_iterations = 50;
+  const std::vector<Edit> edits = Mission();
+  Smoother smoother(options);
+  int anchored = 0, unanchored = 0;
+  for (size_t e = 0; e < edits.size(); ++e) {
+    Apply(edits[e], &smoother);
+    ASSERT_TRUE(Solve(edits[e], &smoother).ok());
+    if (e % 7 != 0) continue;
+    for (TrajectoryId t : smoother.Trajectories()) {
+      const std::vector<Pose2> poses = smoother.GlobalTrajectory(t);
+      ASSERT_EQ(static_cast<int>(poses.size()), smoother.NumPoses(t));
+      for (int32_t i = 0; i < smoother.NumPoses(t); ++i) {
+        EXPECT_EQ(Bits(poses[static_cast<size_t>(i)]), Bits(smoother.GlobalPose({t, i})));
+      }
+      (smoother.IsAnchored(t) ? anchored : unanchored) += 1;
+    }
+  }
+  EXPECT_GT(anchored, 0);
+  EXPECT_GT(unanchored, 0);
+}
+
 }  // namespace
 }  // namespace anchormap
