@@ -227,8 +227,9 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   BuildSubmaps(graph);
-  CatchUpJoined(graph);
-  LookBackOnGroupChange(graph);
+  const TrajectoryFrames frames = FramesOf(graph);  // neither step below changes a frame
+  CatchUpJoined(frames, graph);
+  LookBackOnGroupChange(frames, graph);
   std::deque<PoseKey> still_waiting;
   std::vector<BudgetRequest> ready;
   for (const PoseKey key : waiting_) {
@@ -312,19 +313,23 @@ int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool ne
   return searches;
 }
 
-void ScanEncounters::CatchUpJoined(const GraphView& graph) {
-  const std::deque<TrajectoryRecord>& records = graph.table.records();
-  // The same frames as at the last call: every pair in one frame is in near_joined_ already.
-  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> frames;
-  frames.reserve(records.size());
-  for (const TrajectoryRecord& record : records) {
+ScanEncounters::TrajectoryFrames ScanEncounters::FramesOf(const GraphView& graph) {
+  TrajectoryFrames frames;
+  frames.reserve(graph.table.records().size());
+  for (const TrajectoryRecord& record : graph.table.records()) {
     frames.emplace_back(record.solver_id, FrameOf(graph.smoother, record.solver_id));
   }
+  return frames;
+}
+
+void ScanEncounters::CatchUpJoined(const TrajectoryFrames& frames, const GraphView& graph) {
+  const std::deque<TrajectoryRecord>& records = graph.table.records();
+  // The same frames as at the last call: every pair in one frame is in near_joined_ already.
   if (frames == caught_up_frames_) {
     near_joined_known_ = true;
     return;
   }
-  caught_up_frames_ = std::move(frames);
+  caught_up_frames_ = frames;
   std::set<std::pair<int64_t, int32_t>> waiting;
   for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
   for (size_t i = 0; i < records.size(); ++i) {
@@ -550,18 +555,13 @@ const ScanEncounters::Kept* ScanEncounters::BestHypothesis(
   return best;
 }
 
-void ScanEncounters::LookBackOnGroupChange(const GraphView& graph) {
+void ScanEncounters::LookBackOnGroupChange(const TrajectoryFrames& frames, const GraphView& graph) {
   const Smoother& smoother = graph.smoother;
   const std::deque<TrajectoryRecord>& records = graph.table.records();
-  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> frames;
-  frames.reserve(records.size());
-  for (const TrajectoryRecord& record : records) {
-    frames.emplace_back(record.solver_id, FrameOf(smoother, record.solver_id));
-  }
   if (frames == looked_back_frames_) return;
   const std::map<TrajectoryId, TrajectoryFrame> before(looked_back_frames_.begin(),
                                                        looked_back_frames_.end());
-  looked_back_frames_ = std::move(frames);
+  looked_back_frames_ = frames;
   if (before.empty() || options_.look_back_max_per_change < 1) return;
   // Two trajectories newly in one frame (a trajectory new since counts as alone before).
   const auto newly_joined = [&](TrajectoryId x, TrajectoryId y) {

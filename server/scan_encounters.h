@@ -408,10 +408,13 @@ class ScanEncounters : public EncounterSource {
   bool Saturated(PoseKey key, PoseKey center, const GraphView& graph);
   // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
   double DrivenTo(PoseKey key, const GraphView& graph);
+  // Each record's frame (its solver id, FrameOf), in the table's order.
+  using TrajectoryFrames = std::vector<std::pair<TrajectoryId, TrajectoryFrame>>;
+  static TrajectoryFrames FramesOf(const GraphView& graph);
   // Near-searches the keyframes examined before a pair came into one frame (once per pair).
-  void CatchUpJoined(const GraphView& graph);
+  void CatchUpJoined(const TrajectoryFrames& frames, const GraphView& graph);
   // When groups changed since the last call: the look back (look_back_max_per_change).
-  void LookBackOnGroupChange(const GraphView& graph);
+  void LookBackOnGroupChange(const TrajectoryFrames& frames, const GraphView& graph);
   // A past keyframe of a trajectory outside a group to search in a submap of the group.
   struct LookBack {
     double distance = 0.0;  // from where the hypothesis puts the keyframe to the submap's centre
@@ -575,15 +578,15 @@ class ScanEncounters : public EncounterSource {
   // that held none: the pairs in one frame then are taken as caught up.
   std::set<Pair> near_joined_;
   bool near_joined_known_ = true;
-  // Each record's frame (its solver id, FrameOf) at the last CatchUpJoined, in the table's
-  // order. While it is the same, no pair is newly in one frame and the walk over all pairs
-  // (quadratic in the robots, at every keyframe: 15 % of the replay at 100 robots) is
-  // skipped. A cache, not in snapshots: empty after ImportState.
-  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> caught_up_frames_;
+  // The frames (FramesOf) at the last CatchUpJoined. While they are the same, no pair is
+  // newly in one frame and the walk over all pairs (quadratic in the robots, at every
+  // keyframe: 15 % of the replay at 100 robots) is skipped. A cache, not in snapshots: empty
+  // after ImportState.
+  TrajectoryFrames caught_up_frames_;
   // The same at the last LookBackOnGroupChange, which looks back only for the trajectories
   // newly in one frame since (a cache, not in snapshots: after ImportState the first call
   // only records them).
-  std::vector<std::pair<TrajectoryId, TrajectoryFrame>> looked_back_frames_;
+  TrajectoryFrames looked_back_frames_;
   int64_t look_backs_ = 0;  // searches submitted (a count, not in snapshots)
   CandidateStats stats_;
 };
