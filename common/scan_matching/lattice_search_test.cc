@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <limits>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -166,6 +167,18 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearchOnExactGrids) {
   }
 }
 
+// Expects `found` where exhaustive search found `all`: both or neither, the same score and pose.
+void ExpectSameLatticePose(const std::optional<LatticePose>& found,
+                           const std::optional<LatticePose>& all) {
+  EXPECT_EQ(all.has_value(), found.has_value());
+  if (all && found) {
+    EXPECT_EQ(found->score, all->score);
+    EXPECT_EQ(found->k, all->k);
+    EXPECT_EQ(found->dx, all->dx);
+    EXPECT_EQ(found->dy, all->dy);
+  }
+}
+
 // Expects branch and bound to find exhaustive search's lattice pose (score, then the first in
 // (k, dy, dx) order among equals), scoring no more leaves (as many with one level: no bounds);
 // with `bytes`, also with its inner nodes on them.
@@ -176,13 +189,7 @@ void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query
   LatticeSearchStats bnb_stats;
   const auto all = ExhaustiveSearch(pyramid, query, window, min_score, &all_stats);
   const auto bnb = BranchAndBound(pyramid, query, window, min_score, &bnb_stats);
-  EXPECT_EQ(all.has_value(), bnb.has_value());
-  if (all && bnb) {
-    EXPECT_EQ(bnb->score, all->score);
-    EXPECT_EQ(bnb->k, all->k);
-    EXPECT_EQ(bnb->dx, all->dx);
-    EXPECT_EQ(bnb->dy, all->dy);
-  }
+  ExpectSameLatticePose(bnb, all);
   EXPECT_LE(bnb_stats.leaves, all_stats.leaves);
   if (pyramid.num_levels() > 1) {
     EXPECT_LT(bnb_stats.leaves, all_stats.leaves);
@@ -190,24 +197,12 @@ void ExpectSamePose(const MaxGridPyramid& pyramid, const DiscretisedQuery& query
   // The window's centre scored first (a local match's guess): the same pose, ties included.
   const auto centre_first =
       BranchAndBound(pyramid, query, window, min_score, nullptr, nullptr, /*centre_first=*/true);
-  EXPECT_EQ(all.has_value(), centre_first.has_value());
-  if (all && centre_first) {
-    EXPECT_EQ(centre_first->score, all->score);
-    EXPECT_EQ(centre_first->k, all->k);
-    EXPECT_EQ(centre_first->dx, all->dx);
-    EXPECT_EQ(centre_first->dy, all->dy);
-  }
+  ExpectSameLatticePose(centre_first, all);
   if (bytes == nullptr) return;
   // The inner nodes on the bytes (the global search's way): the same pose.
   LatticeSearchStats byte_stats;
   const auto on_bytes = BranchAndBound(pyramid, query, window, min_score, &byte_stats, bytes);
-  EXPECT_EQ(all.has_value(), on_bytes.has_value());
-  if (all && on_bytes) {
-    EXPECT_EQ(on_bytes->score, all->score);
-    EXPECT_EQ(on_bytes->k, all->k);
-    EXPECT_EQ(on_bytes->dx, all->dx);
-    EXPECT_EQ(on_bytes->dy, all->dy);
-  }
+  ExpectSameLatticePose(on_bytes, all);
   EXPECT_LE(byte_stats.leaves, all_stats.leaves);
 }
 

@@ -328,34 +328,47 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
   }
 }
 
+// A chain of 120 poses (seed 3, no loop closures) in trajectory 0, updated pose by pose.
+void AddUpdatedChain(Smoother* smoother, PoseGraph* chain) {
+  testing::RandomGraphOptions g;
+  g.poses = 120;
+  g.loop_closures = 0;
+  g.seed = 3;
+  *chain = testing::RandomGraph(g);
+  for (int i = 0; i < g.poses; ++i) {
+    ASSERT_TRUE(AddPoseAndItsEdges(smoother, *chain, TrajectoryId(0), i));
+    ASSERT_TRUE(smoother->Update().status.ok());
+  }
+}
+
+// 16 loop closures between the start and the end of `chain`, on different poses, not yet
+// updated: eliminated through the chain's ordering, each row between them would take every
+// later closure's column.
+void AddClosuresAcrossTheChain(Smoother* smoother, const PoseGraph& chain) {
+  const TrajectoryId t(0);
+  const int poses = static_cast<int>(chain.vertices.size());
+  for (int i = 0; i < 16; ++i) {
+    const int j = poses - 1 - 2 * i;
+    ASSERT_TRUE(smoother
+                    ->AddBetween({t, i}, {t, j},
+                                 Between(chain.vertices[i].pose, chain.vertices[j].pose),
+                                 kCovariance)
+                    .ok());
+  }
+}
+
 TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   // The server's configuration (the CG correction, reordering at 1.5x fill). A chain of
   // poses, then one update closing 16 loops between the start and the end of the chain
   // on different poses: eliminated through the chain's ordering, each row between them
   // would take every later closure's column (R several times its size); the update is a
   // batch step (a fresh ordering) instead, and the estimate is the optimum all the same.
-  SmootherOptions options = ServerModeWithCorrectionOptions();
-  Smoother smoother(options);
-  testing::RandomGraphOptions g;
-  g.poses = 120;
-  g.loop_closures = 0;
-  g.seed = 3;
-  const PoseGraph graph = testing::RandomGraph(g);
-  const TrajectoryId t(0);
-  for (int i = 0; i < g.poses; ++i) {
-    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
-    ASSERT_TRUE(smoother.Update().status.ok());
-  }
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  PoseGraph chain;
+  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
   const int64_t batch_steps = smoother.stats().batch_steps_on_fill;
   const int64_t nonzeros = smoother.stats().nnz_r;
-  for (int i = 0; i < 16; ++i) {
-    const int j = g.poses - 1 - 2 * i;
-    ASSERT_TRUE(smoother
-                    .AddBetween({t, i}, {t, j},
-                                Between(graph.vertices[i].pose, graph.vertices[j].pose),
-                                kCovariance)
-                    .ok());
-  }
+  ASSERT_NO_FATAL_FAILURE(AddClosuresAcrossTheChain(&smoother, chain));
   const UpdateResult result = smoother.Update();
   ASSERT_TRUE(result.status.ok());
   EXPECT_TRUE(result.batch_step);
@@ -374,26 +387,13 @@ TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStat
   // smoother is exactly as before the update (estimates, chi2, R's size), and the next
   // update makes the batch step and ends at the optimum.
   Smoother smoother(ServerModeWithCorrectionOptions());
-  testing::RandomGraphOptions g;
-  g.poses = 120;
-  g.loop_closures = 0;
-  g.seed = 3;
-  const PoseGraph graph = testing::RandomGraph(g);
+  PoseGraph chain;
+  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+  ASSERT_NO_FATAL_FAILURE(AddClosuresAcrossTheChain(&smoother, chain));
   const TrajectoryId t(0);
-  for (int i = 0; i < g.poses; ++i) {
-    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
-    ASSERT_TRUE(smoother.Update().status.ok());
-  }
-  for (int i = 0; i < 16; ++i) {
-    const int j = g.poses - 1 - 2 * i;
-    ASSERT_TRUE(smoother
-                    .AddBetween({t, i}, {t, j},
-                                Between(graph.vertices[i].pose, graph.vertices[j].pose),
-                                kCovariance)
-                    .ok());
-  }
+  const int poses = static_cast<int>(chain.vertices.size());
   std::vector<Pose2> before;
-  for (int i = 0; i < g.poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
+  for (int i = 0; i < poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
   const double chi2_before = smoother.Chi2();
   const SmootherStats stats_before = smoother.stats();
   FailNextOrderingsForTesting(1);
@@ -403,7 +403,7 @@ TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStat
   EXPECT_EQ(smoother.stats().failed_batch_steps, stats_before.failed_batch_steps + 1);
   EXPECT_EQ(smoother.stats().nnz_r, stats_before.nnz_r);
   EXPECT_EQ(smoother.Chi2(), chi2_before);
-  for (int i = 0; i < g.poses; ++i) {
+  for (int i = 0; i < poses; ++i) {
     const Pose2 value = smoother.Value(PoseKey{t, i});
     EXPECT_EQ(value.x(), before[i].x()) << i;
     EXPECT_EQ(value.y(), before[i].y()) << i;
