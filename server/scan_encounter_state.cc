@@ -5,25 +5,6 @@
 #include "server/scan_encounters.h"
 
 namespace anchormap {
-namespace {
-
-ScanEncounterCandidateState ToState(const EncounterCandidate& c) {
-  return {c.a, c.b, c.T_a_b, c.covariance, c.utime, c.a_is_query};
-}
-
-EncounterCandidate FromState(const ScanEncounterCandidateState& c) {
-  EncounterCandidate out;
-  out.a = c.a;
-  out.b = c.b;
-  out.T_a_b = c.T_a_b;
-  out.covariance = c.covariance;
-  out.utime = c.utime;
-  out.a_is_query = c.a_is_query;
-  return out;
-}
-
-}  // namespace
-
 ScanEncounterState ScanEncounters::ExportState() const {
   ScanEncounterState s;
   for (const PendingMatch& m : matches_) {

@@ -18,108 +18,11 @@
 
 namespace anchormap {
 
-Status ScanEncounterOptions::Validate() const {
-  if (submap_half_width < 0) return Status::Error("scan.submap_half_width must be >= 0");
-  if (submap_stride < 1) return Status::Error("scan.submap_stride must be >= 1");
-  if (!(max_range_m > 0)) return Status::Error("scan.max_range_m must be > 0");
-  if (global_every < 1) return Status::Error("scan.global_every must be >= 1");
-  if (max_global_per_keyframe < 0)
-    return Status::Error("scan.max_global_per_keyframe must be >= 0");
-  if (max_global_groups_per_keyframe < 0)
-    return Status::Error("scan.max_global_groups_per_keyframe must be >= 0");
-  if (Status s = global_budget.Validate(); !s.ok()) return s;
-  // A keyframe's searches must fit in the bucket, or it would wait for ever.
-  if (global_budget.burst < static_cast<double>(max_global_per_keyframe) *
-                                static_cast<double>(max_global_groups_per_keyframe)) {
-    return Status::Error(
-        "scan.global_burst must be >= scan.max_global_per_keyframe x "
-        "scan.max_global_groups_per_keyframe");
-  }
-  if (!(pcm_chi2 > 0) || !(gate_chi2 > 0)) return Status::Error("scan chi2 gates must be > 0");
-  if (!(alternative_ratio >= 1)) return Status::Error("scan.alternative_ratio must be >= 1");
-  if (!(first_join_hold_s >= 0)) return Status::Error("scan.first_join_hold_s must be >= 0");
-  if (pcm_min_separation < 1) return Status::Error("scan.pcm_min_separation must be >= 1");
-  if (!(pcm_min_separation_m >= 0)) return Status::Error("scan.pcm_min_separation_m must be >= 0");
-  if (!(pcm_max_shared_view > 0 && pcm_max_shared_view <= 1))
-    return Status::Error("scan.pcm_max_shared_view must be in (0, 1]");
-  if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
-  if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
-    return Status::Error("scan first-join sigmas must be > 0");
-  if (!(join_check_radius_m >= 0) || !(join_check_range_m > 0))
-    return Status::Error("scan.join_check_radius_m must be >= 0 and join_check_range_m > 0");
-  if (!(join_max_conflict >= 0 && join_max_conflict <= 1))
-    return Status::Error("scan.join_max_conflict must be in [0, 1]");
-  if (!(verify_max_conflict >= 0 && verify_max_conflict <= 1) || verify_min_points < 0 ||
-      !(verify_drift_per_m >= 0) || !(verify_drift_rad_per_m >= 0) ||
-      !(verify_drift_rad_per_rad >= 0)) {
-    return Status::Error(
-        "scan map-verified candidates: verify_max_conflict in [0, 1], verify_min_points >= 0, "
-        "verify_drift_per_m, verify_drift_rad_per_m and verify_drift_rad_per_rad >= 0");
-  }
-  if (guide_min_points < 0 || !(guide_max_distance_m >= 0))
-    return Status::Error("scan guided search: guide_min_points and guide_max_distance_m >= 0");
-  if (look_back_max_per_change < 0)
-    return Status::Error("scan.look_back_max_per_change must be >= 0");
-  if (!(free_space.resolution_m > 0) || !(free_space.wall_margin_m >= 0))
-    return Status::Error("scan free-space grid: resolution_m > 0, wall_margin_m >= 0");
-  if (!(near_distance_m >= 0)) return Status::Error("scan.near_distance_m must be >= 0");
-  if (!(near_min_overlap >= 0 && near_min_overlap <= 1))
-    return Status::Error("scan.near_min_overlap must be in [0, 1]");
-  if (near_cooldown_keyframes < 0)
-    return Status::Error("scan.near_cooldown_keyframes must be >= 0");
-  if (!(near_index_refresh_s >= 0) || !(near_index_slack_m >= 0))
-    return Status::Error("scan.near_index_refresh_s and near_index_slack_m must be >= 0");
-  if (!(min_window_m > 0) || !(max_window_m >= min_window_m))
-    return Status::Error("scan window: 0 < min_window_m <= max_window_m");
-  if (!(min_window_rad > 0) || !(max_window_rad >= min_window_rad))
-    return Status::Error("scan window: 0 < min_window_rad <= max_window_rad");
-  if (!(near_wide_max_window_m >= 0) || near_pair_min_gap < 1 ||
-      near_pair_max_gap < near_pair_min_gap || near_max_held < 1) {
-    return Status::Error(
-        "scan wide near search: near_wide_max_window_m >= 0, 1 <= near_pair_min_gap <= "
-        "near_pair_max_gap, near_max_held >= 1");
-  }
-  if (near_catch_up_every < 0) return Status::Error("scan.near_catch_up_every must be >= 0");
-  if (!(near_saturation_m >= 0)) return Status::Error("scan.near_saturation_m must be >= 0");
-  if (near_max_partners < 0) return Status::Error("scan.near_max_partners must be >= 0");
-  if (!(near_drift_per_m >= 0) || !(near_drift_rad_per_m >= 0))
-    return Status::Error("scan near drift: near_drift_per_m and near_drift_rad_per_m >= 0");
-  if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
-    return Status::Error("scan covariance floors must be >= 0");
-  if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
-  if (Status s = reference.Validate(); !s.ok()) return s;
-  if (Status s = submap_cache.Validate(); !s.ok()) return s;
-  if (Status s = near_budget.Validate("scan.near_budget"); !s.ok()) return s;
-  return match.Validate();
-}
-
 namespace {
 
 // Points of two scans of one trajectory within about this of each other see one wall: the
 // estimate between keyframes some metres apart is good to a few centimetres.
 constexpr double kSharedViewDistanceM = 0.1;
-
-double LargestSigma(const Eigen::Matrix2d& covariance) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(covariance);
-  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
-}
-
-// The same candidate seen from the other side: a measured in the frame of b.
-EncounterCandidate Reversed(const EncounterCandidate& c) {
-  EncounterCandidate r = c;
-  std::swap(r.a, r.b);
-  r.a_is_query = !c.a_is_query;
-  Eigen::Matrix3d J;
-  r.T_a_b = Between(c.T_a_b, Pose2(), &J, nullptr);
-  r.covariance = J * c.covariance * J.transpose();
-  return r;
-}
-
-// `c` oriented like `like`: its a in the frame of like's a.
-EncounterCandidate OrientedLike(const EncounterCandidate& c, const EncounterCandidate& like,
-                                const Smoother& smoother) {
-  return InOneFrame(smoother, c.a.trajectory, like.a.trajectory) ? c : Reversed(c);
-}
 
 // True when a and b will be in one frame once `constraints` are in the graph: each one's group
 // (its root once anchored, else itself) and those the constraints between trajectories tie to it.
@@ -990,29 +893,9 @@ bool ScanEncounters::Consistent(const EncounterCandidate& c1, const EncounterCan
 double ScanEncounters::PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
                                     const GraphView& graph, double drift_per_m,
                                     double drift_rad_per_m, double drift_rad_per_rad) {
-  // Within each trajectory, the estimate from c1's keyframe to c2's, with covariance.
-  std::optional<PredictedRelativePose> in_a = PredictRelativePose(graph.covariances, c1.a, c2.a);
-  std::optional<PredictedRelativePose> in_b = PredictRelativePose(graph.covariances, c1.b, c2.b);
-  if (!in_a || !in_b) return std::numeric_limits<double>::infinity();
-  if (drift_per_m > 0 || drift_rad_per_m > 0 || drift_rad_per_rad > 0) {
-    const auto widen = [&](PoseKey k1, PoseKey k2, PredictedRelativePose* predicted) {
-      // In two trajectories of one group (across pairs) no drive: the joint estimate between
-      // them rests on their ties, not on odometry alone (ACES split in three sequentially: 125 m
-      // through the ties widened the heading by 0.125 rad and let R1[235]-R3[50], 0.2 rad off,
-      // confirm the true R2[65]-R3[125]; chi-square 2.8 with the drive, 79 without).
-      const double driven = k1.trajectory == k2.trajectory
-                                ? std::abs(DrivenTo(k2, graph) - DrivenTo(k1, graph))
-                                : 0.0;
-      const double m = drift_per_m * driven;
-      // The estimate's turn between them (wrapped: a full spin counts as none, the safe side).
-      const double rad =
-          drift_rad_per_m * driven + drift_rad_per_rad * std::abs(predicted->T_a_b.theta());
-      predicted->covariance += Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
-    };
-    widen(c1.a, c2.a, &*in_a);
-    widen(c1.b, c2.b, &*in_b);
-  }
-  return PairwiseInconsistency2(*in_a, c1.T_a_b, c1.covariance, *in_b, c2.T_a_b, c2.covariance);
+  const auto driven_to = [this, &graph](PoseKey k) { return DrivenTo(k, graph); };
+  return anchormap::PairwiseChi2(c1, c2, graph, driven_to, drift_per_m, drift_rad_per_m,
+                                 drift_rad_per_rad);
 }
 
 JoinConflict ScanEncounters::OwnMapsConflict(const EncounterCandidate& candidate,
@@ -1256,18 +1139,7 @@ bool ScanEncounters::PassesGate(const EncounterCandidate& candidate, const Graph
 
 bool ScanEncounters::WithinGate(const EncounterCandidate& candidate, const GraphView& graph,
                                 bool widened, const Eigen::Matrix3d& drift) const {
-  const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, candidate.a, candidate.b);
-  if (!predicted) return false;
-  Eigen::Matrix3d covariance = predicted->covariance;
-  if (widened) {
-    // In every direction by the largest sigma: the estimate of two drifted-apart
-    // trajectories is off along axes its covariance does not know.
-    const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
-    covariance.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
-  }
-  return Mahalanobis2(predicted->T_a_b, candidate.T_a_b,
-                      covariance + drift + candidate.covariance) <= options_.gate_chi2;
+  return anchormap::WithinGate(candidate, graph, widened, drift, options_);
 }
 
 bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
@@ -1279,15 +1151,7 @@ bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const Grap
 }
 
 void ScanEncounters::Emit(const EncounterCandidate& candidate, EncounterSourceOutput* out) {
-  EncounterConstraint constraint;
-  constraint.a = candidate.a;
-  constraint.b = candidate.b;
-  constraint.measured_T_a_b = candidate.T_a_b;
-  constraint.covariance = candidate.covariance;
-  constraint.utime = candidate.utime;
-  constraint.source = name();
-  constraint.kind = ConstraintKind::kScanEncounter;
-  out->constraints.push_back(constraint);
+  anchormap::Emit(candidate, name(), out);
 }
 
 }  // namespace anchormap
