@@ -7,16 +7,9 @@
 namespace anchormap {
 ScanEncounterState ScanEncounters::ExportState() const {
   ScanEncounterState s;
-  for (const PendingMatch& m : matches_) {
-    // Waits for a match in flight.
-    s.matches.push_back(
-        {m.due_utime, m.key, m.center, m.global, m.wide, m.key_utime, m.result.get()});
-  }
+  matches_.ExportState(&s);
   s.waiting.assign(waiting_.begin(), waiting_.end());
-  for (const auto& [trajectory, submaps] : submaps_) {
-    auto& out = s.submaps[trajectory];
-    for (const Submap& submap : submaps) out.emplace_back(submap.center, submap.drawing);
-  }
+  submaps_.ExportState(&s);
   s.global_cursor = global_cursor_;
   s.global_queue = global_queue_.ExportState();
   for (const auto& [pair, kept] : kept_) {
@@ -44,24 +37,9 @@ ScanEncounterState ScanEncounters::ExportState() const {
 }
 
 void ScanEncounters::ImportState(const ScanEncounterState& s) {
-  matches_.clear();
-  for (const ScanEncounterState::Match& m : s.matches) {
-    PendingMatch pending;
-    pending.due_utime = m.due_utime;
-    pending.key = m.key;
-    pending.center = m.center;
-    pending.global = m.global;
-    pending.wide = m.wide;
-    pending.key_utime = m.key_utime;
-    pending.result = ReadyMatch(m.result);
-    matches_.push_back(std::move(pending));
-  }
+  matches_.ImportState(s);
   waiting_.assign(s.waiting.begin(), s.waiting.end());
-  submaps_.clear();
-  for (const auto& [trajectory, submaps] : s.submaps) {
-    std::vector<Submap>& out = submaps_[trajectory];
-    for (const auto& [center, drawing] : submaps) out.push_back({center, drawing});
-  }
+  submaps_.ImportState(s);
   global_cursor_ = s.global_cursor;
   global_queue_.ImportState(s.global_queue);
   kept_.clear();

@@ -96,7 +96,7 @@ std::string ScanEncounters::StatsLine() const {
          std::to_string(global_queue_.dropped()) + " near_saturated " +
          std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) +
          " near_over_budget " + std::to_string(near_budget_.skipped()) + " look_backs " +
-         std::to_string(look_backs_) + " " + references_.stats().Summary(name());
+         std::to_string(look_backs_) + " " + submaps_.references().stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -129,7 +129,7 @@ void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
 void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out) {
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
-  BuildSubmaps(graph);
+  submaps_.Build(graph);
   const TrajectoryFrames frames = FramesOf(graph);  // neither step below changes a frame
   CatchUpJoined(frames, graph);
   LookBackOnGroupChange(frames, graph);
@@ -156,30 +156,6 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   for (const PoseKey key : skipped) ExamineKeyframe(key, graph, /*near=*/false);
   ServeGlobalQueue(graph);  // tokens accrued since the last keyframe
   UseMatches(/*all=*/false, graph, out);
-}
-
-void ScanEncounters::BuildSubmaps(const GraphView& graph) {
-  for (const TrajectoryRecord& record : graph.table.records()) {
-    std::vector<Submap>& submaps = submaps_[record.solver_id];
-    for (;;) {
-      const int center =
-          options_.submap_half_width + static_cast<int>(submaps.size()) * options_.submap_stride;
-      const PoseKey last{record.solver_id, center + options_.submap_half_width};
-      if (last.index >= record.num_keyframes() || !graph.covariances->HasCovariance(last)) break;
-      Submap submap;
-      submap.center = PoseKey{record.solver_id, center};
-      submap.drawing = DrawKeyframeSubmap(record, graph.smoother, submap.center,
-                                          options_.submap_half_width, options_.max_range_m);
-      submaps.push_back(std::move(submap));
-    }
-  }
-}
-
-std::shared_ptr<const ScanReference> ScanEncounters::Reference(const Submap& submap,
-                                                               const GraphView& graph) {
-  const TrajectoryRecord* record = graph.table.FindBySolverId(submap.center.trajectory);
-  if (record == nullptr) return nullptr;
-  return references_.Get(*record, submap.drawing, options_.submap_half_width);
 }
 
 int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too) {
@@ -267,7 +243,7 @@ void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
     int cost = 0;
     for (const GlobalTarget& target : targets) {
       cost += static_cast<int>(
-          std::min(submaps_[target.other].size(), static_cast<size_t>(most_per_target)));
+          std::min(submaps_.Of(target.other).size(), static_cast<size_t>(most_per_target)));
     }
     // Waits for tokens (every keyframe's cost is at most the burst, so it will be served
     // unless a newer keyframe of its trajectory replaces it).
@@ -286,8 +262,8 @@ std::vector<ScanEncounters::GlobalTarget> ScanEncounters::GlobalTargets(
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
     if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
-    const auto submaps = submaps_.find(id);
-    if (submaps == submaps_.end() || submaps->second.empty()) continue;
+    const std::vector<Submap>* submaps = submaps_.Find(id);
+    if (submaps == nullptr || submaps->empty()) continue;
     const std::pair<int64_t, TrajectoryId> rank{global_queue_.PairSearches(key.trajectory, id), id};
     const auto [it, inserted] = best.emplace(FrameOf(graph.smoother, id), rank);
     if (!inserted && rank < it->second) it->second = rank;
@@ -331,16 +307,16 @@ std::vector<ScanEncounters::GlobalTarget> ScanEncounters::GlobalTargets(
 }
 
 size_t ScanEncounters::GlobalTries(TrajectoryId other) const {
-  const auto submaps = submaps_.find(other);
-  if (submaps == submaps_.end()) return 0;
-  return std::min(submaps->second.size(),
+  const std::vector<Submap>* submaps = submaps_.Find(other);
+  if (submaps == nullptr) return 0;
+  return std::min(submaps->size(),
                   static_cast<size_t>(std::max(0, options_.max_global_per_keyframe)));
 }
 
 int ScanEncounters::SearchGlobally(PoseKey key, const GlobalTarget& target,
                                    const GraphView& graph) {
   const TrajectoryId other = target.other;
-  std::vector<Submap>& submaps = submaps_[other];
+  std::vector<Submap>& submaps = submaps_.Of(other);
   if (submaps.empty()) return 0;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   if (record == nullptr || key.index >= record->num_keyframes()) return 0;
@@ -378,11 +354,12 @@ int ScanEncounters::SearchGlobally(PoseKey key, const GlobalTarget& target,
       }
     }
     Submap& submap = submaps[index];
-    std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
+    std::shared_ptr<const ScanReference> reference = submaps_.Reference(submap, graph);
     if (!reference) continue;
-    Submit(key, submap.center, /*global=*/true, /*wide=*/false,
-           record->utimes[static_cast<size_t>(key.index)],
-           [reference, query, search] { return GlobalSearch(*reference, *query, search); });
+    matches_.Submit(key, submap.center, /*global=*/true, /*wide=*/false,
+                    record->utimes[static_cast<size_t>(key.index)], [reference, query, search] {
+                      return GlobalSearch(*reference, *query, search);
+                    });
     ++submitted;
   }
   global_queue_.CountPair(key.trajectory, other, submitted);
@@ -422,8 +399,8 @@ std::vector<size_t> ScanEncounters::GuidedSubmaps(PoseKey key, TrajectoryId othe
                                                   const GraphView& graph, size_t most,
                                                   double* nearest_m) const {
   const Smoother& smoother = graph.smoother;
-  const auto submaps = submaps_.find(other);
-  if (options_.guide_max_distance_m <= 0 || submaps == submaps_.end() || most == 0) return {};
+  const std::vector<Submap>* submaps = submaps_.Find(other);
+  if (options_.guide_max_distance_m <= 0 || submaps == nullptr || most == 0) return {};
   // Only against a group of two trajectories or more: a single one is searched in turn, as
   // it always was (its first join needs two places of it, which the turn reaches).
   const std::deque<TrajectoryRecord>& records = graph.table.records();
@@ -437,7 +414,7 @@ std::vector<size_t> ScanEncounters::GuidedSubmaps(PoseKey key, TrajectoryId othe
   const Kept* best = BestHypothesis(
       key.trajectory, [&](TrajectoryId id) { return InOneFrame(smoother, id, other); });
   if (best == nullptr) return {};
-  return GuidedByHypothesis(key, best->candidate, submaps->second, graph, most, nearest_m);
+  return GuidedByHypothesis(key, best->candidate, *submaps, graph, most, nearest_m);
 }
 
 const ScanEncounters::Kept* ScanEncounters::BestHypothesis(
@@ -508,9 +485,9 @@ void ScanEncounters::LookBackOnGroupChange(const TrajectoryFrames& frames, const
   search.match.min_score = options_.global_min_score;
   search.match.covariance_min_overlap = options_.global_min_overlap;  // UseMatches' bar
   for (const LookBack& look : looks) {
-    const Submap& submap = submaps_[look.other][look.submap];
+    const Submap& submap = submaps_.Of(look.other)[look.submap];
     const TrajectoryRecord* record = graph.table.FindBySolverId(look.key.trajectory);
-    std::shared_ptr<const ScanReference> reference = Reference(submap, graph);
+    std::shared_ptr<const ScanReference> reference = submaps_.Reference(submap, graph);
     if (record == nullptr || !reference) continue;
     auto query = std::make_shared<const PointCloud>(
         KeyframePoints(*record, look.key.index, options_.max_range_m));
@@ -520,7 +497,7 @@ void ScanEncounters::LookBackOnGroupChange(const TrajectoryFrames& frames, const
     // from the global searches' tokens (bounded by the cap per group change instead): charged,
     // the searches after it moved by the cap's tokens and FR079 split in three
     // simultaneously joined R3 48 s later, with more searches.
-    Submit(
+    matches_.Submit(
         look.key, submap.center, /*global=*/true, /*wide=*/false,
         record->utimes[static_cast<size_t>(look.key.index)],
         [reference, query, search] { return GlobalSearch(*reference, *query, search); },
@@ -532,7 +509,7 @@ void ScanEncounters::LookBackOnGroupChange(const TrajectoryFrames& frames, const
 std::vector<ScanEncounters::LookBack> ScanEncounters::LookBacks(
     const EncounterCandidate& hypothesis, TrajectoryId other, const GraphView& graph) {
   const Smoother& smoother = graph.smoother;
-  const std::vector<Submap>& submaps = submaps_[other];
+  const std::vector<Submap>& submaps = submaps_.Of(other);
   // Oriented with a in the group, b the querying trajectory's keyframe.
   const EncounterCandidate c =
       InOneFrame(smoother, hypothesis.a.trajectory, other) ? hypothesis : Reversed(hypothesis);
@@ -585,7 +562,7 @@ std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, 
   if (options_.near_distance_m <= 0) return std::nullopt;
   const auto quiet = near_quiet_until_.find({key.trajectory, other});
   if (quiet != near_quiet_until_.end() && key.index < quiet->second) return std::nullopt;
-  std::vector<Submap>& submaps = submaps_[other];
+  std::vector<Submap>& submaps = submaps_.Of(other);
   if (submaps.empty()) return std::nullopt;
   const Pose2 global_key = graph.smoother.GlobalPose(key);
   // The keyframe in the other's frame (one rigid motion: the distances are the same).
@@ -621,7 +598,7 @@ bool ScanEncounters::Saturated(PoseKey key, PoseKey center, const GraphView& gra
 }
 
 bool ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
-  const Submap& nearest = submaps_[target.other][target.submap];
+  const Submap& nearest = submaps_.Of(target.other)[target.submap];
   const std::optional<PredictedRelativePose> predicted =
       PredictRelativePose(graph.covariances, nearest.center, key);
   if (!predicted) return false;
@@ -633,17 +610,17 @@ bool ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const Gra
       predicted->covariance + NearWindowDrift(nearest.center, key, graph), options_, &wide);
   window.match.covariance_min_score = options_.near_min_score;  // UseMatches' bars
   window.match.covariance_min_overlap = options_.near_min_overlap;
-  std::shared_ptr<const ScanReference> reference = Reference(nearest, graph);
+  std::shared_ptr<const ScanReference> reference = submaps_.Reference(nearest, graph);
   if (!reference) return false;
   const Pose2 guess = predicted->T_a_b;
-  Submit(
+  matches_.Submit(
       key, nearest.center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
       [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
   return true;
 }
 
 const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphView& graph) {
-  const std::vector<Submap>& submaps = submaps_[other];
+  const std::vector<Submap>& submaps = submaps_.Of(other);
   SubmapIndex& entry = near_index_[other];
   const SmootherStats& stats = graph.smoother.stats();
   const int64_t merges = stats.batch_steps_on_merge + stats.partial_merges;
@@ -663,29 +640,12 @@ const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphVi
   return entry.index;
 }
 
-void ScanEncounters::Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
-                            MatchPool::Job job, std::optional<int64_t> due_from_utime) {
-  PendingMatch pending;
-  pending.key = key;
-  pending.center = center;
-  pending.global = global;
-  pending.wide = wide;
-  pending.key_utime = key_utime;
-  pending.due_utime = pool_ ? schedule_.DueUtime(due_from_utime.value_or(key_utime))
-                            : std::numeric_limits<int64_t>::min();
-  pending.result =
-      RunMatch(pool_, MatchTag{key, center, global ? MatchKind::kScanGlobal : MatchKind::kScanNear},
-               std::move(job));
-  matches_.push_back(std::move(pending));
-}
-
 void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out) {
   // A keyframe that joined two trajectories by one global match is not searched further
   // against that trajectory (its other submaps' matches are dropped unused).
   std::optional<std::pair<PoseKey, TrajectoryId>> joined;
-  while (!matches_.empty() && (all || matches_.front().due_utime <= now_utime_)) {
-    const PendingMatch pending = std::move(matches_.front());
-    matches_.pop_front();
+  while (std::optional<EncounterMatches::Pending> due = matches_.NextDue(all, now_utime_)) {
+    const EncounterMatches::Pending pending = std::move(*due);
     const std::optional<MatchResult> match = pending.result.get();
     if (pending.global && joined && joined->first == pending.key &&
         joined->second == pending.center.trajectory) {

@@ -76,7 +76,9 @@
 #include "server/candidate_stats.h"
 #include "server/driven_path.h"
 #include "server/encounter_candidate.h"
+#include "server/encounter_matches.h"
 #include "server/encounter_source.h"
+#include "server/encounter_submaps.h"
 #include "server/global_search_queue.h"
 #include "server/join_free_space.h"
 #include "server/keyframe_submap.h"
@@ -109,10 +111,9 @@ class ScanEncounters : public EncounterSource {
   explicit ScanEncounters(const ScanEncounterOptions& options = {}, MatchPool* pool = nullptr,
                           MatchSchedule schedule = {})
       : options_(options),
-        pool_(pool),
-        schedule_(schedule),
+        submaps_(options),
+        matches_(pool, schedule),
         global_queue_(options.global_budget),
-        references_(options.submap_cache, options.max_range_m, options.reference),
         near_budget_(options.near_budget) {}
 
   std::string name() const override { return "scan"; }
@@ -156,17 +157,10 @@ class ScanEncounters : public EncounterSource {
   Eigen::Matrix3d NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
-  // Drawn when its keyframes are solved, built when a search uses it (references_: the
-  // same bits as building it at once; most submaps of a large team are never searched).
-  struct Submap {
-    PoseKey center;
-    SubmapDrawing drawing;
-  };
-  std::shared_ptr<const ScanReference> Reference(const Submap& submap, const GraphView& graph);
+  using Submap = EncounterSubmaps::Submap;
   using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
 
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
-  void BuildSubmaps(const GraphView& graph);
   // `near_too`: its near searches too (else only its global search, which has its own
   // budget). Returns the near searches submitted.
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
@@ -217,10 +211,6 @@ class ScanEncounters : public EncounterSource {
   // submap of `other` (a trajectory of the hypothesis's group), each with its nearest submap.
   std::vector<LookBack> LookBacks(const EncounterCandidate& hypothesis, TrajectoryId other,
                                   const GraphView& graph);
-  // Hands a match of keyframe `key` against the submap around `center` to the pool (used
-  // lag_s after key_utime, or after `due_from_utime` when given: a past keyframe's).
-  void Submit(PoseKey key, PoseKey center, bool global, bool wide, int64_t key_utime,
-              MatchPool::Job job, std::optional<int64_t> due_from_utime = std::nullopt);
 
   // Uses the matches due now (all when `all`), in the order they were made.
   void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
@@ -274,25 +264,12 @@ class ScanEncounters : public EncounterSource {
   // seeing other walls (pcm_max_shared_view).
   bool ApartAndSeeingOtherWalls(PoseKey k1, PoseKey k2, const GraphView& graph) const;
 
-  struct PendingMatch {
-    int64_t due_utime = 0;
-    PoseKey key;     // the query keyframe
-    PoseKey center;  // the other trajectory's submap
-    bool global = false;
-    bool wide = false;  // a near search's window wider than max_window_m
-    int64_t key_utime = 0;
-    std::shared_future<std::optional<MatchResult>> result;
-  };
-
   ScanEncounterOptions options_;
-  MatchPool* pool_;
-  MatchSchedule schedule_;
-  std::deque<PendingMatch> matches_;
+  EncounterSubmaps submaps_;
+  EncounterMatches matches_;
   std::deque<PoseKey> waiting_;
-  std::map<TrajectoryId, std::vector<Submap>> submaps_;
   std::map<Pair, size_t> global_cursor_;
   GlobalSearchQueue global_queue_;
-  SubmapCache references_;
   struct Kept {
     EncounterCandidate candidate;
     int support = 0;  // later candidates consistent with it (at other places)
