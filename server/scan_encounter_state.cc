@@ -12,13 +12,7 @@ ScanEncounterState ScanEncounters::ExportState() const {
   submaps_.ExportState(&s);
   s.global_cursor = global_cursor_;
   s.global_queue = global_queue_.ExportState();
-  for (const auto& [pair, kept] : kept_) {
-    auto& out = s.kept[pair];
-    for (const Kept& k : kept)
-      out.push_back({ToState(k.candidate), k.support, k.localised, k.verified, k.conflict,
-                     k.conflict_points});
-  }
-  s.qualified_since = qualified_since_;
+  qualifier_.ExportState(&s);
   s.now_utime = now_utime_;
   s.near_quiet_until = near_quiet_until_;
   for (const auto& [trajectory, entry] : near_index_) {
@@ -42,15 +36,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   submaps_.ImportState(s);
   global_cursor_ = s.global_cursor;
   global_queue_.ImportState(s.global_queue);
-  kept_.clear();
-  for (const auto& [pair, kept] : s.kept) {
-    std::deque<Kept>& out = kept_[pair];
-    for (const ScanEncounterState::Kept& k : kept) {
-      out.push_back({FromState(k.candidate), k.support, k.localised, k.verified, k.conflict,
-                     k.conflict_points});
-    }
-  }
-  qualified_since_ = s.qualified_since;
+  qualifier_.ImportState(s);
   now_utime_ = s.now_utime;
   near_quiet_until_ = s.near_quiet_until;
   near_index_.clear();

@@ -81,6 +81,7 @@
 #include "server/encounter_submaps.h"
 #include "server/global_search_queue.h"
 #include "server/join_free_space.h"
+#include "server/join_qualifier.h"
 #include "server/keyframe_submap.h"
 #include "server/match_budget.h"
 #include "server/match_pool.h"
@@ -111,6 +112,7 @@ class ScanEncounters : public EncounterSource {
   explicit ScanEncounters(const ScanEncounterOptions& options = {}, MatchPool* pool = nullptr,
                           MatchSchedule schedule = {})
       : options_(options),
+        qualifier_(options, &stats_, &driven_, name()),
         submaps_(options),
         matches_(pool, schedule),
         global_queue_(options.global_budget),
@@ -125,7 +127,7 @@ class ScanEncounters : public EncounterSource {
   }
   std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
-  int64_t joins_contradicted() const { return joins_contradicted_; }
+  int64_t joins_contradicted() const { return qualifier_.joins_contradicted(); }
   int64_t near_saturated() const { return near_saturated_; }
   int64_t near_capped() const { return near_capped_; }
   int64_t look_backs() const { return look_backs_; }
@@ -216,8 +218,6 @@ class ScanEncounters : public EncounterSource {
   void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
   // Kept candidates of pairs that came into one frame: gated against the estimate.
   void ResolveKept(const GraphView& graph, EncounterSourceOutput* out);
-  // Joins the qualified pairs whose hold ran out (all of them when `flush`).
-  void JoinQualified(bool flush, const GraphView& graph, EncounterSourceOutput* out);
   // True when the chi-square gate against the estimate accepts `candidate` (a refusal is
   // counted); `widened`: the prediction's covariance widened in every direction by its largest
   // translational sigma (the wide near search's matches).
@@ -232,81 +232,16 @@ class ScanEncounters : public EncounterSource {
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
   void Emit(const EncounterCandidate& candidate, EncounterSourceOutput* out);
-  // Pairwise consistency of two candidates of one pair (both oriented a in pair.first).
-  // `drift`: each trajectory's estimate between the two widened by the verify_drift_* terms
-  // (two map-verified candidates).
-  bool Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                  const GraphView& graph, bool drift);
-  // The pairwise test's statistic (+inf when a relative pose is not known).
-  double PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                      const GraphView& graph, double drift_per_m, double drift_rad_per_m,
-                      double drift_rad_per_rad = 0.0);
-  // The free-space conflict of the candidate's own maps (both sides within
-  // join_check_radius_m of its places, drawn by its match).
-  JoinConflict OwnMapsConflict(const EncounterCandidate& candidate, const GraphView& graph) const;
-  // Its own maps agree (verify_max_conflict, verify_min_points).
-  bool MapsAgree(const JoinConflict& conflict) const;
-  // Two candidates, oriented alike, at two places (Apart) of both sides, seeing other walls at
-  // one side at least (pcm_max_shared_view): only then can one confirm the other. A side is
-  // one trajectory for two candidates of one pair, or a group of two for two pairs between
-  // the same groups (IndependentAcross).
-  bool TwoPlaces(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                 const GraphView& graph) const;
-  // Two keyframes of one group at two places: in one trajectory pcm_min_separation keyframes
-  // and pcm_min_separation_m apart in its frame; in two, pcm_min_separation_m apart in the
-  // group's frame (the places TwoPlaces and IndependentAcross compare).
-  bool Apart(PoseKey x, PoseKey y, const GraphView& graph) const;
-  // The share of their views the two keyframes have in common (KeyframeOverlap, in the
-  // trajectory's or the group's frame); 1 when a record is missing (no evidence of other walls).
-  double SharedView(PoseKey x, PoseKey y, const GraphView& graph) const;
-
-  // Keyframes of one trajectory whose submaps share no keyframe, apart by TwoPlaces' bars and
-  // seeing other walls (pcm_max_shared_view).
-  bool ApartAndSeeingOtherWalls(PoseKey k1, PoseKey k2, const GraphView& graph) const;
 
   ScanEncounterOptions options_;
+  CandidateStats stats_;
+  DrivenPath driven_;  // a function of the table, so not in snapshots
+  JoinQualifier qualifier_;
   EncounterSubmaps submaps_;
   EncounterMatches matches_;
   std::deque<PoseKey> waiting_;
   std::map<Pair, size_t> global_cursor_;
   GlobalSearchQueue global_queue_;
-  struct Kept {
-    EncounterCandidate candidate;
-    int support = 0;  // later candidates consistent with it (at other places)
-    // Localised in every direction, and not in a hypothesis the free-space test refused:
-    // only these take part in a first join.
-    bool localised = true;
-    // Its own maps agree (MapsAgree, at the estimate it was offered at).
-    bool verified = false;
-    // The free-space conflict of its own maps measured then (pooled fraction, the fewer
-    // side's points; 1 and 0 when not measured: not localised): what guides a global search.
-    double conflict = 1.0;
-    int64_t conflict_points = 0;
-  };
-  bool Localised(const EncounterCandidate& candidate) const;
-  // Two kept candidates are independent evidence: at two places (TwoPlaces), or, both
-  // map-verified, two query scans that are two looks (pcm_max_shared_look) matched against
-  // stretches of the other trajectory that share no keyframe and see other walls (one place
-  // of the querying robot, seen twice by the other).
-  bool Independent(const Kept& k1, const Kept& k2, const GraphView& graph) const;
-  // Across two pairs of trajectories between the same two groups (R1-R3 and R2-R3, R1 and R2
-  // joined): both candidates map-verified and localised, at two places of both groups
-  // (TwoPlaces).
-  bool IndependentAcross(const Kept& k1, const Kept& k2, const GraphView& graph) const;
-  // Pairwise consistency across two pairs (as above), each side's relative pose predicted by
-  // its group's joint estimate, widened by the verify_drift_* terms for the turn between the two
-  // keyframes and, within one trajectory, for its drive (a side in two trajectories rests on
-  // their ties, not on odometry alone: no drive term).
-  bool ConsistentAcross(const EncounterCandidate& c1, const EncounterCandidate& c2,
-                        const GraphView& graph);
-  // The pairs of trajectories, other than `pair`, between the same two groups as `pair` (their
-  // kept candidates may confirm `pair`'s across the pairs).
-  std::vector<Pair> PairsBetweenTheSameGroups(const Pair& pair, const GraphView& graph) const;
-  // The kept candidate of `query`'s trajectory against a trajectory `accept` takes (of a group
-  // the query's is not in) whose own maps agree best (guide_min_points, verify_max_conflict;
-  // measured once, when offered), if any.
-  const Kept* BestHypothesis(TrajectoryId query,
-                             const std::function<bool(TrajectoryId)>& accept) const;
   // The submaps of `other` (at most `most`, nearest first) a global search of `key` is guided
   // to (guide_*), if any; `nearest_m`: the first one's centre from where the hypothesis puts key.
   std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, const GraphView& graph,
@@ -316,17 +251,10 @@ class ScanEncounters : public EncounterSource {
   std::vector<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
                                          const std::vector<Submap>& submaps, const GraphView& graph,
                                          size_t most, double* nearest_m = nullptr) const;
-  // The free-space test of the hypothesis of `set` (its first member the best supported).
-  bool MapsContradict(const std::vector<Kept*>& set, const GraphView& graph) const;
-  // First-join hypotheses refused by the free-space test. Not in snapshots (CandidateStats'
-  // format is fixed there): a restored source counts from 0.
-  int64_t joins_contradicted_ = 0;
   // Near searches skipped as saturated, and beyond near_max_partners (counts only, like
   // joins_contradicted_: not in snapshots).
   int64_t near_saturated_ = 0;
   int64_t near_capped_ = 0;
-  std::map<Pair, std::deque<Kept>> kept_;
-  std::map<Pair, int64_t> qualified_since_;  // data time a consistent set first qualified
   int64_t now_utime_ = 0;
   std::map<Pair, int32_t> near_quiet_until_;                  // keyed (examined trajectory, other)
   std::map<Pair, std::deque<EncounterCandidate>> near_held_;  // keyed as near_quiet_until_
@@ -340,7 +268,6 @@ class ScanEncounters : public EncounterSource {
   // The index of `other`'s submaps, refreshed when due.
   const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
   std::map<TrajectoryId, SubmapIndex> near_index_;
-  DrivenPath driven_;  // a function of the table, so not in snapshots
   MatchBudget near_budget_;
   // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
   // that held none: the pairs in one frame then are taken as caught up.
@@ -356,7 +283,6 @@ class ScanEncounters : public EncounterSource {
   // only records them).
   TrajectoryFrames looked_back_frames_;
   int64_t look_backs_ = 0;  // searches submitted (a count, not in snapshots)
-  CandidateStats stats_;
 };
 
 }  // namespace anchormap
