@@ -20,44 +20,6 @@ namespace anchormap {
 
 namespace {}  // namespace
 
-Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options) {
-  const double m = options.near_drift_per_m * drive_m;
-  const double rad = options.near_drift_rad_per_m * drive_m;
-  return Eigen::Vector3d(m * m, m * m, rad * rad).asDiagonal();
-}
-
-double NearWindowSaturatingDrive(const ScanEncounterOptions& options) {
-  // NearSearchWindow's linear window stops growing at 3 sigma = max(max_window_m,
-  // near_wide_max_window_m), its angular one at 3 sigma = max_window_rad; the drift alone
-  // reaches both (whatever the prediction's covariance adds) at these drives (a rate of 0: that
-  // window does not grow with the drive). The margin keeps rounding from bringing 3 sigma back
-  // under the bounds.
-  const double linear = std::max(options.max_window_m, options.near_wide_max_window_m);
-  const double linear_drive =
-      options.near_drift_per_m > 0 ? linear / (3.0 * options.near_drift_per_m) : 0.0;
-  const double angular_drive = options.near_drift_rad_per_m > 0
-                                   ? options.max_window_rad / (3.0 * options.near_drift_rad_per_m)
-                                   : 0.0;
-  return std::max(linear_drive, angular_drive) * (1.0 + 1e-6);
-}
-
-LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
-                                   const ScanEncounterOptions& options, bool* wide) {
-  LocalMatchOptions window;
-  window.match = options.match;
-  const double three_sigma = 3.0 * LargestSigma(covariance.topLeftCorner<2, 2>());
-  *wide =
-      three_sigma > options.max_window_m && options.near_wide_max_window_m > options.max_window_m;
-  window.linear_window_m =
-      *wide ? std::min(three_sigma, options.near_wide_max_window_m)
-            : std::clamp(three_sigma, options.min_window_m, options.max_window_m);
-  // The acceptance bar prunes the branch and bound of a wide window.
-  if (*wide) window.match.min_score = std::max(window.match.min_score, options.near_min_score);
-  window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, covariance(2, 2))),
-                                         options.min_window_rad, options.max_window_rad);
-  return window;
-}
-
 void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
                                      EncounterSourceOutput* /*out*/) {
   waiting_.push_back(key);
@@ -69,15 +31,15 @@ std::string ScanEncounters::StatsLine() const {
          std::to_string(qualifier_.joins_contradicted()) + " global_searches " +
          std::to_string(global_queue_.searches()) + " global_replaced " +
          std::to_string(global_queue_.dropped()) + " near_saturated " +
-         std::to_string(near_saturated_) + " near_capped " + std::to_string(near_capped_) +
-         " near_over_budget " + std::to_string(near_budget_.skipped()) + " look_backs " +
+         std::to_string(near_.saturated()) + " near_capped " + std::to_string(near_.capped()) +
+         " near_over_budget " + std::to_string(near_.budget().skipped()) + " look_backs " +
          std::to_string(look_backs_) + " " + submaps_.references().stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
   now_utime_ = std::max(now_utime_, now_utime);
   global_queue_.Advance(now_utime_);
-  near_budget_.Advance(now_utime_);
+  near_.Advance(now_utime_);
   Examine(graph, out);
   qualifier_.JoinQualified(/*flush=*/false, now_utime_, graph, out);
 }
@@ -87,16 +49,16 @@ void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
   if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   qualifier_.JoinQualified(/*flush=*/true, now_utime_, graph, out);
   qualifier_.GiveUpUnlessJoinedBy(out->constraints, graph);
-  for (auto& [pair, held] : near_held_) GiveUpHeld(&held, &stats_);
-  near_held_.clear();
+  near_.GiveUpHeld();
 }
 
 void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out) {
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   submaps_.Build(graph);
-  const TrajectoryFrames frames = FramesOf(graph);  // neither step below changes a frame
-  CatchUpJoined(frames, graph);
+  const TrajectoryFrames frames =
+      FramesOf(graph.table, graph.smoother);  // neither step below changes a frame
+  near_.CatchUpJoined(frames, waiting_, graph);
   LookBackOnGroupChange(frames, graph);
   std::deque<PoseKey> still_waiting;
   std::vector<BudgetRequest> ready;
@@ -105,14 +67,14 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
       still_waiting.push_back(key);
       continue;
     }
-    ready.push_back({key, near_budget_.bounded() ? DrivenTo(key, graph) : 0.0});
+    ready.push_back({key, near_.budget().bounded() ? DrivenTo(key, graph) : 0.0});
   }
   waiting_ = std::move(still_waiting);
   const double most_per_keyframe = options_.near_max_partners > 0
                                        ? options_.near_max_partners
                                        : static_cast<double>(graph.table.records().size());
   const std::vector<PoseKey> skipped =
-      near_budget_.Serve(ready, most_per_keyframe, [&](PoseKey key) {
+      near_.budget().Serve(ready, most_per_keyframe, [&](PoseKey key) {
         const int searches = ExamineKeyframe(key, graph, /*near=*/true);
         UseMatches(/*all=*/false, graph, out);
         return static_cast<double>(searches);
@@ -128,77 +90,23 @@ int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool ne
   if (record == nullptr || key.index >= record->num_keyframes()) return 0;
   if (record->scans[static_cast<size_t>(key.index)].ranges.empty()) return 0;
   bool unjoined = false;
-  std::vector<NearTarget> near;
   for (const TrajectoryRecord& other : graph.table.records()) {
-    if (other.solver_id == key.trajectory) continue;
-    if (InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
-      if (!near_too) continue;
-      if (std::optional<NearTarget> target = FindNear(key, other.solver_id, graph)) {
-        near.push_back(*target);
-      }
-    } else {
+    if (other.solver_id != key.trajectory &&
+        !InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
       unjoined = true;
     }
   }
-  std::sort(near.begin(), near.end(), [](const NearTarget& x, const NearTarget& y) {
-    return x.distance != y.distance ? x.distance < y.distance : x.other < y.other;
-  });
-  if (options_.near_max_partners > 0 &&
-      near.size() > static_cast<size_t>(options_.near_max_partners)) {
-    near_capped_ += static_cast<int64_t>(near.size()) - options_.near_max_partners;
-    near.resize(static_cast<size_t>(options_.near_max_partners));
-  }
   int searches = 0;
-  for (const NearTarget& target : near) searches += SearchNear(key, target, graph) ? 1 : 0;
+  if (near_too) {
+    for (const NearSearch::NearTarget& target : near_.Targets(key, graph)) {
+      searches += near_.SearchNear(key, target, graph) ? 1 : 0;
+    }
+  }
   if (unjoined && key.index % options_.global_every == 0) {
     global_queue_.Enqueue(key);
     ServeGlobalQueue(graph);
   }
   return searches;
-}
-
-ScanEncounters::TrajectoryFrames ScanEncounters::FramesOf(const GraphView& graph) {
-  TrajectoryFrames frames;
-  frames.reserve(graph.table.records().size());
-  for (const TrajectoryRecord& record : graph.table.records()) {
-    frames.emplace_back(record.solver_id, FrameOf(graph.smoother, record.solver_id));
-  }
-  return frames;
-}
-
-void ScanEncounters::CatchUpJoined(const TrajectoryFrames& frames, const GraphView& graph) {
-  const std::deque<TrajectoryRecord>& records = graph.table.records();
-  // The same frames as at the last call: every pair in one frame is in near_joined_ already.
-  if (frames == caught_up_frames_) {
-    near_joined_known_ = true;
-    return;
-  }
-  caught_up_frames_ = frames;
-  std::set<std::pair<int64_t, int32_t>> waiting;
-  for (const PoseKey key : waiting_) waiting.emplace(key.trajectory.value(), key.index);
-  for (size_t i = 0; i < records.size(); ++i) {
-    for (size_t j = i + 1; j < records.size(); ++j) {
-      const TrajectoryId a = std::min(records[i].solver_id, records[j].solver_id);
-      const TrajectoryId b = std::max(records[i].solver_id, records[j].solver_id);
-      if (!InOneFrame(graph.smoother, a, b) || !near_joined_.insert({a, b}).second) continue;
-      if (!near_joined_known_ || options_.near_catch_up_every < 1) continue;
-      for (const auto& [from, to] : {std::make_pair(a, b), std::make_pair(b, a)}) {
-        const TrajectoryRecord* record = graph.table.FindBySolverId(from);
-        for (int32_t k = 0; k < record->num_keyframes(); k += options_.near_catch_up_every) {
-          const PoseKey key{from, k};
-          // Waiting keyframes are examined next, as joined ones.
-          if (waiting.count({from.value(), k}) > 0 || !graph.covariances->HasCovariance(key) ||
-              record->scans[static_cast<size_t>(k)].ranges.empty()) {
-            continue;
-          }
-          if (std::optional<NearTarget> target = FindNear(key, to, graph)) {
-            SearchNear(key, *target, graph);
-          }
-        }
-      }
-    }
-  }
-  near_joined_known_ = true;
 }
 
 void ScanEncounters::ServeGlobalQueue(const GraphView& graph) {
@@ -504,89 +412,6 @@ std::vector<ScanEncounters::LookBack> ScanEncounters::LookBacks(
   return looks;
 }
 
-std::optional<ScanEncounters::NearTarget> ScanEncounters::FindNear(PoseKey key, TrajectoryId other,
-                                                                   const GraphView& graph) {
-  if (options_.near_distance_m <= 0) return std::nullopt;
-  const auto quiet = near_quiet_until_.find({key.trajectory, other});
-  if (quiet != near_quiet_until_.end() && key.index < quiet->second) return std::nullopt;
-  std::vector<Submap>& submaps = submaps_.Of(other);
-  if (submaps.empty()) return std::nullopt;
-  const Pose2 global_key = graph.smoother.GlobalPose(key);
-  // The keyframe in the other's frame (one rigid motion: the distances are the same).
-  const PoseKey reference_center = submaps.front().center;
-  const Pose2 T_frame_key = Compose(Compose(graph.smoother.FramePose(reference_center),
-                                            graph.smoother.GlobalPose(reference_center).Inverse()),
-                                    global_key);
-  const std::vector<int32_t> near =
-      NearIndex(other, graph)
-          .Near(T_frame_key.translation(), options_.near_distance_m + options_.near_index_slack_m);
-  std::optional<NearTarget> nearest;
-  for (const int32_t item : near) {
-    const Submap& submap = submaps[static_cast<size_t>(item)];
-    if (submap.drawing.num_points == 0) continue;
-    const double distance =
-        (graph.smoother.GlobalPose(submap.center).translation() - global_key.translation()).norm();
-    if (!nearest || distance < nearest->distance) {
-      nearest = NearTarget{other, static_cast<size_t>(item), distance};
-    }
-  }
-  if (!nearest || nearest->distance > options_.near_distance_m) return std::nullopt;
-  if (Saturated(key, submaps[nearest->submap].center, graph)) {
-    ++near_saturated_;
-    return std::nullopt;
-  }
-  return nearest;
-}
-
-bool ScanEncounters::Saturated(PoseKey key, PoseKey center, const GraphView& graph) {
-  if (graph.ties == nullptr || options_.near_saturation_m <= 0) return false;
-  const auto driven_to = [this, &graph](PoseKey k) { return DrivenTo(k, graph); };
-  return graph.ties->DriveBelow(key, center, driven_to, options_.near_saturation_m);
-}
-
-bool ScanEncounters::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
-  const Submap& nearest = submaps_.Of(target.other)[target.submap];
-  const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, nearest.center, key);
-  if (!predicted) return false;
-  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
-  auto query =
-      std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
-  bool wide = false;
-  LocalMatchOptions window = NearSearchWindow(
-      predicted->covariance + NearWindowDrift(nearest.center, key, graph), options_, &wide);
-  window.match.covariance_min_score = options_.near_min_score;  // UseMatches' bars
-  window.match.covariance_min_overlap = options_.near_min_overlap;
-  std::shared_ptr<const ScanReference> reference = submaps_.Reference(nearest, graph);
-  if (!reference) return false;
-  const Pose2 guess = predicted->T_a_b;
-  matches_.Submit(
-      key, nearest.center, /*global=*/false, wide, record->utimes[static_cast<size_t>(key.index)],
-      [reference, query, guess, window] { return MatchLocal(*reference, *query, guess, window); });
-  return true;
-}
-
-const PositionIndex& ScanEncounters::NearIndex(TrajectoryId other, const GraphView& graph) {
-  const std::vector<Submap>& submaps = submaps_.Of(other);
-  SubmapIndex& entry = near_index_[other];
-  const SmootherStats& stats = graph.smoother.stats();
-  const int64_t merges = stats.batch_steps_on_merge + stats.partial_merges;
-  const bool due =
-      entry.merges != merges || 1e-6 * static_cast<double>(now_utime_ - entry.refreshed_utime) >=
-                                    options_.near_index_refresh_s;
-  if (due) {
-    entry.index.Clear();
-    entry.indexed = 0;
-    entry.refreshed_utime = now_utime_;
-    entry.merges = merges;
-  }
-  for (; entry.indexed < submaps.size(); ++entry.indexed) {
-    entry.index.Add(static_cast<int32_t>(entry.indexed),
-                    graph.smoother.FramePose(submaps[entry.indexed].center).translation());
-  }
-  return entry.index;
-}
-
 void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out) {
   // A keyframe that joined two trajectories by one global match is not searched further
   // against that trajectory (its other submaps' matches are dropped unused).
@@ -624,7 +449,7 @@ void ScanEncounters::UseMatches(bool all, const GraphView& graph, EncounterSourc
         joined = std::make_pair(pending.key, pending.center.trajectory);
       }
     } else {
-      OfferNearMatch(candidate, pending.wide, graph, out);
+      near_.OfferNearMatch(candidate, pending.wide, graph, out);
     }
   }
 }
@@ -633,70 +458,17 @@ double ScanEncounters::DrivenTo(PoseKey key, const GraphView& graph) {
   return driven_.To(graph.table, key);
 }
 
+void ScanEncounters::OfferNearMatch(const EncounterCandidate& candidate, bool wide,
+                                    const GraphView& graph, EncounterSourceOutput* out) {
+  near_.OfferNearMatch(candidate, wide, graph, out);
+}
+
 Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView& graph) {
-  if (graph.ties == nullptr ||
-      (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {
-    return Eigen::Matrix3d::Zero();
-  }
-  const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
-  if (!drive) return Eigen::Matrix3d::Zero();
-  return NearDriftOf(*drive, options_);
+  return near_.NearDrift(a, b, graph);
 }
 
 Eigen::Matrix3d ScanEncounters::NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph) {
-  if (graph.ties == nullptr ||
-      (options_.near_drift_per_m <= 0 && options_.near_drift_rad_per_m <= 0)) {
-    return Eigen::Matrix3d::Zero();
-  }
-  const double saturated = NearWindowSaturatingDrive(options_);
-  const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to, saturated);
-  if (drive) return NearDriftOf(*drive, options_);
-  if (!graph.ties->Connected(a.trajectory, b.trajectory)) return Eigen::Matrix3d::Zero();
-  // Farther than `saturated`: any such drive gives the widest window, this one too.
-  return NearDriftOf(saturated, options_);
-}
-
-void ScanEncounters::OfferNearMatch(const EncounterCandidate& candidate, bool wide,
-                                    const GraphView& graph, EncounterSourceOutput* out) {
-  const Pair key{candidate.b.trajectory, candidate.a.trajectory};
-  // Within the estimate's own covariance: enters at once.
-  if (!wide && WithinGate(candidate, graph, /*widened=*/false, Eigen::Matrix3d::Zero())) {
-    ++stats_.accepted;
-    Emit(candidate, out);
-    near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
-    return;
-  }
-  // Only now: the drive through the ties is a search of the tie graph.
-  const Eigen::Matrix3d drift = NearDrift(candidate.a, candidate.b, graph);
-  if ((!wide && drift.isZero()) || !WithinGate(candidate, graph, wide, drift)) {
-    ++stats_.gate_rejected;
-    return;
-  }
-  HoldForPair(candidate, graph, out);
-}
-
-void ScanEncounters::HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
-                                 EncounterSourceOutput* out) {
-  const Pair key{candidate.b.trajectory, candidate.a.trajectory};
-  std::deque<EncounterCandidate>& held = near_held_[key];
-  const auto driven_to = [this, &graph](PoseKey k) { return DrivenTo(k, graph); };
-  GiveUpHeldOlderThan(
-      candidate.b.index, options_.near_pair_max_gap,
-      [](const EncounterCandidate& c) { return c.b.index; }, &held, &stats_);
-  for (auto it = held.rbegin(); it != held.rend(); ++it) {
-    if (candidate.b.index - it->b.index < options_.near_pair_min_gap) continue;
-    if (PairwiseChi2(*it, candidate, graph, driven_to, 0.0, 0.0, 0.0) > options_.pcm_chi2) continue;
-    const EncounterCandidate first = *it;
-    DropHeld(&held, &stats_);
-    stats_.accepted += 2;
-    Emit(first, out);
-    Emit(candidate, out);
-    near_quiet_until_[key] = candidate.b.index + 1 + options_.near_cooldown_keyframes;
-    return;
-  }
-  Hold(candidate, options_.near_max_held, &held, &stats_);
+  return near_.NearWindowDrift(a, b, graph);
 }
 
 void ScanEncounters::OfferCandidate(const EncounterCandidate& offered, const GraphView& graph,

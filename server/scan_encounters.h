@@ -85,6 +85,7 @@
 #include "server/keyframe_submap.h"
 #include "server/match_budget.h"
 #include "server/match_pool.h"
+#include "server/near_search.h"
 #include "server/position_index.h"
 #include "server/relative_pose.h"
 #include "server/scan_encounter_options.h"
@@ -92,19 +93,6 @@
 #include "server/submap_cache.h"
 
 namespace anchormap {
-
-// The near drift term for a drive of `drive_m` through the ties (near_drift_per_m,
-// near_drift_rad_per_m).
-Eigen::Matrix3d NearDriftOf(double drive_m, const ScanEncounterOptions& options);
-// A drive from which NearSearchWindow's window, with that drift term added, is its widest in
-// translation and rotation whatever the prediction's covariance: a longer drive gives the
-// same window.
-double NearWindowSaturatingDrive(const ScanEncounterOptions& options);
-// The near search's window around a prediction of covariance `covariance` (the drift term
-// included): 3 sigma within [min_window, max_window], or, when 3 sigma exceeds max_window_m,
-// up to near_wide_max_window_m (`wide`, with the acceptance bar as the lattice's bar).
-LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
-                                   const ScanEncounterOptions& options, bool* wide);
 
 class ScanEncounters : public EncounterSource {
  public:
@@ -115,8 +103,8 @@ class ScanEncounters : public EncounterSource {
         qualifier_(options, &stats_, &driven_, name()),
         submaps_(options),
         matches_(pool, schedule),
-        global_queue_(options.global_budget),
-        near_budget_(options.near_budget) {}
+        near_(options, &stats_, &driven_, &submaps_, &matches_, name()),
+        global_queue_(options.global_budget) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -128,11 +116,11 @@ class ScanEncounters : public EncounterSource {
   std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
   int64_t joins_contradicted() const { return qualifier_.joins_contradicted(); }
-  int64_t near_saturated() const { return near_saturated_; }
-  int64_t near_capped() const { return near_capped_; }
+  int64_t near_saturated() const { return near_.saturated(); }
+  int64_t near_capped() const { return near_.capped(); }
   int64_t look_backs() const { return look_backs_; }
   const GlobalSearchQueue& global_searches() const { return global_queue_; }
-  const MatchBudget& near_budget() const { return near_budget_; }
+  const MatchBudget& near_budget() const { return near_.budget(); }
 
   // The source's state for snapshots (scan_encounter_state.h, defined in
   // scan_encounter_state.cc): ExportState waits for the matches in flight; ImportState is for
@@ -181,25 +169,8 @@ class ScanEncounters : public EncounterSource {
   size_t GlobalTries(TrajectoryId other) const;
   // Submits the searches of `key` against the target's submaps; returns how many.
   int SearchGlobally(PoseKey key, const GlobalTarget& target, const GraphView& graph);
-  // The submap of `other` a near search of `key` would match against: the nearest one within
-  // near_distance_m, unless the pair is quiet or saturated there (nullopt then).
-  struct NearTarget {
-    TrajectoryId other;
-    size_t submap = 0;  // in submaps_[other]
-    double distance = 0.0;
-  };
-  std::optional<NearTarget> FindNear(PoseKey key, TrajectoryId other, const GraphView& graph);
-  // True when a match was submitted.
-  bool SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph);
-  // True when the pair is tied within near_saturation_m of drive between `key` and `center`.
-  bool Saturated(PoseKey key, PoseKey center, const GraphView& graph);
   // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
   double DrivenTo(PoseKey key, const GraphView& graph);
-  // Each record's frame (its solver id, FrameOf), in the table's order.
-  using TrajectoryFrames = std::vector<std::pair<TrajectoryId, TrajectoryFrame>>;
-  static TrajectoryFrames FramesOf(const GraphView& graph);
-  // Near-searches the keyframes examined before a pair came into one frame (once per pair).
-  void CatchUpJoined(const TrajectoryFrames& frames, const GraphView& graph);
   // When groups changed since the last call: the look back (look_back_max_per_change).
   void LookBackOnGroupChange(const TrajectoryFrames& frames, const GraphView& graph);
   // A past keyframe of a trajectory outside a group to search in a submap of the group.
@@ -225,9 +196,6 @@ class ScanEncounters : public EncounterSource {
   // The same test, not counted; `drift` is added to the prediction's covariance.
   bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
                   const Eigen::Matrix3d& drift) const;
-  // Holds a match accepted only by a widened gate until a second one agrees; both enter then.
-  void HoldForPair(const EncounterCandidate& candidate, const GraphView& graph,
-                   EncounterSourceOutput* out);
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
@@ -239,6 +207,7 @@ class ScanEncounters : public EncounterSource {
   JoinQualifier qualifier_;
   EncounterSubmaps submaps_;
   EncounterMatches matches_;
+  NearSearch near_;
   std::deque<PoseKey> waiting_;
   std::map<Pair, size_t> global_cursor_;
   GlobalSearchQueue global_queue_;
@@ -251,33 +220,7 @@ class ScanEncounters : public EncounterSource {
   std::vector<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
                                          const std::vector<Submap>& submaps, const GraphView& graph,
                                          size_t most, double* nearest_m = nullptr) const;
-  // Near searches skipped as saturated, and beyond near_max_partners (counts only, like
-  // joins_contradicted_: not in snapshots).
-  int64_t near_saturated_ = 0;
-  int64_t near_capped_ = 0;
   int64_t now_utime_ = 0;
-  std::map<Pair, int32_t> near_quiet_until_;                  // keyed (examined trajectory, other)
-  std::map<Pair, std::deque<EncounterCandidate>> near_held_;  // keyed as near_quiet_until_
-  // Per trajectory, its submaps' centres in its frame (items: positions in submaps_).
-  struct SubmapIndex {
-    PositionIndex index{4.0};
-    size_t indexed = 0;  // submaps in the index
-    int64_t refreshed_utime = 0;
-    int64_t merges = -1;  // the smoother's merge count at the refresh
-  };
-  // The index of `other`'s submaps, refreshed when due.
-  const PositionIndex& NearIndex(TrajectoryId other, const GraphView& graph);
-  std::map<TrajectoryId, SubmapIndex> near_index_;
-  MatchBudget near_budget_;
-  // The pairs of trajectories seen in one frame (caught up); false after restoring a snapshot
-  // that held none: the pairs in one frame then are taken as caught up.
-  std::set<Pair> near_joined_;
-  bool near_joined_known_ = true;
-  // The frames (FramesOf) at the last CatchUpJoined. While they are the same, no pair is
-  // newly in one frame and the walk over all pairs (quadratic in the robots, at every
-  // keyframe: 15 % of the replay at 100 robots) is skipped. A cache, not in snapshots: empty
-  // after ImportState.
-  TrajectoryFrames caught_up_frames_;
   // The same at the last LookBackOnGroupChange, which looks back only for the trajectories
   // newly in one frame since (a cache, not in snapshots: after ImportState the first call
   // only records them).
