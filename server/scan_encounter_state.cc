@@ -10,8 +10,7 @@ ScanEncounterState ScanEncounters::ExportState() const {
   matches_.ExportState(&s);
   s.waiting.assign(waiting_.begin(), waiting_.end());
   submaps_.ExportState(&s);
-  s.global_cursor = global_cursor_;
-  s.global_queue = global_queue_.ExportState();
+  global_.ExportState(&s);
   qualifier_.ExportState(&s);
   s.now_utime = now_utime_;
   near_.ExportState(&s);
@@ -23,8 +22,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   matches_.ImportState(s);
   waiting_.assign(s.waiting.begin(), s.waiting.end());
   submaps_.ImportState(s);
-  global_cursor_ = s.global_cursor;
-  global_queue_.ImportState(s.global_queue);
+  global_.ImportState(s);
   qualifier_.ImportState(s);
   now_utime_ = s.now_utime;
   stats_ = s.stats;

@@ -79,6 +79,7 @@
 #include "server/encounter_matches.h"
 #include "server/encounter_source.h"
 #include "server/encounter_submaps.h"
+#include "server/global_search_planner.h"
 #include "server/global_search_queue.h"
 #include "server/join_free_space.h"
 #include "server/join_qualifier.h"
@@ -104,14 +105,14 @@ class ScanEncounters : public EncounterSource {
         submaps_(options),
         matches_(pool, schedule),
         near_(options, &stats_, &driven_, &submaps_, &matches_, name()),
-        global_queue_(options.global_budget) {}
+        global_(options, &submaps_, &qualifier_, &matches_) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
   void Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) override;
   void Flush(const GraphView& graph, EncounterSourceOutput* out) override;
   size_t pending() const override {
-    return waiting_.size() + matches_.size() + global_queue_.waiting();
+    return waiting_.size() + matches_.size() + global_.queue().waiting();
   }
   std::string StatsLine() const override;
   const CandidateStats& stats() const { return stats_; }
@@ -119,7 +120,7 @@ class ScanEncounters : public EncounterSource {
   int64_t near_saturated() const { return near_.saturated(); }
   int64_t near_capped() const { return near_.capped(); }
   int64_t look_backs() const { return look_backs_; }
-  const GlobalSearchQueue& global_searches() const { return global_queue_; }
+  const GlobalSearchQueue& global_searches() const { return global_.queue(); }
   const MatchBudget& near_budget() const { return near_.budget(); }
 
   // The source's state for snapshots (scan_encounter_state.h, defined in
@@ -154,21 +155,6 @@ class ScanEncounters : public EncounterSource {
   // `near_too`: its near searches too (else only its global search, which has its own
   // budget). Returns the near searches submitted.
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
-  // Serves the keyframes waiting for a global search while the budget lasts.
-  void ServeGlobalQueue(const GraphView& graph);
-  // A trajectory a global search of a keyframe takes, and its submaps a kept hypothesis guides
-  // the search to (GuidedSubmaps, at most GlobalTries of them; none: the next ones in turn).
-  struct GlobalTarget {
-    TrajectoryId other;
-    std::vector<size_t> guided;
-  };
-  // The trajectories `key` is searched against: one of each other group (the pair
-  // searched least so far), at most max_global_groups_per_keyframe groups.
-  std::vector<GlobalTarget> GlobalTargets(PoseKey key, const GraphView& graph) const;
-  // The submaps of `other` one keyframe's global search takes (max_global_per_keyframe).
-  size_t GlobalTries(TrajectoryId other) const;
-  // Submits the searches of `key` against the target's submaps; returns how many.
-  int SearchGlobally(PoseKey key, const GlobalTarget& target, const GraphView& graph);
   // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
   double DrivenTo(PoseKey key, const GraphView& graph);
   // When groups changed since the last call: the look back (look_back_max_per_change).
@@ -209,17 +195,7 @@ class ScanEncounters : public EncounterSource {
   EncounterMatches matches_;
   NearSearch near_;
   std::deque<PoseKey> waiting_;
-  std::map<Pair, size_t> global_cursor_;
-  GlobalSearchQueue global_queue_;
-  // The submaps of `other` (at most `most`, nearest first) a global search of `key` is guided
-  // to (guide_*), if any; `nearest_m`: the first one's centre from where the hypothesis puts key.
-  std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                    size_t most, double* nearest_m = nullptr) const;
-  // The submaps of `submaps` (at most `most`, nearest first) within guide_max_distance_m of
-  // where `hypothesis` (a candidate of key's trajectory against their group) puts key.
-  std::vector<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,
-                                         const std::vector<Submap>& submaps, const GraphView& graph,
-                                         size_t most, double* nearest_m = nullptr) const;
+  GlobalSearchPlanner global_;
   int64_t now_utime_ = 0;
   // The same at the last LookBackOnGroupChange, which looks back only for the trajectories
   // newly in one frame since (a cache, not in snapshots: after ImportState the first call
