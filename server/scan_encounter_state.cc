@@ -27,7 +27,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   now_utime_ = s.now_utime;
   stats_ = s.stats;
   near_.ImportState(s);
-  looked_back_frames_.clear();
+  look_back_.Forget();
 }
 
 }  // namespace anchormap

@@ -84,6 +84,7 @@
 #include "server/join_free_space.h"
 #include "server/join_qualifier.h"
 #include "server/keyframe_submap.h"
+#include "server/look_back_planner.h"
 #include "server/match_budget.h"
 #include "server/match_pool.h"
 #include "server/near_search.h"
@@ -105,7 +106,8 @@ class ScanEncounters : public EncounterSource {
         submaps_(options),
         matches_(pool, schedule),
         near_(options, &stats_, &driven_, &submaps_, &matches_, name()),
-        global_(options, &submaps_, &qualifier_, &matches_) {}
+        global_(options, &submaps_, &qualifier_, &matches_),
+        look_back_(options, &driven_, &submaps_, &qualifier_, &near_, &matches_) {}
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -119,7 +121,7 @@ class ScanEncounters : public EncounterSource {
   int64_t joins_contradicted() const { return qualifier_.joins_contradicted(); }
   int64_t near_saturated() const { return near_.saturated(); }
   int64_t near_capped() const { return near_.capped(); }
-  int64_t look_backs() const { return look_backs_; }
+  int64_t look_backs() const { return look_back_.look_backs(); }
   const GlobalSearchQueue& global_searches() const { return global_.queue(); }
   const MatchBudget& near_budget() const { return near_.budget(); }
 
@@ -157,19 +159,6 @@ class ScanEncounters : public EncounterSource {
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);
   // The path `key`'s odometry drove from its trajectory's first keyframe (0 without its record).
   double DrivenTo(PoseKey key, const GraphView& graph);
-  // When groups changed since the last call: the look back (look_back_max_per_change).
-  void LookBackOnGroupChange(const TrajectoryFrames& frames, const GraphView& graph);
-  // A past keyframe of a trajectory outside a group to search in a submap of the group.
-  struct LookBack {
-    double distance = 0.0;  // from where the hypothesis puts the keyframe to the submap's centre
-    PoseKey key;
-    TrajectoryId other;
-    size_t submap = 0;  // in submaps_[other]
-  };
-  // The past keyframes of `hypothesis`'s querying trajectory that it puts within reach of a
-  // submap of `other` (a trajectory of the hypothesis's group), each with its nearest submap.
-  std::vector<LookBack> LookBacks(const EncounterCandidate& hypothesis, TrajectoryId other,
-                                  const GraphView& graph);
 
   // Uses the matches due now (all when `all`), in the order they were made.
   void UseMatches(bool all, const GraphView& graph, EncounterSourceOutput* out);
@@ -196,12 +185,8 @@ class ScanEncounters : public EncounterSource {
   NearSearch near_;
   std::deque<PoseKey> waiting_;
   GlobalSearchPlanner global_;
+  LookBackPlanner look_back_;
   int64_t now_utime_ = 0;
-  // The same at the last LookBackOnGroupChange, which looks back only for the trajectories
-  // newly in one frame since (a cache, not in snapshots: after ImportState the first call
-  // only records them).
-  TrajectoryFrames looked_back_frames_;
-  int64_t look_backs_ = 0;  // searches submitted (a count, not in snapshots)
 };
 
 }  // namespace anchormap
