@@ -5,6 +5,7 @@
 #include "server/scan_encounters.h"
 
 namespace anchormap {
+
 ScanEncounterState ScanEncounters::ExportState() const {
   ScanEncounterState s;
   matches_.ExportState(&s);

@@ -1,24 +1,15 @@
 #include "server/scan_encounters.h"
 
 #include <algorithm>
-#include <cmath>
-#include <future>
-#include <limits>
-#include <memory>
-#include <set>
+#include <optional>
+#include <utility>
+#include <vector>
 
-#include <Eigen/Eigenvalues>
-
-#include "common/scan_matching/point_cloud.h"
-#include "server/held_matches.h"
-#include "server/join_free_space.h"
-#include "server/keyframe_overlap.h"
-#include "server/keyframe_submap.h"
+#include "common/solver/smoother.h"
 #include "server/relative_pose.h"
+#include "server/trajectory_table.h"
 
 namespace anchormap {
-
-namespace {}  // namespace
 
 void ScanEncounters::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
                                      EncounterSourceOutput* /*out*/) {
@@ -57,8 +48,8 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   submaps_.Build(graph);
-  const TrajectoryFrames frames =
-      FramesOf(graph.table, graph.smoother);  // neither step below changes a frame
+  // Neither step below changes a frame.
+  const TrajectoryFrames frames = FramesOf(graph.table, graph.smoother);
   near_.CatchUpJoined(frames, waiting_, graph);
   look_back_.LookBackOnGroupChange(frames, waiting_, now_utime_, graph);
   std::deque<PoseKey> still_waiting;
@@ -187,14 +178,9 @@ void ScanEncounters::ResolveKept(const GraphView& graph, EncounterSourceOutput* 
 
 bool ScanEncounters::PassesGate(const EncounterCandidate& candidate, const GraphView& graph,
                                 bool widened) {
-  if (WithinGate(candidate, graph, widened, Eigen::Matrix3d::Zero())) return true;
+  if (WithinGate(candidate, graph, widened, Eigen::Matrix3d::Zero(), options_)) return true;
   ++stats_.gate_rejected;
   return false;
-}
-
-bool ScanEncounters::WithinGate(const EncounterCandidate& candidate, const GraphView& graph,
-                                bool widened, const Eigen::Matrix3d& drift) const {
-  return anchormap::WithinGate(candidate, graph, widened, drift, options_);
 }
 
 bool ScanEncounters::GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,

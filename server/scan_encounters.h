@@ -56,23 +56,23 @@
 // The matches run on the MatchPool's workers (or on the caller's thread without a pool);
 // their results are used when the canonical input reaches the keyframe's time plus the
 // schedule's lag, waiting for them if needed: deterministic, whatever the worker count.
+// ScanEncounters is the pipeline; its parts, each with its own state (the options, with the
+// measurements behind them: scan_encounter_options.h):
+// - EncounterSubmaps (encounter_submaps.h): every trajectory's submaps and their references;
+// - EncounterMatches (encounter_matches.h): the matches in flight, used in order when due;
+// - JoinQualifier (join_qualifier.h): the kept candidates and the first join;
+// - NearSearch (near_search.h): the near search between joined trajectories;
+// - GlobalSearchPlanner (global_search_planner.h): the global search of unjoined ones;
+// - LookBackPlanner (look_back_planner.h): the look back on group change.
 
+#include <cstddef>
 #include <cstdint>
 #include <deque>
-#include <functional>
-#include <map>
-#include <memory>
-#include <optional>
-#include <set>
 #include <string>
-#include <utility>
-#include <vector>
 
-#include "common/scan_matching/correlative_matcher.h"
-#include "common/scan_matching/free_space_conflict.h"
-#include "common/scan_matching/global_search.h"
-#include "common/scan_matching/scan_reference.h"
-#include "common/util/status.h"
+#include <Eigen/Core>
+
+#include "common/solver/keys.h"
 #include "server/candidate_stats.h"
 #include "server/driven_path.h"
 #include "server/encounter_candidate.h"
@@ -81,18 +81,13 @@
 #include "server/encounter_submaps.h"
 #include "server/global_search_planner.h"
 #include "server/global_search_queue.h"
-#include "server/join_free_space.h"
 #include "server/join_qualifier.h"
-#include "server/keyframe_submap.h"
 #include "server/look_back_planner.h"
 #include "server/match_budget.h"
 #include "server/match_pool.h"
 #include "server/near_search.h"
-#include "server/position_index.h"
-#include "server/relative_pose.h"
 #include "server/scan_encounter_options.h"
 #include "server/scan_encounter_state.h"
-#include "server/submap_cache.h"
 
 namespace anchormap {
 
@@ -108,6 +103,9 @@ class ScanEncounters : public EncounterSource {
         near_(options, &stats_, &driven_, &submaps_, &matches_, name()),
         global_(options, &submaps_, &qualifier_, &matches_),
         look_back_(options, &driven_, &submaps_, &qualifier_, &near_, &matches_) {}
+  // The parts hold pointers to each other.
+  ScanEncounters(const ScanEncounters&) = delete;
+  ScanEncounters& operator=(const ScanEncounters&) = delete;
 
   std::string name() const override { return "scan"; }
   void OnKeyframeAdded(PoseKey key, const GraphView& graph, EncounterSourceOutput* out) override;
@@ -150,9 +148,6 @@ class ScanEncounters : public EncounterSource {
   Eigen::Matrix3d NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
-  using Submap = EncounterSubmaps::Submap;
-  using Pair = std::pair<TrajectoryId, TrajectoryId>;  // (smaller, larger) solver id
-
   void Examine(const GraphView& graph, EncounterSourceOutput* out);
   // `near_too`: its near searches too (else only its global search, which has its own
   // budget). Returns the near searches submitted.
@@ -168,9 +163,6 @@ class ScanEncounters : public EncounterSource {
   // counted); `widened`: the prediction's covariance widened in every direction by its largest
   // translational sigma (the wide near search's matches).
   bool PassesGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened);
-  // The same test, not counted; `drift` is added to the prediction's covariance.
-  bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
-                  const Eigen::Matrix3d& drift) const;
   // True when the gate against the estimate accepts it (counts either way).
   bool GateAndEmit(const EncounterCandidate& candidate, const GraphView& graph,
                    EncounterSourceOutput* out);
