@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 #include <vector>
 
 #include "common/scan_matching/avx2_dispatch.h"
@@ -570,14 +571,16 @@ class BranchAndBoundSearch {
       : grids_(grids),
         // Bytes for the inner nodes only where the leaves' sums are exact: then a node's mean
         // on the bytes is at least every leaf's score as the floats give it, bit for bit.
-        bytes_(bytes != nullptr && grids.exact_sums() && query.num_points() < (size_t{1} << 22)
-                   ? bytes
-                   : nullptr),
+        bytes_(bytes != nullptr && ByteBoundsApply(grids, query) ? bytes : nullptr),
         query_(query),
         window_(window),
         best_score_(min_score),
         stats_(stats),
-        chunks_(NumChunks(query)) {}
+        chunks_(NumChunks(query)) {
+    if (bytes_ == nullptr && !grids.levels_built()) {
+      throw std::logic_error("BranchAndBound: float bounds need the pyramid's levels built");
+    }
+  }
 
   std::optional<LatticePose> Run() {
     const int top = grids_.num_levels() - 1;
@@ -822,6 +825,11 @@ class BranchAndBoundSearch {
 };
 
 }  // namespace
+
+bool ByteBoundsApply(const MaxGridPyramid& grids, const DiscretisedQuery& query) {
+  // Below 2^22 points a sum of values <= 1 stays below 2^22 (exact_sums' condition).
+  return grids.exact_sums() && query.num_points() < (size_t{1} << 22);
+}
 
 int MaxCellMove(const int32_t* a, const int32_t* b, size_t n) {
 #ifdef ANCHORMAP_AVX2_DISPATCH

@@ -99,9 +99,14 @@ std::optional<LatticePose> ExhaustiveSearch(const MaxGridPyramid& grids,
                                             const SearchWindow& window, double min_score,
                                             LatticeSearchStats* stats = nullptr);
 
+// Whether branch and bound bounds its inner nodes on ByteMaxGrids of `grids` for `query`: its
+// sums are exact (then a node's mean on the bytes bounds every leaf's float score, bit for bit).
+bool ByteBoundsApply(const MaxGridPyramid& grids, const DiscretisedQuery& query);
+
 // The same best lattice pose, by branch and bound over all the pyramid's levels. With `bytes`
-// (ByteMaxGrids of `grids`, used when grids.exact_sums()) the inner nodes are bounded on the
-// bytes: the same best pose, from slightly looser bounds, so the nodes scored may differ. With
+// (ByteMaxGrids of `grids`, used when ByteBoundsApply) the inner nodes are bounded on the bytes:
+// the same best pose, from slightly looser bounds, so the nodes scored may differ; then only
+// the grids' level 0 is read (its levels above need not be built). With
 // `centre_first`, the window's centre (a local match's guess) is scored before any node: a
 // good guess's score prunes from the first node on (the same best pose; the nodes scored
 // differ).

@@ -146,7 +146,6 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   vy_.assign(geometry_.num_cells(), nan);
   const float max_sq = static_cast<float>(options.max_distance_m * options.max_distance_m);
   primitive_a_.assign(geometry_.num_cells(), -1);
-  primitive_b_.assign(geometry_.num_cells(), -1);
   std::vector<float> best_sq(geometry_.num_cells(), max_sq);
   // The cells' centre x per column, GridGeometry::CellCentre's own arithmetic; three columns
   // more for the vector rows' last four (never stored).
@@ -155,6 +154,7 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   vertices_.reserve(num_points_);
   normals_.reserve(num_points_);
   start_normals_.reserve(num_points_);
+  primitive_ends_.reserve(num_points_);
   for (const ScanSurface* surface : surfaces) {
     const PointCloud& scan = surface->points;
     const int first = static_cast<int>(vertices_.size());
@@ -164,7 +164,8 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
                           surface->start_normals.end());
     for (size_t i = 0; i < scan.size(); ++i) {
       const int a = first + static_cast<int>(i);
-      AddPrimitive(a, surface->joined[i] ? a + 1 : a, centre_x, &best_sq);
+      primitive_ends_.push_back(surface->joined[i] ? a + 1 : a);
+      AddPrimitive(a, primitive_ends_.back(), centre_x, &best_sq);
     }
   }
 }
@@ -179,9 +180,8 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
                                                        int first, int last, int row_index,
                                                        const Eigen::Vector2d& a,
                                                        const Eigen::Vector2d& ab, double len_sq,
-                                                       int32_t a_index, int32_t b_index,
-                                                       float* best_sq, float* vx, float* vy,
-                                                       int32_t* primitive_a, int32_t* primitive_b) {
+                                                       int32_t a_index, float* best_sq, float* vx,
+                                                       float* vy, int32_t* primitive_a) {
   const __m256d ax = _mm256_set1_pd(a.x());
   const __m256d ay = _mm256_set1_pd(a.y());
   const __m256d abx = _mm256_set1_pd(ab.x());
@@ -191,7 +191,6 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
   const __m256d zero = _mm256_setzero_pd();
   const __m256d one = _mm256_set1_pd(1.0);
   const __m128i ia = _mm_set1_epi32(a_index);
-  const __m128i ib = _mm_set1_epi32(b_index);
   const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
   const bool point = len_sq <= 0.0;  // ClosestPointOnSegment's own test
   // (p - a).dot(ab) takes its y term once per row.
@@ -223,7 +222,6 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
     _mm_maskstore_ps(vx + index, take, _mm256_cvtpd_ps(v_x));
     _mm_maskstore_ps(vy + index, take, _mm256_cvtpd_ps(v_y));
     _mm_maskstore_epi32(primitive_a + index, take, ia);
-    _mm_maskstore_epi32(primitive_b + index, take, ib);
   }
 }
 
@@ -423,9 +421,8 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
     const int row_index = geometry_.Index(0, iy);
 #ifdef ANCHORMAP_AVX2_DISPATCH
     if (CpuHasAvx2()) {
-      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
-                        b_index, best, vx_.data(), vy_.data(), primitive_a_.data(),
-                        primitive_b_.data());
+      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index, best,
+                        vx_.data(), vy_.data(), primitive_a_.data());
       continue;
     }
 #endif
@@ -440,7 +437,6 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
         vx_[index] = static_cast<float>(v.x());
         vy_[index] = static_cast<float>(v.y());
         primitive_a_[index] = a_index;
-        primitive_b_[index] = b_index;
       }
     }
   }
@@ -459,7 +455,7 @@ bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
   const int index = geometry_.Index(ix, iy);
   if (primitive_a_[index] < 0) return false;
   *a = primitive_a_[index];
-  *b = primitive_b_[index];
+  *b = primitive_ends_[static_cast<size_t>(*a)];
   return true;
 }
 
