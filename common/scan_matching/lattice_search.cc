@@ -93,8 +93,9 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
     : half_angles_(window.half_angles), num_points_(query.size()) {
   const size_t headings = static_cast<size_t>(2 * window.half_angles + 1);
   boxes_.resize(headings);
-  xs_.resize(headings);
-  ys_.resize(headings);
+  // At least one entry: a heading of an empty query points at an array, not at null.
+  xs_.resize(std::max<size_t>(1, headings * query.size()));
+  ys_.resize(std::max<size_t>(1, headings * query.size()));
 #ifdef ANCHORMAP_AVX2_DISPATCH
   // The points' x and y apart, for four at a time.
   const bool avx2 = CpuHasAvx2();
@@ -118,18 +119,16 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
                      window.center.theta() + k * window.angle_step_rad);
     const Eigen::Matrix2d R = pose.rotation();
     const Eigen::Vector2d t = pose.translation();
-    std::vector<int32_t>& xs = xs_[k + half_angles_];
-    std::vector<int32_t>& ys = ys_[k + half_angles_];
-    xs.resize(query.size());
-    ys.resize(query.size());
+    int32_t* xs = xs_.data() + Offset(k);
+    int32_t* ys = ys_.data() + Offset(k);
     Box& box = boxes_[k + half_angles_];
     box.min.setConstant(std::numeric_limits<int>::max());
     box.max.setConstant(std::numeric_limits<int>::min());
     size_t i = 0;
 #ifdef ANCHORMAP_AVX2_DISPATCH
     if (avx2) {
-      DiscretiseHeadingAvx2(px.data(), py.data(), query.size(), R, t, geometry, xs.data(),
-                            ys.data(), &box.min, &box.max);
+      DiscretiseHeadingAvx2(px.data(), py.data(), query.size(), R, t, geometry, xs, ys, &box.min,
+                            &box.max);
       i = query.size() - query.size() % 4;
     }
 #endif

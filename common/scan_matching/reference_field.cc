@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -146,7 +147,9 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   vy_.assign(geometry_.num_cells(), nan);
   const float max_sq = static_cast<float>(options.max_distance_m * options.max_distance_m);
   primitive_a_.assign(geometry_.num_cells(), -1);
-  std::vector<float> best_sq(geometry_.num_cells(), max_sq);
+  // The squared distance of each cell's stored vector, read only where a primitive was stored
+  // (primitive_a_ >= 0; max_sq elsewhere): no fill of its own.
+  const std::unique_ptr<float[]> best_sq(new float[geometry_.num_cells()]);
   // The cells' centre x per column, GridGeometry::CellCentre's own arithmetic; three columns
   // more for the vector rows' last four (never stored).
   std::vector<double> centre_x(static_cast<size_t>(geometry_.width) + 3);
@@ -165,7 +168,7 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
     for (size_t i = 0; i < scan.size(); ++i) {
       const int a = first + static_cast<int>(i);
       primitive_ends_.push_back(surface->joined[i] ? a + 1 : a);
-      AddPrimitive(a, primitive_ends_.back(), centre_x, &best_sq);
+      AddPrimitive(a, primitive_ends_.back(), centre_x, max_sq, best_sq.get());
     }
   }
 }
@@ -176,12 +179,10 @@ namespace {
 // AddPrimitive's row of cells [first, last], four at a time (the last four masked): the same
 // IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2 alone), so
 // the same bits. `centre_x` has three entries past the grid's last column.
-__attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, double centre_y,
-                                                       int first, int last, int row_index,
-                                                       const Eigen::Vector2d& a,
-                                                       const Eigen::Vector2d& ab, double len_sq,
-                                                       int32_t a_index, float* best_sq, float* vx,
-                                                       float* vy, int32_t* primitive_a) {
+__attribute__((target("avx2"))) void AddSegmentRowAvx2(
+    const double* centre_x, double centre_y, int first, int last, int row_index,
+    const Eigen::Vector2d& a, const Eigen::Vector2d& ab, double len_sq, int32_t a_index,
+    float max_sq, float* best_sq, float* vx, float* vy, int32_t* primitive_a) {
   const __m256d ax = _mm256_set1_pd(a.x());
   const __m256d ay = _mm256_set1_pd(a.y());
   const __m256d abx = _mm256_set1_pd(ab.x());
@@ -192,6 +193,7 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
   const __m256d one = _mm256_set1_pd(1.0);
   const __m128i ia = _mm_set1_epi32(a_index);
   const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
+  const __m128 unset = _mm_set1_ps(max_sq);
   const bool point = len_sq <= 0.0;  // ClosestPointOnSegment's own test
   // (p - a).dot(ab) takes its y term once per row.
   const __m256d dy_term = _mm256_mul_pd(_mm256_sub_pd(cy, ay), aby);
@@ -215,7 +217,11 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
     const int index = row_index + ix;
     // Lanes past `last` neither read nor write the field.
     const __m128i valid = _mm_cmpgt_epi32(_mm_set1_epi32(last - ix + 1), lanes);
-    const __m128 best = _mm_maskload_ps(best_sq + index, valid);
+    // A cell no primitive reached yet (primitive_a -1) holds max_sq, whatever best_sq holds.
+    const __m128i stored = _mm_maskload_epi32(primitive_a + index, valid);
+    const __m128 best =
+        _mm_blendv_ps(_mm_maskload_ps(best_sq + index, valid), unset,
+                      _mm_castsi128_ps(_mm_cmplt_epi32(stored, _mm_setzero_si128())));
     const __m128i take = _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(sq, best)), valid);
     if (_mm_testz_si128(take, take)) continue;
     _mm_maskstore_ps(best_sq + index, take, sq);
@@ -394,7 +400,7 @@ void ReferenceField::InterpolateWithNormals(Lookups* lookups) const {
 }
 
 void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<double>& centre_x,
-                                  std::vector<float>* best_sq) {
+                                  float max_sq, float* best) {
   const Eigen::Vector2d& a = vertices_[a_index];
   const Eigen::Vector2d& b = vertices_[b_index];
   const double d = options_.max_distance_m;
@@ -413,7 +419,6 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
   const double hi_y = std::max(a.y(), b.y());
   const Eigen::Vector2d ab = b - a;
   const double len_sq = ab.squaredNorm();
-  float* best = best_sq->data();
   for (int iy = y0; iy <= y1; ++iy) {
     const double centre_y = geometry_.origin.y() + r * (iy + 0.5);
     const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
@@ -421,8 +426,8 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
     const int row_index = geometry_.Index(0, iy);
 #ifdef ANCHORMAP_AVX2_DISPATCH
     if (CpuHasAvx2()) {
-      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index, best,
-                        vx_.data(), vy_.data(), primitive_a_.data());
+      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
+                        max_sq, best, vx_.data(), vy_.data(), primitive_a_.data());
       continue;
     }
 #endif
@@ -432,7 +437,7 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
       const Eigen::Vector2d v = ClosestPointOnSegment(centre, a, b) - centre;
       const float sq = static_cast<float>(v.squaredNorm());
       const int index = row_index + ix;
-      if (sq <= best[index]) {
+      if (sq <= (primitive_a_[index] < 0 ? max_sq : best[index])) {
         best[index] = sq;
         vx_[index] = static_cast<float>(v.x());
         vy_[index] = static_cast<float>(v.y());

@@ -115,8 +115,10 @@ class ReferenceField {
   void Build(const std::vector<const ScanSurface*>& surfaces);
   // Stores the segment [a, b] (a == b: a lone point) in every cell within max_distance_m where
   // it is nearer than what the cell holds (ties to the later primitive). `centre_x`: the cells'
-  // centre x per column.
-  void AddPrimitive(int a, int b, const std::vector<double>& centre_x, std::vector<float>* best_sq);
+  // centre x per column; `best_sq`: the squared distance of what each cell holds, max_sq where
+  // it holds nothing yet (then best_sq's own value is not read).
+  void AddPrimitive(int a, int b, const std::vector<double>& centre_x, float max_sq,
+                    float* best_sq);
 
   ReferenceFieldOptions options_;
   GridGeometry geometry_;
