@@ -44,7 +44,7 @@ TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) 
   const std::unique_ptr<ScanReference> drawn =
       BuildKeyframeSubmap(*record, drawing, 15.0, reference_options);
   ASSERT_TRUE(at_once && drawn);
-  EXPECT_TRUE(at_once->likelihood().SameCells(drawn->likelihood()));
+  EXPECT_TRUE(at_once->SameLikelihood(*drawn));
 
   // A closure that bends the trajectory (keyframe 15 seen 1 m aside of where odometry puts
   // it): the submap's keyframes move, the drawing keeps their poses of its time.
@@ -59,8 +59,8 @@ TEST(KeyframeSubmapTest, ADrawingBuildsTheSubmapOfItsTimeAfterTheEstimateMoved) 
   const std::unique_ptr<ScanReference> redrawn =
       BuildKeyframeSubmap(*record, server.smoother(), center, 5, 15.0, reference_options);
   ASSERT_TRUE(later && redrawn);
-  EXPECT_TRUE(drawn->likelihood().SameCells(later->likelihood()));
-  EXPECT_FALSE(drawn->likelihood().SameCells(redrawn->likelihood()));  // the estimate did move
+  EXPECT_TRUE(drawn->SameLikelihood(*later));
+  EXPECT_FALSE(drawn->SameLikelihood(*redrawn));  // the estimate did move
 }
 
 TEST(KeyframeSubmapTest, AnEmptyDrawingBuildsNoReference) {

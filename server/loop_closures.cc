@@ -757,10 +757,11 @@ int32_t BestSeenKeyframe(const std::vector<SeenKeyframe>& keyframes, const Point
   double best_score = 0.0;
   for (const SeenKeyframe& keyframe : keyframes) {
     if (keyframe.scan == nullptr) continue;
-    const std::optional<MatchResult> seen = MatchLocal(
+    // Only the lattice scores choose (MatchLocal's score, without its refinement).
+    const std::optional<double> seen = LocalLatticeScore(
         *keyframe.scan, query, Between(keyframe.T_submap_keyframe, T_submap_query), window);
-    if (seen && seen->score > best_score) {
-      best_score = seen->score;
+    if (seen && *seen > best_score) {
+      best_score = *seen;
       best = keyframe.index;
     }
   }

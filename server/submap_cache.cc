@@ -26,9 +26,11 @@ std::string SubmapCacheStats::Summary(const std::string& name) const {
 }
 
 size_t ReferenceBytes(const ScanReference& reference) {
-  // Per cell: the likelihood (float), the field's vector (2 floats) and nearest primitive
-  // (2 int32), and one float per pyramid level (each a little wider than the grid).
-  const size_t per_cell = 4 + 8 + 8 + 4 * static_cast<size_t>(reference.pyramid().num_levels());
+  // Per cell: the field's vector (2 floats) and nearest primitive (int32), the likelihood (the
+  // pyramid's level 0, a float), and a byte per level above it (each a little wider than the
+  // grid): the local and global searches bound on the bytes, built on the first search. (The
+  // wide loop searches' float levels are built only for their own submaps, which are not kept.)
+  const size_t per_cell = 8 + 4 + 4 + static_cast<size_t>(reference.options().num_levels - 1);
   return reference.geometry().num_cells() * per_cell;
 }
 

@@ -56,8 +56,8 @@ TEST_F(SubmapCacheTest, AnUnkeptBuildEvictsNothing) {
   const auto kept = cache.Get(*record_, Draw(10, 2), 2);
   const auto unkept = cache.BuildUnkept(*record_, Draw(20, 4));
   ASSERT_TRUE(unkept);
-  EXPECT_TRUE(unkept->likelihood().SameCells(
-      BuildKeyframeSubmap(*record_, Draw(20, 4), 15.0, reference_)->likelihood()));
+  EXPECT_TRUE(
+      unkept->SameLikelihood(*BuildKeyframeSubmap(*record_, Draw(20, 4), 15.0, reference_)));
   EXPECT_EQ(cache.Get(*record_, Draw(10, 2), 2), kept);  // still held under a budget of 0
   EXPECT_EQ(cache.stats().builds, 2);
   EXPECT_EQ(cache.stats().hits, 1);
@@ -83,8 +83,8 @@ TEST_F(SubmapCacheTest, TheBudgetEvictsTheLeastRecentlyUsedAndARebuildHasTheSame
   EXPECT_EQ(cache.Get(*record_, Draw(10, 2), 2), a);  // still held
   const auto b_again = cache.Get(*record_, Draw(15, 2), 2);
   ASSERT_TRUE(b_again);
-  EXPECT_NE(b_again, b);                                          // built again...
-  EXPECT_TRUE(b->likelihood().SameCells(b_again->likelihood()));  // ...with the same bits
+  EXPECT_NE(b_again, b);                     // built again...
+  EXPECT_TRUE(b->SameLikelihood(*b_again));  // ...with the same bits
   EXPECT_EQ(cache.stats().builds, 4);
   EXPECT_EQ(cache.stats().evictions, 2);  // c, the least recently used, went
   // A budget of 0 still keeps the one reference just built.

@@ -19,7 +19,10 @@ class ByteMaxGrids {
   // A byte holds round-up multiples of 1 / kScale.
   static constexpr int kScale = 255;
 
-  // Precondition: pyramid.exact_sums() (every value in [0, 1]).
+  // Precondition: pyramid.exact_sums() (every value in [0, 1]). Built from the pyramid's level 0
+  // alone (its float levels above need not be built): level 0 rounded up, then the pyramid's
+  // recursion on the bytes. Rounding up is monotone, so the max of rounded values is the
+  // rounded max: each byte is its float level's value rounded up, as if converted from it.
   explicit ByteMaxGrids(const MaxGridPyramid& pyramid);
 
   int num_levels() const { return static_cast<int>(levels_.size()); }

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -40,6 +42,33 @@ TEST(ByteMaxGridsTest, EveryByteIsItsFloatRoundedUpToA255th) {
       ASSERT_LT(level.values[i] - 1.0, scaled) << "level " << h << " cell " << i;
     }
     for (size_t i = cells; i < cells + 3; ++i) EXPECT_EQ(level.values[i], 0);
+  }
+}
+
+TEST(ByteMaxGridsTest, GridsSmallerThanTheBlocksRoundTheFloatLevelsUp) {
+  // The bytes are built from level 0 by their own recursion: on grids narrower than the
+  // largest blocks (the levels' borders are most of them) every byte is still its float
+  // level's value rounded up.
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> unit(1.0f / 128.0f, 1.0f);
+  for (const auto& [width, height] : {std::pair{1, 1}, {1, 7}, {7, 1}, {3, 40}, {40, 2}}) {
+    GridGeometry g;
+    g.width = width;
+    g.height = height;
+    std::vector<float> values(g.num_cells(), 0.0f);
+    for (float& v : values) v = unit(rng) < 0.4f ? unit(rng) : 0.0f;
+    const MaxGridPyramid pyramid(LikelihoodGrid(g, values), 7);
+    const ByteMaxGrids bytes(pyramid);
+    for (int h = 1; h < 7; ++h) {
+      const MaxGridPyramid::LevelView floats = pyramid.level(h);
+      const ByteMaxGrids::LevelView level = bytes.level(h);
+      const size_t cells = static_cast<size_t>(level.width) * static_cast<size_t>(level.height);
+      ASSERT_EQ(cells, static_cast<size_t>(floats.width) * static_cast<size_t>(floats.height));
+      for (size_t i = 0; i < cells; ++i) {
+        ASSERT_EQ(level.values[i], std::ceil(255.0 * static_cast<double>(floats.values[i])))
+            << width << "x" << height << " level " << h << " cell " << i;
+      }
+    }
   }
 }
 

@@ -75,6 +75,12 @@ struct MatchResult {
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,
                                       const Pose2& guess, const LocalMatchOptions& options);
 
+// MatchLocal's lattice search alone: the score of the pose it would refine (nullopt where it
+// finds none above options.match.min_score), without the refinement, overlap and covariance
+// (a choice among references by their scores needs no more).
+std::optional<double> LocalLatticeScore(const ScanReference& reference, const PointCloud& query,
+                                        const Pose2& guess, const LocalMatchOptions& options);
+
 // Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part); `bytes`: the
 // lattice search's inner bounds on reference.byte_bounds(); `centre_first`: the window's centre
 // scored first (BranchAndBound; the same match either way).

@@ -107,6 +107,30 @@ TEST(CorrelativeMatcherTest, RecoversKnownTransformsOnSimulatedScans) {
   std::printf("worst error: %.4f m, %.4f deg\n", worst_xy, worst_theta / kDeg);
 }
 
+TEST(CorrelativeMatcherTest, LocalLatticeScoreIsMatchLocalsScore) {
+  // The lattice search alone gives MatchLocal's score to the bit, and nothing where MatchLocal
+  // finds nothing (a bar above every pose, a guess far off the reference).
+  std::mt19937_64 rng(21);
+  const SyntheticLaser laser = MountedLaser(181, kPi, 0.01);
+  int found = 0;
+  for (int i = 0; i < 12; ++i) {
+    const SyntheticWorld world = RandomRoom(300 + i);
+    const Trial trial = MakeTrial(world, laser, 0.3, 0.15, &rng);
+    const ScanReference reference({trial.reference}, LocalReferenceOptions());
+    LocalMatchOptions options;
+    options.match.min_score = i % 4 == 3 ? 0.99 : 0.3;
+    const Pose2 guess = i % 4 == 2 ? Compose(trial.guess, Pose2(30.0, 0.0, 0.0)) : trial.guess;
+    const std::optional<MatchResult> match = MatchLocal(reference, trial.query, guess, options);
+    const std::optional<double> score = LocalLatticeScore(reference, trial.query, guess, options);
+    ASSERT_EQ(match.has_value(), score.has_value()) << "trial " << i;
+    if (!match) continue;
+    ++found;
+    EXPECT_EQ(*score, match->score) << "trial " << i;
+  }
+  EXPECT_GE(found, 6);
+  EXPECT_LT(found, 12);
+}
+
 TEST(CorrelativeMatcherTest, RefinementBeatsTheLattice) {
   // Without refinement the estimate is a lattice pose (5 cm cells); refinement must lower the
   // mean error, which is why it is on by default.

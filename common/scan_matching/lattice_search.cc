@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 #include <vector>
 
 #include "common/scan_matching/avx2_dispatch.h"
@@ -92,8 +93,9 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
     : half_angles_(window.half_angles), num_points_(query.size()) {
   const size_t headings = static_cast<size_t>(2 * window.half_angles + 1);
   boxes_.resize(headings);
-  xs_.resize(headings);
-  ys_.resize(headings);
+  // At least one entry: a heading of an empty query points at an array, not at null.
+  xs_.resize(std::max<size_t>(1, headings * query.size()));
+  ys_.resize(std::max<size_t>(1, headings * query.size()));
 #ifdef ANCHORMAP_AVX2_DISPATCH
   // The points' x and y apart, for four at a time.
   const bool avx2 = CpuHasAvx2();
@@ -117,18 +119,16 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
                      window.center.theta() + k * window.angle_step_rad);
     const Eigen::Matrix2d R = pose.rotation();
     const Eigen::Vector2d t = pose.translation();
-    std::vector<int32_t>& xs = xs_[k + half_angles_];
-    std::vector<int32_t>& ys = ys_[k + half_angles_];
-    xs.resize(query.size());
-    ys.resize(query.size());
+    int32_t* xs = xs_.data() + Offset(k);
+    int32_t* ys = ys_.data() + Offset(k);
     Box& box = boxes_[k + half_angles_];
     box.min.setConstant(std::numeric_limits<int>::max());
     box.max.setConstant(std::numeric_limits<int>::min());
     size_t i = 0;
 #ifdef ANCHORMAP_AVX2_DISPATCH
     if (avx2) {
-      DiscretiseHeadingAvx2(px.data(), py.data(), query.size(), R, t, geometry, xs.data(),
-                            ys.data(), &box.min, &box.max);
+      DiscretiseHeadingAvx2(px.data(), py.data(), query.size(), R, t, geometry, xs, ys, &box.min,
+                            &box.max);
       i = query.size() - query.size() % 4;
     }
 #endif
@@ -570,14 +570,16 @@ class BranchAndBoundSearch {
       : grids_(grids),
         // Bytes for the inner nodes only where the leaves' sums are exact: then a node's mean
         // on the bytes is at least every leaf's score as the floats give it, bit for bit.
-        bytes_(bytes != nullptr && grids.exact_sums() && query.num_points() < (size_t{1} << 22)
-                   ? bytes
-                   : nullptr),
+        bytes_(bytes != nullptr && ByteBoundsApply(grids, query) ? bytes : nullptr),
         query_(query),
         window_(window),
         best_score_(min_score),
         stats_(stats),
-        chunks_(NumChunks(query)) {}
+        chunks_(NumChunks(query)) {
+    if (bytes_ == nullptr && !grids.levels_built()) {
+      throw std::logic_error("BranchAndBound: float bounds need the pyramid's levels built");
+    }
+  }
 
   std::optional<LatticePose> Run() {
     const int top = grids_.num_levels() - 1;
@@ -822,6 +824,11 @@ class BranchAndBoundSearch {
 };
 
 }  // namespace
+
+bool ByteBoundsApply(const MaxGridPyramid& grids, const DiscretisedQuery& query) {
+  // Below 2^22 points a sum of values <= 1 stays below 2^22 (exact_sums' condition).
+  return grids.exact_sums() && query.num_points() < (size_t{1} << 22);
+}
 
 int MaxCellMove(const int32_t* a, const int32_t* b, size_t n) {
 #ifdef ANCHORMAP_AVX2_DISPATCH

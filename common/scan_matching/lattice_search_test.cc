@@ -5,6 +5,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -164,6 +165,54 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearchOnExactGrids) {
     EXPECT_EQ(on_bytes->k, all->k) << "trial " << trial;
     EXPECT_EQ(on_bytes->dx, all->dx) << "trial " << trial;
     EXPECT_EQ(on_bytes->dy, all->dy) << "trial " << trial;
+  }
+}
+
+TEST(LatticeSearchTest, OnTheBytesOnlyLevelZeroIsRead) {
+  // A pyramid whose float levels above 0 are not built (a reference searched only on the
+  // bytes): the bytes built from its level 0 equal those of the built pyramid, branch and bound
+  // on them (the centre first too, a local match's way) finds the exhaustive search's pose,
+  // ties included, and a search on the floats refuses to run without the levels.
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> coord(0.0, 3.0);
+  for (int trial = 0; trial < 16; ++trial) {
+    const LikelihoodGrid grid = RandomGrid(30, 25, &rng, /*exact=*/true);
+    const int levels = 2 + trial % 6;
+    const MaxGridPyramid built(grid, levels);
+    const MaxGridPyramid base(LikelihoodGrid(grid), levels, /*build_levels=*/false);
+    ASSERT_FALSE(base.levels_built());
+    const ByteMaxGrids from_built(built);
+    const ByteMaxGrids from_base(base);
+    for (int h = 1; h < levels; ++h) {
+      const ByteMaxGrids::LevelView a = from_built.level(h);
+      const ByteMaxGrids::LevelView b = from_base.level(h);
+      ASSERT_EQ(a.width, b.width);
+      ASSERT_EQ(a.height, b.height);
+      const size_t cells = static_cast<size_t>(a.width) * static_cast<size_t>(a.height) + 3;
+      ASSERT_TRUE(std::equal(a.values, a.values + cells, b.values)) << "level " << h;
+    }
+    PointCloud query;
+    for (int i = 0; i < 20 + 9 * trial; ++i) query.push_back({coord(rng) - 1.5, coord(rng) - 1.5});
+    SearchWindow window;
+    window.center = Pose2(1.5, 1.2, 0.3 * trial);
+    window.angle_step_rad = 0.05;
+    window.half_angles = trial % 4;
+    window.half_cells_x = 3 + trial % 7;
+    window.half_cells_y = 2 + trial % 5;
+    const DiscretisedQuery discretised(query, window, grid.geometry());
+    const double min_score = trial % 3 == 0 ? 0.1 : 0.0;
+    const auto all = ExhaustiveSearch(built, discretised, window, min_score);
+    for (const bool centre_first : {false, true}) {
+      const auto on_bytes =
+          BranchAndBound(base, discretised, window, min_score, nullptr, &from_base, centre_first);
+      ASSERT_EQ(all.has_value(), on_bytes.has_value()) << "trial " << trial;
+      if (!all) continue;
+      EXPECT_EQ(on_bytes->score, all->score) << "trial " << trial;
+      EXPECT_EQ(on_bytes->k, all->k) << "trial " << trial;
+      EXPECT_EQ(on_bytes->dx, all->dx) << "trial " << trial;
+      EXPECT_EQ(on_bytes->dy, all->dy) << "trial " << trial;
+    }
+    EXPECT_THROW(BranchAndBound(base, discretised, window, min_score), std::logic_error);
   }
 }
 

@@ -6,6 +6,7 @@
 // query's points, in [0, 1]. sigma is the blur: the sensor noise plus the search's
 // discretisation, so that a pose one cell off still scores (the search is on a lattice).
 
+#include <utility>
 #include <vector>
 
 #include "common/scan_matching/grid_geometry.h"
@@ -21,6 +22,8 @@ class LikelihoodGrid {
   LikelihoodGrid(const GridGeometry& geometry, std::vector<float> values);
 
   const GridGeometry& geometry() const { return geometry_; }
+  // The values, row-major (the grid is left empty): MaxGridPyramid keeps them as its level 0.
+  std::vector<float> TakeValues() && { return std::move(values_); }
   // The cell's value; 0 outside the grid.
   float Value(int ix, int iy) const {
     return geometry_.Contains(ix, iy) ? values_[geometry_.Index(ix, iy)] : 0.0f;

@@ -10,6 +10,7 @@
 // left or below) and built from level h - 1 by the max of four shifted values, O(1) per cell
 // (two separable passes).
 
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -19,14 +20,23 @@ namespace anchormap {
 
 class MaxGridPyramid {
  public:
-  // Precondition: num_levels >= 1. Level 0 is the grid itself.
+  // Precondition: num_levels >= 1. Level 0 is the grid itself (copied).
   MaxGridPyramid(const LikelihoodGrid& grid, int num_levels);
+  // The same pyramid taking the grid's values as level 0 (no copy); with build_levels false
+  // only level 0 is built until BuildLevels() (a search bounded on ByteMaxGrids reads level 0
+  // alone: the float levels above cost four times the bytes' memory and were a third of a
+  // reference's build at 100 robots).
+  MaxGridPyramid(LikelihoodGrid&& grid, int num_levels, bool build_levels);
+
+  // Builds levels 1 and up when they are not yet (not thread-safe: ScanReference calls it once).
+  void BuildLevels();
+  bool levels_built() const { return levels_built_; }
 
   int num_levels() const { return static_cast<int>(levels_.size()); }
   const GridGeometry& geometry() const { return geometry_; }
   // One level's storage: Value(level, ix, iy) is values[(iy + offset) * width + ix + offset]
   // inside [0, width) x [0, height) of the stored indices, 0 outside (the search's inner loop
-  // reads it directly).
+  // reads it directly). Levels above 0 only once built.
   struct LevelView {
     int offset;
     int width;
@@ -35,7 +45,7 @@ class MaxGridPyramid {
   };
   LevelView level(int h) const {
     const Level& l = levels_[h];
-    return {l.offset, l.width, l.height, l.values.get()};
+    return {l.offset, l.width, l.height, l.values};
   }
   // The largest value of the grid (of every level): no query point scores more.
   float max_value() const { return max_value_; }
@@ -51,22 +61,34 @@ class MaxGridPyramid {
     if (x < 0 || y < 0 || x >= l.width || y >= l.height) return 0.0f;
     return l.values[static_cast<size_t>(y) * l.width + x];
   }
+  // The same cells (extent and origin) holding the same level 0, exactly.
+  bool SameBase(const MaxGridPyramid& other) const;
 
  private:
   struct Level {
     int offset = 0;  // 2^h - 1
     int width = 0;
     int height = 0;
+    const float* values = nullptr;  // base_ for level 0, else owned
     // Every cell is written by the build: no zero fill first (the fill and the first touch
     // of the pages were most of a reference's build time once the maxima were cheap).
-    std::unique_ptr<float[]> values;
+    std::unique_ptr<float[]> owned;
   };
-  void BuildLevel(int h);
+  void InitBase(int num_levels);
 
   GridGeometry geometry_;
+  std::vector<float> base_;
   std::vector<Level> levels_;
   float max_value_ = 0.0f;
   bool exact_sums_ = true;
+  bool levels_built_ = false;
 };
+
+// One level of block maxima from the level below (MaxGridPyramid's recursion, for floats and
+// for ByteMaxGrids' bytes): `below` is width x height, `half` = 2^(h-1), and `out` receives
+// (width + half) x (height + half) values, out(x, y) = max of below at (x - half | x,
+// y - half | y), 0 outside.
+template <typename T>
+void BuildMaxLevel(const T* below, int width, int height, int half, T* out);
 
 }  // namespace anchormap

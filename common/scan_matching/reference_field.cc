@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -146,8 +147,9 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   vy_.assign(geometry_.num_cells(), nan);
   const float max_sq = static_cast<float>(options.max_distance_m * options.max_distance_m);
   primitive_a_.assign(geometry_.num_cells(), -1);
-  primitive_b_.assign(geometry_.num_cells(), -1);
-  std::vector<float> best_sq(geometry_.num_cells(), max_sq);
+  // The squared distance of each cell's stored vector, read only where a primitive was stored
+  // (primitive_a_ >= 0; max_sq elsewhere): no fill of its own.
+  const std::unique_ptr<float[]> best_sq(new float[geometry_.num_cells()]);
   // The cells' centre x per column, GridGeometry::CellCentre's own arithmetic; three columns
   // more for the vector rows' last four (never stored).
   std::vector<double> centre_x(static_cast<size_t>(geometry_.width) + 3);
@@ -155,6 +157,7 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   vertices_.reserve(num_points_);
   normals_.reserve(num_points_);
   start_normals_.reserve(num_points_);
+  primitive_ends_.reserve(num_points_);
   for (const ScanSurface* surface : surfaces) {
     const PointCloud& scan = surface->points;
     const int first = static_cast<int>(vertices_.size());
@@ -164,7 +167,8 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
                           surface->start_normals.end());
     for (size_t i = 0; i < scan.size(); ++i) {
       const int a = first + static_cast<int>(i);
-      AddPrimitive(a, surface->joined[i] ? a + 1 : a, centre_x, &best_sq);
+      primitive_ends_.push_back(surface->joined[i] ? a + 1 : a);
+      AddPrimitive(a, primitive_ends_.back(), centre_x, max_sq, best_sq.get());
     }
   }
 }
@@ -175,13 +179,10 @@ namespace {
 // AddPrimitive's row of cells [first, last], four at a time (the last four masked): the same
 // IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2 alone), so
 // the same bits. `centre_x` has three entries past the grid's last column.
-__attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, double centre_y,
-                                                       int first, int last, int row_index,
-                                                       const Eigen::Vector2d& a,
-                                                       const Eigen::Vector2d& ab, double len_sq,
-                                                       int32_t a_index, int32_t b_index,
-                                                       float* best_sq, float* vx, float* vy,
-                                                       int32_t* primitive_a, int32_t* primitive_b) {
+__attribute__((target("avx2"))) void AddSegmentRowAvx2(
+    const double* centre_x, double centre_y, int first, int last, int row_index,
+    const Eigen::Vector2d& a, const Eigen::Vector2d& ab, double len_sq, int32_t a_index,
+    float max_sq, float* best_sq, float* vx, float* vy, int32_t* primitive_a) {
   const __m256d ax = _mm256_set1_pd(a.x());
   const __m256d ay = _mm256_set1_pd(a.y());
   const __m256d abx = _mm256_set1_pd(ab.x());
@@ -191,8 +192,8 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
   const __m256d zero = _mm256_setzero_pd();
   const __m256d one = _mm256_set1_pd(1.0);
   const __m128i ia = _mm_set1_epi32(a_index);
-  const __m128i ib = _mm_set1_epi32(b_index);
   const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
+  const __m128 unset = _mm_set1_ps(max_sq);
   const bool point = len_sq <= 0.0;  // ClosestPointOnSegment's own test
   // (p - a).dot(ab) takes its y term once per row.
   const __m256d dy_term = _mm256_mul_pd(_mm256_sub_pd(cy, ay), aby);
@@ -216,14 +217,17 @@ __attribute__((target("avx2"))) void AddSegmentRowAvx2(const double* centre_x, d
     const int index = row_index + ix;
     // Lanes past `last` neither read nor write the field.
     const __m128i valid = _mm_cmpgt_epi32(_mm_set1_epi32(last - ix + 1), lanes);
-    const __m128 best = _mm_maskload_ps(best_sq + index, valid);
+    // A cell no primitive reached yet (primitive_a -1) holds max_sq, whatever best_sq holds.
+    const __m128i stored = _mm_maskload_epi32(primitive_a + index, valid);
+    const __m128 best =
+        _mm_blendv_ps(_mm_maskload_ps(best_sq + index, valid), unset,
+                      _mm_castsi128_ps(_mm_cmplt_epi32(stored, _mm_setzero_si128())));
     const __m128i take = _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(sq, best)), valid);
     if (_mm_testz_si128(take, take)) continue;
     _mm_maskstore_ps(best_sq + index, take, sq);
     _mm_maskstore_ps(vx + index, take, _mm256_cvtpd_ps(v_x));
     _mm_maskstore_ps(vy + index, take, _mm256_cvtpd_ps(v_y));
     _mm_maskstore_epi32(primitive_a + index, take, ia);
-    _mm_maskstore_epi32(primitive_b + index, take, ib);
   }
 }
 
@@ -396,7 +400,7 @@ void ReferenceField::InterpolateWithNormals(Lookups* lookups) const {
 }
 
 void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<double>& centre_x,
-                                  std::vector<float>* best_sq) {
+                                  float max_sq, float* best) {
   const Eigen::Vector2d& a = vertices_[a_index];
   const Eigen::Vector2d& b = vertices_[b_index];
   const double d = options_.max_distance_m;
@@ -415,7 +419,6 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
   const double hi_y = std::max(a.y(), b.y());
   const Eigen::Vector2d ab = b - a;
   const double len_sq = ab.squaredNorm();
-  float* best = best_sq->data();
   for (int iy = y0; iy <= y1; ++iy) {
     const double centre_y = geometry_.origin.y() + r * (iy + 0.5);
     const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
@@ -424,8 +427,7 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
 #ifdef ANCHORMAP_AVX2_DISPATCH
     if (CpuHasAvx2()) {
       AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
-                        b_index, best, vx_.data(), vy_.data(), primitive_a_.data(),
-                        primitive_b_.data());
+                        max_sq, best, vx_.data(), vy_.data(), primitive_a_.data());
       continue;
     }
 #endif
@@ -435,12 +437,11 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
       const Eigen::Vector2d v = ClosestPointOnSegment(centre, a, b) - centre;
       const float sq = static_cast<float>(v.squaredNorm());
       const int index = row_index + ix;
-      if (sq <= best[index]) {
+      if (sq <= (primitive_a_[index] < 0 ? max_sq : best[index])) {
         best[index] = sq;
         vx_[index] = static_cast<float>(v.x());
         vy_[index] = static_cast<float>(v.y());
         primitive_a_[index] = a_index;
-        primitive_b_[index] = b_index;
       }
     }
   }
@@ -459,7 +460,7 @@ bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
   const int index = geometry_.Index(ix, iy);
   if (primitive_a_[index] < 0) return false;
   *a = primitive_a_[index];
-  *b = primitive_b_[index];
+  *b = primitive_ends_[static_cast<size_t>(*a)];
   return true;
 }
 

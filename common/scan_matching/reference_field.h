@@ -66,6 +66,13 @@ class ReferenceField {
   // The vector from cell (ix, iy)'s centre to the nearest surface point; false when the cell
   // is outside the grid or farther than max_distance_m from the surface.
   bool NearestVector(int ix, int iy, Eigen::Vector2d* v) const;
+  // NearestVector of the cell stored at `index` (GridGeometry::Index), as the floats it keeps.
+  bool StoredVector(size_t index, float* x, float* y) const {
+    if (std::isnan(vx_[index])) return false;
+    *x = vx_[index];
+    *y = vy_[index];
+    return true;
+  }
   // Bilinear interpolation of the four cell vectors around p, and optionally its derivative
   // with respect to p; false when any of the four is missing.
   bool Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
@@ -108,16 +115,20 @@ class ReferenceField {
   void Build(const std::vector<const ScanSurface*>& surfaces);
   // Stores the segment [a, b] (a == b: a lone point) in every cell within max_distance_m where
   // it is nearer than what the cell holds (ties to the later primitive). `centre_x`: the cells'
-  // centre x per column.
-  void AddPrimitive(int a, int b, const std::vector<double>& centre_x, std::vector<float>* best_sq);
+  // centre x per column; `best_sq`: the squared distance of what each cell holds, max_sq where
+  // it holds nothing yet (then best_sq's own value is not read).
+  void AddPrimitive(int a, int b, const std::vector<double>& centre_x, float max_sq,
+                    float* best_sq);
 
   ReferenceFieldOptions options_;
   GridGeometry geometry_;
   size_t num_points_ = 0;
   std::vector<float> vx_;  // NaN where no vector is stored
   std::vector<float> vy_;
-  std::vector<int32_t> primitive_a_;  // vertex indices of the nearest primitive
-  std::vector<int32_t> primitive_b_;
+  std::vector<int32_t> primitive_a_;  // the nearest primitive: the vertex it starts at
+  // Per vertex a, the other end b of the one primitive that starts there (a + 1 when joined to
+  // the next return, else a): a function of a, so kept per vertex, not per cell.
+  std::vector<int32_t> primitive_ends_;
   std::vector<Eigen::Vector2d> vertices_;
   std::vector<Eigen::Vector2d> normals_;  // zero where a vertex has no joined neighbour
   // Per vertex a, PrimitiveNormal(a, b) of the one primitive that starts at a (b = a or a + 1),

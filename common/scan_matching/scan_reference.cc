@@ -36,21 +36,28 @@ ScanReference::ScanReference(const std::vector<PointCloud>& scans,
                              const ScanReferenceOptions& options)
     : options_(options),
       field_(scans, FieldOptions(options)),
-      likelihood_(field_, options.likelihood_sigma_m),
-      pyramid_(likelihood_, options.num_levels) {}
+      pyramid_(LikelihoodGrid(field_, options.likelihood_sigma_m), options.num_levels,
+               /*build_levels=*/false) {}
 
 ScanReference::ScanReference(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
                              const ScanReferenceOptions& options)
     : options_(options),
       field_(surfaces, FieldOptions(options)),
-      likelihood_(field_, options.likelihood_sigma_m),
-      pyramid_(likelihood_, options.num_levels) {}
+      pyramid_(LikelihoodGrid(field_, options.likelihood_sigma_m), options.num_levels,
+               /*build_levels=*/false) {}
+
+const MaxGridPyramid& ScanReference::pyramid() const {
+  std::call_once(lazy_->levels, [this] {
+    // The only change to the pyramid after construction: once, before any reader of its levels.
+    pyramid_.BuildLevels();
+  });
+  return pyramid_;
+}
 
 const ByteMaxGrids* ScanReference::byte_bounds() const {
   if (!pyramid_.exact_sums()) return nullptr;
-  std::call_once(bytes_->once,
-                 [this] { bytes_->grids = std::make_unique<ByteMaxGrids>(pyramid_); });
-  return bytes_->grids.get();
+  std::call_once(lazy_->bytes, [this] { lazy_->grids = std::make_unique<ByteMaxGrids>(pyramid_); });
+  return lazy_->grids.get();
 }
 
 }  // namespace anchormap

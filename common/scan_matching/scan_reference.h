@@ -1,7 +1,8 @@
 #pragma once
 // Everything a match needs from its reference, built once and shared by every query matched
 // against it: the reference field (vectors to the nearest surface, for refinement, covariance
-// and overlap), the likelihood grid (the score) and its max-grid pyramid (branch and bound).
+// and overlap), the likelihood grid (the score; the pyramid's level 0) and its max-grid
+// pyramid's bounds (branch and bound), as floats or bytes, each built when first asked for.
 // Building costs O(reference points x (max distance / resolution)^2) plus O(levels x cells).
 
 #include <memory>
@@ -43,27 +44,37 @@ class ScanReference {
 
   const ScanReferenceOptions& options() const { return options_; }
   const ReferenceField& field() const { return field_; }
-  const LikelihoodGrid& likelihood() const { return likelihood_; }
-  const MaxGridPyramid& pyramid() const { return pyramid_; }
+  // Every level of the max-grid pyramid, the levels above 0 built on the first call (once,
+  // though several match workers search one submap at a time): only searches bounded on the
+  // floats ask for them (the loop closures' wide searches, whose budget counts their nodes).
+  const MaxGridPyramid& pyramid() const;
+  // The pyramid's level 0 (the likelihood grid; its levels above may not be built yet): what a
+  // search bounded on byte_bounds() reads.
+  const MaxGridPyramid& base() const { return pyramid_; }
   const GridGeometry& geometry() const { return field_.geometry(); }
   bool empty() const { return field_.num_points() == 0; }
-  // The pyramid as bytes for the global searches' inner nodes (byte_max_grids.h), built on the
-  // first call (once, though several match workers search one submap at a time); null when the
-  // pyramid's sums are not exact.
+  // The pyramid's levels as bytes for the searches' inner nodes (byte_max_grids.h), built from
+  // level 0 on the first call; null when the pyramid's sums are not exact.
   const ByteMaxGrids* byte_bounds() const;
+  // The same likelihood grid (cells and values), exactly: a reference built again from the
+  // same drawing equals the first.
+  bool SameLikelihood(const ScanReference& other) const {
+    return pyramid_.SameBase(other.pyramid_);
+  }
 
  private:
   static ReferenceFieldOptions FieldOptions(const ScanReferenceOptions& options);
 
   ScanReferenceOptions options_;
   ReferenceField field_;
-  LikelihoodGrid likelihood_;
-  MaxGridPyramid pyramid_;
-  struct LazyBytes {
-    std::once_flag once;
+  // Level 0 at construction, the levels above on the first pyramid() (Lazy::levels).
+  mutable MaxGridPyramid pyramid_;
+  struct Lazy {
+    std::once_flag levels;
+    std::once_flag bytes;
     std::unique_ptr<const ByteMaxGrids> grids;
   };
-  std::unique_ptr<LazyBytes> bytes_ = std::make_unique<LazyBytes>();
+  std::unique_ptr<Lazy> lazy_ = std::make_unique<Lazy>();
 };
 
 }  // namespace anchormap
