@@ -188,7 +188,8 @@ std::vector<size_t> GlobalSearchPlanner::GuidedSubmaps(PoseKey key, TrajectoryId
   // The kept candidate of key's trajectory against the target's group whose own maps agree
   // best.
   const EncounterCandidate* best = qualifier_->BestHypothesis(
-      key.trajectory, [&](TrajectoryId id) { return InOneFrame(smoother, id, other); });
+      key.trajectory, [&](TrajectoryId id) { return InOneFrame(smoother, id, other); },
+      options_.guide_min_points);
   if (best == nullptr) return {};
   return GuidedByHypothesis(key, *best, *submaps, graph, most, nearest_m);
 }

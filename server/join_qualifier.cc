@@ -387,14 +387,14 @@ void JoinQualifier::GiveUpUnlessJoinedBy(const std::vector<EncounterConstraint>&
 }
 
 const EncounterCandidate* JoinQualifier::BestHypothesis(
-    TrajectoryId query, const std::function<bool(TrajectoryId)>& accept) const {
+    TrajectoryId query, const std::function<bool(TrajectoryId)>& accept, int min_points) const {
   const Kept* best = nullptr;
   for (const auto& [pair, kept] : kept_) {
     const bool first = pair.first == query;
     if (!first && pair.second != query) continue;
     if (!accept(first ? pair.second : pair.first)) continue;
     for (const Kept& k : kept) {
-      if (!k.localised || k.conflict_points < options_.guide_min_points ||
+      if (!k.localised || k.conflict_points < min_points ||
           k.conflict > options_.verify_max_conflict) {
         continue;
       }

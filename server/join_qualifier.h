@@ -53,10 +53,11 @@ class JoinQualifier {
   void GiveUpUnlessJoinedBy(const std::vector<EncounterConstraint>& constraints,
                             const GraphView& graph);
   // The kept candidate of `query`'s trajectory against a trajectory `accept` takes (of a group
-  // the query's is not in) whose own maps agree best (guide_min_points, verify_max_conflict;
-  // measured once, when offered), if any.
+  // the query's is not in) whose own maps agree best (verify_max_conflict, at least
+  // `min_points` on the fewer side; measured once, when offered), if any.
   const EncounterCandidate* BestHypothesis(TrajectoryId query,
-                                           const std::function<bool(TrajectoryId)>& accept) const;
+                                           const std::function<bool(TrajectoryId)>& accept,
+                                           int min_points) const;
   // First-join hypotheses refused by the free-space test.
   int64_t joins_contradicted() const { return joins_contradicted_; }
 

@@ -37,9 +37,12 @@ void LookBackPlanner::LookBackOnGroupChange(const TrajectoryFrames& frames,
     for (const TrajectoryRecord& other : records) {
       const TrajectoryId y = other.solver_id;
       if (y == query.solver_id || InOneFrame(smoother, query.solver_id, y)) continue;
-      // The query's best hypothesis against a trajectory that came into y's frame.
+      // The query's best hypothesis against a trajectory that came into y's frame, map-verified
+      // (verify_min_points, not the guided search's guide_min_points: a weaker one found
+      // nothing verified on the benchmark logs).
       const EncounterCandidate* hypothesis = qualifier_->BestHypothesis(
-          query.solver_id, [&](TrajectoryId x) { return newly_joined(x, y); });
+          query.solver_id, [&](TrajectoryId x) { return newly_joined(x, y); },
+          options_.verify_min_points);
       if (hypothesis == nullptr) continue;
       std::vector<LookBack> pair_looks = LookBacks(*hypothesis, y, waiting_keys, graph);
       if (pair_looks.empty()) continue;

@@ -1,8 +1,8 @@
 #pragma once
 // Looking back when groups change (issue 11): when trajectory X comes into one frame with Y, a
 // trajectory Q outside their frame may have passed Y's places before, when nothing could guide
-// a search there. Q's best hypothesis against X (JoinQualifier::BestHypothesis: its kept
-// candidate whose own maps agree best) then places Q's past keyframes in the group's frame:
+// a search there. Q's best hypothesis against X (JoinQualifier::BestHypothesis: its map-verified
+// kept candidate whose own maps agree best) then places Q's past keyframes in the group's frame:
 // those it puts within near_distance_m of a submap of Y, plus 3 sigma of the drift of both paths
 // from the hypothesis's keyframes (NearSearch's drift terms, up to near_wide_max_window_m), are
 // searched globally in that submap, nearest first, the (Q, Y) pairs by turns, at most

@@ -71,9 +71,11 @@ class LookBackTest : public ::testing::Test, protected testing::ThreeLaps {
   // With the hypothesis kept or not: the searches the group change submits (held back by the
   // schedule's lag, then used).
   Looked LookBack(bool hypothesis,
-                  int look_back_max_per_change = ScanEncounterOptions{}.look_back_max_per_change) {
+                  int look_back_max_per_change = ScanEncounterOptions{}.look_back_max_per_change,
+                  int verify_min_points = ScanEncounterOptions{}.verify_min_points) {
     ScanEncounterOptions options;
     options.look_back_max_per_change = look_back_max_per_change;
+    options.verify_min_points = verify_min_points;
     options.first_join_hold_s = 0.0;
     options.near_catch_up_every = 0;  // no near search between R1 and R2 (a test of its own)
     MatchPool pool(1);
@@ -167,6 +169,21 @@ TEST_F(LookBackTest, WithoutAHypothesisTheGroupChangeLooksAtNothing) {
   EXPECT_EQ(looked.look_backs, 0);
   EXPECT_TRUE(looked.searches.empty());
   EXPECT_TRUE(looked.emitted.empty());
+}
+
+// A hypothesis whose own maps agree on fewer points than a map-verified candidate needs
+// (verify_min_points; here more than R2[10]-R3[35] has, while it still has the guided search's
+// guide_min_points) looks back at nothing: on ACES rotated by 2.5 rad, split in three
+// simultaneously, R1's R1[65]-R2[80] (1092 points) spent 16 looks and found nothing verified.
+TEST_F(LookBackTest, AHypothesisNotMapVerifiedLooksAtNothing) {
+  const ScanEncounterOptions defaults;
+  const Looked looked = LookBack(/*hypothesis=*/true, defaults.look_back_max_per_change,
+                                 /*verify_min_points=*/100'000);
+  EXPECT_EQ(looked.look_backs, 0);
+  EXPECT_TRUE(looked.searches.empty());
+  EXPECT_TRUE(looked.emitted.empty());
+  // With the default bar the same hypothesis looks back 16 times and joins R3
+  // (AGroupChangeLooksBackWhereTheHypothesisPutsThePastKeyframes).
 }
 
 }  // namespace

@@ -127,8 +127,10 @@ struct ScanEncounterOptions {
   // trajectory Q outside their frame may have passed Y's places before, when nothing could
   // guide a search there (ACES split in three simultaneously: R3 passed R1's places at 400-460
   // s, before R1 and R2 joined at 481 s, and its one true candidate, R2[65]-R3[135], kept no
-  // partner). Q's hypothesis against X (its kept candidate whose own maps agree best, as the
-  // guided search takes) then places Q's past keyframes in the group's frame: those it puts
+  // partner). Q's hypothesis against X (its map-verified kept candidate whose own maps agree
+  // best: verify_min_points, not the guided search's guide_min_points; ACES rotated by 2.5 rad,
+  // split in three simultaneously: R1's R1[65]-R2[80], 1092 points, spent 16 looks and found
+  // nothing verified) then places Q's past keyframes in the group's frame: those it puts
   // within near_distance_m of a submap of Y, plus 3 sigma of the drift of both paths from the
   // hypothesis's keyframes (near_drift_*, up to near_wide_max_window_m), are searched globally
   // in that submap, nearest first, the (Q, Y) pairs by turns, at most look_back_max_per_change
