@@ -1,6 +1,11 @@
 #include "common/solver/flat_r.h"
 
 #include <algorithm>
+#include <cstring>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace anchormap {
 namespace {
@@ -10,6 +15,45 @@ static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double) &&
               "the solves read vectors and blocks as plain arrays of doubles");
 
 double* Doubles(std::vector<Eigen::Vector3d>* v) { return reinterpret_cast<double*>(v->data()); }
+
+// Two doubles in one register (SSE2 on x86-64), through GCC's and Clang's vector
+// extensions. The solves work on two entries of a 3-vector at once; each lane does the
+// scalar code's operations in its order (no fused multiply-add on the baseline target), so
+// the results are the scalar code's bits.
+using Pair = double __attribute__((vector_size(16)));
+
+// f[0], f[1], widened exactly to doubles (one 8-byte load and one conversion on SSE2,
+// where GCC's generic conversion widens them one by one).
+Pair Widen(const float* f) {
+#if defined(__SSE2__)
+  const __m128 two = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(f));
+  return reinterpret_cast<Pair>(_mm_cvtps_pd(two));
+#else
+  return Pair{f[0], f[1]};
+#endif
+}
+
+// (f[0], f[2]) and (f[1], f[3]), widened.
+void WidenCrossed(const float* f, Pair* even, Pair* odd) {
+#if defined(__SSE2__)
+  __m128 four = _mm_loadu_ps(f);
+  four = _mm_shuffle_ps(four, four, _MM_SHUFFLE(3, 1, 2, 0));
+  *even = reinterpret_cast<Pair>(_mm_cvtps_pd(four));
+  *odd = reinterpret_cast<Pair>(_mm_cvtps_pd(_mm_movehl_ps(four, four)));
+#else
+  *even = Pair{f[0], f[2]};
+  *odd = Pair{f[1], f[3]};
+#endif
+}
+
+// A block's 9 floats, in the order the solves read them: rows 0-2 of columns 0 and 1 as
+// pairs (R00 R01, R10 R11, R20 R21), then column 2 (R02 R12 R22). The forward solve's
+// x_q0, x_q1 take the row pairs, the back solve's s0, s1 rows 0 and 1 of each column.
+void StoreBlock(const Eigen::Matrix3d& m, float* b) {
+  const double* d = m.data();  // column-major: d[i + 3 * j] is (i, j)
+  constexpr int kFrom[9] = {0, 3, 1, 4, 2, 5, 6, 7, 8};
+  for (int i = 0; i < 9; ++i) b[i] = static_cast<float>(d[kFrom[i]]);
+}
 
 // The inverse of an upper triangular 3x3 block (column-major: d[i + 3 * j] is (i, j)).
 std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
@@ -55,8 +99,7 @@ int FlatR::Refresh(const SparseR& r) {
     int64_t k = row_start_[p];
     for (const auto& [q, block] : row.right) {
       columns_[k] = q;
-      float* b = blocks_.data() + 9 * k;
-      for (int i = 0; i < 9; ++i) b[i] = static_cast<float>(block.data()[i]);
+      StoreBlock(block, blocks_.data() + 9 * k);
       ++k;
     }
   }
@@ -68,7 +111,8 @@ int FlatR::Refresh(const SparseR& r) {
 // Both solves keep the vector's entries being worked on in locals: through the vector
 // itself, the compiler must assume every store may alias the next load (and Eigen's
 // 3-vector solve stored and reloaded x_p piecewise, stalling store forwarding). Blocks
-// are column-major: b[i + 3 * j] is entry (i, j).
+// are stored as StoreBlock lays them out; b[0..5] are the pairs (R00 R01), (R10 R11),
+// (R20 R21), b[6..8] column 2.
 double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
   double* x = Doubles(v);
   const int n = size();
@@ -85,13 +129,16 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
     xp[0] = y0;
     xp[1] = y1;
     xp[2] = y2;
-    // x_q -= R_pq^T y for the blocks right of the diagonal.
+    // x_q -= R_pq^T y for the blocks right of the diagonal: x_q0 and x_q1 as one pair.
+    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2};
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
       const float* b = block + 9 * k;
       double* xq = x + 3 * column[k];
-      xq[0] -= b[0] * y0 + b[1] * y1 + b[2] * y2;
-      xq[1] -= b[3] * y0 + b[4] * y1 + b[5] * y2;
+      Pair xq01;
+      std::memcpy(&xq01, xq, sizeof(xq01));
+      xq01 -= (Widen(b) * y0s + Widen(b + 2) * y1s) + Widen(b + 4) * y2s;
+      std::memcpy(xq, &xq01, sizeof(xq01));
       xq[2] -= b[6] * y0 + b[7] * y1 + b[8] * y2;
     }
     norm2 += y0 * y0 + y1 * y1 + y2 * y2;
@@ -105,16 +152,21 @@ void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
   const float* block = blocks_.data();
   for (int p = size() - 1; p >= 0; --p) {
     double* xp = x + 3 * p;
-    double s0 = xp[0], s1 = xp[1], s2 = xp[2];
-    // s -= R_pq x_q for the blocks right of the diagonal (already solved).
+    Pair s01 = {xp[0], xp[1]};
+    double s2 = xp[2];
+    // s -= R_pq x_q for the blocks right of the diagonal (already solved): s0 and s1 as
+    // one pair (rows 0 and 1 of each column).
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
       const float* b = block + 9 * k;
       const double* xq = x + 3 * column[k];
-      s0 -= b[0] * xq[0] + b[3] * xq[1] + b[6] * xq[2];
-      s1 -= b[1] * xq[0] + b[4] * xq[1] + b[7] * xq[2];
-      s2 -= b[2] * xq[0] + b[5] * xq[1] + b[8] * xq[2];
+      const double x0 = xq[0], x1 = xq[1], x2 = xq[2];
+      Pair column0, column1;
+      WidenCrossed(b, &column0, &column1);
+      s01 -= (column0 * Pair{x0, x0} + column1 * Pair{x1, x1}) + Widen(b + 6) * Pair{x2, x2};
+      s2 -= b[4] * x0 + b[5] * x1 + b[8] * x2;
     }
+    const double s0 = s01[0], s1 = s01[1];
     // x_p = R_pp^-1 s.
     const double* i = inverse_diagonals_[p].data();
     xp[0] = i[0] * s0 + i[1] * s1 + i[2] * s2;

@@ -45,7 +45,8 @@ class FlatR {
   std::vector<std::array<double, 6>> inverse_diagonals_;
   std::vector<int64_t> row_start_{0};  // by block row, and one past the last
   std::vector<int> columns_;           // off-diagonal blocks' columns, in row order
-  // The blocks themselves, same order, 9 floats each (column-major).
+  // The blocks themselves, same order, 9 floats each in the order the solves read them
+  // (pairs of entries side by side: flat_r.cc's StoreBlock).
   std::vector<float> blocks_;
 };
 
