@@ -830,9 +830,10 @@ Eigen::Matrix3d ScanEncounters::NearDrift(PoseKey a, PoseKey b, const GraphView&
     return Eigen::Matrix3d::Zero();
   }
   const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
-  if (!drive) return Eigen::Matrix3d::Zero();
-  return NearDriftOf(*drive, options_);
+  // Exact, or (the search's cap) the least the drive can be: a stricter gate, never a looser.
+  const double drive = graph.ties->Drive(a, b, driven_to).at_least;
+  if (!std::isfinite(drive)) return Eigen::Matrix3d::Zero();
+  return NearDriftOf(drive, options_);
 }
 
 Eigen::Matrix3d ScanEncounters::NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph) {
@@ -842,8 +843,9 @@ Eigen::Matrix3d ScanEncounters::NearWindowDrift(PoseKey a, PoseKey b, const Grap
   }
   const double saturated = NearWindowSaturatingDrive(options_);
   const auto driven_to = [this, &graph](PoseKey key) { return DrivenTo(key, graph); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to, saturated);
-  if (drive) return NearDriftOf(*drive, options_);
+  // Exact, or (the search's cap) the most the drive can be: a wider window, never a narrower.
+  const double drive = graph.ties->Drive(a, b, driven_to, saturated).at_most;
+  if (drive <= saturated) return NearDriftOf(drive, options_);
   if (!graph.ties->Connected(a.trajectory, b.trajectory)) return Eigen::Matrix3d::Zero();
   // Farther than `saturated`: any such drive gives the widest window, this one too.
   return NearDriftOf(saturated, options_);
