@@ -102,83 +102,48 @@ Eigen::MatrixXd CovarianceRecovery::Joint(const std::vector<int>& positions) {
   return joint;
 }
 
-void CovarianceProjection::Forget() {
-  columns_.clear();
-  kept_blocks_ = 0;
-}
-
-const CovarianceProjection::Column& CovarianceProjection::ColumnOf(const SparseR& r, int p) {
-  if (const auto kept = columns_.find(p); kept != columns_.end()) return kept->second;
-  const int n = r.size();
-  if (static_cast<int>(pending_.size()) < n) {
-    pending_.resize(n, Eigen::Matrix3d::Zero());
-    queued_.resize(n, 0);
-  }
-  Column& column = columns_[p];
-  pending_[p] = Eigen::Matrix3d::Identity();
-  queued_[p] = 1;
-  queue_.push(p);
-  // Forward substitution on R^T, rows in ascending order; each solved row pushes its part
-  // into the rows its blocks reach (all later), so only ancestors are visited.
-  while (!queue_.empty()) {
-    const int q = queue_.top();
-    queue_.pop();
-    const RBlockRow& row = r.row(q);
-    // Y_q = R_qq^-T pending_q
-    const Eigen::Matrix3d y =
-        row.diagonal.transpose().triangularView<Eigen::Lower>().solve(pending_[q]);
-    pending_[q].setZero();
-    queued_[q] = 0;
-    column.rows.push_back(q);
-    column.blocks.push_back(y);
-    for (const auto& [next, block] : row.right) {
-      pending_[next].noalias() -= block.transpose() * y;
-      if (!queued_[next]) {
-        queued_[next] = 1;
-        queue_.push(next);
-      }
-    }
-  }
-  kept_blocks_ += column.rows.size();
-  return column;
-}
-
 Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vector<int>& positions,
                                               const std::vector<Eigen::Matrix3d>& jacobians) {
   if (positions.size() != jacobians.size()) {
     throw std::invalid_argument("CovarianceProjection: one Jacobian block per position");
   }
   const int n = r.size();
+  if (static_cast<int>(pending_.size()) < n) {
+    pending_.resize(n, Eigen::Matrix3d::Zero());
+    queued_.resize(n, 0);
+  }
   for (int p : positions) {
     if (p < 0 || p >= n) throw std::out_of_range("CovarianceProjection: position outside R");
   }
-  if (kept_blocks_ > kMaxKeptBlocks) Forget();
-  if (static_cast<int>(y_.size()) < n) {
-    y_.resize(n, Eigen::Matrix3d::Zero());
-    touched_.resize(n, 0);
-  }
-  // Y = sum_s column_s J_s^T, block by block (references into columns_ stay valid while
-  // other columns are added).
   for (size_t s = 0; s < positions.size(); ++s) {
-    const Column& column = ColumnOf(r, positions[s]);
-    const Eigen::Matrix3d Jt = jacobians[s].transpose();
-    for (size_t k = 0; k < column.rows.size(); ++k) {
-      const int q = column.rows[k];
-      if (!touched_[q]) {
-        touched_[q] = 1;
-        touched_rows_.push_back(q);
-        y_[q].noalias() = column.blocks[k] * Jt;
-      } else {
-        y_[q].noalias() += column.blocks[k] * Jt;
+    const int p = positions[s];
+    pending_[p] += jacobians[s].transpose();
+    if (!queued_[p]) {
+      queued_[p] = 1;
+      queue_.push(p);
+    }
+  }
+  // Forward substitution on R^T, rows in ascending order; each solved row pushes its part
+  // into the rows its blocks reach (all later), so only ancestors are visited.
+  Eigen::Matrix3d result = Eigen::Matrix3d::Zero();
+  while (!queue_.empty()) {
+    const int p = queue_.top();
+    queue_.pop();
+    const RBlockRow& row = r.row(p);
+    // Y_p = R_pp^-T pending_p
+    const Eigen::Matrix3d y =
+        row.diagonal.transpose().triangularView<Eigen::Lower>().solve(pending_[p]);
+    pending_[p].setZero();
+    queued_[p] = 0;
+    result.noalias() += y.transpose() * y;
+    for (const auto& [q, block] : row.right) {
+      pending_[q].noalias() -= block.transpose() * y;
+      if (!queued_[q]) {
+        queued_[q] = 1;
+        queue_.push(q);
       }
     }
   }
-  Eigen::Matrix3d result = Eigen::Matrix3d::Zero();
-  for (const int q : touched_rows_) {
-    result.noalias() += y_[q].transpose() * y_[q];
-    touched_[q] = 0;
-  }
-  touched_rows_.clear();
   return 0.5 * (result + result.transpose());  // symmetric by construction; remove round-off
 }
 

@@ -14,7 +14,6 @@
 #include <functional>
 #include <memory>
 #include <queue>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -83,54 +82,29 @@ class CovarianceRecovery {
 
 // J Sigma J^T for a few positions of R, without Sigma's blocks: with Sigma = R^-1 R^-T,
 //
-//   J Sigma J^T = Y^T Y,   Y = R^-T J^T = sum_s (R^-T E_s) J_s^T   (E_s: identity at s),
+//   J Sigma J^T = Y^T Y,   Y = R^-T J^T   (R^T Y = J^T: one forward substitution),
 //
-// and each column R^-T E_s (one forward substitution on R^T) is non-zero only on the
-// ancestors of s in R's elimination tree. Its cost is the non-zeros of R on those rows times
-// 3 columns: linear in the size of the dense corner that anchors and latest poses form at the
-// bottom of R, where the block recursion (CovarianceRecovery above) needs every pair of the
-// corner's positions and costs its cube. At 100 robots in one group that corner reached 300
-// positions, and the gates' joint covariances took 85 % of the server's CPU
-// (docs/ARCHITECTURE.md, "Server cost at scale").
-// The columns are kept per position until Forget(): between two solver updates the gates ask
-// about the same submap centres, anchors and new keyframes again and again, and a kept
-// column costs one 3x3 product per ancestor instead of a pass over the ancestors' rows (the
-// corner's rows hold hundreds of blocks). Exact; the round-off differs from the recursion's,
-// and a result does not depend on which columns were kept before.
+// and Y is non-zero only on the ancestors of the positions in R's elimination tree. The
+// cost is the non-zeros of R on those rows times J's rows (3): linear in the size of the
+// dense corner that anchors and latest poses form at the bottom of R, where the block
+// recursion (CovarianceRecovery above) needs every pair of the corner's positions and costs its
+// cube. At 100 robots in one group that corner reached 300 positions, and the gates'
+// joint covariances took 85 % of the server's CPU (docs/ARCHITECTURE.md, "Server cost at
+// scale"). Exact; the round-off differs from the recursion's.
 class CovarianceProjection {
  public:
   // J Sigma J^T, J = [J_1 ... J_k] with J_s (3x3) acting on position positions[s]
-  // (positions may repeat: their J_s add up). `r` must be the matrix the kept columns were
-  // solved on (call Forget() whenever it changes) and must not change during a call.
+  // (positions may repeat: their J_s add up). Scratch space is kept between calls; `r` must
+  // not change during a call.
   Eigen::Matrix3d Compute(const SparseR& r, const std::vector<int>& positions,
                           const std::vector<Eigen::Matrix3d>& jacobians);
-  // Drops the kept columns (R changed).
-  void Forget();
-  // Columns kept, and the blocks they hold.
-  size_t kept_columns() const { return columns_.size(); }
-  size_t kept_blocks() const { return kept_blocks_; }
 
  private:
-  // R^-T E_p: its non-zero blocks by row, ascending.
-  struct Column {
-    std::vector<int> rows;
-    std::vector<Eigen::Matrix3d> blocks;
-  };
-  const Column& ColumnOf(const SparseR& r, int p);
-  // At most this many blocks kept (about 40 MB); past it, all are dropped before a call.
-  static constexpr size_t kMaxKeptBlocks = size_t{1} << 19;
-
-  std::unordered_map<int, Column> columns_;
-  size_t kept_blocks_ = 0;
-  // Scratch of ColumnOf, by position: the right-hand side still to solve (minus what earlier
-  // rows pushed), and whether the position is in the queue.
+  // By position: the right-hand side still to solve (J^T's block minus what earlier rows
+  // pushed), and whether the position is in the queue.
   std::vector<Eigen::Matrix3d> pending_;
   std::vector<char> queued_;
   std::priority_queue<int, std::vector<int>, std::greater<int>> queue_;
-  // Scratch of Compute, by position: Y's block, and the positions it touched in order.
-  std::vector<Eigen::Matrix3d> y_;
-  std::vector<char> touched_;
-  std::vector<int> touched_rows_;
 };
 
 }  // namespace anchormap

@@ -148,36 +148,6 @@ TEST(CovarianceProjectionTest, EqualsTheDenseProjectionForAnyPositions) {
             1e-9 * expected_marginal.cwiseAbs().maxCoeff());
 }
 
-// The kept columns: a query answered from columns kept by earlier queries gives the same
-// bits as a fresh object's, whatever came before; after Forget() the object answers for a
-// different R (a stale column would give the first matrix's covariance).
-TEST(CovarianceProjectionTest, KeptColumnsGiveTheSameBitsUntilForgotten) {
-  const int n = 50;
-  const auto [r, sigma] = MakeChainWithLoopClosures(n, 20, 4);
-  const auto [other, other_sigma] = MakeChainWithLoopClosures(n, 30, 9);
-  std::mt19937 rng(5);
-  CovarianceProjection kept;
-  for (int query = 0; query < 200; ++query) {
-    std::vector<int> positions;
-    std::vector<Eigen::Matrix3d> jacobians;
-    for (int s = 0; s < 1 + query % 4; ++s) {
-      positions.push_back(std::uniform_int_distribution<int>(0, n - 1)(rng));
-      jacobians.push_back(Eigen::Matrix3d::Random());
-    }
-    CovarianceProjection fresh;
-    EXPECT_EQ(kept.Compute(*r, positions, jacobians), fresh.Compute(*r, positions, jacobians));
-  }
-  EXPECT_GT(kept.kept_columns(), 40u);  // most positions were asked, and kept
-  kept.Forget();
-  EXPECT_EQ(kept.kept_columns(), 0u);
-  EXPECT_EQ(kept.kept_blocks(), 0u);
-  const Eigen::Matrix3d marginal = kept.Compute(*other, {7}, {Eigen::Matrix3d::Identity()});
-  const Eigen::Matrix3d expected = other_sigma.block<3, 3>(21, 21);
-  EXPECT_LT((marginal - expected).cwiseAbs().maxCoeff(), 1e-9 * expected.cwiseAbs().maxCoeff());
-  EXPECT_GT((sigma.block<3, 3>(21, 21) - expected).cwiseAbs().maxCoeff(),
-            1e-3 * expected.cwiseAbs().maxCoeff());  // the two matrices differ there
-}
-
 // The last position has no ancestor: its marginal is its own diagonal block's, which the
 // solve reaches without visiting any other row.
 TEST(CovarianceProjectionTest, TheLastPositionNeedsOnlyItsDiagonalBlock) {

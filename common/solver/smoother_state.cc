@@ -104,7 +104,6 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   gradient_.Clear();  // a function of the estimate: rebuilt by the next pass
   r_ = std::move(r);
   covariances_.reset();
-  projected_.Forget();
   // Work space only: a partial step compares stamps with a fresh one.
   factor_stamp_.clear();
   stamp_ = 0;

@@ -687,7 +687,6 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   UpdateResult result;
   result.update = ++stats_.updates;
   covariances_.reset();
-  projected_.Forget();
   const int anchors_before = CountAnchors();
   const int waiting_before = ActivePending();
 
