@@ -17,4 +17,9 @@ double DrivenPath::To(const TrajectoryRecord& record, int32_t index) {
       std::clamp<int32_t>(index, 0, static_cast<int32_t>(driven.size()) - 1))];
 }
 
+double DrivenPath::To(const TrajectoryTable& table, PoseKey key) {
+  const TrajectoryRecord* record = table.FindBySolverId(key.trajectory);
+  return record != nullptr ? To(*record, key.index) : 0.0;
+}
+
 }  // namespace anchormap

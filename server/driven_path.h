@@ -18,6 +18,8 @@ class DrivenPath {
  public:
   // The path to keyframe `index` of `record` (clamped to its keyframes; 0 without any).
   double To(const TrajectoryRecord& record, int32_t index);
+  // The path to keyframe `key` of the table's trajectories (0 without its record).
+  double To(const TrajectoryTable& table, PoseKey key);
 
  private:
   std::map<TrajectoryId, std::vector<double>> driven_;

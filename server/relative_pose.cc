@@ -20,6 +20,15 @@ TrajectoryFrame FrameOf(const Smoother& smoother, TrajectoryId id) {
   return {anchored, anchored ? smoother.GroupRoot(id) : id};
 }
 
+TrajectoryFrames FramesOf(const TrajectoryTable& table, const Smoother& smoother) {
+  TrajectoryFrames frames;
+  frames.reserve(table.records().size());
+  for (const TrajectoryRecord& record : table.records()) {
+    frames.emplace_back(record.solver_id, FrameOf(smoother, record.solver_id));
+  }
+  return frames;
+}
+
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b) {
   if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
   // Only from a solved graph: a covariance read across a pending merge or anchor would

@@ -7,12 +7,14 @@
 
 #include <optional>
 #include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "common/geometry/pose2.h"
 #include "common/solver/keys.h"
 #include "common/solver/smoother.h"
+#include "server/trajectory_table.h"
 
 namespace anchormap {
 
@@ -32,6 +34,9 @@ bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);
 // else (false, itself). InOneFrame(a, b) is FrameOf(a) == FrameOf(b).
 using TrajectoryFrame = std::pair<bool, TrajectoryId>;
 TrajectoryFrame FrameOf(const Smoother& smoother, TrajectoryId id);
+// Each trajectory's frame (FrameOf), in the table's order.
+using TrajectoryFrames = std::vector<std::pair<TrajectoryId, TrajectoryFrame>>;
+TrajectoryFrames FramesOf(const TrajectoryTable& table, const Smoother& smoother);
 
 // Squared Mahalanobis distance of `measured` from `predicted` under `covariance`
 // (the sum of both sides' covariances); +inf when it is not invertible.

@@ -5,114 +5,30 @@
 #include "server/scan_encounters.h"
 
 namespace anchormap {
-namespace {
-
-ScanEncounterCandidateState ToState(const EncounterCandidate& c) {
-  return {c.a, c.b, c.T_a_b, c.covariance, c.utime, c.a_is_query};
-}
-
-EncounterCandidate FromState(const ScanEncounterCandidateState& c) {
-  EncounterCandidate out;
-  out.a = c.a;
-  out.b = c.b;
-  out.T_a_b = c.T_a_b;
-  out.covariance = c.covariance;
-  out.utime = c.utime;
-  out.a_is_query = c.a_is_query;
-  return out;
-}
-
-}  // namespace
 
 ScanEncounterState ScanEncounters::ExportState() const {
   ScanEncounterState s;
-  for (const PendingMatch& m : matches_) {
-    // Waits for a match in flight.
-    s.matches.push_back(
-        {m.due_utime, m.key, m.center, m.global, m.wide, m.key_utime, m.result.get()});
-  }
+  matches_.ExportState(&s);
   s.waiting.assign(waiting_.begin(), waiting_.end());
-  for (const auto& [trajectory, submaps] : submaps_) {
-    auto& out = s.submaps[trajectory];
-    for (const Submap& submap : submaps) out.emplace_back(submap.center, submap.drawing);
-  }
-  s.global_cursor = global_cursor_;
-  s.global_queue = global_queue_.ExportState();
-  for (const auto& [pair, kept] : kept_) {
-    auto& out = s.kept[pair];
-    for (const Kept& k : kept)
-      out.push_back({ToState(k.candidate), k.support, k.localised, k.verified, k.conflict,
-                     k.conflict_points});
-  }
-  s.qualified_since = qualified_since_;
+  submaps_.ExportState(&s);
+  global_.ExportState(&s);
+  qualifier_.ExportState(&s);
   s.now_utime = now_utime_;
-  s.near_quiet_until = near_quiet_until_;
-  for (const auto& [trajectory, entry] : near_index_) {
-    s.near_index[trajectory] = {entry.index.Entries(), entry.indexed, entry.refreshed_utime,
-                                entry.merges};
-  }
+  near_.ExportState(&s);
   s.stats = stats_;
-  s.near_budget = near_budget_.ExportState();
-  for (const auto& [pair, held] : near_held_) {
-    auto& out = s.near_held[pair];
-    for (const EncounterCandidate& c : held) out.push_back(ToState(c));
-  }
-  s.near_joined = near_joined_;
-  s.near_joined_known = near_joined_known_;
   return s;
 }
 
 void ScanEncounters::ImportState(const ScanEncounterState& s) {
-  matches_.clear();
-  for (const ScanEncounterState::Match& m : s.matches) {
-    PendingMatch pending;
-    pending.due_utime = m.due_utime;
-    pending.key = m.key;
-    pending.center = m.center;
-    pending.global = m.global;
-    pending.wide = m.wide;
-    pending.key_utime = m.key_utime;
-    pending.result = ReadyMatch(m.result);
-    matches_.push_back(std::move(pending));
-  }
+  matches_.ImportState(s);
   waiting_.assign(s.waiting.begin(), s.waiting.end());
-  submaps_.clear();
-  for (const auto& [trajectory, submaps] : s.submaps) {
-    std::vector<Submap>& out = submaps_[trajectory];
-    for (const auto& [center, drawing] : submaps) out.push_back({center, drawing});
-  }
-  global_cursor_ = s.global_cursor;
-  global_queue_.ImportState(s.global_queue);
-  kept_.clear();
-  for (const auto& [pair, kept] : s.kept) {
-    std::deque<Kept>& out = kept_[pair];
-    for (const ScanEncounterState::Kept& k : kept) {
-      out.push_back({FromState(k.candidate), k.support, k.localised, k.verified, k.conflict,
-                     k.conflict_points});
-    }
-  }
-  qualified_since_ = s.qualified_since;
+  submaps_.ImportState(s);
+  global_.ImportState(s);
+  qualifier_.ImportState(s);
   now_utime_ = s.now_utime;
-  near_quiet_until_ = s.near_quiet_until;
-  near_index_.clear();
-  for (const auto& [trajectory, entry] : s.near_index) {
-    SubmapIndex& out = near_index_[trajectory];
-    for (const auto& [item, position] : entry.entries) out.index.Add(item, position);
-    out.indexed = entry.indexed;
-    out.refreshed_utime = entry.refreshed_utime;
-    out.merges = entry.merges;
-  }
   stats_ = s.stats;
-  if (s.near_budget) near_budget_.ImportState(*s.near_budget);
-  near_held_.clear();
-  for (const auto& [pair, held] : s.near_held) {
-    std::deque<EncounterCandidate>& out = near_held_[pair];
-    for (const ScanEncounterCandidateState& c : held) out.push_back(FromState(c));
-  }
-  near_joined_ = s.near_joined;
-  near_joined_known_ = s.near_joined_known;
-  caught_up_frames_.clear();
-  looked_back_frames_.clear();
+  near_.ImportState(s);
+  look_back_.Forget();
 }
 
 }  // namespace anchormap

@@ -161,7 +161,16 @@ Status RenderMapPng(const MergedMap* map, const OccupancyRaster& raster,
     title += "   (no merged map in the log)";
   }
   if (raster.empty()) title += ", no grid";
-  canvas.Text(10, 26, title, 16, kBlack, Canvas::Align::kLeft, true);
+  // A long title (a user's --title plus the counts) is set smaller rather than cut off.
+  // Hinting makes a text's width not quite proportional to its size: measure again.
+  const double title_room_px = view.width_px - 20.0;
+  double title_size_px = 16.0;
+  for (int i = 0; i < 8 && title_size_px > 8.0; ++i) {
+    const double width_px = canvas.TextWidth(title, title_size_px, true);
+    if (width_px <= title_room_px) break;
+    title_size_px = std::max(8.0, 0.98 * title_size_px * title_room_px / width_px);
+  }
+  canvas.Text(10, 26, title, title_size_px, kBlack, Canvas::Align::kLeft, true);
 
   // Legend (top-left, over the map).
   if (map && !map->trajectories.empty()) {

@@ -58,6 +58,24 @@ TEST(MapPngTest, SizeTrajectoryColoursAndGrid) {
   EXPECT_LT(on_link.r + on_link.g + on_link.b, 3 * 160);
 }
 
+TEST(MapPngTest, LongTitleFitsTheImage) {
+  MapPngOptions options;
+  options.title = std::string(60, 'W');  // with the counts ~2000 px at the usual size
+  const Rendered r = RenderTestLog(true, options);
+  // The title band's background (245, 245, 245) is untouched in the last 8 px columns, and
+  // the title's ink reaches the band's second half (it was set smaller, not dropped).
+  int inked_right_half = 0;
+  for (int y = 0; y < r.viewport.header_px; ++y) {
+    for (int x = r.png.width - 8; x < r.png.width; ++x) {
+      EXPECT_EQ(r.png.at(x, y), (Rgb{245, 245, 245})) << x << "," << y;
+    }
+    for (int x = r.png.width / 2; x < r.png.width - 8; ++x) {
+      if (r.png.at(x, y).r < 128) ++inked_right_half;
+    }
+  }
+  EXPECT_GT(inked_right_half, 100);
+}
+
 TEST(MapPngTest, WithoutGridOnlyTrajectories) {
   const Rendered r = RenderTestLog(false);
   EXPECT_EQ(PixelAt(r, {2.0, 2.0}), TrajectoryColor(0));
