@@ -123,7 +123,11 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
   // The farthest moved first; ties by key (trajectory, index): deterministic.
   size_t take = moved.size();
   if (!complete && options_.grid_max_moved > 0) {
-    take = std::min(take, static_cast<size_t>(options_.grid_max_moved));
+    const double budget =
+        std::min(static_cast<double>(options_.grid_max_moved),
+                 options_.grid_min_moved +
+                     options_.grid_moved_per_inserted * static_cast<double>(change.inserted));
+    take = std::min(take, static_cast<size_t>(budget));
     std::stable_sort(moved.begin(), moved.end(), [](const Moved& a, const Moved& b) {
       return a.displacement > b.displacement;
     });

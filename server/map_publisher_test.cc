@@ -210,6 +210,47 @@ TEST_F(MapPublisherTest, GridTracesAgainAtMostMaxMovedFarthestFirst) {
   for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
 }
 
+// Without a floor, a publication traces again as many moved keyframes as
+// grid_moved_per_inserted allows for the keyframes it traces in: none while nothing new comes
+// in, then (B's keyframes join the grid) the deferred ones.
+TEST_F(MapPublisherTest, GridTracesAgainInProportionToTheKeyframesTracedIn) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  options.grid_min_moved = 0;
+  options.grid_moved_per_inserted = 1.0;
+  MapPublisher publisher(options);
+  EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
+  ASSERT_TRUE(smoother_
+                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
+                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
+                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
+                  .ok());
+  ASSERT_TRUE(smoother_.Update().status.ok());
+  const MapPublisher::GridChange idle = publisher.UpdateGrid(smoother_, table_);
+  EXPECT_EQ(idle.inserted, 0);
+  EXPECT_EQ(idle.moved, 0);
+  EXPECT_EQ(idle.deferred, 3);  // A's keyframes 1 to 3 (0 holds the gauge)
+  Encounter();
+  const MapPublisher::GridChange joined = publisher.UpdateGrid(smoother_, table_);
+  EXPECT_EQ(joined.inserted, kKeyframes);  // B's
+  EXPECT_EQ(joined.moved, 3);
+  EXPECT_EQ(joined.deferred, 0);
+  // The floor alone: one per publication while nothing new comes in.
+  options.grid_min_moved = 1;
+  options.grid_moved_per_inserted = 0.0;
+  MapPublisher floored(options);
+  EXPECT_EQ(floored.UpdateGrid(smoother_, table_).inserted, 2 * kKeyframes);
+  ASSERT_TRUE(smoother_
+                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
+                              Pose2(kKeyframes - 1.0, -0.6, 0.0),
+                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
+                  .ok());
+  ASSERT_TRUE(smoother_.Update().status.ok());
+  const MapPublisher::GridChange once = floored.UpdateGrid(smoother_, table_);
+  EXPECT_EQ(once.moved, 1);
+  EXPECT_GT(once.deferred, 0);
+}
+
 TEST(MapPublisherRateTest, MapAfterEachNewUpdateAtMostOncePerPeriodGridOnItsOwnPeriod) {
   MapPublisherOptions options;
   options.map_period_s = 1.0;

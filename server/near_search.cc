@@ -197,9 +197,10 @@ Eigen::Matrix3d NearSearch::NearDrift(PoseKey a, PoseKey b, const GraphView& gra
     return Eigen::Matrix3d::Zero();
   }
   const auto driven_to = [this, &graph](PoseKey key) { return driven_->To(graph.table, key); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to);
-  if (!drive) return Eigen::Matrix3d::Zero();
-  return NearDriftOf(*drive, options_);
+  // Exact, or (the search's cap) the least the drive can be: a stricter gate, never a looser.
+  const double drive = graph.ties->Drive(a, b, driven_to).at_least;
+  if (!std::isfinite(drive)) return Eigen::Matrix3d::Zero();
+  return NearDriftOf(drive, options_);
 }
 
 Eigen::Matrix3d NearSearch::NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph) {
@@ -209,8 +210,9 @@ Eigen::Matrix3d NearSearch::NearWindowDrift(PoseKey a, PoseKey b, const GraphVie
   }
   const double saturated = NearWindowSaturatingDrive(options_);
   const auto driven_to = [this, &graph](PoseKey key) { return driven_->To(graph.table, key); };
-  const std::optional<double> drive = graph.ties->ShortestDrive(a, b, driven_to, saturated);
-  if (drive) return NearDriftOf(*drive, options_);
+  // Exact, or (the search's cap) the most the drive can be: a wider window, never a narrower.
+  const double drive = graph.ties->Drive(a, b, driven_to, saturated).at_most;
+  if (drive <= saturated) return NearDriftOf(drive, options_);
   if (!graph.ties->Connected(a.trajectory, b.trajectory)) return Eigen::Matrix3d::Zero();
   // Farther than `saturated`: any such drive gives the widest window, this one too.
   return NearDriftOf(saturated, options_);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <utility>
 
 namespace anchormap {
@@ -63,26 +64,42 @@ double TrajectoryTies::DrivenOf(int32_t node, const std::function<double(PoseKey
   return n.driven;
 }
 
+TrajectoryTies::DriveRange TrajectoryTies::Drive(PoseKey from, PoseKey to,
+                                                 const std::function<double(PoseKey)>& driven,
+                                                 double limit) const {
+  return Search(from, to, driven, limit, /*below=*/false);
+}
+
 std::optional<double> TrajectoryTies::ShortestDrive(PoseKey from, PoseKey to,
                                                     const std::function<double(PoseKey)>& driven,
                                                     double limit) const {
-  const std::optional<double> best = Search(from, to, driven, limit, /*below=*/false);
-  return best && *best <= limit ? best : std::nullopt;
+  const DriveRange range = Search(from, to, driven, limit, /*below=*/false);
+  if (range.at_least != range.at_most || !std::isfinite(range.at_most)) return std::nullopt;
+  return range.at_most <= limit ? std::optional<double>(range.at_most) : std::nullopt;
 }
 
 bool TrajectoryTies::DriveBelow(PoseKey from, PoseKey to,
                                 const std::function<double(PoseKey)>& driven, double limit) const {
-  const std::optional<double> best = Search(from, to, driven, limit, /*below=*/true);
-  return best && *best < limit;
+  const DriveRange range = Search(from, to, driven, limit, /*below=*/true);
+  return range.at_most < limit || range.capped;
 }
 
-std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
-                                             const std::function<double(PoseKey)>& driven,
-                                             double limit, bool below) const {
+TrajectoryTies::DriveRange TrajectoryTies::Search(PoseKey from, PoseKey to,
+                                                  const std::function<double(PoseKey)>& driven,
+                                                  double limit, bool below) const {
+  ++stats_.searches;
   const double driven_to = driven(to);
   std::optional<double> best;
+  // What the search knows when it stops with nothing shorter than `reached` left to settle.
+  const auto known = [&best](double reached, bool capped = false) {
+    DriveRange range;
+    if (best) range.at_most = *best;
+    range.at_least = std::min(reached, range.at_most);
+    range.capped = capped && range.at_least < range.at_most;
+    return range;
+  };
   if (from.trajectory == to.trajectory) best = std::abs(driven(from) - driven_to);
-  if (below && best && *best < limit) return best;
+  if (below && best && *best < limit) return known(0.0);
   // Dijkstra over the tied keyframes. Along one trajectory the drive between two keyframes
   // is the difference of the paths driven to them, so each tied keyframe needs edges only to
   // its neighbours by index there (and to `to`, when in its trajectory).
@@ -122,12 +139,13 @@ std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
     }
   }
   queue.push_back({0.0, from.trajectory.value(), from.index, start});
+  int64_t settled = 0;
   while (!queue.empty()) {
     std::pop_heap(queue.begin(), queue.end(), later);
     const Item item = queue.back();
     queue.pop_back();
     const double distance = item.distance;
-    if ((best && distance >= *best) || distance > limit) break;
+    if ((best && distance >= *best) || distance > limit) return known(distance);
     double driven_key = 0.0;
     int32_t next_below = kNone, next_above = kNone;
     const Node* node = nullptr;
@@ -138,6 +156,8 @@ std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
     } else {
       if (settled_in_[static_cast<size_t>(item.node)] == search_) continue;
       settled_in_[static_cast<size_t>(item.node)] = search_;
+      ++stats_.settled;
+      stats_.most_settled = std::max(stats_.most_settled, ++settled);
       node = &nodes_[static_cast<size_t>(item.node)];
       driven_key = DrivenOf(item.node, driven);
       next_below = node->below;
@@ -146,7 +166,7 @@ std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
     if (item.trajectory == to.trajectory.value()) {
       const double total = distance + std::abs(driven_key - driven_to);
       if (!best || total < *best) best = total;
-      if (below && *best < limit) return best;
+      if (below && *best < limit) return known(distance);
     }
     // Its neighbours by index among the trajectory's tied keyframes (the one above first).
     if (next_above != kNone) {
@@ -157,8 +177,16 @@ std::optional<double> TrajectoryTies::Search(PoseKey from, PoseKey to,
     }
     if (node == nullptr) continue;
     for (const int32_t partner : node->partners) push(distance, partner);
+    if (max_settled_ > 0 && settled >= max_settled_) {
+      // The cap: every keyframe still unsettled is at least the queue's least drive away.
+      const DriveRange range =
+          known(queue.empty() ? std::numeric_limits<double>::infinity() : queue.front().distance,
+                /*capped=*/true);
+      if (range.capped) ++stats_.capped;
+      return range;
+    }
   }
-  return best;
+  return known(std::numeric_limits<double>::infinity());
 }
 
 }  // namespace anchormap

@@ -20,6 +20,13 @@ namespace anchormap {
 
 class TrajectoryTies {
  public:
+  // A search settles at most `max_settled` tied keyframes (0: no cap). In a place that many
+  // passes tie together the tied keyframes within a few metres of drive grow with every pass
+  // (20 robots: thousands after 15 minutes), and each keyframe asks several drives: the cap
+  // keeps a question's cost bounded, and its answer says what the search knows (DriveRange).
+  static constexpr int64_t kDefaultMaxSettled = 512;
+  explicit TrajectoryTies(int64_t max_settled = kDefaultMaxSettled) : max_settled_(max_settled) {}
+
   // Keyframe a of one trajectory tied to keyframe b of another (a loop closure, within one
   // trajectory, is no tie: ignored).
   void Add(PoseKey a, PoseKey b);
@@ -38,14 +45,39 @@ class TrajectoryTies {
   std::optional<double> ShortestDrive(PoseKey from, PoseKey to,
                                       const std::function<double(PoseKey)>& driven,
                                       double limit = std::numeric_limits<double>::infinity()) const;
+  // What a search knows of the shortest drive: it lies in [at_least, at_most]. Exact (the two
+  // equal) when a chain within `limit` is the shortest; at_least >= limit (at_most the shortest
+  // chain found, or +inf) when every chain is longer than `limit` or none exists. When the
+  // search reached the cap first, at_least is the drive it had reached (no chain is shorter)
+  // and at_most the shortest chain it found (+inf: none yet), `capped` set. ShortestDrive is
+  // its exact value within the limit (nullopt when capped).
+  struct DriveRange {
+    double at_least = std::numeric_limits<double>::infinity();
+    double at_most = std::numeric_limits<double>::infinity();
+    bool capped = false;
+  };
+  DriveRange Drive(PoseKey from, PoseKey to, const std::function<double(PoseKey)>& driven,
+                   double limit = std::numeric_limits<double>::infinity()) const;
   // Whether the shortest drive is below `limit` (strictly): the same answer as ShortestDrive's
   // value < limit, given as soon as one chain of ties below it is found (a saturation check
-  // in a place many passes tie together then stops at its first short chain).
+  // in a place many passes tie together then stops at its first short chain). True too when
+  // the search reached the cap first: that many tied keyframes within `limit` of drive make
+  // a place tied densely enough.
   bool DriveBelow(PoseKey from, PoseKey to, const std::function<double(PoseKey)>& driven,
                   double limit) const;
   // Whether a chain of ties connects the two trajectories (each is connected to itself): what a
   // bounded ShortestDrive's nullopt leaves open, answered without a search.
   bool Connected(TrajectoryId a, TrajectoryId b) const { return Root(a) == Root(b); }
+
+  // Searches so far, the tied keyframes they settled (in all, and the most in one), and how
+  // many reached the cap.
+  struct SearchStats {
+    int64_t searches = 0;
+    int64_t settled = 0;
+    int64_t most_settled = 0;
+    int64_t capped = 0;
+  };
+  const SearchStats& search_stats() const { return stats_; }
 
  private:
   // A tied keyframe: its neighbours among its trajectory's tied keyframes by index (kNone at
@@ -70,9 +102,8 @@ class TrajectoryTies {
   int32_t NodeOf(PoseKey key);
   double DrivenOf(int32_t node, const std::function<double(PoseKey)>& driven) const;
   // Dijkstra from `from`; with `below`, stops at the first drive to `to` under `limit`.
-  std::optional<double> Search(PoseKey from, PoseKey to,
-                               const std::function<double(PoseKey)>& driven, double limit,
-                               bool below) const;
+  DriveRange Search(PoseKey from, PoseKey to, const std::function<double(PoseKey)>& driven,
+                    double limit, bool below) const;
 
   std::vector<Node> nodes_;
   std::unordered_map<int64_t, Tied> ends_;
@@ -80,6 +111,8 @@ class TrajectoryTies {
   TrajectoryId Root(TrajectoryId trajectory) const;
   std::map<TrajectoryId, TrajectoryId> parent_;
   int64_t size_ = 0;
+  int64_t max_settled_;
+  mutable SearchStats stats_;
 
   // The search's scratch, kept between calls: its queue (a min-heap on distance, then
   // trajectory and index, as before the nodes had positions: the same order of settling) and

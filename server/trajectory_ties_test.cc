@@ -60,9 +60,9 @@ TEST(TrajectoryTiesTest, ALimitAnswersOnlyDrivesWithinIt) {
 
 // The search keeps its queue and settled set between calls: a long search (a ladder of 300
 // ties between two trajectories, so the settled set grows several times) leaves nothing
-// behind that changes the next answers.
+// behind that changes the next answers (no cap: the far search settles all 600).
 TEST(TrajectoryTiesTest, RepeatedSearchesGiveTheSameDrives) {
-  TrajectoryTies ties;
+  TrajectoryTies ties(/*max_settled=*/0);
   for (int32_t i = 0; i < 300; ++i) ties.Add({kA, 2 * i}, {kB, 2 * i + 1});
   ties.Add({kB, 1000}, {kC, 0});
   // B[1000] to C[7]: tied at C[0], then 7 m along C.
@@ -188,6 +188,122 @@ TEST(TrajectoryTiesTest, DrivesEqualTheBruteForceAsTiesArrive) {
   // Both answers occur (the test asks something).
   EXPECT_GT(below, checked / 10);
   EXPECT_LT(below, checked - checked / 10);
+}
+
+// The same brute force against searches capped at a few tied keyframes: a capped answer's
+// range holds the true drive, an answer the cap did not stop is exact, and DriveBelow says
+// "below" when the cap stopped it.
+TEST(TrajectoryTiesTest, CappedSearchesBoundTheBruteForce) {
+  constexpr int kTrajectories = 4, kKeyframes = 40;
+  std::mt19937 random(11);
+  std::vector<double> step(kTrajectories * kKeyframes);
+  for (double& s : step) s = std::uniform_real_distribution<double>(0.1, 2.0)(random);
+  const auto driven = [&](PoseKey key) {
+    double path = 0.0;
+    for (int i = 1; i <= key.index; ++i) {
+      path += step[static_cast<size_t>(key.trajectory.value() * kKeyframes + i)];
+    }
+    return path;
+  };
+  const auto node = [](PoseKey key) {
+    return static_cast<size_t>(key.trajectory.value() * kKeyframes + key.index);
+  };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const size_t n = kTrajectories * kKeyframes;
+  std::vector<double> d(n * n, kInf);
+  for (int t = 0; t < kTrajectories; ++t) {
+    for (int i = 0; i < kKeyframes; ++i) {
+      for (int j = 0; j < kKeyframes; ++j) {
+        const PoseKey a{TrajectoryId(t), i}, b{TrajectoryId(t), j};
+        d[node(a) * n + node(b)] = std::abs(driven(a) - driven(b));
+      }
+    }
+  }
+  std::uniform_int_distribution<int> trajectory(0, kTrajectories - 1), index(0, kKeyframes - 1);
+  TrajectoryTies capped(/*max_settled=*/6), uncapped(/*max_settled=*/0);
+  for (int tie = 0; tie < 60; ++tie) {
+    const PoseKey a{TrajectoryId(trajectory(random)), index(random)};
+    const PoseKey b{TrajectoryId(trajectory(random)), index(random)};
+    capped.Add(a, b);
+    uncapped.Add(a, b);
+    if (a.trajectory != b.trajectory) d[node(a) * n + node(b)] = d[node(b) * n + node(a)] = 0.0;
+  }
+  for (size_t k = 0; k < n; ++k) {
+    for (size_t i = 0; i < n; ++i) {
+      for (size_t j = 0; j < n; ++j)
+        d[i * n + j] = std::min(d[i * n + j], d[i * n + k] + d[k * n + j]);
+    }
+  }
+  int exact = 0, stopped = 0;
+  for (int query = 0; query < 2000; ++query) {
+    const PoseKey from{TrajectoryId(trajectory(random)), index(random)};
+    const PoseKey to{TrajectoryId(trajectory(random)), index(random)};
+    const double truth = d[node(from) * n + node(to)];
+    for (const double limit : {3.0, 10.0, kInf}) {
+      const TrajectoryTies::DriveRange range = capped.Drive(from, to, driven, limit);
+      const TrajectoryTies::DriveRange whole = uncapped.Drive(from, to, driven, limit);
+      EXPECT_FALSE(whole.capped);
+      EXPECT_LE(range.at_least, truth + 1e-9);
+      EXPECT_GE(range.at_most, truth - 1e-9);
+      if (truth <= limit) {
+        EXPECT_NEAR(whole.at_most, truth, 1e-9);
+        EXPECT_EQ(whole.at_least, whole.at_most);
+      } else {
+        EXPECT_GE(whole.at_least, limit);
+      }
+      if (range.capped) {
+        EXPECT_LT(range.at_least, range.at_most);
+        EXPECT_TRUE(capped.DriveBelow(from, to, driven, limit));
+        EXPECT_FALSE(capped.ShortestDrive(from, to, driven, limit));
+        ++stopped;
+      } else if (range.at_least == range.at_most) {  // exact
+        if (std::isfinite(truth)) {
+          EXPECT_NEAR(range.at_most, truth, 1e-9);
+        } else {
+          EXPECT_EQ(range.at_most, kInf);
+        }
+        EXPECT_EQ(capped.DriveBelow(from, to, driven, limit), truth < limit);
+        ++exact;
+      } else {  // beyond the limit
+        EXPECT_GE(range.at_least, limit);
+        EXPECT_FALSE(capped.DriveBelow(from, to, driven, limit));
+        ++exact;
+      }
+    }
+  }
+  // Both kinds of answer occur (the cap binds, and not always).
+  EXPECT_GT(stopped, 300);
+  EXPECT_GT(exact, 300);
+  EXPECT_GT(capped.search_stats().capped, 0);
+  EXPECT_EQ(uncapped.search_stats().capped, 0);
+}
+
+// A place that many passes tie together: the tied keyframes within a few metres of drive
+// outnumber the cap, and the saturation question is answered "below" after the cap's
+// keyframes instead of a search of all of them.
+TEST(TrajectoryTiesTest, ADenselyTiedPlaceIsBelowAtTheCap) {
+  TrajectoryTies ties(/*max_settled=*/16);
+  // Trajectory 0..39 each pass keyframes 0..9 (1 m apart) of one place, each pass's keyframe k
+  // tied to the next pass's keyframe k; trajectory 40 is tied only at the far end of pass 39.
+  for (int32_t pass = 0; pass + 1 < 40; ++pass) {
+    for (int32_t k = 0; k < 10; ++k) ties.Add({TrajectoryId(pass), k}, {TrajectoryId(pass + 1), k});
+  }
+  ties.Add({TrajectoryId(39), 9}, {TrajectoryId(40), 0});
+  const auto before = ties.search_stats();
+  // Pass 0's keyframe 0 to trajectory 40's keyframe 0: 9 m (up pass 39); under 4 m it is not.
+  EXPECT_TRUE(ties.DriveBelow({TrajectoryId(0), 0}, {TrajectoryId(40), 0}, OneMetreEach, 4.0));
+  EXPECT_EQ(ties.search_stats().capped - before.capped, 1);
+  EXPECT_LE(ties.search_stats().settled - before.settled, 16);
+  TrajectoryTies uncapped(/*max_settled=*/0);
+  for (int32_t pass = 0; pass + 1 < 40; ++pass) {
+    for (int32_t k = 0; k < 10; ++k) {
+      uncapped.Add({TrajectoryId(pass), k}, {TrajectoryId(pass + 1), k});
+    }
+  }
+  uncapped.Add({TrajectoryId(39), 9}, {TrajectoryId(40), 0});
+  EXPECT_FALSE(uncapped.DriveBelow({TrajectoryId(0), 0}, {TrajectoryId(40), 0}, OneMetreEach, 4.0));
+  EXPECT_DOUBLE_EQ(
+      *uncapped.ShortestDrive({TrajectoryId(0), 0}, {TrajectoryId(40), 0}, OneMetreEach), 9.0);
 }
 
 }  // namespace

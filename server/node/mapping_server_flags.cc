@@ -36,6 +36,13 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("publish.grid_max_moved", "grid-max-moved", &s.publish.grid_max_moved,
       "keyframes traced again per grid publication at most, the farthest moved first; the "
       "rest at the next ones (0 = no limit)");
+  add("publish.grid_min_moved", "grid-min-moved", &s.publish.grid_min_moved,
+      "keyframes traced again per grid publication at most, besides grid_moved_per_inserted "
+      "per keyframe traced in (within grid_max_moved)");
+  add("publish.grid_moved_per_inserted", "grid-moved-per-inserted",
+      &s.publish.grid_moved_per_inserted,
+      "keyframes traced again per grid publication at most for each keyframe traced in, besides "
+      "grid_min_moved (within grid_max_moved)");
   add("delivery.resend_period_s", "resend-period-s", &s.delivery.resend_period_s,
       "ask a trajectory for missing keyframes / encounters at most this often (s)");
   add("smoother.solve_period_s", "solve-period-s", &s.solve_period_s,
