@@ -562,11 +562,12 @@ std::string MappingServer::StatusLine() const {
                 static_cast<long long>(resend_requests_), order_.held(),
                 static_cast<long long>(order_.stats().late),
                 static_cast<long long>(order_.stats().silences));
+  // The refusals stay last before the sources' figures: scripts read "rejected: ...".
   const TrajectoryTies::SearchStats& ties = ties_.search_stats();
-  std::string line = std::string(text) + " rejected: " + rejects_.Summary() + " tie searches " +
-                     std::to_string(ties.searches) + " settled " + std::to_string(ties.settled) +
-                     " most " + std::to_string(ties.most_settled) + " capped " +
-                     std::to_string(ties.capped);
+  std::string line = std::string(text) + " tie searches " + std::to_string(ties.searches) +
+                     " settled " + std::to_string(ties.settled) + " most " +
+                     std::to_string(ties.most_settled) + " capped " + std::to_string(ties.capped) +
+                     " rejected: " + rejects_.Summary();
   for (const auto& source : sources_) {
     const std::string stats = source->StatsLine();
     if (!stats.empty()) line += "; " + stats;
