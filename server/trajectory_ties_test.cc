@@ -16,6 +16,62 @@ const TrajectoryId kA(0), kB(1), kC(2);
 // Every keyframe 1 m further than the one before, in every trajectory.
 double OneMetreEach(PoseKey key) { return key.index; }
 
+// A team of trajectories whose keyframes are random uneven steps apart, and the brute force of
+// its drives: along each trajectory, plus every tie, closed by Floyd-Warshall.
+class BruteForceTeam {
+ public:
+  BruteForceTeam(int trajectories, int keyframes, std::mt19937* random)
+      : keyframes_(keyframes),
+        n_(static_cast<size_t>(trajectories * keyframes)),
+        step_(n_),
+        direct_(n_ * n_, std::numeric_limits<double>::infinity()) {
+    for (double& s : step_) s = std::uniform_real_distribution<double>(0.1, 2.0)(*random);
+    for (int t = 0; t < trajectories; ++t) {
+      for (int i = 0; i < keyframes; ++i) {
+        for (int j = 0; j < keyframes; ++j) {
+          const PoseKey a{TrajectoryId(t), i}, b{TrajectoryId(t), j};
+          direct_[Node(a) * n_ + Node(b)] = std::abs(Driven(a) - Driven(b));
+        }
+      }
+    }
+  }
+  // The path a keyframe's trajectory drove to it from its first keyframe.
+  double Driven(PoseKey key) const {
+    double path = 0.0;
+    for (int i = 1; i <= key.index; ++i) path += step_[Node({key.trajectory, i})];
+    return path;
+  }
+  // A tie as TrajectoryTies::Add takes it (one within a trajectory is ignored).
+  void Tie(PoseKey a, PoseKey b) {
+    if (a.trajectory != b.trajectory)
+      direct_[Node(a) * n_ + Node(b)] = direct_[Node(b) * n_ + Node(a)] = 0.0;
+  }
+  // Every pair's shortest drive through the ties so far; Drive reads it.
+  std::vector<double> Shortest() const {
+    std::vector<double> d = direct_;
+    for (size_t k = 0; k < n_; ++k) {
+      for (size_t i = 0; i < n_; ++i) {
+        for (size_t j = 0; j < n_; ++j)
+          d[i * n_ + j] = std::min(d[i * n_ + j], d[i * n_ + k] + d[k * n_ + j]);
+      }
+    }
+    return d;
+  }
+  double Drive(const std::vector<double>& shortest, PoseKey from, PoseKey to) const {
+    return shortest[Node(from) * n_ + Node(to)];
+  }
+
+ private:
+  size_t Node(PoseKey key) const {
+    return static_cast<size_t>(key.trajectory.value() * keyframes_ + key.index);
+  }
+
+  int keyframes_;
+  size_t n_;
+  std::vector<double> step_;
+  std::vector<double> direct_;  // along each trajectory, and 0 across a tie
+};
+
 TEST(TrajectoryTiesTest, UntiedTrajectoriesHaveNoDrive) {
   TrajectoryTies ties;
   EXPECT_FALSE(ties.ShortestDrive({kA, 3}, {kB, 4}, OneMetreEach));
@@ -126,29 +182,8 @@ TEST(TrajectoryTiesTest, TiesAddedInAnyIndexOrderAreSearchedByIndex) {
 TEST(TrajectoryTiesTest, DrivesEqualTheBruteForceAsTiesArrive) {
   constexpr int kTrajectories = 4, kKeyframes = 60;
   std::mt19937 random(7);
-  std::vector<double> step(kTrajectories * kKeyframes);
-  for (double& s : step) s = std::uniform_real_distribution<double>(0.1, 2.0)(random);
-  const auto driven = [&](PoseKey key) {
-    double path = 0.0;
-    for (int i = 1; i <= key.index; ++i) {
-      path += step[static_cast<size_t>(key.trajectory.value() * kKeyframes + i)];
-    }
-    return path;
-  };
-  const auto node = [](PoseKey key) {
-    return static_cast<size_t>(key.trajectory.value() * kKeyframes + key.index);
-  };
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const size_t n = kTrajectories * kKeyframes;
-  std::vector<double> direct(n * n, kInf);
-  for (int t = 0; t < kTrajectories; ++t) {
-    for (int i = 0; i < kKeyframes; ++i) {
-      for (int j = 0; j < kKeyframes; ++j) {
-        const PoseKey a{TrajectoryId(t), i}, b{TrajectoryId(t), j};
-        direct[node(a) * n + node(b)] = std::abs(driven(a) - driven(b));
-      }
-    }
-  }
+  BruteForceTeam team(kTrajectories, kKeyframes, &random);
+  const auto driven = [&team](PoseKey key) { return team.Driven(key); };
   std::uniform_int_distribution<int> trajectory(0, kTrajectories - 1), index(0, kKeyframes - 1);
   TrajectoryTies ties;
   int checked = 0, below = 0;
@@ -156,20 +191,12 @@ TEST(TrajectoryTiesTest, DrivesEqualTheBruteForceAsTiesArrive) {
     const PoseKey a{TrajectoryId(trajectory(random)), index(random)};
     const PoseKey b{TrajectoryId(trajectory(random)), index(random)};
     ties.Add(a, b);
-    if (a.trajectory != b.trajectory) {
-      direct[node(a) * n + node(b)] = direct[node(b) * n + node(a)] = 0.0;
-    }
-    std::vector<double> d = direct;
-    for (size_t k = 0; k < n; ++k) {
-      for (size_t i = 0; i < n; ++i) {
-        for (size_t j = 0; j < n; ++j)
-          d[i * n + j] = std::min(d[i * n + j], d[i * n + k] + d[k * n + j]);
-      }
-    }
+    team.Tie(a, b);
+    const std::vector<double> shortest = team.Shortest();
     for (int query = 0; query < 30; ++query) {
       const PoseKey from{TrajectoryId(trajectory(random)), index(random)};
       const PoseKey to{TrajectoryId(trajectory(random)), index(random)};
-      const double truth = d[node(from) * n + node(to)];
+      const double truth = team.Drive(shortest, from, to);
       const std::optional<double> drive = ties.ShortestDrive(from, to, driven);
       ASSERT_EQ(drive.has_value(), std::isfinite(truth));
       if (drive) {
@@ -195,30 +222,10 @@ TEST(TrajectoryTiesTest, DrivesEqualTheBruteForceAsTiesArrive) {
 // "below" when the cap stopped it.
 TEST(TrajectoryTiesTest, CappedSearchesBoundTheBruteForce) {
   constexpr int kTrajectories = 4, kKeyframes = 40;
-  std::mt19937 random(11);
-  std::vector<double> step(kTrajectories * kKeyframes);
-  for (double& s : step) s = std::uniform_real_distribution<double>(0.1, 2.0)(random);
-  const auto driven = [&](PoseKey key) {
-    double path = 0.0;
-    for (int i = 1; i <= key.index; ++i) {
-      path += step[static_cast<size_t>(key.trajectory.value() * kKeyframes + i)];
-    }
-    return path;
-  };
-  const auto node = [](PoseKey key) {
-    return static_cast<size_t>(key.trajectory.value() * kKeyframes + key.index);
-  };
   constexpr double kInf = std::numeric_limits<double>::infinity();
-  const size_t n = kTrajectories * kKeyframes;
-  std::vector<double> d(n * n, kInf);
-  for (int t = 0; t < kTrajectories; ++t) {
-    for (int i = 0; i < kKeyframes; ++i) {
-      for (int j = 0; j < kKeyframes; ++j) {
-        const PoseKey a{TrajectoryId(t), i}, b{TrajectoryId(t), j};
-        d[node(a) * n + node(b)] = std::abs(driven(a) - driven(b));
-      }
-    }
-  }
+  std::mt19937 random(11);
+  BruteForceTeam team(kTrajectories, kKeyframes, &random);
+  const auto driven = [&team](PoseKey key) { return team.Driven(key); };
   std::uniform_int_distribution<int> trajectory(0, kTrajectories - 1), index(0, kKeyframes - 1);
   TrajectoryTies capped(/*max_settled=*/6), uncapped(/*max_settled=*/0);
   for (int tie = 0; tie < 60; ++tie) {
@@ -226,19 +233,14 @@ TEST(TrajectoryTiesTest, CappedSearchesBoundTheBruteForce) {
     const PoseKey b{TrajectoryId(trajectory(random)), index(random)};
     capped.Add(a, b);
     uncapped.Add(a, b);
-    if (a.trajectory != b.trajectory) d[node(a) * n + node(b)] = d[node(b) * n + node(a)] = 0.0;
+    team.Tie(a, b);
   }
-  for (size_t k = 0; k < n; ++k) {
-    for (size_t i = 0; i < n; ++i) {
-      for (size_t j = 0; j < n; ++j)
-        d[i * n + j] = std::min(d[i * n + j], d[i * n + k] + d[k * n + j]);
-    }
-  }
+  const std::vector<double> shortest = team.Shortest();
   int exact = 0, stopped = 0;
   for (int query = 0; query < 2000; ++query) {
     const PoseKey from{TrajectoryId(trajectory(random)), index(random)};
     const PoseKey to{TrajectoryId(trajectory(random)), index(random)};
-    const double truth = d[node(from) * n + node(to)];
+    const double truth = team.Drive(shortest, from, to);
     for (const double limit : {3.0, 10.0, kInf}) {
       const TrajectoryTies::DriveRange range = capped.Drive(from, to, driven, limit);
       const TrajectoryTies::DriveRange whole = uncapped.Drive(from, to, driven, limit);
