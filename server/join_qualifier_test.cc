@@ -30,6 +30,27 @@ using testing::OdometryNoise;
 using testing::ParallelTracksCandidate;
 using testing::SyntheticWorld;
 
+// What a scan source with `options` (first joins not held) emits for `candidates` offered at
+// once on `server`'s graph, polled at `poll_utime` before and after, and flushed at the end
+// of input; with the source's counters.
+struct Offered {
+  std::vector<EncounterConstraint> constraints;
+  CandidateStats stats;
+  int64_t joins_contradicted = 0;
+};
+Offered OfferToSource(MappingServer* server, const std::vector<EncounterCandidate>& candidates,
+                      ScanEncounterOptions options, int64_t poll_utime) {
+  options.first_join_hold_s = 0.0;
+  ScanEncounters source(options);
+  const GraphView graph{server->table(), server->smoother(), &server->mutable_smoother()};
+  EncounterSourceOutput out;
+  source.Poll(poll_utime, graph, &out);
+  for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
+  source.Poll(poll_utime, graph, &out);
+  source.Flush(graph, &out);
+  return {out.constraints, source.stats(), source.joins_contradicted()};
+}
+
 // The first-join rule on hand-made candidates between the parallel tracks (not joined).
 class FirstJoinTest : public ::testing::Test {
  protected:
@@ -47,17 +68,9 @@ class FirstJoinTest : public ::testing::Test {
 
   // What the source emits for the offers: at once (hold 0) and at the end of input.
   std::vector<EncounterConstraint> Offer(const std::vector<EncounterCandidate>& candidates) {
-    ScanEncounterOptions options;
-    options.first_join_hold_s = 0.0;
-    ScanEncounters source(options);
-    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
-    EncounterSourceOutput out;
-    source.Poll(50'000'000, graph, &out);
-    for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
-    source.Poll(50'000'000, graph, &out);
-    source.Flush(graph, &out);
-    stats_ = source.stats();
-    return out.constraints;
+    Offered offered = OfferToSource(server_.get(), candidates, {}, 50'000'000);
+    stats_ = offered.stats;
+    return offered.constraints;
   }
 
   std::unique_ptr<MappingServer> server_;
@@ -235,17 +248,10 @@ class SharedViewFirstJoinTest : public ::testing::Test {
   }
 
   std::vector<EncounterConstraint> OfferWith(const std::vector<EncounterCandidate>& candidates,
-                                             ScanEncounterOptions options) {
-    options.first_join_hold_s = 0.0;
-    ScanEncounters source(options);
-    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
-    EncounterSourceOutput out;
-    source.Poll(100'000'000, graph, &out);
-    for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
-    source.Poll(100'000'000, graph, &out);
-    source.Flush(graph, &out);
-    joins_contradicted_ = source.joins_contradicted();
-    return out.constraints;
+                                             const ScanEncounterOptions& options) {
+    Offered offered = OfferToSource(server_.get(), candidates, options, 100'000'000);
+    joins_contradicted_ = offered.joins_contradicted;
+    return offered.constraints;
   }
 
   // The candidate's own maps within `radius_m` of its places (the default rays and grid).
@@ -469,17 +475,9 @@ class CrossPairFirstJoinTest : public ::testing::Test, protected testing::ThreeL
       const std::vector<EncounterCandidate>& candidates,
       double verify_max_conflict = ScanEncounterOptions{}.verify_max_conflict) {
     ScanEncounterOptions options;
-    options.first_join_hold_s = 0.0;
     options.verify_max_conflict = verify_max_conflict;
     options.near_catch_up_every = 0;  // no near search between R1 and R2 (a test of its own)
-    ScanEncounters source(options);
-    const GraphView graph{server_->table(), server_->smoother(), &server_->mutable_smoother()};
-    EncounterSourceOutput out;
-    source.Poll(100'000'000, graph, &out);
-    for (const EncounterCandidate& c : candidates) source.OfferCandidate(c, graph, &out);
-    source.Poll(100'000'000, graph, &out);
-    source.Flush(graph, &out);
-    return out.constraints;
+    return OfferToSource(server_.get(), candidates, options, 100'000'000).constraints;
   }
 };
 
