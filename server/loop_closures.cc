@@ -325,22 +325,31 @@ std::optional<LoopClosures::Hypothesis> LoopClosures::RefineWide(const PendingMa
     ++stats_.no_match;
     return std::nullopt;
   }
+  // Its covariance only once it is the one kept (below): AddCovariance gives the same bits.
+  LocalMatchOptions first = window;
+  first.match.covariance = false;
   std::optional<MatchResult> match =
-      MatchLocal(*scan, *pending.query, Between(nearest->second, coarse.pose), window);
+      MatchLocal(*scan, *pending.query, Between(nearest->second, coarse.pose), first);
   if (!match) {
     ++stats_.no_match;
     return std::nullopt;
   }
   // Then against the keyframe's scan alone (exact where the submap is bent by drift between
-  // its keyframes), when that scan matches well enough on its own.
+  // its keyframes), when that scan matches well enough on its own (a lattice score under
+  // min_score is not searched for: the same match kept).
+  bool replaced = false;
   if (options_.wide_refine_half_width > 0) {
     const std::shared_ptr<const ScanReference> alone = Reference(*record, graph, candidate, 0);
+    LocalMatchOptions kept = small;
+    kept.match.min_score = LatticeBarFor(options_.min_score, kept.match.min_score);
     const std::optional<MatchResult> exact =
-        alone ? MatchLocal(*alone, *pending.query, match->pose, small) : std::nullopt;
+        alone ? MatchLocal(*alone, *pending.query, match->pose, kept) : std::nullopt;
     if (exact && exact->score >= options_.min_score && exact->overlap >= options_.min_overlap) {
       match = exact;
+      replaced = true;
     }
   }
+  if (!replaced) AddCovariance(*scan, *pending.query, window.match, &*match);
   if (match->score < options_.min_score || match->overlap < options_.min_overlap) {
     ++stats_.weak_match;
     return std::nullopt;
@@ -738,6 +747,8 @@ void LoopClosures::Submit(PoseKey candidate, PoseKey key, const PredictedRelativ
     window.match = options_.match;
     window.match.covariance_min_score = options_.min_score;  // UseMatches' bars
     window.match.covariance_min_overlap = options_.min_overlap;
+    // UseMatches drops a lattice score under min_score: the search need not find it.
+    window.match.min_score = LatticeBarFor(options_.min_score, window.match.min_score);
     window.linear_window_m =
         std::clamp(3.0 * sigma_xy, options_.min_window_m, options_.max_window_m);
     window.angular_window_rad =

@@ -44,8 +44,10 @@ LocalMatchOptions NearSearchWindow(const Eigen::Matrix3d& covariance,
   window.linear_window_m =
       *wide ? std::min(three_sigma, options.near_wide_max_window_m)
             : std::clamp(three_sigma, options.min_window_m, options.max_window_m);
-  // The acceptance bar prunes the branch and bound of a wide window.
-  if (*wide) window.match.min_score = std::max(window.match.min_score, options.near_min_score);
+  // The acceptance bar prunes the branch and bound (UseMatches drops a lattice score under
+  // near_min_score): a plain window finds every score it keeps, a wide one those above it.
+  window.match.min_score = *wide ? std::max(window.match.min_score, options.near_min_score)
+                                 : LatticeBarFor(options.near_min_score, window.match.min_score);
   window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, covariance(2, 2))),
                                          options.min_window_rad, options.max_window_rad);
   return window;

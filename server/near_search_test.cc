@@ -227,6 +227,9 @@ TEST(NearSearchWindowTest, TheDriftTermReachesWhereTheEstimateDrifted) {
   bool wide = true;
   const LocalMatchOptions before = NearSearchWindow(estimate, options, &wide);
   EXPECT_FALSE(wide);
+  // Its search finds every lattice score UseMatches keeps (>= near_min_score), no lower one.
+  EXPECT_LT(before.match.min_score, options.near_min_score);
+  EXPECT_EQ(std::nextafter(before.match.min_score, 1.0), options.near_min_score);
   EXPECT_LT(before.linear_window_m, std::abs(offset.y()));
   const double drive_m = 135.0;
   const double m = options.near_drift_per_m * drive_m, rad = options.near_drift_rad_per_m * drive_m;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "common/scan_matching/pose_refinement.h"
@@ -41,6 +42,10 @@ Status LocalMatchOptions::Validate() const {
     return Status::Error("angular_window_rad must be in [0, pi]");
   }
   return match.Validate();
+}
+
+double LatticeBarFor(double acceptance, double bar) {
+  return std::max(bar, std::nextafter(acceptance, -std::numeric_limits<double>::infinity()));
 }
 
 double Overlap(const ReferenceField& field, const PointCloud& query, const Pose2& pose,

@@ -70,6 +70,12 @@ struct MatchResult {
   RefinementResult refinement;
 };
 
+// The lattice bar (MatchOptions::min_score) at which a search returns exactly the matches a
+// caller keeping only scores >= `acceptance` keeps, the same pose and score: the largest double
+// below `acceptance` (branch and bound keeps scores above its bar), or `bar` when that is higher.
+// Below it a match is dropped unused, so its search may prune there and skip its refinement.
+double LatticeBarFor(double acceptance, double bar);
+
 // Matches `query` (points in its body frame) around T_reference_query `guess`. Options must be
 // valid (exceptions are for bugs).
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,

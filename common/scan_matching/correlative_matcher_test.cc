@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -129,6 +130,51 @@ TEST(CorrelativeMatcherTest, LocalLatticeScoreIsMatchLocalsScore) {
   }
   EXPECT_GE(found, 6);
   EXPECT_LT(found, 12);
+}
+
+TEST(CorrelativeMatcherTest, ASearchAtLatticeBarForKeepsEveryScoreAtTheAcceptance) {
+  // A caller keeping only matches scoring >= acceptance gets, from a search at
+  // LatticeBarFor(acceptance), exactly the match of the default bar (0.3) to the bit where that
+  // scores >= acceptance, and none where it scores below: acceptance at the match's own score
+  // (kept), one double above it (not), and 0.5 and 0.7 (the servers' bars).
+  std::mt19937_64 rng(22);
+  const SyntheticLaser laser = MountedLaser(181, kPi, 0.01);
+  int kept = 0;
+  int dropped = 0;
+  for (int i = 0; i < 12; ++i) {
+    const SyntheticWorld world = RandomRoom(400 + i);
+    const Trial trial = MakeTrial(world, laser, 0.3, 0.15, &rng);
+    const ScanReference reference({trial.reference}, LocalReferenceOptions());
+    // Every third guess 0.6 m off: the window holds the true pose only partly (lower scores).
+    const Pose2 guess = i % 3 == 2 ? Compose(trial.guess, Pose2(0.6, 0.3, 0.0)) : trial.guess;
+    const LocalMatchOptions by_default;
+    const std::optional<MatchResult> base = MatchLocal(reference, trial.query, guess, by_default);
+    ASSERT_TRUE(base.has_value()) << "trial " << i;
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const double acceptance : {base->score, std::nextafter(base->score, inf), 0.5, 0.7}) {
+      LocalMatchOptions barred = by_default;
+      barred.match.min_score = LatticeBarFor(acceptance, barred.match.min_score);
+      EXPECT_LT(barred.match.min_score, acceptance);
+      const std::optional<MatchResult> match = MatchLocal(reference, trial.query, guess, barred);
+      ASSERT_EQ(match.has_value(), base->score >= acceptance)
+          << "trial " << i << " acceptance " << acceptance << " score " << base->score;
+      if (!match) {
+        ++dropped;
+        continue;
+      }
+      ++kept;
+      EXPECT_EQ(match->score, base->score) << "trial " << i;
+      EXPECT_EQ(match->lattice_pose.vector(), base->lattice_pose.vector()) << "trial " << i;
+      EXPECT_EQ(match->pose.vector(), base->pose.vector()) << "trial " << i;
+      EXPECT_EQ(match->overlap, base->overlap) << "trial " << i;
+      EXPECT_EQ(match->covariance, base->covariance) << "trial " << i;
+    }
+  }
+  EXPECT_GE(kept, 12 + 6);     // each at its own score, and some at the servers' bars
+  EXPECT_GE(dropped, 12 + 3);  // each one double above, and some under the bars
+  // The options' own bar stays when it is the higher one.
+  EXPECT_EQ(LatticeBarFor(0.5, 0.6), 0.6);
+  EXPECT_EQ(LatticeBarFor(0.0, 0.3), 0.3);
 }
 
 TEST(CorrelativeMatcherTest, RefinementBeatsTheLattice) {

@@ -94,8 +94,9 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
   const size_t headings = static_cast<size_t>(2 * window.half_angles + 1);
   boxes_.resize(headings);
   // At least one entry: a heading of an empty query points at an array, not at null.
-  xs_.resize(std::max<size_t>(1, headings * query.size()));
-  ys_.resize(std::max<size_t>(1, headings * query.size()));
+  // Default-initialised (not zeroed): every heading below writes all its cells.
+  xs_.reset(new int32_t[std::max<size_t>(1, headings * query.size())]);
+  ys_.reset(new int32_t[std::max<size_t>(1, headings * query.size())]);
 #ifdef ANCHORMAP_AVX2_DISPATCH
   // The points' x and y apart, for four at a time.
   const bool avx2 = CpuHasAvx2();
@@ -119,8 +120,8 @@ DiscretisedQuery::DiscretisedQuery(const PointCloud& query, const SearchWindow& 
                      window.center.theta() + k * window.angle_step_rad);
     const Eigen::Matrix2d R = pose.rotation();
     const Eigen::Vector2d t = pose.translation();
-    int32_t* xs = xs_.data() + Offset(k);
-    int32_t* ys = ys_.data() + Offset(k);
+    int32_t* xs = xs_.get() + Offset(k);
+    int32_t* ys = ys_.get() + Offset(k);
     Box& box = boxes_[k + half_angles_];
     box.min.setConstant(std::numeric_limits<int>::max());
     box.max.setConstant(std::numeric_limits<int>::min());

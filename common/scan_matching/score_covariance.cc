@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <memory_resource>
 #include <unordered_map>
 #include <vector>
 
@@ -126,7 +128,13 @@ ReferenceNoiseTerms ComputeReferenceNoiseTerms(const ReferenceField& field, cons
   const Eigen::Matrix2d R = pose.rotation();
   const Eigen::Vector2d t = pose.translation();
   const GridGeometry& g = field.geometry();
-  std::unordered_map<int, Eigen::Vector3d> b;
+  // The nodes come from one buffer, freed at once (a node's malloc and free per matched vertex
+  // were most of this function's time). The same table otherwise: its buckets, and so the
+  // order the sum below takes them in (b_outer's bits), depend on the keys and the insertions,
+  // not on where the nodes live.
+  std::array<std::byte, 32 * 1024> arena;
+  std::pmr::monotonic_buffer_resource nodes(arena.data(), arena.size());
+  std::pmr::unordered_map<int, Eigen::Vector3d> b(&nodes);
   double gain_sum = 0.0;
   for (const Eigen::Vector2d& p : query) {
     const Eigen::Vector2d rp = R * p;
