@@ -157,6 +157,69 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
   ExpectSameCells(grid, scratch);
 }
 
+// Made again from a list, a grid equals the one that placed, moved and removed the same
+// keyframes one by one: the same tiles (also those every scan left), the same cells, the
+// same placed poses; every tile is marked changed.
+TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
+  const OccupancyGridOptions options = SmallOptions();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  std::normal_distribution<double> move(0.0, 0.4);
+  KeyframeGrid one_by_one(options), rebuilt(options);
+  std::vector<LaserScan> scans;
+  std::vector<Pose2> poses;
+  for (uint64_t key = 0; key < 30; ++key) {
+    const double pose_theta = theta(rng);
+    const double pose_y = y(rng);
+    const double pose_x = x(rng);
+    poses.emplace_back(pose_x, pose_y, pose_theta);
+    scans.push_back(BoxScan(poses.back(), 180));
+    one_by_one.Place(key, scans.back(), poses.back());
+    rebuilt.Place(key, scans.back(), poses.back());
+  }
+  // Every third keyframe leaves, the others move (most past the tolerance); two new ones.
+  std::vector<KeyframeGrid::Keyframe> keyframes;
+  for (uint64_t key = 0; key < 30; ++key) {
+    if (key % 3 == 0) {
+      ASSERT_TRUE(one_by_one.Remove(key, scans[key]));
+      continue;
+    }
+    const double move_theta = 0.1 * move(rng);
+    const double move_y = move(rng);
+    const double move_x = move(rng);
+    const Pose2 pose(poses[key].x() + move_x, poses[key].y() + move_y,
+                     poses[key].theta() + move_theta);
+    one_by_one.Place(key, scans[key], pose);
+    keyframes.push_back({key, &scans[key], one_by_one.placed().at(key)});
+  }
+  for (uint64_t key = 30; key < 32; ++key) {
+    poses.emplace_back(0.5 * static_cast<double>(key - 30), 1.0, 0.2);
+    scans.push_back(BoxScan(poses.back(), 180));
+  }
+  for (uint64_t key = 30; key < 32; ++key) {
+    one_by_one.Place(key, scans[key], poses[key]);
+    keyframes.push_back({key, &scans[key], poses[key]});
+  }
+  rebuilt.ForgetChanges();
+  rebuilt.Rebuild(keyframes);
+  EXPECT_EQ(rebuilt.num_changed_tiles(), rebuilt.num_tiles());
+  EXPECT_EQ(rebuilt.placed().size(), one_by_one.placed().size());
+  for (const auto& [key, pose] : one_by_one.placed()) {
+    EXPECT_EQ(rebuilt.placed().at(key).translation(), pose.translation());
+    EXPECT_EQ(rebuilt.placed().at(key).theta(), pose.theta());
+    EXPECT_EQ(rebuilt.Displacement(key, pose), 0.0);
+  }
+  const std::vector<GridTile> expected = one_by_one.Tiles(0, 0), actual = rebuilt.Tiles(0, 0);
+  ASSERT_GT(expected.size(), 20u);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  }
+  ExpectSameCells(one_by_one, rebuilt);
+}
+
 // A subscriber that holds the first full export and applies every batch of changed tiles
 // holds the full export at the end; untouched tiles are not re-sent.
 TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {
