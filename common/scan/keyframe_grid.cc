@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <type_traits>
 
 #include "common/geometry/angle.h"
 
@@ -13,12 +14,35 @@ KeyframeGrid::KeyframeGrid(const OccupancyGridOptions& options, double move_tole
       move_tolerance_m_(move_tolerance_cells * options.resolution_m),
       cells_per_tile_(static_cast<int64_t>(options.tile_size_cells) * options.tile_size_cells) {}
 
-int32_t* KeyframeGrid::TouchTile(int64_t tile_x, int64_t tile_y) {
+namespace {
+// A tile's counts of width Count.
+template <typename Count, typename Tile>
+auto& CountsOf(Tile& tile) {
+  if constexpr (std::is_same_v<Count, int16_t>) {
+    return tile.narrow;
+  } else {
+    return tile.wide;
+  }
+}
+}  // namespace
+
+template <typename Count>
+Count* KeyframeGrid::TouchTile(int64_t tile_x, int64_t tile_y) {
   const uint64_t key = TileKey(tile_x, tile_y);
   Tile& tile = tiles_[key];
-  if (tile.counts.empty()) tile.counts.resize(static_cast<size_t>(2 * cells_per_tile_));
+  auto& counts = CountsOf<Count>(tile);
+  if (counts.empty()) counts.resize(static_cast<size_t>(2 * cells_per_tile_));
   changed_.insert(key);
-  return tile.counts.data();
+  return counts.data();
+}
+
+void KeyframeGrid::Reserve(size_t placed) {
+  if (wide_ || placed <= kMaxNarrowPlaced) return;
+  for (auto& [key, tile] : tiles_) {
+    tile.wide.assign(tile.narrow.begin(), tile.narrow.end());
+    tile.narrow = std::vector<int16_t>();
+  }
+  wide_ = true;
 }
 
 namespace {
@@ -27,19 +51,21 @@ namespace {
 constexpr int64_t kMaxWindowTiles = 4096;
 }  // namespace
 
+template <typename Count>
 void KeyframeGrid::TraceCellByCell(const ScanTracer::Window& window, int sign) {
   const int64_t size = options_.tile_size_cells;
-  int32_t* tile = nullptr;
+  Count* tile = nullptr;
   int64_t tile_x = 0, tile_y = 0;
   tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
     const int64_t x = window.min_x + wx, y = window.min_y + wy;
     const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
     if (tile == nullptr || tx != tile_x || ty != tile_y) {
-      tile = TouchTile(tx, ty);
+      tile = TouchTile<Count>(tx, ty);
       tile_x = tx;
       tile_y = ty;
     }
-    tile[(hit ? 0 : cells_per_tile_) + (y - ty * size) * size + (x - tx * size)] += sign;
+    tile[(hit ? 0 : cells_per_tile_) + (y - ty * size) * size + (x - tx * size)] +=
+        static_cast<Count>(sign);
   });
 }
 
@@ -48,14 +74,24 @@ void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sig
   if (!window) return;
   const int64_t size = options_.tile_size_cells;
   const int64_t side = window->side;
-  const int64_t min_tile_x = FloorDiv(window->min_x, size);
-  const int64_t min_tile_y = FloorDiv(window->min_y, size);
-  const int64_t columns = FloorDiv(window->min_x + side - 1, size) - min_tile_x + 1;
-  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - min_tile_y + 1;
+  const int64_t columns =
+      FloorDiv(window->min_x + side - 1, size) - FloorDiv(window->min_x, size) + 1;
+  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - FloorDiv(window->min_y, size) + 1;
   if (!tracer_.MarksInWindow() || columns * rows > kMaxWindowTiles) {
-    TraceCellByCell(*window, sign);
-    return;
+    wide_ ? TraceCellByCell<int32_t>(*window, sign) : TraceCellByCell<int16_t>(*window, sign);
+  } else {
+    wide_ ? TraceRows<int32_t>(*window, sign) : TraceRows<int16_t>(*window, sign);
   }
+}
+
+template <typename Count>
+void KeyframeGrid::TraceRows(const ScanTracer::Window& window, int sign) {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t side = window.side;
+  const int64_t min_tile_x = FloorDiv(window.min_x, size);
+  const int64_t min_tile_y = FloorDiv(window.min_y, size);
+  const int64_t columns = FloorDiv(window.min_x + side - 1, size) - min_tile_x + 1;
+  const int64_t rows = FloorDiv(window.min_y + side - 1, size) - min_tile_y + 1;
   // The beams leave marks in the tracer's window; the counts are then added row by row,
   // one run of consecutive cells per tile a row's traced extent crosses.
   tracer_.MarkCells();
@@ -65,31 +101,32 @@ void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sig
   const int32_t* const row_min = tracer_.row_min();
   const int32_t* const row_max = tracer_.row_max();
   const int64_t cells = cells_per_tile_;
+  const Count add = static_cast<Count>(sign);
   for (int64_t wy = 0; wy < side; ++wy) {
     if (row_min[wy] > row_max[wy]) continue;
-    const int64_t y = window->min_y + wy;
+    const int64_t y = window.min_y + wy;
     const int64_t ty = FloorDiv(y, size);
     const int64_t row_offset = (y - ty * size) * size;
-    int32_t** const tile_row = &window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns)];
-    const int64_t last_x = window->min_x + row_max[wy];
-    for (int64_t x = window->min_x + row_min[wy]; x <= last_x;) {
+    void** const tile_row = &window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns)];
+    const int64_t last_x = window.min_x + row_max[wy];
+    for (int64_t x = window.min_x + row_min[wy]; x <= last_x;) {
       const int64_t tx = FloorDiv(x, size);
       const int64_t n = std::min(last_x + 1, (tx + 1) * size) - x;
-      const uint16_t* const run = marks + wy * side + (x - window->min_x);
-      int32_t*& tile = tile_row[tx - min_tile_x];
+      const uint16_t* const run = marks + wy * side + (x - window.min_x);
+      void*& tile = tile_row[tx - min_tile_x];
       if (tile == nullptr) {
         // A run between two traced stretches of the row may hold none: a tile is touched
         // only for a traced cell, as cell by cell.
         int traced = 0;
         for (int64_t i = 0; i < n; ++i) traced |= static_cast<uint16_t>(run[i] - hit) <= 1;
-        if (traced != 0) tile = TouchTile(tx, ty);
+        if (traced != 0) tile = TouchTile<Count>(tx, ty);
       }
       if (tile != nullptr) {
-        int32_t* const hits = tile + row_offset + (x - tx * size);
-        int32_t* const misses = hits + cells;
+        Count* const hits = static_cast<Count*>(tile) + row_offset + (x - tx * size);
+        Count* const misses = hits + cells;
         for (int64_t i = 0; i < n; ++i) {
-          hits[i] += run[i] == hit ? sign : 0;
-          misses[i] += run[i] == static_cast<uint16_t>(hit + 1) ? sign : 0;
+          hits[i] += run[i] == hit ? add : Count{0};
+          misses[i] += run[i] == static_cast<uint16_t>(hit + 1) ? add : Count{0};
         }
       }
       x += n;
@@ -101,6 +138,7 @@ KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
                                             const Pose2& T_map_body) {
   const auto it = placed_pose_.find(key);
   if (it == placed_pose_.end()) {
+    Reserve(placed_pose_.size() + 1);
     Trace(scan, T_map_body, +1);
     placed_pose_.emplace(key, T_map_body);
     reach_m_[key] = ReachFromBody(scan);
@@ -137,8 +175,10 @@ bool KeyframeGrid::Remove(uint64_t key, const LaserScan& scan) {
 }
 
 void KeyframeGrid::Rebuild(const std::vector<Keyframe>& keyframes) {
+  Reserve(keyframes.size());
   for (auto& [key, tile] : tiles_) {
-    std::fill(tile.counts.begin(), tile.counts.end(), 0);
+    std::fill(tile.narrow.begin(), tile.narrow.end(), int16_t{0});
+    std::fill(tile.wide.begin(), tile.wide.end(), 0);
     changed_.insert(key);
   }
   placed_pose_.clear();
@@ -163,7 +203,9 @@ std::optional<double> KeyframeGrid::LogOdds(int64_t cell_x, int64_t cell_y) cons
   if (it == tiles_.end()) return std::nullopt;
   const size_t cell =
       static_cast<size_t>((cell_y - tile_y * size) * size + (cell_x - tile_x * size));
-  return LogOdds(it->second.counts[cell], it->second.counts[cell + cells_per_tile_]);
+  const Tile& tile = it->second;
+  return wide_ ? LogOdds(tile.wide[cell], tile.wide[cell + cells_per_tile_])
+               : LogOdds(tile.narrow[cell], tile.narrow[cell + cells_per_tile_]);
 }
 
 int8_t KeyframeGrid::Occupancy(int64_t cell_x, int64_t cell_y) const {
@@ -179,12 +221,21 @@ GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int
   std::tie(t.tile_x, t.tile_y) = TileOfKey(key);
   t.width = t.height = options_.tile_size_cells;
   t.cells.resize(static_cast<size_t>(cells_per_tile_));
+  if (wide_) {
+    ExportCells(tile.wide.data(), &t);
+  } else {
+    ExportCells(tile.narrow.data(), &t);
+  }
+  return t;
+}
+
+template <typename Count>
+void KeyframeGrid::ExportCells(const Count* hits, GridTile* tile) const {
   // Most observed cells sit at a clamp bound (free space seen often, walls): their value is
   // computed once, as is that of a run of equal counts; the same values as Occupancy's.
   const int8_t at_min = OccupancyFromLogOdds(options_.log_odds_min);
   const int8_t at_max = OccupancyFromLogOdds(options_.log_odds_max);
-  const int32_t* const hits = tile.counts.data();
-  const int32_t* const misses = hits + cells_per_tile_;
+  const Count* const misses = hits + cells_per_tile_;
   int32_t last_hits = 0, last_misses = 0;
   int8_t last = -1;
   for (int64_t i = 0; i < cells_per_tile_; ++i) {
@@ -202,9 +253,8 @@ GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int
         last = OccupancyFromLogOdds(sum);
       }
     }
-    t.cells[static_cast<size_t>(i)] = last;
+    tile->cells[static_cast<size_t>(i)] = last;
   }
-  return t;
 }
 
 namespace {

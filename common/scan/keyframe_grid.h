@@ -74,22 +74,35 @@ class KeyframeGrid {
 
  private:
   // A tile's counts, structure of arrays: hits of its size x size cells row by row, then
-  // their misses (a row of a trace then adds to two runs of consecutive integers).
+  // their misses (a row of a trace then adds to two runs of consecutive integers). 16-bit
+  // while at most kMaxNarrowPlaced keyframes are placed (no count can exceed the number of
+  // placed scans: each adds at most one to a cell), which halves the memory a trace reads
+  // and writes; 32-bit beyond (every tile widened once, Reserve).
   struct Tile {
-    std::vector<int32_t> counts;
+    std::vector<int16_t> narrow;
+    std::vector<int32_t> wide;
   };
+  static constexpr size_t kMaxNarrowPlaced = 32767;
+  // Widens the counts if `placed` keyframes could overflow 16-bit ones.
+  void Reserve(size_t placed);
   // Adds (sign +1) or takes out (-1) the cells of `scan` at T_map_body.
   void Trace(const LaserScan& scan, const Pose2& T_map_body, int sign);
+  template <typename Count>
+  void TraceRows(const ScanTracer::Window& window, int sign);
   // The same when the tracer's window does not apply (rays very long for the cell size):
   // cell by cell, a tile found per cell.
+  template <typename Count>
   void TraceCellByCell(const ScanTracer::Window& window, int sign);
   // Tile (tile_x, tile_y)'s counts (hits, then misses at + cells_per_tile_), the tile made
   // when new; marks it changed.
-  int32_t* TouchTile(int64_t tile_x, int64_t tile_y);
+  template <typename Count>
+  Count* TouchTile(int64_t tile_x, int64_t tile_y);
   std::optional<double> LogOdds(int32_t hits, int32_t misses) const;
   // How far from the body origin the scan's beams reach (m).
   double ReachFromBody(const LaserScan& scan) const;
   GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
+  template <typename Count>
+  void ExportCells(const Count* hits, GridTile* tile) const;
 
   OccupancyGridOptions options_;
   double move_tolerance_m_;
@@ -97,7 +110,8 @@ class KeyframeGrid {
   int64_t cells_per_tile_;
   // Per trace, each tile the tracer's window spans, once touched (row-major over the
   // window's tiles): one hash lookup per tile and trace.
-  std::vector<int32_t*> window_tiles_;
+  std::vector<void*> window_tiles_;
+  bool wide_ = false;
   std::unordered_map<uint64_t, Tile> tiles_;
   std::unordered_set<uint64_t> changed_;
   std::unordered_map<uint64_t, Pose2> placed_pose_;

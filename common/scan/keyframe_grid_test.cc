@@ -220,6 +220,48 @@ TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
   ExpectSameCells(one_by_one, rebuilt);
 }
 
+// Past 32767 placed keyframes the counts no longer fit 16 bits: they are widened, and a cell
+// seen by every scan still counts them all (a wrapped count would turn a wall free).
+TEST(KeyframeGridTest, CountsStayExactPastSixteenBits) {
+  OccupancyGridOptions options = SmallOptions();
+  options.max_ray_length_m = 0.5;
+  LaserScan scan;
+  scan.rad0 = 0.0f;
+  scan.radstep = static_cast<float>(kPi / 2);
+  scan.max_range = 1.0f;
+  scan.ranges = {0.35f, 0.25f, 0.45f, 0.3f};
+  const Pose2 pose(0.02, 0.03, 0.1);
+  KeyframeGrid one(options), three(options), many(options);
+  one.Place(0, scan, pose);
+  for (uint64_t key = 0; key < 3; ++key) three.Place(key, scan, pose);
+  constexpr uint64_t kMany = 32767 + 10;
+  for (uint64_t key = 0; key < kMany; ++key) many.Place(key, scan, pose);
+  const std::vector<GridTile> tiles = one.Tiles(0, 0);
+  ASSERT_EQ(many.Tiles(0, 0).size(), tiles.size());
+  const int64_t size = options.tile_size_cells;
+  int hits = 0, misses = 0;
+  for (const GridTile& tile : tiles) {
+    for (int64_t y = tile.tile_y * size; y < (tile.tile_y + 1) * size; ++y) {
+      for (int64_t x = tile.tile_x * size; x < (tile.tile_x + 1) * size; ++x) {
+        const auto single = one.LogOdds(x, y);
+        if (!single) {
+          EXPECT_FALSE(many.LogOdds(x, y).has_value());
+          continue;
+        }
+        const bool hit = *single > 0;
+        (hit ? hits : misses) += 1;
+        EXPECT_EQ(many.LogOdds(x, y), hit ? options.log_odds_max : options.log_odds_min);
+      }
+    }
+  }
+  EXPECT_EQ(hits, 4);
+  EXPECT_GT(misses, 8);
+  for (uint64_t key = 3; key < kMany; ++key) ASSERT_TRUE(many.Remove(key, scan));
+  const std::vector<GridTile> expected = three.Tiles(0, 0), actual = many.Tiles(0, 0);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
+}
+
 // A subscriber that holds the first full export and applies every batch of changed tiles
 // holds the full export at the end; untouched tiles are not re-sent.
 TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {
