@@ -74,6 +74,16 @@ void ExpectSameCells(const KeyframeGrid& a, const KeyframeGrid& b) {
   EXPECT_GT(compared, observed);
 }
 
+// The same tiles in the same order with the same cells.
+void ExpectSameTiles(const std::vector<GridTile>& expected, const std::vector<GridTile>& actual) {
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  }
+}
+
 // With the tiles found through the tracer's window (few tiles per window) and per cell
 // (rays long for the tile size: 77 x 77 tiles span the window of the second options).
 TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
@@ -90,12 +100,7 @@ TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
     EXPECT_EQ(grid.Place(7, scan, pose), KeyframeGrid::Placement::kInserted);
     const std::vector<GridTile> expected = reference.Tiles(3, 4), actual = grid.Tiles(3, 4);
     ASSERT_GT(expected.size(), 20u);
-    ASSERT_EQ(actual.size(), expected.size());
-    for (size_t i = 0; i < expected.size(); ++i) {
-      EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
-      EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
-      EXPECT_EQ(actual[i].cells, expected[i].cells);
-    }
+    ExpectSameTiles(expected, actual);
     EXPECT_EQ(grid.TakeChangedTiles(3, 4).size(), expected.size());
   }
 }
@@ -211,12 +216,7 @@ TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
   }
   const std::vector<GridTile> expected = one_by_one.Tiles(0, 0), actual = rebuilt.Tiles(0, 0);
   ASSERT_GT(expected.size(), 20u);
-  ASSERT_EQ(actual.size(), expected.size());
-  for (size_t i = 0; i < expected.size(); ++i) {
-    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
-    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
-    EXPECT_EQ(actual[i].cells, expected[i].cells);
-  }
+  ExpectSameTiles(expected, actual);
   ExpectSameCells(one_by_one, rebuilt);
 }
 
@@ -258,8 +258,7 @@ TEST(KeyframeGridTest, CountsStayExactPastSixteenBits) {
   EXPECT_GT(misses, 8);
   for (uint64_t key = 3; key < kMany; ++key) ASSERT_TRUE(many.Remove(key, scan));
   const std::vector<GridTile> expected = three.Tiles(0, 0), actual = many.Tiles(0, 0);
-  ASSERT_EQ(actual.size(), expected.size());
-  for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
+  ExpectSameTiles(expected, actual);
 }
 
 // A subscriber that holds the first full export and applies every batch of changed tiles
