@@ -105,6 +105,9 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
     Pose2 pose;
   };
   std::vector<Moved> moved;
+  std::vector<KeyframeGrid::Keyframe> inserted;
+  // When complete: the placed keyframes that stay where they were traced (a rebuild's).
+  std::vector<KeyframeGrid::Keyframe> unchanged;
   for (TrajectoryId id : GridTrajectories(smoother, table)) {
     const TrajectoryRecord* record = table.FindBySolverId(id);
     const std::vector<Pose2> poses = smoother.GlobalTrajectory(id);
@@ -113,12 +116,41 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
       current.insert(key);
       const std::optional<double> displacement = grid_.Displacement(key, poses[i]);
       if (!displacement) {
-        grid_.Place(key, record->scans[i], poses[i]);
-        ++change.inserted;
+        inserted.push_back({key, &record->scans[i], poses[i]});
       } else if (*displacement > grid_.move_tolerance_m()) {
         moved.push_back({*displacement, key, &record->scans[i], poses[i]});
+      } else if (complete) {
+        unchanged.push_back({key, &record->scans[i], grid_.placed().at(key)});
       }
     }
+  }
+  change.inserted = static_cast<int64_t>(inserted.size());
+  // Keyframes of trajectories that left the grid's group (the largest group changed), with
+  // their scans (nullptr: none known, the keyframe stays).
+  std::vector<std::pair<uint64_t, const LaserScan*>> gone;
+  bool gone_known = true;
+  for (const auto& [key, pose] : grid_.placed()) {
+    if (current.count(key) != 0) continue;
+    const TrajectoryRecord* record =
+        table.FindBySolverId(TrajectoryId(static_cast<int64_t>(key >> 32)));
+    const size_t index = key & 0xffffffffu;
+    const bool known = record != nullptr && index < record->scans.size();
+    gone.push_back({key, known ? &record->scans[index] : nullptr});
+    gone_known = gone_known && known;
+  }
+  // A complete grid where most placed keyframes moved is cheaper made again: one trace per
+  // keyframe instead of two per move (the end of a 100-robot run moves nearly all of them).
+  if (complete && gone_known && moved.size() + gone.size() > unchanged.size()) {
+    std::vector<KeyframeGrid::Keyframe> keyframes = std::move(unchanged);
+    for (const Moved& m : moved) keyframes.push_back({m.key, m.scan, m.pose});
+    keyframes.insert(keyframes.end(), inserted.begin(), inserted.end());
+    grid_.Rebuild(keyframes);
+    change.moved = static_cast<int64_t>(moved.size());
+    change.removed = static_cast<int64_t>(gone.size());
+    return change;
+  }
+  for (const KeyframeGrid::Keyframe& keyframe : inserted) {
+    grid_.Place(keyframe.key, *keyframe.scan, keyframe.T_map_body);
   }
   // The farthest moved first; ties by key (trajectory, index): deterministic.
   size_t take = moved.size();
@@ -139,19 +171,8 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
     }
   }
   change.deferred = static_cast<int64_t>(moved.size() - take);
-  // Keyframes of trajectories that left the grid's group (the largest group changed).
-  std::vector<uint64_t> gone;
-  for (const auto& [key, pose] : grid_.placed()) {
-    if (current.count(key) == 0) gone.push_back(key);
-  }
-  for (uint64_t key : gone) {
-    const TrajectoryRecord* record =
-        table.FindBySolverId(TrajectoryId(static_cast<int64_t>(key >> 32)));
-    const size_t index = key & 0xffffffffu;
-    if (record != nullptr && index < record->scans.size() &&
-        grid_.Remove(key, record->scans[index])) {
-      ++change.removed;
-    }
+  for (const auto& [key, scan] : gone) {
+    if (scan != nullptr && grid_.Remove(key, *scan)) ++change.removed;
   }
   return change;
 }

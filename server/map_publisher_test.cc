@@ -210,6 +210,46 @@ TEST_F(MapPublisherTest, GridTracesAgainAtMostMaxMovedFarthestFirst) {
   for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
 }
 
+// A complete grid where more keyframes moved than stayed is made again (one trace per
+// keyframe): the same tiles and cells as the grid that caught up by bounded publications.
+TEST_F(MapPublisherTest, CompleteGridMadeAgainEqualsTheOneMovedKeyframeByKeyframe) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  options.grid.tile_size_cells = 16;
+  options.grid_max_moved = 1;
+  MapPublisher made_again(options), moved_one_by_one(options);
+  for (MapPublisher* publisher : {&made_again, &moved_one_by_one}) {
+    EXPECT_EQ(publisher->UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
+  }
+  // The loop closure of GridTracesAgainAtMostMaxMovedFarthestFirst: keyframes 1 to 3 move.
+  ASSERT_TRUE(smoother_
+                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
+                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
+                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
+                  .ok());
+  ASSERT_TRUE(smoother_.Update().status.ok());
+  int rounds = 0;
+  while (moved_one_by_one.UpdateGrid(smoother_, table_).deferred > 0) ++rounds;
+  EXPECT_EQ(rounds, 2);
+  const MapPublisher::GridChange change =
+      made_again.UpdateGrid(smoother_, table_, /*complete=*/true);
+  EXPECT_EQ(change.moved, 3);
+  EXPECT_EQ(change.deferred, 0);
+  EXPECT_EQ(change.removed, 0);
+  ASSERT_EQ(made_again.grid().placed().size(), moved_one_by_one.grid().placed().size());
+  for (const auto& [key, pose] : moved_one_by_one.grid().placed()) {
+    EXPECT_EQ(made_again.grid().placed().at(key).y(), pose.y());
+  }
+  const std::vector<GridTile> expected = moved_one_by_one.BuildGridTiles(smoother_, table_, 3, 3),
+                              actual = made_again.BuildGridTiles(smoother_, table_, 3, 3);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  }
+}
+
 // Without a floor, a publication traces again as many moved keyframes as
 // grid_moved_per_inserted allows for the keyframes it traces in: none while nothing new comes
 // in, then (B's keyframes join the grid) the deferred ones.

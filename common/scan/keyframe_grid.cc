@@ -3,21 +3,46 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <type_traits>
 
 #include "common/geometry/angle.h"
 
 namespace anchormap {
 
 KeyframeGrid::KeyframeGrid(const OccupancyGridOptions& options, double move_tolerance_cells)
-    : options_(options), move_tolerance_m_(move_tolerance_cells * options.resolution_m) {}
+    : options_(options),
+      move_tolerance_m_(move_tolerance_cells * options.resolution_m),
+      cells_per_tile_(static_cast<int64_t>(options.tile_size_cells) * options.tile_size_cells) {}
 
-KeyframeGrid::Counts* KeyframeGrid::TouchTile(int64_t tile_x, int64_t tile_y) {
+namespace {
+// A tile's counts of width Count.
+template <typename Count, typename Tile>
+auto& CountsOf(Tile& tile) {
+  if constexpr (std::is_same_v<Count, int16_t>) {
+    return tile.narrow;
+  } else {
+    return tile.wide;
+  }
+}
+}  // namespace
+
+template <typename Count>
+Count* KeyframeGrid::TouchTile(int64_t tile_x, int64_t tile_y) {
   const uint64_t key = TileKey(tile_x, tile_y);
   Tile& tile = tiles_[key];
-  const int64_t size = options_.tile_size_cells;
-  if (tile.cells.empty()) tile.cells.resize(static_cast<size_t>(size * size));
+  auto& counts = CountsOf<Count>(tile);
+  if (counts.empty()) counts.resize(static_cast<size_t>(2 * cells_per_tile_));
   changed_.insert(key);
-  return tile.cells.data();
+  return counts.data();
+}
+
+void KeyframeGrid::Reserve(size_t placed) {
+  if (wide_ || placed <= kMaxNarrowPlaced) return;
+  for (auto& [key, tile] : tiles_) {
+    tile.wide.assign(tile.narrow.begin(), tile.narrow.end());
+    tile.narrow = std::vector<int16_t>();
+  }
+  wide_ = true;
 }
 
 namespace {
@@ -26,71 +51,97 @@ namespace {
 constexpr int64_t kMaxWindowTiles = 4096;
 }  // namespace
 
+template <typename Count>
+void KeyframeGrid::TraceCellByCell(const ScanTracer::Window& window, int sign) {
+  const int64_t size = options_.tile_size_cells;
+  Count* tile = nullptr;
+  int64_t tile_x = 0, tile_y = 0;
+  tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
+    const int64_t x = window.min_x + wx, y = window.min_y + wy;
+    const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
+    if (tile == nullptr || tx != tile_x || ty != tile_y) {
+      tile = TouchTile<Count>(tx, ty);
+      tile_x = tx;
+      tile_y = ty;
+    }
+    tile[(hit ? 0 : cells_per_tile_) + (y - ty * size) * size + (x - tx * size)] +=
+        static_cast<Count>(sign);
+  });
+}
+
 void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sign) {
   const std::optional<ScanTracer::Window> window = tracer_.Start(scan, T_map_body, options_);
   if (!window) return;
   const int64_t size = options_.tile_size_cells;
   const int64_t side = window->side;
-  const int64_t min_tile_x = FloorDiv(window->min_x, size);
-  const int64_t min_tile_y = FloorDiv(window->min_y, size);
-  const int64_t columns = FloorDiv(window->min_x + side - 1, size) - min_tile_x + 1;
-  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - min_tile_y + 1;
-  if (columns * rows > kMaxWindowTiles) {
-    Counts* tile = nullptr;
-    int64_t tile_x = 0, tile_y = 0;
-    tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
-      const int64_t x = window->min_x + wx, y = window->min_y + wy;
-      const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
-      if (tile == nullptr || tx != tile_x || ty != tile_y) {
-        tile = TouchTile(tx, ty);
-        tile_x = tx;
-        tile_y = ty;
-      }
-      Counts& counts = tile[(y - ty * size) * size + (x - tx * size)];
-      (hit ? counts.hits : counts.misses) += sign;
-    });
-    return;
+  const int64_t columns =
+      FloorDiv(window->min_x + side - 1, size) - FloorDiv(window->min_x, size) + 1;
+  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - FloorDiv(window->min_y, size) + 1;
+  if (!tracer_.MarksInWindow() || columns * rows > kMaxWindowTiles) {
+    wide_ ? TraceCellByCell<int32_t>(*window, sign) : TraceCellByCell<int16_t>(*window, sign);
+  } else {
+    wide_ ? TraceRows<int32_t>(*window, sign) : TraceRows<int16_t>(*window, sign);
   }
-  auto fill = [&](int64_t min, int64_t tile_stride, int64_t cell_stride, std::vector<int32_t>* tile,
-                  std::vector<int32_t>* cell) {
-    tile->resize(static_cast<size_t>(side));
-    cell->resize(static_cast<size_t>(side));
-    int64_t t = 0, c = min - FloorDiv(min, size) * size;
-    for (int64_t w = 0; w < side; ++w) {
-      (*tile)[w] = static_cast<int32_t>(t * tile_stride);
-      (*cell)[w] = static_cast<int32_t>(c * cell_stride);
-      if (++c == size) {
-        c = 0;
-        ++t;
-      }
-    }
-  };
-  fill(window->min_x, 1, 1, &column_tile_, &column_cell_);
-  fill(window->min_y, columns, size, &row_tile_, &row_cell_);
+}
+
+template <typename Count>
+void KeyframeGrid::TraceRows(const ScanTracer::Window& window, int sign) {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t side = window.side;
+  const int64_t min_tile_x = FloorDiv(window.min_x, size);
+  const int64_t min_tile_y = FloorDiv(window.min_y, size);
+  const int64_t columns = FloorDiv(window.min_x + side - 1, size) - min_tile_x + 1;
+  const int64_t rows = FloorDiv(window.min_y + side - 1, size) - min_tile_y + 1;
+  // The beams leave marks in the tracer's window; the counts are then added row by row,
+  // one run of consecutive cells per tile a row's traced extent crosses.
+  tracer_.MarkCells();
   window_tiles_.assign(static_cast<size_t>(columns * rows), nullptr);
-  const int32_t* const column_tile = column_tile_.data();
-  const int32_t* const column_cell = column_cell_.data();
-  const int32_t* const row_tile = row_tile_.data();
-  const int32_t* const row_cell = row_cell_.data();
-  Counts** const tiles = window_tiles_.data();
-  tracer_.VisitCells([&](int64_t wx, int64_t wy, bool hit) {
-    Counts*& tile = tiles[row_tile[wy] + column_tile[wx]];
-    if (tile == nullptr) {
-      tile = TouchTile(min_tile_x + column_tile[wx], min_tile_y + row_tile[wy] / columns);
+  const uint16_t* const marks = tracer_.marks();
+  const uint16_t hit = tracer_.hit_mark();
+  const int32_t* const row_min = tracer_.row_min();
+  const int32_t* const row_max = tracer_.row_max();
+  const int64_t cells = cells_per_tile_;
+  const Count add = static_cast<Count>(sign);
+  for (int64_t wy = 0; wy < side; ++wy) {
+    if (row_min[wy] > row_max[wy]) continue;
+    const int64_t y = window.min_y + wy;
+    const int64_t ty = FloorDiv(y, size);
+    const int64_t row_offset = (y - ty * size) * size;
+    void** const tile_row = &window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns)];
+    const int64_t last_x = window.min_x + row_max[wy];
+    for (int64_t x = window.min_x + row_min[wy]; x <= last_x;) {
+      const int64_t tx = FloorDiv(x, size);
+      const int64_t n = std::min(last_x + 1, (tx + 1) * size) - x;
+      const uint16_t* const run = marks + wy * side + (x - window.min_x);
+      void*& tile = tile_row[tx - min_tile_x];
+      if (tile == nullptr) {
+        // A run between two traced stretches of the row may hold none: a tile is touched
+        // only for a traced cell, as cell by cell.
+        int traced = 0;
+        for (int64_t i = 0; i < n; ++i) traced |= static_cast<uint16_t>(run[i] - hit) <= 1;
+        if (traced != 0) tile = TouchTile<Count>(tx, ty);
+      }
+      if (tile != nullptr) {
+        Count* const hits = static_cast<Count*>(tile) + row_offset + (x - tx * size);
+        Count* const misses = hits + cells;
+        for (int64_t i = 0; i < n; ++i) {
+          hits[i] += run[i] == hit ? add : Count{0};
+          misses[i] += run[i] == static_cast<uint16_t>(hit + 1) ? add : Count{0};
+        }
+      }
+      x += n;
     }
-    Counts& counts = tile[row_cell[wy] + column_cell[wx]];
-    counts.hits += hit ? sign : 0;
-    counts.misses += hit ? 0 : sign;
-  });
+  }
 }
 
 KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
                                             const Pose2& T_map_body) {
   const auto it = placed_pose_.find(key);
   if (it == placed_pose_.end()) {
+    Reserve(placed_pose_.size() + 1);
     Trace(scan, T_map_body, +1);
     placed_pose_.emplace(key, T_map_body);
-    reach_m_[key] = ScanReach(scan, options_) + scan.T_body_sensor.translation().norm();
+    reach_m_[key] = ReachFromBody(scan);
     return Placement::kInserted;
   }
   const Pose2& old = it->second;
@@ -100,6 +151,10 @@ KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
   Trace(scan, T_map_body, +1);
   it->second = T_map_body;
   return Placement::kMoved;
+}
+
+double KeyframeGrid::ReachFromBody(const LaserScan& scan) const {
+  return ScanReach(scan, options_) + scan.T_body_sensor.translation().norm();
 }
 
 std::optional<double> KeyframeGrid::Displacement(uint64_t key, const Pose2& T_map_body) const {
@@ -119,9 +174,25 @@ bool KeyframeGrid::Remove(uint64_t key, const LaserScan& scan) {
   return true;
 }
 
-std::optional<double> KeyframeGrid::LogOdds(const Counts& counts) const {
-  if (counts.hits == 0 && counts.misses == 0) return std::nullopt;
-  return std::clamp(counts.hits * options_.log_odds_hit + counts.misses * options_.log_odds_miss,
+void KeyframeGrid::Rebuild(const std::vector<Keyframe>& keyframes) {
+  Reserve(keyframes.size());
+  for (auto& [key, tile] : tiles_) {
+    std::fill(tile.narrow.begin(), tile.narrow.end(), int16_t{0});
+    std::fill(tile.wide.begin(), tile.wide.end(), 0);
+    changed_.insert(key);
+  }
+  placed_pose_.clear();
+  reach_m_.clear();
+  for (const Keyframe& keyframe : keyframes) {
+    Trace(*keyframe.scan, keyframe.T_map_body, +1);
+    placed_pose_[keyframe.key] = keyframe.T_map_body;
+    reach_m_[keyframe.key] = ReachFromBody(*keyframe.scan);
+  }
+}
+
+std::optional<double> KeyframeGrid::LogOdds(int32_t hits, int32_t misses) const {
+  if (hits == 0 && misses == 0) return std::nullopt;
+  return std::clamp(hits * options_.log_odds_hit + misses * options_.log_odds_miss,
                     options_.log_odds_min, options_.log_odds_max);
 }
 
@@ -130,9 +201,11 @@ std::optional<double> KeyframeGrid::LogOdds(int64_t cell_x, int64_t cell_y) cons
   const int64_t tile_x = FloorDiv(cell_x, size), tile_y = FloorDiv(cell_y, size);
   const auto it = tiles_.find(TileKey(tile_x, tile_y));
   if (it == tiles_.end()) return std::nullopt;
-  return LogOdds(
-      it->second
-          .cells[static_cast<size_t>((cell_y - tile_y * size) * size + (cell_x - tile_x * size))]);
+  const size_t cell =
+      static_cast<size_t>((cell_y - tile_y * size) * size + (cell_x - tile_x * size));
+  const Tile& tile = it->second;
+  return wide_ ? LogOdds(tile.wide[cell], tile.wide[cell + cells_per_tile_])
+               : LogOdds(tile.narrow[cell], tile.narrow[cell + cells_per_tile_]);
 }
 
 int8_t KeyframeGrid::Occupancy(int64_t cell_x, int64_t cell_y) const {
@@ -147,12 +220,41 @@ GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int
   t.resolution_m = options_.resolution_m;
   std::tie(t.tile_x, t.tile_y) = TileOfKey(key);
   t.width = t.height = options_.tile_size_cells;
-  t.cells.reserve(tile.cells.size());
-  for (const Counts& counts : tile.cells) {
-    const auto log_odds = LogOdds(counts);
-    t.cells.push_back(log_odds ? OccupancyFromLogOdds(*log_odds) : int8_t{-1});
+  t.cells.resize(static_cast<size_t>(cells_per_tile_));
+  if (wide_) {
+    ExportCells(tile.wide.data(), &t);
+  } else {
+    ExportCells(tile.narrow.data(), &t);
   }
   return t;
+}
+
+template <typename Count>
+void KeyframeGrid::ExportCells(const Count* hits, GridTile* tile) const {
+  // Most observed cells sit at a clamp bound (free space seen often, walls): their value is
+  // computed once, as is that of a run of equal counts; the same values as Occupancy's.
+  const int8_t at_min = OccupancyFromLogOdds(options_.log_odds_min);
+  const int8_t at_max = OccupancyFromLogOdds(options_.log_odds_max);
+  const Count* const misses = hits + cells_per_tile_;
+  int32_t last_hits = 0, last_misses = 0;
+  int8_t last = -1;
+  for (int64_t i = 0; i < cells_per_tile_; ++i) {
+    if (hits[i] != last_hits || misses[i] != last_misses) {
+      last_hits = hits[i];
+      last_misses = misses[i];
+      const double sum = last_hits * options_.log_odds_hit + last_misses * options_.log_odds_miss;
+      if (last_hits == 0 && last_misses == 0) {
+        last = -1;
+      } else if (sum <= options_.log_odds_min) {
+        last = at_min;
+      } else if (sum >= options_.log_odds_max) {
+        last = at_max;
+      } else {
+        last = OccupancyFromLogOdds(sum);
+      }
+    }
+    tile->cells[static_cast<size_t>(i)] = last;
+  }
 }
 
 namespace {

@@ -46,6 +46,16 @@ class KeyframeGrid {
   double move_tolerance_m() const { return move_tolerance_m_; }
   // Takes keyframe `key` out (`scan`: the one it was placed with); false when not placed.
   bool Remove(uint64_t key, const LaserScan& scan);
+  // The grid made again of exactly `keyframes`, each traced once at its pose (what placing,
+  // moving and removing would give, in one trace per keyframe instead of two per move: the
+  // cheaper way when most placed keyframes moved). Every tile any scan ever reached stays,
+  // and every tile is marked changed.
+  struct Keyframe {
+    uint64_t key;
+    const LaserScan* scan;
+    Pose2 T_map_body;
+  };
+  void Rebuild(const std::vector<Keyframe>& keyframes);
   // The pose each placed keyframe was traced at.
   const std::unordered_map<uint64_t, Pose2>& placed() const { return placed_pose_; }
 
@@ -63,31 +73,45 @@ class KeyframeGrid {
   size_t num_changed_tiles() const { return changed_.size(); }
 
  private:
-  struct Counts {
-    int32_t hits = 0;
-    int32_t misses = 0;
-  };
+  // A tile's counts, structure of arrays: hits of its size x size cells row by row, then
+  // their misses (a row of a trace then adds to two runs of consecutive integers). 16-bit
+  // while at most kMaxNarrowPlaced keyframes are placed (no count can exceed the number of
+  // placed scans: each adds at most one to a cell), which halves the memory a trace reads
+  // and writes; 32-bit beyond (every tile widened once, Reserve).
   struct Tile {
-    std::vector<Counts> cells;
+    std::vector<int16_t> narrow;
+    std::vector<int32_t> wide;
   };
+  static constexpr size_t kMaxNarrowPlaced = 32767;
+  // Widens the counts if `placed` keyframes could overflow 16-bit ones.
+  void Reserve(size_t placed);
   // Adds (sign +1) or takes out (-1) the cells of `scan` at T_map_body.
   void Trace(const LaserScan& scan, const Pose2& T_map_body, int sign);
-  // Tile (tile_x, tile_y)'s cells, the tile made when new; marks it changed.
-  Counts* TouchTile(int64_t tile_x, int64_t tile_y);
-  std::optional<double> LogOdds(const Counts& counts) const;
+  template <typename Count>
+  void TraceRows(const ScanTracer::Window& window, int sign);
+  // The same when the tracer's window does not apply (rays very long for the cell size):
+  // cell by cell, a tile found per cell.
+  template <typename Count>
+  void TraceCellByCell(const ScanTracer::Window& window, int sign);
+  // Tile (tile_x, tile_y)'s counts (hits, then misses at + cells_per_tile_), the tile made
+  // when new; marks it changed.
+  template <typename Count>
+  Count* TouchTile(int64_t tile_x, int64_t tile_y);
+  std::optional<double> LogOdds(int32_t hits, int32_t misses) const;
+  // How far from the body origin the scan's beams reach (m).
+  double ReachFromBody(const LaserScan& scan) const;
   GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
+  template <typename Count>
+  void ExportCells(const Count* hits, GridTile* tile) const;
 
   OccupancyGridOptions options_;
   double move_tolerance_m_;
   ScanTracer tracer_;
-  // Per trace, for each column (row) of the tracer's window: its tile's column (row, times
-  // the window's tile columns) among the tiles the window spans, and its cell's column (row,
-  // times the tile size) in that tile; and each spanned tile's cells once touched. A cell's
-  // counts are then four table reads away, with one hash lookup per tile and trace instead
-  // of a division per cell and a lookup at every tile switch (the beams start at the
-  // sensor's tile again and again).
-  std::vector<int32_t> column_tile_, column_cell_, row_tile_, row_cell_;
-  std::vector<Counts*> window_tiles_;
+  int64_t cells_per_tile_;
+  // Per trace, each tile the tracer's window spans, once touched (row-major over the
+  // window's tiles): one hash lookup per tile and trace.
+  std::vector<void*> window_tiles_;
+  bool wide_ = false;
   std::unordered_map<uint64_t, Tile> tiles_;
   std::unordered_set<uint64_t> changed_;
   std::unordered_map<uint64_t, Pose2> placed_pose_;

@@ -74,6 +74,16 @@ void ExpectSameCells(const KeyframeGrid& a, const KeyframeGrid& b) {
   EXPECT_GT(compared, observed);
 }
 
+// The same tiles in the same order with the same cells.
+void ExpectSameTiles(const std::vector<GridTile>& expected, const std::vector<GridTile>& actual) {
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
+    EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
+    EXPECT_EQ(actual[i].cells, expected[i].cells);
+  }
+}
+
 // With the tiles found through the tracer's window (few tiles per window) and per cell
 // (rays long for the tile size: 77 x 77 tiles span the window of the second options).
 TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
@@ -90,12 +100,7 @@ TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
     EXPECT_EQ(grid.Place(7, scan, pose), KeyframeGrid::Placement::kInserted);
     const std::vector<GridTile> expected = reference.Tiles(3, 4), actual = grid.Tiles(3, 4);
     ASSERT_GT(expected.size(), 20u);
-    ASSERT_EQ(actual.size(), expected.size());
-    for (size_t i = 0; i < expected.size(); ++i) {
-      EXPECT_EQ(actual[i].tile_x, expected[i].tile_x);
-      EXPECT_EQ(actual[i].tile_y, expected[i].tile_y);
-      EXPECT_EQ(actual[i].cells, expected[i].cells);
-    }
+    ExpectSameTiles(expected, actual);
     EXPECT_EQ(grid.TakeChangedTiles(3, 4).size(), expected.size());
   }
 }
@@ -155,6 +160,105 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
     scratch.Place(key, scans.at(key), pose);
   }
   ExpectSameCells(grid, scratch);
+}
+
+// Made again from a list, a grid equals the one that placed, moved and removed the same
+// keyframes one by one: the same tiles (also those every scan left), the same cells, the
+// same placed poses; every tile is marked changed.
+TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
+  const OccupancyGridOptions options = SmallOptions();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  std::normal_distribution<double> move(0.0, 0.4);
+  KeyframeGrid one_by_one(options), rebuilt(options);
+  std::vector<LaserScan> scans;
+  std::vector<Pose2> poses;
+  for (uint64_t key = 0; key < 30; ++key) {
+    const double pose_theta = theta(rng);
+    const double pose_y = y(rng);
+    const double pose_x = x(rng);
+    poses.emplace_back(pose_x, pose_y, pose_theta);
+    scans.push_back(BoxScan(poses.back(), 180));
+    one_by_one.Place(key, scans.back(), poses.back());
+    rebuilt.Place(key, scans.back(), poses.back());
+  }
+  // Every third keyframe leaves, the others move (most past the tolerance); two new ones.
+  std::vector<KeyframeGrid::Keyframe> keyframes;
+  for (uint64_t key = 0; key < 30; ++key) {
+    if (key % 3 == 0) {
+      ASSERT_TRUE(one_by_one.Remove(key, scans[key]));
+      continue;
+    }
+    const double move_theta = 0.1 * move(rng);
+    const double move_y = move(rng);
+    const double move_x = move(rng);
+    const Pose2 pose(poses[key].x() + move_x, poses[key].y() + move_y,
+                     poses[key].theta() + move_theta);
+    one_by_one.Place(key, scans[key], pose);
+    keyframes.push_back({key, &scans[key], one_by_one.placed().at(key)});
+  }
+  for (uint64_t key = 30; key < 32; ++key) {
+    poses.emplace_back(0.5 * static_cast<double>(key - 30), 1.0, 0.2);
+    scans.push_back(BoxScan(poses.back(), 180));
+  }
+  for (uint64_t key = 30; key < 32; ++key) {
+    one_by_one.Place(key, scans[key], poses[key]);
+    keyframes.push_back({key, &scans[key], poses[key]});
+  }
+  rebuilt.ForgetChanges();
+  rebuilt.Rebuild(keyframes);
+  EXPECT_EQ(rebuilt.num_changed_tiles(), rebuilt.num_tiles());
+  EXPECT_EQ(rebuilt.placed().size(), one_by_one.placed().size());
+  for (const auto& [key, pose] : one_by_one.placed()) {
+    EXPECT_EQ(rebuilt.placed().at(key).translation(), pose.translation());
+    EXPECT_EQ(rebuilt.placed().at(key).theta(), pose.theta());
+    EXPECT_EQ(rebuilt.Displacement(key, pose), 0.0);
+  }
+  const std::vector<GridTile> expected = one_by_one.Tiles(0, 0), actual = rebuilt.Tiles(0, 0);
+  ASSERT_GT(expected.size(), 20u);
+  ExpectSameTiles(expected, actual);
+  ExpectSameCells(one_by_one, rebuilt);
+}
+
+// Past 32767 placed keyframes the counts no longer fit 16 bits: they are widened, and a cell
+// seen by every scan still counts them all (a wrapped count would turn a wall free).
+TEST(KeyframeGridTest, CountsStayExactPastSixteenBits) {
+  OccupancyGridOptions options = SmallOptions();
+  options.max_ray_length_m = 0.5;
+  LaserScan scan;
+  scan.rad0 = 0.0f;
+  scan.radstep = static_cast<float>(kPi / 2);
+  scan.max_range = 1.0f;
+  scan.ranges = {0.35f, 0.25f, 0.45f, 0.3f};
+  const Pose2 pose(0.02, 0.03, 0.1);
+  KeyframeGrid one(options), three(options), many(options);
+  one.Place(0, scan, pose);
+  for (uint64_t key = 0; key < 3; ++key) three.Place(key, scan, pose);
+  constexpr uint64_t kMany = 32767 + 10;
+  for (uint64_t key = 0; key < kMany; ++key) many.Place(key, scan, pose);
+  const std::vector<GridTile> tiles = one.Tiles(0, 0);
+  ASSERT_EQ(many.Tiles(0, 0).size(), tiles.size());
+  const int64_t size = options.tile_size_cells;
+  int hits = 0, misses = 0;
+  for (const GridTile& tile : tiles) {
+    for (int64_t y = tile.tile_y * size; y < (tile.tile_y + 1) * size; ++y) {
+      for (int64_t x = tile.tile_x * size; x < (tile.tile_x + 1) * size; ++x) {
+        const auto single = one.LogOdds(x, y);
+        if (!single) {
+          EXPECT_FALSE(many.LogOdds(x, y).has_value());
+          continue;
+        }
+        const bool hit = *single > 0;
+        (hit ? hits : misses) += 1;
+        EXPECT_EQ(many.LogOdds(x, y), hit ? options.log_odds_max : options.log_odds_min);
+      }
+    }
+  }
+  EXPECT_EQ(hits, 4);
+  EXPECT_GT(misses, 8);
+  for (uint64_t key = 3; key < kMany; ++key) ASSERT_TRUE(many.Remove(key, scan));
+  const std::vector<GridTile> expected = three.Tiles(0, 0), actual = many.Tiles(0, 0);
+  ExpectSameTiles(expected, actual);
 }
 
 // A subscriber that holds the first full export and applies every batch of changed tiles

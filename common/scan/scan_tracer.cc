@@ -67,9 +67,20 @@ std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const
       far_cells_[TileKey(beam_end.wx, beam_end.wy)] = 1;
     }
   };
+  // The beams' directions in the sensor frame, computed again only when the scan's geometry
+  // changes (a team's scans share one): the same values as per beam.
+  if (scan.ranges.size() != directions_.size() || scan.rad0 != directions_rad0_ ||
+      scan.radstep != directions_radstep_) {
+    directions_.resize(scan.ranges.size());
+    for (size_t i = 0; i < scan.ranges.size(); ++i) {
+      const double angle = scan.Angle(i);
+      directions_[i] = Eigen::Vector2d(std::cos(angle), std::sin(angle));
+    }
+    directions_rad0_ = scan.rad0;
+    directions_radstep_ = scan.radstep;
+  }
   for (size_t i = 0; i < scan.ranges.size(); ++i) {
-    const double angle = scan.Angle(i);
-    const Eigen::Vector2d direction(std::cos(angle), std::sin(angle));
+    const Eigen::Vector2d& direction = directions_[i];
     if (scan.IsReturn(i)) {
       const double range = scan.ranges[i];
       const double length = std::min<double>(range, options.max_ray_length_m);
@@ -79,6 +90,38 @@ std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const
     }
   }
   return window_;
+}
+
+void ScanTracer::MarkCells() {
+  const int64_t side = window_.side;
+  row_min_.assign(static_cast<size_t>(side), static_cast<int32_t>(side));
+  row_max_.assign(static_cast<size_t>(side), -1);
+  uint16_t* const stamps = stamps_.data();
+  int32_t* const row_min = row_min_.data();
+  int32_t* const row_max = row_max_.data();
+  const uint16_t hit_stamp = hit_stamp_, visited_stamp = visited_stamp_;
+  auto extend = [&](int64_t x, int64_t y) {
+    row_min[y] = std::min(row_min[y], static_cast<int32_t>(x));
+    row_max[y] = std::max(row_max[y], static_cast<int32_t>(x));
+  };
+  extend(sensor_wx_, sensor_wy_);
+  // Walk's steps, with a row's extent widened only where a beam enters or leaves the row
+  // (x moves monotonically along a beam): at a step to the next row, the old row by the new
+  // x (one cell past its last, harmless) and the new row by it; the end cell's row by the
+  // end (a beam that ends in the row it started in).
+  for (const BeamEnd& end : ends_) {
+    Walk(
+        end,
+        [&](int64_t, int64_t, int64_t index) {
+          uint16_t& stamp = stamps[index];
+          stamp = stamp == hit_stamp ? hit_stamp : visited_stamp;
+        },
+        [&](int64_t x, int64_t from_y, int64_t to_y) {
+          extend(x, from_y);
+          extend(x, to_y);
+        });
+    extend(end.wx, end.wy);
+  }
 }
 
 double ScanReach(const LaserScan& scan, const OccupancyGridOptions& options) {

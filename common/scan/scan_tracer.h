@@ -46,19 +46,36 @@ class ScanTracer {
   template <typename Visit>
   void VisitCells(Visit&& visit);
 
+  // The same cells left as marks in the window, for a caller that adds up whole rows (the
+  // server's grid: its counts are then written along rows, not along the beams, whose steps
+  // jump a row of cells at a time). Only when Start returned a window and MarksInWindow():
+  // MarkCells walks every beam once; then a cell (min_x + wx, min_y + wy) was traced when
+  // its mark, marks()[wy * side + wx], is hit_mark() (a hit) or hit_mark() + 1 (a miss),
+  // and the traced cells of row wy lie within [row_min()[wy], row_max()[wy]] (empty when
+  // min > max). The marks stay valid until the next Start.
+  bool MarksInWindow() const { return use_window_; }
+  void MarkCells();
+  const uint16_t* marks() const { return stamps_.data(); }
+  uint16_t hit_mark() const { return hit_stamp_; }
+  const int32_t* row_min() const { return row_min_.data(); }
+  const int32_t* row_max() const { return row_max_.data(); }
+
  private:
   // Calls step(wx, wy, index) for each cell of the line from the sensor to `end`, both
   // included, with index = wy * side + wx: Bresenham's line as ForEachBresenhamCell
-  // (occupancy_grid.h) draws it, the same cells in the same order.
+  // (occupancy_grid.h) draws it, the same cells in the same order; and next_row(wx, wy,
+  // next_wy) at each step to the next row, wx the column of the step's next cell.
   struct BeamEnd {
     int64_t wx, wy;
   };
-  template <typename Step>
-  void Walk(const BeamEnd& end, Step&& step) const;
+  template <typename Step, typename NextRow>
+  void Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const;
 
   Window window_;
   int64_t sensor_wx_ = 0, sensor_wy_ = 0;
   std::vector<BeamEnd> ends_;
+  std::vector<Eigen::Vector2d> directions_;  // per beam, for the scan geometry below
+  float directions_rad0_ = 0.0f, directions_radstep_ = 0.0f;
   // Cells are de-duplicated in the window around the sensor stamped per scan instead of
   // being cleared per scan (sorting the traced cells cost 40 % of a 10-robot server run):
   // a cell holding hit_stamp_ is the end of a return not visited yet, visited_stamp_ a
@@ -68,6 +85,7 @@ class ScanTracer {
   bool use_window_ = false;
   std::vector<uint16_t> stamps_;
   uint16_t hit_stamp_ = 0, visited_stamp_ = 0;
+  std::vector<int32_t> row_min_, row_max_;  // MarkCells' rows' extents
   std::unordered_map<uint64_t, uint8_t> far_cells_;
   std::vector<TracedCell> cells_;
 };
@@ -76,8 +94,8 @@ class ScanTracer {
 // how far a rotation of the scan moves its cells.
 double ScanReach(const LaserScan& scan, const OccupancyGridOptions& options);
 
-template <typename Step>
-void ScanTracer::Walk(const BeamEnd& end, Step&& step) const {
+template <typename Step, typename NextRow>
+void ScanTracer::Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const {
   const int64_t side = window_.side;
   int64_t x = sensor_wx_, y = sensor_wy_;
   const int64_t dx = std::abs(end.wx - x), dy = -std::abs(end.wy - y);
@@ -96,6 +114,7 @@ void ScanTracer::Walk(const BeamEnd& end, Step&& step) const {
       index += sx;
     }
     if (e2 <= dx) {
+      next_row(x, y, y + sy);
       error += dx;
       y += sy;
       index += step_y;
@@ -109,24 +128,30 @@ void ScanTracer::VisitCells(Visit&& visit) {
     uint16_t* const stamps = stamps_.data();
     const uint16_t hit_stamp = hit_stamp_, visited_stamp = visited_stamp_;
     for (const BeamEnd& end : ends_) {
-      Walk(end, [&](int64_t x, int64_t y, int64_t index) {
-        uint16_t& stamp = stamps[index];
-        if (stamp == visited_stamp) return;
-        const bool hit = stamp == hit_stamp;
-        stamp = visited_stamp;
-        visit(x, y, hit);
-      });
+      Walk(
+          end,
+          [&](int64_t x, int64_t y, int64_t index) {
+            uint16_t& stamp = stamps[index];
+            if (stamp == visited_stamp) return;
+            const bool hit = stamp == hit_stamp;
+            stamp = visited_stamp;
+            visit(x, y, hit);
+          },
+          [](int64_t, int64_t, int64_t) {});
     }
     return;
   }
   for (const BeamEnd& end : ends_) {
-    Walk(end, [&](int64_t x, int64_t y, int64_t) {
-      auto [it, inserted] = far_cells_.try_emplace(TileKey(x, y), 0);
-      if (it->second == 2) return;
-      const bool hit = it->second == 1;
-      it->second = 2;
-      visit(x, y, hit);
-    });
+    Walk(
+        end,
+        [&](int64_t x, int64_t y, int64_t) {
+          auto [it, inserted] = far_cells_.try_emplace(TileKey(x, y), 0);
+          if (it->second == 2) return;
+          const bool hit = it->second == 1;
+          it->second = 2;
+          visit(x, y, hit);
+        },
+        [](int64_t, int64_t, int64_t) {});
   }
 }
 
