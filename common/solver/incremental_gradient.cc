@@ -35,12 +35,14 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   factor_num_vars_.resize(num_factors);
   counted_.resize(num_factors, 0);
   stale_.resize(num_factors, 0);
-  terms_.resize(num_factors);
+  term_offset_.resize(num_factors);
   squared_.resize(num_factors, 0.0);
   chi2_prefix_.resize(num_factors, 0.0);
   for (int64_t id = known; id < num_factors; ++id) {
     factor_vars_[id] = factors[id].vars;
     factor_num_vars_[id] = factors[id].num_vars;
+    term_offset_[id] = static_cast<int64_t>(terms_.size());
+    terms_.resize(terms_.size() + 3 * factors[id].num_vars, 0.0);
   }
 
   // Positions: variables appended to R keep the others' places; anything else (a
@@ -91,10 +93,10 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
     stale_[id] = 0;
     if (counts) {
       const smoother_internal::FactorRecord& f = factors[id];
-      const LinearizedFactor& lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
+      const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
       for (int j = 0; j < f.num_vars; ++j)
-        terms_[id][j].noalias() = lin.jacobians[j].transpose() * lin.whitened_error;
-      squared_[id] = lin.whitened_error.squaredNorm();
+        Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
+      squared_[id] = lin.whitened_error().squaredNorm();
     } else {
       cache_.Skip(id);  // its variables may move unseen before it counts again
     }
@@ -120,7 +122,7 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
     for (int64_t id = 0; id < num_factors; ++id) {
       if (!counted_[id]) continue;
       for (int j = 0; j < factor_num_vars_[id]; ++j)
-        g_[position_[factor_vars_[id][j]]] += terms_[id][j];
+        g_[position_[factor_vars_[id][j]]] += Term(id, j);
     }
   } else {
     for (int var : dirty_vars_) SumAt(var, var_factors);
@@ -135,7 +137,7 @@ void IncrementalGradient::SumAt(int var, const std::vector<std::vector<int64_t>>
   for (int64_t f : var_factors[var]) {
     if (!counted_[f]) continue;
     for (int j = 0; j < factor_num_vars_[f]; ++j) {
-      if (factor_vars_[f][j] == var) sum += terms_[f][j];
+      if (factor_vars_[f][j] == var) sum += Term(f, j);
     }
   }
   g_[position_[var]] = sum;
@@ -147,7 +149,7 @@ void IncrementalGradient::CountedFactors(std::vector<PositionedFactor>* out) con
     if (!counted_[id]) continue;
     PositionedFactor pf;
     for (int j = 0; j < factor_num_vars_[id]; ++j) pf.positions[j] = position_[factor_vars_[id][j]];
-    pf.lin = &cache_.entry(static_cast<int64_t>(id));
+    pf.lin = cache_.entry(static_cast<int64_t>(id));
     out->push_back(pf);
   }
 }
@@ -159,6 +161,7 @@ void IncrementalGradient::Clear() {
   counted_.clear();
   stale_.clear();
   terms_.clear();
+  term_offset_.clear();
   squared_.clear();
   chi2_prefix_.clear();
   position_.clear();

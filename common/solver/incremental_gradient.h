@@ -29,7 +29,7 @@ class IncrementalGradient {
   // A factor counted by the last pass, linearised there, with its variables' positions.
   struct PositionedFactor {
     std::array<int, kMaxFactorKeys> positions;
-    const LinearizedFactor* lin;
+    LinearizedView lin;
   };
 
   // One pass at `values` (by variable). g is ordered by `position_to_var` (the variables
@@ -52,7 +52,10 @@ class IncrementalGradient {
   int64_t linearized() const { return cache_.linearized(); }
 
  private:
-  using Terms = std::array<Eigen::Vector3d, kMaxFactorKeys>;
+  // Factor id's term J_k^T e at its key k.
+  Eigen::Map<Eigen::Vector3d> Term(int64_t id, int k) {
+    return Eigen::Map<Eigen::Vector3d>(terms_.data() + term_offset_[id] + 3 * k);
+  }
   // g at `position` again from the terms of its variable's counted factors.
   void SumAt(int var, const std::vector<std::vector<int64_t>>& var_factors);
 
@@ -60,9 +63,12 @@ class IncrementalGradient {
   // By factor id.
   std::vector<std::array<int, kMaxFactorKeys>> factor_vars_;
   std::vector<int> factor_num_vars_;
-  std::vector<char> counted_;        // counted by the last pass
-  std::vector<char> stale_;          // work space: a variable of it moved in this pass
-  std::vector<Terms> terms_;         // J_k^T e by key, at the last pass's values
+  std::vector<char> counted_;  // counted by the last pass
+  std::vector<char> stale_;    // work space: a variable of it moved in this pass
+  // J_k^T e by key, at the last pass's values, packed: factor id's 3 x num_vars doubles
+  // from term_offset_[id].
+  std::vector<double> terms_;
+  std::vector<int64_t> term_offset_;
   std::vector<double> squared_;      // |e|^2, same
   std::vector<double> chi2_prefix_;  // sum of the counted |e|^2 up to and including it
   // By variable.

@@ -168,7 +168,7 @@ TEST(IncrementalGradientTest, CountedFactorsAreTheCountedOnesAtTheirPositions) {
     EXPECT_EQ(counted[k].positions[1], 5 - f.vars[1]);
     const std::array<Pose2, kMaxFactorKeys> at = {graph.values[f.vars[0]], graph.values[f.vars[1]]};
     EXPECT_TRUE(
-        SameBits(counted[k].lin->whitened_error, Linearize(f.factor, at.data()).whitened_error));
+        SameBits(counted[k].lin.whitened_error(), Linearize(f.factor, at.data()).whitened_error));
   }
 }
 

@@ -17,8 +17,9 @@ bool SameBits(const Pose2& a, const Pose2& b) {
 
 void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num_factors) {
   ++passes_;
-  if (static_cast<int64_t>(factors_.size()) < num_factors) {
-    factors_.resize(num_factors);
+  if (static_cast<int64_t>(offset_.size()) < num_factors) {
+    offset_.resize(num_factors, -1);
+    num_keys_.resize(num_factors, 0);
     valid_.resize(num_factors, 0);
   }
   const size_t known = values_.size();
@@ -32,8 +33,8 @@ void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num
   }
 }
 
-const LinearizedFactor& LinearizationCache::At(int64_t id, const Factor& factor, const int* vars,
-                                               int num_vars) {
+LinearizedView LinearizationCache::At(int64_t id, const Factor& factor, const int* vars,
+                                      int num_vars) {
   bool fresh = valid_[id] != 0;
   for (int j = 0; j < num_vars && fresh; ++j) fresh = !moved_[vars[j]];
   if (!fresh) {
@@ -43,11 +44,20 @@ const LinearizedFactor& LinearizationCache::At(int64_t id, const Factor& factor,
       at[j] = values_[vars[j]];
       rotations[j] = rotations_[vars[j]];
     }
-    factors_[id] = Linearize(factor, at.data(), rotations.data());
+    const LinearizedFactor lin = Linearize(factor, at.data(), rotations.data());
+    if (offset_[id] < 0) {
+      offset_[id] = static_cast<int64_t>(store_.size());
+      num_keys_[id] = static_cast<unsigned char>(lin.num_keys);
+      store_.resize(store_.size() + 3 + 9 * lin.num_keys);
+    }
+    double* out = store_.data() + offset_[id];
+    std::memcpy(out, lin.whitened_error.data(), 3 * sizeof(double));
+    for (int k = 0; k < lin.num_keys; ++k)
+      std::memcpy(out + 3 + 9 * k, lin.jacobians[k].data(), 9 * sizeof(double));
     valid_[id] = 1;
     ++linearized_;
   }
-  return factors_[id];
+  return entry(id);
 }
 
 void LinearizationCache::Skip(int64_t id) {
@@ -58,7 +68,9 @@ void LinearizationCache::Clear() {
   values_.clear();
   rotations_.clear();
   moved_.clear();
-  factors_.clear();
+  store_.clear();
+  offset_.clear();
+  num_keys_.clear();
   valid_.clear();
 }
 

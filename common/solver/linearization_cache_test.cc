@@ -9,14 +9,14 @@
 namespace anchormap {
 namespace {
 
-bool SameBits(const LinearizedFactor& a, const LinearizedFactor& b) {
-  if (a.num_keys != b.num_keys) return false;
-  for (int j = 0; j < a.num_keys; ++j) {
-    if (std::memcmp(a.jacobians[j].data(), b.jacobians[j].data(), 9 * sizeof(double)) != 0) {
+bool SameBits(const LinearizedView& a, const LinearizedFactor& b) {
+  if (a.num_keys() != b.num_keys) return false;
+  for (int j = 0; j < a.num_keys(); ++j) {
+    if (std::memcmp(a.jacobian(j).data(), b.jacobians[j].data(), 9 * sizeof(double)) != 0) {
       return false;
     }
   }
-  return std::memcmp(a.whitened_error.data(), b.whitened_error.data(), 3 * sizeof(double)) == 0;
+  return std::memcmp(a.whitened_error().data(), b.whitened_error.data(), 3 * sizeof(double)) == 0;
 }
 
 // A chain of 30 poses with odometry and 10 loop closures; at each of 50 passes a few

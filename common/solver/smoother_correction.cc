@@ -160,11 +160,11 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
       double pq = 0.0;
       for (const IncrementalGradient::PositionedFactor& l : factors) {
         Eigen::Vector3d jp = Eigen::Vector3d::Zero();
-        for (int j = 0; j < l.lin->num_keys; ++j)
-          jp.noalias() += l.lin->jacobians[j] * p[l.positions[j]];
+        for (int j = 0; j < l.lin.num_keys(); ++j)
+          jp.noalias() += l.lin.jacobian(j) * p[l.positions[j]];
         pq += jp.squaredNorm();
-        for (int j = 0; j < l.lin->num_keys; ++j)
-          q[l.positions[j]].noalias() += l.lin->jacobians[j].transpose() * jp;
+        for (int j = 0; j < l.lin.num_keys(); ++j)
+          q[l.positions[j]].noalias() += l.lin.jacobian(j).transpose() * jp;
       }
       ++cg_iterations;
       ++stats_.correction_steps;

@@ -63,6 +63,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("smoother.correction_tolerance", "correction-tolerance", &s.smoother.correction_tolerance,
       "after each update, conjugate-gradient steps move the estimate until the predicted "
       "decrease of chi2 is below this fraction of it (0 = off: relinearise on drift)");
+  add("smoother.correction_skip_factor", "correction-skip", &s.smoother.correction_skip_factor,
+      "an update is left uncorrected while the decrease a correction would bring stays below "
+      "this multiple of correction_tolerance x chi2 (>= 1)");
   add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
       "sigma of the gauge priors (m, rad)");
   add("table.max_held", "max-held-keyframes", &s.table.max_held,

@@ -16,7 +16,8 @@ TEST(MappingServerFlagsTest, FlagsReachTheServersOptions) {
   const MappingServerFlags flags(&loader, &options);
   ASSERT_TRUE(ParseArgs(&loader, {"--formulation", "global-moved", "--correction-tolerance",
                                   "0.0002", "--loop-closures", "false", "--scan-near-distance-m",
-                                  "3.5", "--map-chunk-poses", "64", "--solve-period-s", "0.25"})
+                                  "3.5", "--map-chunk-poses", "64", "--solve-period-s", "0.25",
+                                  "--correction-skip", "5"})
                   .run);
   ASSERT_TRUE(flags.Apply().ok());
   EXPECT_EQ(options.smoother.formulation, Formulation::kGlobalMoved);
@@ -25,6 +26,7 @@ TEST(MappingServerFlagsTest, FlagsReachTheServersOptions) {
   EXPECT_EQ(options.scan.near_distance_m, 3.5);
   EXPECT_EQ(options.publish.chunks.chunk_poses, 64);
   EXPECT_EQ(options.solve_period_s, 0.25);
+  EXPECT_EQ(options.smoother.correction_skip_factor, 5.0);
 }
 
 TEST(MappingServerFlagsTest, NoFlagsKeepTheDefaults) {

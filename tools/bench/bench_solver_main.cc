@@ -47,7 +47,7 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
   --correct-cg M              correction steps by conjugate gradients (R^T R as the
                               preconditioner); more than M iterations in an update is a stall
   --correct-skip F            with --correct-cg: leave an update uncorrected while the
-                              predicted decrease stays below F x TOL x chi2 (default 3)
+                              predicted decrease stays below F x TOL x chi2 (default 5)
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
                               chi2 excess of the step's estimate over it (0 = off)
