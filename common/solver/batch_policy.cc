@@ -32,4 +32,17 @@ DriftAction OnDrift(const SmootherOptions& options, double max_drift) {
                                          : DriftAction::kBatchStep;
 }
 
+CorrectionEnd EndOfCorrection(const SmootherOptions& options, double decrease, double stop,
+                              int outer, int cg_iterations) {
+  const double budget = options.correction_skip_factor * stop;
+  if (decrease <= (outer == 0 ? budget : stop)) return CorrectionEnd::kConverged;
+  if (outer == options.correction_iterations || cg_iterations >= options.correction_cg_iterations) {
+    // At 100 robots x 180 s (seed 2) a third of the stalls ended 5 outer steps at 1.0-1.8
+    // x the tolerance, and each paid a partial step over 4-5 k drifted variables after
+    // which the correction converged at entry.
+    return decrease <= budget ? CorrectionEnd::kConverged : CorrectionEnd::kStall;
+  }
+  return CorrectionEnd::kGoOn;
+}
+
 }  // namespace anchormap

@@ -43,4 +43,21 @@ bool DriftCheckDue(const SmootherOptions& options, int updates_since_check);
 // What a drift of `max_drift` (max-abs of any variable's delta) calls for.
 DriftAction OnDrift(const SmootherOptions& options, double max_drift);
 
+enum class CorrectionEnd {
+  kGoOn,  // take another correction step
+  kConverged,
+  kStall,  // out of steps above the budget: R too stale (relinearize_when_correction_stalls)
+};
+
+// The conjugate-gradient correction after a gradient pass (correction_cg_iterations):
+// `decrease` is the chi2 decrease R^T R predicts from here, `stop` the tolerance
+// (correction_tolerance x chi2), `outer` the outer steps taken and `cg_iterations` the
+// conjugate-gradient iterations so far. At entry the update may be left within the skip
+// budget (correction_skip_factor x stop); once steps are taken they go on to the
+// tolerance, and a correction out of steps within that budget is converged, not a stall:
+// it leaves no more than a skipped update may (the next update's skip test starts from
+// its decrease), and a stall's partial step would buy less than that.
+CorrectionEnd EndOfCorrection(const SmootherOptions& options, double decrease, double stop,
+                              int outer, int cg_iterations);
+
 }  // namespace anchormap

@@ -47,5 +47,28 @@ TEST(BatchPolicyTest, ConvergenceAndDrift) {
   EXPECT_EQ(OnDrift(options, 0.02), DriftAction::kBatchStep);
 }
 
+TEST(BatchPolicyTest, CorrectionOutOfStepsWithinTheSkipBudgetHasConverged) {
+  SmootherOptions options = ServerModeWithCorrectionOptions();  // 5 outer steps, 50 CG
+  options.correction_skip_factor = 3.0;
+  const double stop = 2.0;  // tolerance x chi2
+  // At entry the skip budget (6) decides; once steps are taken, the tolerance (2).
+  EXPECT_EQ(EndOfCorrection(options, 6.0, stop, 0, 0), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 0, 0), CorrectionEnd::kGoOn);
+  EXPECT_EQ(EndOfCorrection(options, 2.0, stop, 3, 10), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 3, 10), CorrectionEnd::kGoOn);
+  // Out of outer steps or CG iterations: within the budget converged, above it a stall.
+  EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 5, 10), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 6.0, stop, 5, 10), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 5, 10), CorrectionEnd::kStall);
+  EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 2, 50), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 2, 50), CorrectionEnd::kStall);
+  // Factor 1: the budget is the tolerance, so every correction out of steps above it
+  // stalls.
+  options.correction_skip_factor = 1.0;
+  EXPECT_EQ(EndOfCorrection(options, 2.0, stop, 5, 10), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 2.5, stop, 5, 10), CorrectionEnd::kStall);
+  EXPECT_EQ(EndOfCorrection(options, 2.5, stop, 0, 0), CorrectionEnd::kGoOn);
+}
+
 }  // namespace
 }  // namespace anchormap

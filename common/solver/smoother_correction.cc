@@ -142,13 +142,10 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     double rz = R.SolveTransposedInPlace(&z);
     const double stop = tolerance * std::max(chi2, 1e-12);
     // At entry the update may be left as it is (correction_skip_factor); once steps are
-    // taken they go on to the tolerance.
+    // taken they go on to the tolerance or, out of steps, to that budget (batch_policy.h).
     last_decrease_ = rz;
-    if (rz <= (outer == 0 ? SkipFactor() : 1.0) * stop) return true;
-    if (outer == options_.correction_iterations ||
-        cg_iterations >= options_.correction_cg_iterations) {
-      return false;
-    }
+    const CorrectionEnd end = EndOfCorrection(options_, rz, stop, outer, cg_iterations);
+    if (end != CorrectionEnd::kGoOn) return end == CorrectionEnd::kConverged;
     // Only now the Jacobians, by position: most passes end above.
     gradient_.CountedFactors(&factors);
     R.SolveInPlace(&z);

@@ -294,6 +294,56 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
   EXPECT_LE(worst_3, 3e-2);
 }
 
+TEST(SmootherTest, CorrectionOutOfStepsWithinTheSkipBudgetIsNoStall) {
+  // A correction that runs out of outer steps with a decrease still predicted above the
+  // tolerance but within the skip budget (factor x tolerance x chi2) has converged: no
+  // stall, so no partial step on it, and the estimate stays within that budget of the
+  // dense optimum, as an update left uncorrected does. One outer step per update and a
+  // loose tolerance make such endings common on a small graph with heading noise: at
+  // factor 3, five corrections end so (counted in a temporary build) and the stalls are 4
+  // against 8 at factor 1, whose budget is the tolerance itself (every correction left
+  // above it by its one step stalls, the old rule); 37 against 38 updates skipped, so the
+  // skip budget's other use does not make the difference. Measured worst excess over the
+  // optimum 1.1e-3 (factor 1) and 2.1e-3 (factor 3).
+  auto run = [](double factor, double* worst_excess) {
+    SmootherOptions options = ServerModeWithCorrectionOptions();
+    options.correction_tolerance = 1e-3;
+    options.correction_iterations = 1;
+    options.correction_skip_factor = factor;
+    Smoother smoother(options);
+    testing::RandomGraphOptions g;
+    g.poses = 60;
+    g.loop_closures = 30;
+    g.seed = 5;
+    g.sigma_theta_rad = 0.1;
+    const PoseGraph graph = testing::RandomGraph(g);
+    const TrajectoryId t(0);
+    *worst_excess = 0.0;
+    for (int i = 0; i < g.poses; ++i) {
+      EXPECT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
+      EXPECT_TRUE(smoother.Update().status.ok());
+      if (i < 2) continue;
+      const DenseOracle oracle(smoother.ActiveFactors());
+      const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 20));
+      *worst_excess = std::max(*worst_excess, (smoother.Chi2() - optimum) / optimum);
+    }
+    std::printf(
+        "skip factor %g: %lld stalls, %lld partial steps, %lld skipped, worst excess %.3g\n",
+        factor, static_cast<long long>(smoother.stats().correction_stalls),
+        static_cast<long long>(smoother.stats().partial_relinearizations),
+        static_cast<long long>(smoother.stats().correction_skips), *worst_excess);
+    return smoother.stats();
+  };
+  double worst_1 = 0.0, worst_3 = 0.0;
+  const SmootherStats tight = run(1.0, &worst_1);
+  const SmootherStats budget = run(3.0, &worst_3);
+  EXPECT_GT(tight.correction_stalls, 0);
+  EXPECT_LT(budget.correction_stalls, tight.correction_stalls);
+  EXPECT_LE(budget.partial_relinearizations, tight.partial_relinearizations);
+  EXPECT_LE(worst_1, 2e-3);
+  EXPECT_LE(worst_3, 3e-3);
+}
+
 TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAddedIn) {
   // The conjugate-gradient correction's mode places each new variable by the factor that
   // determines it, relative to its neighbours' estimates: a pose added before its
