@@ -50,6 +50,17 @@ class MapPublisherTest : public ::testing::Test {
     links_.push_back({"A", 7, 2, "B", 8, 1});
   }
 
+  // A loop closure that bends A: its last keyframe 0.6 m to the side of its first's heading,
+  // the ones between pulled less (keyframes 1 to 3 move; 0 holds the gauge).
+  void BendA() {
+    ASSERT_TRUE(smoother_
+                    .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
+                                Pose2(kKeyframes - 1.0, 0.6, 0.0),
+                                Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
+                    .ok());
+    ASSERT_TRUE(smoother_.Update().status.ok());
+  }
+
   TrajectoryTable table_;
   Smoother smoother_;
   std::vector<EncounterLink> links_;
@@ -176,14 +187,7 @@ TEST_F(MapPublisherTest, GridTracesAgainAtMostMaxMovedFarthestFirst) {
   options.grid_max_moved = 1;
   MapPublisher publisher(options);
   EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
-  // A loop closure that bends A: its last keyframe 0.6 m to the side of its first's
-  // heading, the ones between pulled less.
-  ASSERT_TRUE(smoother_
-                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
-                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
-                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
-                  .ok());
-  ASSERT_TRUE(smoother_.Update().status.ok());
+  ASSERT_NO_FATAL_FAILURE(BendA());
   const auto key = [](int index) { return static_cast<uint64_t>(index); };  // trajectory 0
   const Pose2 before_1 = publisher.grid().placed().at(key(1));
   const MapPublisher::GridChange first = publisher.UpdateGrid(smoother_, table_);
@@ -221,13 +225,7 @@ TEST_F(MapPublisherTest, CompleteGridMadeAgainEqualsTheOneMovedKeyframeByKeyfram
   for (MapPublisher* publisher : {&made_again, &moved_one_by_one}) {
     EXPECT_EQ(publisher->UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
   }
-  // The loop closure of GridTracesAgainAtMostMaxMovedFarthestFirst: keyframes 1 to 3 move.
-  ASSERT_TRUE(smoother_
-                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
-                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
-                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
-                  .ok());
-  ASSERT_TRUE(smoother_.Update().status.ok());
+  ASSERT_NO_FATAL_FAILURE(BendA());
   int rounds = 0;
   while (moved_one_by_one.UpdateGrid(smoother_, table_).deferred > 0) ++rounds;
   EXPECT_EQ(rounds, 2);

@@ -82,6 +82,24 @@ Values CurrentValues(const Smoother& smoother) {
   return values;
 }
 
+// Adds random graph `g`'s poses to `smoother` one update at a time (trajectory 0) and
+// returns the worst relative excess of an update's chi2 over the dense optimum of the factors
+// so far (from the third pose on).
+double WorstExcessOverTheOptimum(Smoother* smoother, const testing::RandomGraphOptions& g) {
+  const PoseGraph graph = testing::RandomGraph(g);
+  const TrajectoryId t(0);
+  double worst_excess = 0.0;
+  for (int i = 0; i < g.poses; ++i) {
+    EXPECT_TRUE(AddPoseAndItsEdges(smoother, graph, t, i));
+    EXPECT_TRUE(smoother->Update().status.ok());
+    if (i < 2) continue;
+    const DenseOracle oracle(smoother->ActiveFactors());
+    const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(*smoother), 1e-10, 20));
+    worst_excess = std::max(worst_excess, (smoother->Chi2() - optimum) / optimum);
+  }
+  return worst_excess;
+}
+
 TEST(SmootherTest, RejectsBadInputWithReasons) {
   Smoother smoother;
   EXPECT_EQ(smoother.AddPose({TrajectoryId(0), 1}, Pose2()).message(),
@@ -270,17 +288,7 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
     g.poses = 40;
     g.loop_closures = 20;
     g.seed = 11;
-    const PoseGraph graph = testing::RandomGraph(g);
-    const TrajectoryId t(0);
-    *worst_excess = 0.0;
-    for (int i = 0; i < g.poses; ++i) {
-      EXPECT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
-      EXPECT_TRUE(smoother.Update().status.ok());
-      if (i < 2) continue;
-      const DenseOracle oracle(smoother.ActiveFactors());
-      const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 20));
-      *worst_excess = std::max(*worst_excess, (smoother.Chi2() - optimum) / optimum);
-    }
+    *worst_excess = WorstExcessOverTheOptimum(&smoother, g);
     std::printf("skip factor %g: %lld skipped, %lld CG steps, worst excess %.3g\n", factor,
                 static_cast<long long>(smoother.stats().correction_skips),
                 static_cast<long long>(smoother.stats().correction_steps), *worst_excess);
@@ -316,17 +324,7 @@ TEST(SmootherTest, CorrectionOutOfStepsWithinTheSkipBudgetIsNoStall) {
     g.loop_closures = 30;
     g.seed = 5;
     g.sigma_theta_rad = 0.1;
-    const PoseGraph graph = testing::RandomGraph(g);
-    const TrajectoryId t(0);
-    *worst_excess = 0.0;
-    for (int i = 0; i < g.poses; ++i) {
-      EXPECT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
-      EXPECT_TRUE(smoother.Update().status.ok());
-      if (i < 2) continue;
-      const DenseOracle oracle(smoother.ActiveFactors());
-      const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 20));
-      *worst_excess = std::max(*worst_excess, (smoother.Chi2() - optimum) / optimum);
-    }
+    *worst_excess = WorstExcessOverTheOptimum(&smoother, g);
     std::printf(
         "skip factor %g: %lld stalls, %lld partial steps, %lld skipped, worst excess %.3g\n",
         factor, static_cast<long long>(smoother.stats().correction_stalls),
