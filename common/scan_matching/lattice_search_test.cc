@@ -30,6 +30,27 @@ LikelihoodGrid RandomGrid(int width, int height, std::mt19937_64* rng, bool exac
   return LikelihoodGrid(g, values);
 }
 
+// Trial `trial`'s query (20 + 9 x trial points in a 3 m square) and window on a RandomGrid
+// of 30 x 25: more points and other window sizes and headings per trial (up to
+// `max_half_angles` headings to each side).
+struct QueryInWindow {
+  PointCloud query;
+  SearchWindow window;
+};
+QueryInWindow RandomQueryInWindow(int trial, int max_half_angles, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> coord(0.0, 3.0);
+  QueryInWindow q;
+  for (int i = 0; i < 20 + 9 * trial; ++i) {
+    q.query.push_back({coord(*rng) - 1.5, coord(*rng) - 1.5});
+  }
+  q.window.center = Pose2(1.5, 1.2, 0.3 * trial);
+  q.window.angle_step_rad = 0.05;
+  q.window.half_angles = trial % (max_half_angles + 1);
+  q.window.half_cells_x = 3 + trial % 7;
+  q.window.half_cells_y = 2 + trial % 5;
+  return q;
+}
+
 TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearch) {
   // Random grids and random queries: the best score is the same (to the last bit, the scores
   // are computed by the same function), and branch and bound scores fewer leaves.
@@ -136,19 +157,11 @@ TEST(LatticeSearchTest, BranchAndBoundEqualsExhaustiveSearchOnExactGrids) {
   // own running sums) and queries of more than one chunk of the sums (32 points): the same
   // best lattice pose as the exhaustive search, to the bit.
   std::mt19937_64 rng(13);
-  std::uniform_real_distribution<double> coord(0.0, 3.0);
   for (int trial = 0; trial < 24; ++trial) {
     const LikelihoodGrid grid = RandomGrid(30, 25, &rng, /*exact=*/true);
     const MaxGridPyramid pyramid(grid, 1 + trial % 5);
     ASSERT_TRUE(pyramid.exact_sums());
-    PointCloud query;
-    for (int i = 0; i < 20 + 9 * trial; ++i) query.push_back({coord(rng) - 1.5, coord(rng) - 1.5});
-    SearchWindow window;
-    window.center = Pose2(1.5, 1.2, 0.3 * trial);
-    window.angle_step_rad = 0.05;
-    window.half_angles = trial % 3;
-    window.half_cells_x = 3 + trial % 7;
-    window.half_cells_y = 2 + trial % 5;
+    const auto [query, window] = RandomQueryInWindow(trial, 2, &rng);
     const DiscretisedQuery discretised(query, window, grid.geometry());
     const double min_score = trial % 3 == 0 ? 0.1 : 0.0;
     const auto all = ExhaustiveSearch(pyramid, discretised, window, min_score);
@@ -174,7 +187,6 @@ TEST(LatticeSearchTest, OnTheBytesOnlyLevelZeroIsRead) {
   // on them (the centre first too, a local match's way) finds the exhaustive search's pose,
   // ties included, and a search on the floats refuses to run without the levels.
   std::mt19937_64 rng(29);
-  std::uniform_real_distribution<double> coord(0.0, 3.0);
   for (int trial = 0; trial < 16; ++trial) {
     const LikelihoodGrid grid = RandomGrid(30, 25, &rng, /*exact=*/true);
     const int levels = 2 + trial % 6;
@@ -191,14 +203,7 @@ TEST(LatticeSearchTest, OnTheBytesOnlyLevelZeroIsRead) {
       const size_t cells = static_cast<size_t>(a.width) * static_cast<size_t>(a.height) + 3;
       ASSERT_TRUE(std::equal(a.values, a.values + cells, b.values)) << "level " << h;
     }
-    PointCloud query;
-    for (int i = 0; i < 20 + 9 * trial; ++i) query.push_back({coord(rng) - 1.5, coord(rng) - 1.5});
-    SearchWindow window;
-    window.center = Pose2(1.5, 1.2, 0.3 * trial);
-    window.angle_step_rad = 0.05;
-    window.half_angles = trial % 4;
-    window.half_cells_x = 3 + trial % 7;
-    window.half_cells_y = 2 + trial % 5;
+    const auto [query, window] = RandomQueryInWindow(trial, 3, &rng);
     const DiscretisedQuery discretised(query, window, grid.geometry());
     const double min_score = trial % 3 == 0 ? 0.1 : 0.0;
     const auto all = ExhaustiveSearch(built, discretised, window, min_score);
