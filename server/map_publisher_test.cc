@@ -258,12 +258,7 @@ TEST_F(MapPublisherTest, GridTracesAgainInProportionToTheKeyframesTracedIn) {
   options.grid_moved_per_inserted = 1.0;
   MapPublisher publisher(options);
   EXPECT_EQ(publisher.UpdateGrid(smoother_, table_).inserted, kKeyframes);  // A alone
-  ASSERT_TRUE(smoother_
-                  .AddBetween({TrajectoryId(0), 0}, {TrajectoryId(0), kKeyframes - 1},
-                              Pose2(kKeyframes - 1.0, 0.6, 0.0),
-                              Eigen::Vector3d(1e-6, 1e-6, 1e-6).asDiagonal())
-                  .ok());
-  ASSERT_TRUE(smoother_.Update().status.ok());
+  ASSERT_NO_FATAL_FAILURE(BendA());
   const MapPublisher::GridChange idle = publisher.UpdateGrid(smoother_, table_);
   EXPECT_EQ(idle.inserted, 0);
   EXPECT_EQ(idle.moved, 0);
