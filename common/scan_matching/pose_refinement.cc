@@ -216,14 +216,21 @@ std::vector<double> AnchoredCost::operator()(const std::vector<Pose2>& poses) co
     translations[s] = poses[s].translation();
   }
   std::vector<double> costs(m, 0.0);
+  if (m == 0) return costs;
+  // Whole steps of four lookups: the last pose's repeated (its answers read once).
+  const size_t lanes = (m + 3) / 4 * 4;
   ReferenceField::Lookups& at = lookups_;
-  at.resize(m);
+  at.resize(lanes);
   for (size_t j = 0; j < query_.size(); ++j) {
     // LookUpAtPose's points, the same expression: point j under every pose.
     for (size_t s = 0; s < m; ++s) {
       const Eigen::Vector2d q = rotations[s] * query_[j] + translations[s];
       at.qx[s] = q.x();
       at.qy[s] = q.y();
+    }
+    for (size_t s = m; s < lanes; ++s) {
+      at.qx[s] = at.qx[m - 1];
+      at.qy[s] = at.qy[m - 1];
     }
     field_.InterpolateWithNormals(&at);
     const Association& a = associations_[j];
