@@ -178,36 +178,65 @@ AnchoredCost::AnchoredCost(const ReferenceField& field, const PointCloud& query,
   }
 }
 
+double AnchoredCost::PointCost(const ReferenceField::Lookups& at, size_t i,
+                               const Association& a) const {
+  if (at.found[i]) {
+    const Eigen::Vector2d v(at.vx[i], at.vy[i]);
+    if (v.squaredNorm() <= cutoff_sq_) {
+      if (at.has_normal[i]) {
+        const double along_normal = -Eigen::Vector2d(at.nx[i], at.ny[i]).dot(v);
+        return along_normal * along_normal;
+      }
+      return v.squaredNorm();
+    }
+  }
+  if (!a.inlier) return cutoff_sq_;
+  const Eigen::Vector2d q(at.qx[i], at.qy[i]);
+  const double sq =
+      a.has_normal ? std::pow(a.normal.dot(q - a.surface), 2) : (q - a.surface).squaredNorm();
+  return std::min(sq, cutoff_sq_);
+}
+
 double AnchoredCost::operator()(const Pose2& pose) const {
   // PointResidual's cost without its Jacobian (the same bits: only the value is needed here,
   // at every point of every sample of the score distribution), the field's lookups batched.
   ReferenceField::Lookups& at = lookups_;
   LookUpAtPose(field_, query_, pose, &at);
   double cost = 0.0;
-  for (size_t j = 0; j < query_.size(); ++j) {
-    if (at.found[j]) {
-      const Eigen::Vector2d v(at.vx[j], at.vy[j]);
-      if (v.squaredNorm() <= cutoff_sq_) {
-        if (at.has_normal[j]) {
-          const double along_normal = -Eigen::Vector2d(at.nx[j], at.ny[j]).dot(v);
-          cost += along_normal * along_normal;
-        } else {
-          cost += v.squaredNorm();
-        }
-        continue;
-      }
-    }
-    const Association& a = associations_[j];
-    if (!a.inlier) {
-      cost += cutoff_sq_;
-      continue;
-    }
-    const Eigen::Vector2d q(at.qx[j], at.qy[j]);
-    const double sq =
-        a.has_normal ? std::pow(a.normal.dot(q - a.surface), 2) : (q - a.surface).squaredNorm();
-    cost += std::min(sq, cutoff_sq_);
-  }
+  for (size_t j = 0; j < query_.size(); ++j) cost += PointCost(at, j, associations_[j]);
   return cost;
+}
+
+std::vector<double> AnchoredCost::operator()(const std::vector<Pose2>& poses) const {
+  const size_t m = poses.size();
+  std::vector<Eigen::Matrix2d> rotations(m);
+  std::vector<Eigen::Vector2d> translations(m);
+  for (size_t s = 0; s < m; ++s) {
+    rotations[s] = poses[s].rotation();
+    translations[s] = poses[s].translation();
+  }
+  std::vector<double> costs(m, 0.0);
+  if (m == 0) return costs;
+  // Whole steps of four lookups: the last pose's repeated (its answers read once).
+  const size_t lanes = (m + 3) / 4 * 4;
+  ReferenceField::Lookups& at = lookups_;
+  at.resize(lanes);
+  for (size_t j = 0; j < query_.size(); ++j) {
+    // LookUpAtPose's points, the same expression: point j under every pose.
+    for (size_t s = 0; s < m; ++s) {
+      const Eigen::Vector2d q = rotations[s] * query_[j] + translations[s];
+      at.qx[s] = q.x();
+      at.qy[s] = q.y();
+    }
+    for (size_t s = m; s < lanes; ++s) {
+      at.qx[s] = at.qx[m - 1];
+      at.qy[s] = at.qy[m - 1];
+    }
+    field_.InterpolateWithNormals(&at);
+    const Association& a = associations_[j];
+    for (size_t s = 0; s < m; ++s) costs[s] += PointCost(at, s, a);
+  }
+  return costs;
 }
 
 RefinementResult RefinePose(const ReferenceField& field, const PointCloud& query,

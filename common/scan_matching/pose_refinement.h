@@ -55,6 +55,11 @@ class AnchoredCost {
   AnchoredCost(const ReferenceField& field, const PointCloud& query, const Pose2& anchor,
                double cutoff_m);
   double operator()(const Pose2& pose) const;
+  // operator() at each of `poses`, the same bits, taken point by point: one point's lookups
+  // under every pose at once (a few cells of the field, read from L1) instead of every point's
+  // under one pose (a sweep over the field per pose). Each pose's sum still adds its points in
+  // query order.
+  std::vector<double> operator()(const std::vector<Pose2>& poses) const;
 
  private:
   struct Association {
@@ -66,6 +71,9 @@ class AnchoredCost {
   const ReferenceField& field_;
   const PointCloud& query_;
   double cutoff_sq_;
+  // Point j's share of the cost at lookup `i` of `at` (a lookup of that point).
+  double PointCost(const ReferenceField::Lookups& at, size_t i, const Association& a) const;
+
   std::vector<Association> associations_;
   // The points of the pose being costed and the field's answers (scratch: one cost at a time).
   mutable ReferenceField::Lookups lookups_;

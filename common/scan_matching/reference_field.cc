@@ -330,15 +330,16 @@ __attribute__((target("avx2"))) void InterpolateWithNormalsAvx2(const FieldArray
     _mm256_storeu_pd(&out->vy[i], Bilinear(w00, w10, w01, w11, v00y, v10y, v01y, v11y));
     // NearestNormal at the point's own cell (CellOf), only where it was found.
     const __m128i found_i = _mm256_cvtpd_epi32(_mm256_and_pd(found, one));  // 1 or 0
-    const __m128i cx = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qx), found));
-    const __m128i cy = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qy), found));
+    const __m128i cx = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qx), inside));
+    const __m128i cy = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_floor_pd(qy), inside));
     const __m128i contains =
         _mm_and_si128(_mm_and_si128(_mm_cmpgt_epi32(cx, minus_one), _mm_cmpgt_epi32(cy, minus_one)),
                       _mm_and_si128(_mm_cmpgt_epi32(width_i, cx), _mm_cmpgt_epi32(height_i, cy)));
-    const __m128i ask = _mm_and_si128(contains, _mm_cmpeq_epi32(found_i, _mm_set1_epi32(1)));
-    const __m128i cell = _mm_and_si128(_mm_add_epi32(_mm_mullo_epi32(cy, width_i), cx), ask);
-    // Cells not asked read nothing and hold no primitive (-1); absent normals read nothing.
-    const __m128i a = _mm_mask_i32gather_epi32(minus_one, f.primitive_a, cell, ask, 4);
+    const __m128i cell = _mm_and_si128(_mm_add_epi32(_mm_mullo_epi32(cy, width_i), cx), contains);
+    // The primitive's gather does not wait for the vectors' (found): its cells are read
+    // wherever they are in the grid, and only found lanes read their normal.
+    const __m128i a_any = _mm_mask_i32gather_epi32(minus_one, f.primitive_a, cell, contains, 4);
+    const __m128i a = _mm_or_si128(a_any, _mm_cmpeq_epi32(found_i, _mm_setzero_si128()));
     const __m128i has_primitive = _mm_cmpgt_epi32(a, minus_one);
     const __m256d with_primitive = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(has_primitive));
     const __m128i pair = _mm_slli_epi32(_mm_and_si128(a, has_primitive), 1);
