@@ -68,11 +68,11 @@ bool Smoother::Impl::ShortenInTheCorrection(const std::vector<int64_t>& included
   // Kept-estimate mode: delta stays R's solution, and the correction holds what the
   // estimate does not take of it. A fill batch step relinearises once, and its one step
   // was taken whole: at 100 robots a weakly held anchor's step of metres raised chi2 by
-  // 10^3-10^4 (e.g. 15207 -> 97190) for the correction to repair, or to stall on. Such a
+  // 10^3-10^5 (seed 3: 15831 -> 87955) for the correction to repair, or to stall on. Such a
   // step is halved here too, on the last iteration as well. A converging step whose
   // halved step buys less than the correction's tolerance has nothing left to give:
   // iterating again meets the same weak direction (the 100 x 180 run's final batch step:
-  // 50 iterations at a predicted decrease of 0.7 in 2.2e4, each step raising chi2, 9.6 s).
+  // 50 iterations at a predicted decrease of 0.5-0.7 in 2.2e4, each step raising chi2: 7-10 s).
   const double step_chi2 = Chi2Of(included, delta_);
   const bool decrease_small = predicted_decrease < options_.convergence_decrease * chi2;
   if (decrease_small && step_chi2 <= chi2) return true;
