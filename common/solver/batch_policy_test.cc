@@ -60,6 +60,9 @@ TEST(BatchPolicyTest, CorrectionOutOfStepsWithinTheSkipBudgetHasConverged) {
   EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 5, 10), CorrectionEnd::kConverged);
   EXPECT_EQ(EndOfCorrection(options, 6.0, stop, 5, 10), CorrectionEnd::kConverged);
   EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 5, 10), CorrectionEnd::kStall);
+  // Past the last outer step (a halving pass stepped over it): out of steps all the same.
+  EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 7, 10), CorrectionEnd::kConverged);
+  EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 7, 10), CorrectionEnd::kStall);
   EXPECT_EQ(EndOfCorrection(options, 3.0, stop, 2, 50), CorrectionEnd::kConverged);
   EXPECT_EQ(EndOfCorrection(options, 6.5, stop, 2, 50), CorrectionEnd::kStall);
   // Factor 1: the budget is the tolerance, so every correction out of steps above it

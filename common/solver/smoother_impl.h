@@ -336,6 +336,12 @@ class Smoother::Impl {
   // relinearises there.
   void ShortenOvershootingStep(const std::vector<int64_t>& included, double chi2,
                                double predicted_decrease, double step_chi2);
+  // Kept-estimate mode's form of the above, for every iteration including the last: delta
+  // stays R's solution and the correction takes back what the estimate does not move. True
+  // when the batch step ends here (a shortened last step, or one that buys less than the
+  // correction's tolerance).
+  bool ShortenInTheCorrection(const std::vector<int64_t>& included, double chi2,
+                              double predicted_decrease, bool last);
   // chi2 at linearisation point + step (step empty: at the linearisation point).
   double Chi2Of(const std::vector<int64_t>& included,
                 const std::vector<Eigen::Vector3d>& step) const;
@@ -411,6 +417,7 @@ class Smoother::Impl {
   std::vector<int> merge_vars_;
   double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
+  std::vector<Eigen::Vector3d> step_scratch_;  // ShortenInTheCorrection's halved step
   int updates_since_drift_check_ = 0;
   int64_t nonzeros_after_batch_ = 0;
   SmootherStats stats_;
