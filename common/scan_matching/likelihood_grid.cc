@@ -1,5 +1,6 @@
 #include "common/scan_matching/likelihood_grid.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <stdexcept>
@@ -11,18 +12,22 @@ LikelihoodGrid::LikelihoodGrid(const ReferenceField& field, double sigma_m)
     : geometry_(field.geometry()), values_(geometry_.num_cells(), 0.0f) {
   if (!(sigma_m > 0.0)) throw std::invalid_argument("LikelihoodGrid: sigma_m must be > 0");
   const double k = -0.5 / (sigma_m * sigma_m);
-  // Cell by cell in storage order (NearestVector's bounds check and index per cell were most
-  // of this pass: only a few cells lie near a wall).
-  const size_t cells = geometry_.num_cells();
-  for (size_t i = 0; i < cells; ++i) {
-    float x = 0.0f;
-    float y = 0.0f;
-    if (field.StoredVector(i, &x, &y)) {
-      const double dx = x;
-      const double dy = y;
-      values_[i] = static_cast<float>(std::exp(k * (dx * dx + dy * dy)));
-    }
-  }
+  // Only the cells holding a vector (the field visits the tiles a wall reached). The largest
+  // value and the exact-sums test come with them: the other cells are 0, which passes the test
+  // and does not raise the maximum (std::max of floats that are not NaN: any order).
+  constexpr float kExactFloor = 1.0f / 128.0f;  // MaxGridPyramid::exact_sums's 2^-7
+  ValueBounds bounds;
+  float* values = values_.data();
+  field.ForEachStored([&](size_t i, float x, float y) {
+    const double dx = x;
+    const double dy = y;
+    const float value = static_cast<float>(std::exp(k * (dx * dx + dy * dy)));
+    values[i] = value;
+    bounds.max_value = std::max(bounds.max_value, value);
+    bounds.exact_sums =
+        bounds.exact_sums && (value == 0.0f || (value >= kExactFloor && value <= 1.0f));
+  });
+  bounds_ = bounds;
 }
 
 LikelihoodGrid::LikelihoodGrid(const GridGeometry& geometry, std::vector<float> values)

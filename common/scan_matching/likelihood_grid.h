@@ -6,6 +6,7 @@
 // query's points, in [0, 1]. sigma is the blur: the sensor noise plus the search's
 // discretisation, so that a pose one cell off still scores (the search is on a lattice).
 
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -16,12 +17,20 @@ namespace anchormap {
 
 class LikelihoodGrid {
  public:
+  // What MaxGridPyramid learns of its level 0 in a pass of its own (the largest value, and
+  // whether every value is 0 or in [2^-7, 1]), known here when the grid's own pass found it
+  // (a grid built from a field); none for a grid of given values.
+  struct ValueBounds {
+    float max_value = 0.0f;
+    bool exact_sums = true;
+  };
   // Precondition: sigma_m > 0.
   LikelihoodGrid(const ReferenceField& field, double sigma_m);
   // A grid of given values (row-major, width x height), for tests of the search.
   LikelihoodGrid(const GridGeometry& geometry, std::vector<float> values);
 
   const GridGeometry& geometry() const { return geometry_; }
+  const std::optional<ValueBounds>& bounds() const { return bounds_; }
   // The values, row-major (the grid is left empty): MaxGridPyramid keeps them as its level 0.
   std::vector<float> TakeValues() && { return std::move(values_); }
   // The cell's value; 0 outside the grid.
@@ -38,6 +47,7 @@ class LikelihoodGrid {
  private:
   GridGeometry geometry_;
   std::vector<float> values_;
+  std::optional<ValueBounds> bounds_;
 };
 
 }  // namespace anchormap

@@ -1,6 +1,7 @@
 #include "common/scan_matching/max_grid_pyramid.h"
 
 #include <algorithm>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -45,21 +46,30 @@ MaxGridPyramid::MaxGridPyramid(const LikelihoodGrid& grid, int num_levels)
     : MaxGridPyramid(LikelihoodGrid(grid), num_levels, /*build_levels=*/true) {}
 
 MaxGridPyramid::MaxGridPyramid(LikelihoodGrid&& grid, int num_levels, bool build_levels)
-    : geometry_(grid.geometry()), base_(std::move(grid).TakeValues()) {
+    : geometry_(grid.geometry()) {
   if (num_levels < 1 || num_levels > 16) {
     throw std::invalid_argument("MaxGridPyramid: num_levels must be in [1, 16]");
   }
-  InitBase(num_levels);
+  const std::optional<LikelihoodGrid::ValueBounds> bounds = grid.bounds();
+  base_ = std::move(grid).TakeValues();
+  InitBase(num_levels, bounds);
   if (build_levels) BuildLevels();
 }
 
-void MaxGridPyramid::InitBase(int num_levels) {
+void MaxGridPyramid::InitBase(int num_levels,
+                              const std::optional<LikelihoodGrid::ValueBounds>& bounds) {
   levels_.resize(num_levels);
   Level& base = levels_[0];
   base.offset = 0;
   base.width = geometry_.width;
   base.height = geometry_.height;
   base.values = base_.data();
+  levels_built_ = num_levels == 1;
+  if (bounds) {  // the grid's own pass found them (a likelihood grid built from a field)
+    max_value_ = bounds->max_value;
+    exact_sums_ = bounds->exact_sums;
+    return;
+  }
   // The maximum and the exact-sums test in one pass without branches (most cells are 0), four
   // cells a step with SSE2: the maximum ignores a NaN as std::max(most, value) does (the
   // comparison's second operand is kept) and is otherwise the same in any order.
@@ -93,7 +103,6 @@ void MaxGridPyramid::InitBase(int num_levels) {
   }
   max_value_ = most;
   exact_sums_ = !inexact;
-  levels_built_ = num_levels == 1;
 }
 
 void MaxGridPyramid::BuildLevels() {

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "common/scan_matching/likelihood_grid.h"
@@ -74,7 +75,9 @@ class MaxGridPyramid {
     // of the pages were most of a reference's build time once the maxima were cheap).
     std::unique_ptr<float[]> owned;
   };
-  void InitBase(int num_levels);
+  // Level 0's view, its largest value and exact-sums test (from `bounds` when the grid knows
+  // them, else in a pass over its values).
+  void InitBase(int num_levels, const std::optional<LikelihoodGrid::ValueBounds>& bounds);
 
   GridGeometry geometry_;
   std::vector<float> base_;

@@ -8,6 +8,9 @@
 #include <utility>
 
 #include <Eigen/Eigenvalues>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "common/scan_matching/avx2_dispatch.h"
 
@@ -53,6 +56,46 @@ bool PrimitiveNormalOf(const Eigen::Vector2d& na, const Eigen::Vector2d& nb, Eig
   return true;
 }
 
+// Which consecutive returns of `scan` are one wall (ScanSurface::joined).
+std::vector<uint8_t> JoinedReturns(const PointCloud& scan, double max_join_gap_m) {
+  const double gap_sq = max_join_gap_m * max_join_gap_m;
+  std::vector<uint8_t> joined(scan.size(), 0);
+  for (size_t i = 0; i + 1 < scan.size(); ++i) {
+    joined[i] = (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq ? 1 : 0;
+  }
+  return joined;
+}
+
+// Point i's normal from itself and its joined neighbours up to kNormalReach steps away (zero
+// for a lone return).
+Eigen::Vector2d VertexNormal(const PointCloud& scan, const std::vector<uint8_t>& joined, size_t i) {
+  size_t lo = i;
+  size_t hi = i;
+  while (lo > 0 && i - lo < kNormalReach && joined[lo - 1]) --lo;
+  while (hi + 1 < scan.size() && hi - i < kNormalReach && joined[hi]) ++hi;
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+  if (hi > lo) {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (size_t k = lo; k <= hi; ++k) mean += scan[k];
+    mean /= static_cast<double>(hi - lo + 1);
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    for (size_t k = lo; k <= hi; ++k) {
+      scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+    normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
+  }
+  return normal;
+}
+
+// The normal of the primitive starting at the vertex with normal na whose other end has
+// normal nb (the same vertex for a lone return): zero where there is none.
+Eigen::Vector2d StartNormal(const Eigen::Vector2d& na, const Eigen::Vector2d& nb) {
+  Eigen::Vector2d n = Eigen::Vector2d::Zero();
+  if (!PrimitiveNormalOf(na, nb, &n)) n.setZero();
+  return n;
+}
+
 }  // namespace
 
 ScanSurface MakeScanSurface(PointCloud points, double max_join_gap_m) {
@@ -60,39 +103,15 @@ ScanSurface MakeScanSurface(PointCloud points, double max_join_gap_m) {
   surface.max_join_gap_m = max_join_gap_m;
   surface.points = std::move(points);
   const PointCloud& scan = surface.points;
-  const double gap_sq = max_join_gap_m * max_join_gap_m;
-  std::vector<uint8_t>& joined = surface.joined;
-  joined.assign(scan.size(), 0);
-  for (size_t i = 0; i + 1 < scan.size(); ++i) {
-    joined[i] = (scan[i + 1] - scan[i]).squaredNorm() <= gap_sq ? 1 : 0;
-  }
+  surface.joined = JoinedReturns(scan, max_join_gap_m);
   surface.normals.reserve(scan.size());
   for (size_t i = 0; i < scan.size(); ++i) {
-    // The vertex's normal from itself and its joined neighbours up to kNormalReach steps away.
-    size_t lo = i;
-    size_t hi = i;
-    while (lo > 0 && i - lo < kNormalReach && joined[lo - 1]) --lo;
-    while (hi + 1 < scan.size() && hi - i < kNormalReach && joined[hi]) ++hi;
-    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
-    if (hi > lo) {
-      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-      for (size_t k = lo; k <= hi; ++k) mean += scan[k];
-      mean /= static_cast<double>(hi - lo + 1);
-      Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
-      for (size_t k = lo; k <= hi; ++k) {
-        scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
-      }
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
-      normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
-    }
-    surface.normals.push_back(normal);
+    surface.normals.push_back(VertexNormal(scan, surface.joined, i));
   }
   surface.start_normals.reserve(scan.size());
   for (size_t i = 0; i < scan.size(); ++i) {
-    Eigen::Vector2d n = Eigen::Vector2d::Zero();
-    const size_t b = joined[i] ? i + 1 : i;
-    if (!PrimitiveNormalOf(surface.normals[i], surface.normals[b], &n)) n.setZero();
-    surface.start_normals.push_back(n);
+    const size_t b = surface.joined[i] ? i + 1 : i;
+    surface.start_normals.push_back(StartNormal(surface.normals[i], surface.normals[b]));
   }
   return surface;
 }
@@ -100,14 +119,38 @@ ScanSurface MakeScanSurface(PointCloud points, double max_join_gap_m) {
 ReferenceField::ReferenceField(const std::vector<PointCloud>& scans,
                                const ReferenceFieldOptions& options)
     : options_(options) {
-  std::vector<ScanSurface> surfaces;
-  surfaces.reserve(scans.size());
-  for (const PointCloud& scan : scans) {
-    surfaces.push_back(MakeScanSurface(scan, options.max_join_gap_m));
-  }
+  // The joins alone: the normals are made below for the vertices of the primitives some cell
+  // holds (a third of a submap's vertices hold none at 100 x 180; their normals are read
+  // nowhere), each with MakeScanSurface's own arithmetic.
+  std::vector<ScanSurface> surfaces(scans.size());
   std::vector<const ScanSurface*> pointers;
-  for (const ScanSurface& surface : surfaces) pointers.push_back(&surface);
+  for (size_t k = 0; k < scans.size(); ++k) {
+    surfaces[k].max_join_gap_m = options.max_join_gap_m;
+    surfaces[k].points = scans[k];
+    surfaces[k].joined = JoinedReturns(scans[k], options.max_join_gap_m);
+    pointers.push_back(&surfaces[k]);
+  }
   Build(pointers);
+  if (num_points_ == 0) return;
+  // needs[v]: 1 where v ends a stored primitive (its normal is read), 2 where one starts there.
+  std::vector<uint8_t> needs(num_points_, 0);
+  ForEachStored([&](size_t index, float, float) {
+    const int32_t a = primitive_a_[index];
+    needs[static_cast<size_t>(a)] = 3;
+    needs[static_cast<size_t>(primitive_ends_[static_cast<size_t>(a)])] |= 1;
+  });
+  size_t first = 0;
+  for (const ScanSurface& surface : surfaces) {
+    for (size_t i = 0; i < surface.points.size(); ++i) {
+      if (needs[first + i]) normals_[first + i] = VertexNormal(surface.points, surface.joined, i);
+    }
+    first += surface.points.size();
+  }
+  for (size_t v = 0; v < num_points_; ++v) {
+    if (needs[v] & 2) {
+      start_normals_[v] = StartNormal(normals_[v], normals_[primitive_ends_[v]]);
+    }
+  }
 }
 
 ReferenceField::ReferenceField(const std::vector<std::shared_ptr<const ScanSurface>>& surfaces,
@@ -144,11 +187,14 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
   geometry_.height = static_cast<int>(std::ceil((hi.y() + pad - geometry_.origin.y()) / r)) + 1;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   vx_.assign(geometry_.num_cells(), nan);
-  vy_.assign(geometry_.num_cells(), nan);
+  vy_.reset(new float[geometry_.num_cells()]);
   const float max_sq = static_cast<float>(options.max_distance_m * options.max_distance_m);
-  primitive_a_.assign(geometry_.num_cells(), -1);
+  primitive_a_.reset(new int32_t[geometry_.num_cells()]);
+  tiles_width_ = (geometry_.width + kTile - 1) >> kTileShift;
+  reached_tiles_.assign(
+      static_cast<size_t>(tiles_width_) * ((geometry_.height + kTile - 1) >> kTileShift), 0);
   // The squared distance of each cell's stored vector, read only where a primitive was stored
-  // (primitive_a_ >= 0; max_sq elsewhere): no fill of its own.
+  // (vx_ not NaN; max_sq elsewhere): no fill of its own.
   const std::unique_ptr<float[]> best_sq(new float[geometry_.num_cells()]);
   // The cells' centre x per column, GridGeometry::CellCentre's own arithmetic; three columns
   // more for the vector rows' last four (never stored).
@@ -162,9 +208,14 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
     const PointCloud& scan = surface->points;
     const int first = static_cast<int>(vertices_.size());
     vertices_.insert(vertices_.end(), scan.begin(), scan.end());
-    normals_.insert(normals_.end(), surface->normals.begin(), surface->normals.end());
-    start_normals_.insert(start_normals_.end(), surface->start_normals.begin(),
-                          surface->start_normals.end());
+    if (surface->normals.empty()) {  // made after the primitives (the scans' constructor)
+      normals_.resize(normals_.size() + scan.size(), Eigen::Vector2d::Zero());
+      start_normals_.resize(start_normals_.size() + scan.size(), Eigen::Vector2d::Zero());
+    } else {
+      normals_.insert(normals_.end(), surface->normals.begin(), surface->normals.end());
+      start_normals_.insert(start_normals_.end(), surface->start_normals.begin(),
+                            surface->start_normals.end());
+    }
     for (size_t i = 0; i < scan.size(); ++i) {
       const int a = first + static_cast<int>(i);
       primitive_ends_.push_back(surface->joined[i] ? a + 1 : a);
@@ -176,58 +227,80 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
 namespace {
 
 #ifdef ANCHORMAP_AVX2_DISPATCH
-// AddPrimitive's row of cells [first, last], four at a time (the last four masked): the same
-// IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2 alone), so
-// the same bits. `centre_x` has three entries past the grid's last column.
-__attribute__((target("avx2"))) void AddSegmentRowAvx2(
-    const double* centre_x, double centre_y, int first, int last, int row_index,
-    const Eigen::Vector2d& a, const Eigen::Vector2d& ab, double len_sq, int32_t a_index,
-    float max_sq, float* best_sq, float* vx, float* vy, int32_t* primitive_a) {
-  const __m256d ax = _mm256_set1_pd(a.x());
-  const __m256d ay = _mm256_set1_pd(a.y());
-  const __m256d abx = _mm256_set1_pd(ab.x());
-  const __m256d aby = _mm256_set1_pd(ab.y());
-  const __m256d cy = _mm256_set1_pd(centre_y);
-  const __m256d length_sq = _mm256_set1_pd(len_sq);
+// AddPrimitive's box of cells, its rows' cells four at a time (each row's last four masked):
+// the same IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2
+// alone), so the same bits. `centre_x` has three entries past the grid's last column.
+struct PrimitiveBox {
+  const double* centre_x;
+  double origin_y;
+  double resolution;
+  int width;  // the grid's
+  int x0, y0, x1, y1;
+  double lo_y, hi_y, reach;  // rows whose centre lies farther than reach from [lo_y, hi_y] skip
+  Eigen::Vector2d a;
+  Eigen::Vector2d ab;
+  double len_sq;
+  int32_t a_index;
+  float max_sq;
+};
+
+__attribute__((target("avx2"))) void AddPrimitiveAvx2(const PrimitiveBox& box, float* best_sq,
+                                                      float* vx, float* vy, int32_t* primitive_a) {
+  const __m256d ax = _mm256_set1_pd(box.a.x());
+  const __m256d ay = _mm256_set1_pd(box.a.y());
+  const __m256d abx = _mm256_set1_pd(box.ab.x());
+  const __m256d aby = _mm256_set1_pd(box.ab.y());
+  const __m256d length_sq = _mm256_set1_pd(box.len_sq);
   const __m256d zero = _mm256_setzero_pd();
   const __m256d one = _mm256_set1_pd(1.0);
-  const __m128i ia = _mm_set1_epi32(a_index);
+  const __m128i ia = _mm_set1_epi32(box.a_index);
   const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
-  const __m128 unset = _mm_set1_ps(max_sq);
-  const bool point = len_sq <= 0.0;  // ClosestPointOnSegment's own test
-  // (p - a).dot(ab) takes its y term once per row.
-  const __m256d dy_term = _mm256_mul_pd(_mm256_sub_pd(cy, ay), aby);
-  for (int ix = first; ix <= last; ix += 4) {
-    const __m256d cx = _mm256_loadu_pd(centre_x + ix);
-    __m256d closest_x = ax;
-    __m256d closest_y = ay;
-    if (!point) {
-      const __m256d dot = _mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(cx, ax), abx), dy_term);
-      const __m256d ratio = _mm256_div_pd(dot, length_sq);
-      // std::clamp(ratio, 0, 1): ratio < 0 ? 0 : (1 < ratio ? 1 : ratio).
-      __m256d t = _mm256_blendv_pd(ratio, one, _mm256_cmp_pd(one, ratio, _CMP_LT_OQ));
-      t = _mm256_blendv_pd(t, zero, _mm256_cmp_pd(ratio, zero, _CMP_LT_OQ));
-      closest_x = _mm256_add_pd(ax, _mm256_mul_pd(t, abx));
-      closest_y = _mm256_add_pd(ay, _mm256_mul_pd(t, aby));
+  const __m128 unset = _mm_set1_ps(box.max_sq);
+  const bool point = box.len_sq <= 0.0;  // ClosestPointOnSegment's own test
+  const int first = box.x0;
+  const int last = box.x1;
+  for (int iy = box.y0; iy <= box.y1; ++iy) {
+    const double centre_y = box.origin_y + box.resolution * (iy + 0.5);
+    const double dy = centre_y < box.lo_y ? box.lo_y - centre_y
+                                          : (centre_y > box.hi_y ? centre_y - box.hi_y : 0.0);
+    if (!(dy <= box.reach)) continue;
+    const int row_index = iy * box.width;
+    const __m256d cy = _mm256_set1_pd(centre_y);
+    // (p - a).dot(ab) takes its y term once per row.
+    const __m256d dy_term = _mm256_mul_pd(_mm256_sub_pd(cy, ay), aby);
+    for (int ix = first; ix <= last; ix += 4) {
+      const __m256d cx = _mm256_loadu_pd(box.centre_x + ix);
+      __m256d closest_x = ax;
+      __m256d closest_y = ay;
+      if (!point) {
+        const __m256d dot = _mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(cx, ax), abx), dy_term);
+        // std::clamp(dot / len_sq, 0, 1): the quotient only where 0 < dot < len_sq. Elsewhere
+        // it is <= 0 (then t is 0 or a signed zero: a + t ab is a, up to the sign of a zero
+        // coordinate, which v = closest - centre loses as no cell centre is 0) or >= 1 (then
+        // t is 1): division is monotone and exact at 0 and 1.
+        const __m256d ratio = _mm256_div_pd(dot, length_sq);
+        __m256d t = _mm256_blendv_pd(ratio, one, _mm256_cmp_pd(one, ratio, _CMP_LT_OQ));
+        t = _mm256_blendv_pd(t, zero, _mm256_cmp_pd(ratio, zero, _CMP_LT_OQ));
+        closest_x = _mm256_add_pd(ax, _mm256_mul_pd(t, abx));
+        closest_y = _mm256_add_pd(ay, _mm256_mul_pd(t, aby));
+      }
+      const __m256d v_x = _mm256_sub_pd(closest_x, cx);
+      const __m256d v_y = _mm256_sub_pd(closest_y, cy);
+      const __m128 sq =
+          _mm256_cvtpd_ps(_mm256_add_pd(_mm256_mul_pd(v_x, v_x), _mm256_mul_pd(v_y, v_y)));
+      const int index = row_index + ix;
+      // Lanes past `last` neither read nor write the field.
+      const __m128i valid = _mm_cmpgt_epi32(_mm_set1_epi32(last - ix + 1), lanes);
+      // A cell no primitive reached yet (vx NaN) holds max_sq, whatever best_sq holds.
+      const __m128 stored = _mm_maskload_ps(vx + index, valid);
+      const __m128 best = _mm_blendv_ps(_mm_maskload_ps(best_sq + index, valid), unset,
+                                        _mm_cmpunord_ps(stored, stored));
+      const __m128i take = _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(sq, best)), valid);
+      _mm_maskstore_ps(best_sq + index, take, sq);
+      _mm_maskstore_ps(vx + index, take, _mm256_cvtpd_ps(v_x));
+      _mm_maskstore_ps(vy + index, take, _mm256_cvtpd_ps(v_y));
+      _mm_maskstore_epi32(primitive_a + index, take, ia);
     }
-    const __m256d v_x = _mm256_sub_pd(closest_x, cx);
-    const __m256d v_y = _mm256_sub_pd(closest_y, cy);
-    const __m128 sq =
-        _mm256_cvtpd_ps(_mm256_add_pd(_mm256_mul_pd(v_x, v_x), _mm256_mul_pd(v_y, v_y)));
-    const int index = row_index + ix;
-    // Lanes past `last` neither read nor write the field.
-    const __m128i valid = _mm_cmpgt_epi32(_mm_set1_epi32(last - ix + 1), lanes);
-    // A cell no primitive reached yet (primitive_a -1) holds max_sq, whatever best_sq holds.
-    const __m128i stored = _mm_maskload_epi32(primitive_a + index, valid);
-    const __m128 best =
-        _mm_blendv_ps(_mm_maskload_ps(best_sq + index, valid), unset,
-                      _mm_castsi128_ps(_mm_cmplt_epi32(stored, _mm_setzero_si128())));
-    const __m128i take = _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(sq, best)), valid);
-    if (_mm_testz_si128(take, take)) continue;
-    _mm_maskstore_ps(best_sq + index, take, sq);
-    _mm_maskstore_ps(vx + index, take, _mm256_cvtpd_ps(v_x));
-    _mm_maskstore_ps(vy + index, take, _mm256_cvtpd_ps(v_y));
-    _mm_maskstore_epi32(primitive_a + index, take, ia);
   }
 }
 
@@ -378,8 +451,8 @@ void ReferenceField::InterpolateWithNormals(Lookups* lookups) const {
 #ifdef ANCHORMAP_AVX2_DISPATCH
   if (CpuHasAvx2() && !vx_.empty()) {
     const FieldArrays arrays{
-        vx_.data(),           vy_.data(),
-        primitive_a_.data(),  start_normals_.empty() ? nullptr : start_normals_.front().data(),
+        vx_.data(),           vy_.get(),
+        primitive_a_.get(),   start_normals_.empty() ? nullptr : start_normals_.front().data(),
         geometry_.origin.x(), geometry_.origin.y(),
         geometry_.resolution, geometry_.width,
         geometry_.height};
@@ -416,35 +489,73 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
   // (the reach is padded far above the float rounding of the squared distances).
   const double reach = d * (1.0 + 1e-6) + 1e-9;
   const double r = geometry_.resolution;
+  if (x0 > x1 || y0 > y1) return;
+  MarkTiles(x0, y0, x1, y1);
   const double lo_y = std::min(a.y(), b.y());
   const double hi_y = std::max(a.y(), b.y());
   const Eigen::Vector2d ab = b - a;
   const double len_sq = ab.squaredNorm();
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx2()) {
+    const PrimitiveBox box{centre_x.data(),
+                           geometry_.origin.y(),
+                           r,
+                           geometry_.width,
+                           x0,
+                           y0,
+                           x1,
+                           y1,
+                           lo_y,
+                           hi_y,
+                           reach,
+                           a,
+                           ab,
+                           len_sq,
+                           a_index,
+                           max_sq};
+    AddPrimitiveAvx2(box, best, vx_.data(), vy_.get(), primitive_a_.get());
+    return;
+  }
+#endif
   for (int iy = y0; iy <= y1; ++iy) {
     const double centre_y = geometry_.origin.y() + r * (iy + 0.5);
     const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
     if (!(dy <= reach)) continue;
     const int row_index = geometry_.Index(0, iy);
-#ifdef ANCHORMAP_AVX2_DISPATCH
-    if (CpuHasAvx2()) {
-      AddSegmentRowAvx2(centre_x.data(), centre_y, x0, x1, row_index, a, ab, len_sq, a_index,
-                        max_sq, best, vx_.data(), vy_.data(), primitive_a_.data());
-      continue;
-    }
-#endif
     for (int ix = x0; ix <= x1; ++ix) {
       // geometry_.CellCentre(ix, iy), its x from the table (the same bits).
       const Eigen::Vector2d centre(centre_x[ix], centre_y);
       const Eigen::Vector2d v = ClosestPointOnSegment(centre, a, b) - centre;
       const float sq = static_cast<float>(v.squaredNorm());
       const int index = row_index + ix;
-      if (sq <= (primitive_a_[index] < 0 ? max_sq : best[index])) {
+      if (sq <= (std::isnan(vx_[index]) ? max_sq : best[index])) {
         best[index] = sq;
         vx_[index] = static_cast<float>(v.x());
         vy_[index] = static_cast<float>(v.y());
         primitive_a_[index] = a_index;
       }
     }
+  }
+}
+
+uint32_t ReferenceField::StoredBits(size_t index) const {
+  static_assert(kTile == 8, "two runs of four cells");
+#if defined(__SSE2__)
+  const __m128 lo = _mm_loadu_ps(vx_.data() + index);
+  const __m128 hi = _mm_loadu_ps(vx_.data() + index + 4);
+  return static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpord_ps(lo, lo)) |
+                               (_mm_movemask_ps(_mm_cmpord_ps(hi, hi)) << 4));
+#else
+  uint32_t bits = 0;
+  for (int k = 0; k < kTile; ++k) bits |= std::isnan(vx_[index + k]) ? 0u : 1u << k;
+  return bits;
+#endif
+}
+
+void ReferenceField::MarkTiles(int x0, int y0, int x1, int y1) {
+  for (int ty = y0 >> kTileShift; ty <= (y1 >> kTileShift); ++ty) {
+    uint8_t* row = reached_tiles_.data() + static_cast<size_t>(ty) * tiles_width_;
+    for (int tx = x0 >> kTileShift; tx <= (x1 >> kTileShift); ++tx) row[tx] = 1;
   }
 }
 
@@ -459,7 +570,7 @@ bool ReferenceField::NearestVector(int ix, int iy, Eigen::Vector2d* v) const {
 bool ReferenceField::NearestPrimitive(int ix, int iy, int* a, int* b) const {
   if (!geometry_.Contains(ix, iy)) return false;
   const int index = geometry_.Index(ix, iy);
-  if (primitive_a_[index] < 0) return false;
+  if (std::isnan(vx_[index])) return false;  // no primitive stored (primitive_a_ unset)
   *a = primitive_a_[index];
   *b = primitive_ends_[static_cast<size_t>(*a)];
   return true;

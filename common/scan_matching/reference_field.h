@@ -10,6 +10,7 @@
 // is exact there: Interpolate gives a point-to-line residual with its Jacobian at any point,
 // which the refinement and the covariance use; the likelihood grid uses the cell values.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -73,6 +74,14 @@ class ReferenceField {
     *y = vy_[index];
     return true;
   }
+  // f(index, x, y) for every stored cell (StoredVector true), visiting only the tiles of
+  // kTile x kTile cells that some primitive's box reached: the others hold nothing (a one-scan
+  // reference's grid spans the scan's range; ~10 % of its tiles lie near a wall at 100 x 180).
+  // Tile by tile, not in storage order.
+  static constexpr int kTileShift = 3;
+  static constexpr int kTile = 1 << kTileShift;
+  template <typename F>
+  void ForEachStored(F&& f) const;
   // Bilinear interpolation of the four cell vectors around p, and optionally its derivative
   // with respect to p; false when any of the four is missing.
   bool Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,
@@ -89,9 +98,11 @@ class ReferenceField {
   // The surface normal at a primitive (unit, sign arbitrary): the mean of its vertices'
   // normals, each the least-scatter direction of the vertex and its joined neighbours up to two
   // beams away (a wall's direction smoothed over 4 beam spacings, not the noisy segment's own);
-  // false for a lone return.
+  // false for a lone return. Only for a primitive some cell holds (NearestPrimitive's a, b):
+  // a field built from scans makes the normals of those primitives' vertices alone (the
+  // others' are zero).
   bool PrimitiveNormal(int a, int b, Eigen::Vector2d* n) const;
-  // A vertex's own normal (zero for a lone return).
+  // A vertex's own normal (zero for a lone return); the same restriction.
   const Eigen::Vector2d& vertex_normal(int i) const { return normals_[i]; }
   // NearestPrimitive followed by PrimitiveNormal, the same normal, from a table built with the
   // field: the refinement and the covariance's samples ask it for every point of every pose.
@@ -119,13 +130,22 @@ class ReferenceField {
   // it holds nothing yet (then best_sq's own value is not read).
   void AddPrimitive(int a, int b, const std::vector<double>& centre_x, float max_sq,
                     float* best_sq);
+  // Bit k set where cell index + k holds a vector, k < kTile.
+  uint32_t StoredBits(size_t index) const;
+  // Marks the tiles of the cell box [x0, x1] x [y0, y1] as reached.
+  void MarkTiles(int x0, int y0, int x1, int y1);
 
   ReferenceFieldOptions options_;
   GridGeometry geometry_;
   size_t num_points_ = 0;
-  std::vector<float> vx_;  // NaN where no vector is stored
-  std::vector<float> vy_;
-  std::vector<int32_t> primitive_a_;  // the nearest primitive: the vertex it starts at
+  // NaN where no vector is stored; the only array filled for every cell: vy_ and primitive_a_
+  // are written where a vector is stored and read nowhere else (every reader tests vx_ first).
+  std::vector<float> vx_;
+  std::unique_ptr<float[]> vy_;
+  std::unique_ptr<int32_t[]> primitive_a_;  // the nearest primitive: the vertex it starts at
+  // Per tile (row-major, tiles_width_ a row): 1 where a primitive's box reached it.
+  int tiles_width_ = 0;
+  std::vector<uint8_t> reached_tiles_;
   // Per vertex a, the other end b of the one primitive that starts there (a + 1 when joined to
   // the next return, else a): a function of a, so kept per vertex, not per cell.
   std::vector<int32_t> primitive_ends_;
@@ -191,12 +211,42 @@ inline bool ReferenceField::InterpolateImpl(const Eigen::Vector2d& p, Eigen::Vec
 
 inline bool ReferenceField::NearestNormal(int ix, int iy, Eigen::Vector2d* n) const {
   if (!geometry_.Contains(ix, iy)) return false;
-  const int a = primitive_a_[geometry_.Index(ix, iy)];
-  if (a < 0) return false;
+  const int index = geometry_.Index(ix, iy);
+  if (std::isnan(vx_[index])) return false;  // no primitive stored (primitive_a_ unset)
+  const int a = primitive_a_[index];
   const Eigen::Vector2d& normal = start_normals_[a];
   if (normal.x() == 0.0 && normal.y() == 0.0) return false;  // a unit normal is never zero
   *n = normal;
   return true;
+}
+
+template <typename F>
+void ReferenceField::ForEachStored(F&& f) const {
+  const int width = geometry_.width;
+  const int height = geometry_.height;
+  const int tiles_height =
+      tiles_width_ == 0 ? 0 : static_cast<int>(reached_tiles_.size()) / tiles_width_;
+  for (int ty = 0; ty < tiles_height; ++ty) {
+    const int y_end = std::min((ty + 1) << kTileShift, height);
+    for (int tx = 0; tx < tiles_width_; ++tx) {
+      if (!reached_tiles_[static_cast<size_t>(ty) * tiles_width_ + tx]) continue;
+      const int x0 = tx << kTileShift;
+      const int x_end = std::min(x0 + kTile, width);
+      for (int iy = ty << kTileShift; iy < y_end; ++iy) {
+        const size_t row = static_cast<size_t>(iy) * width;
+        if (x_end - x0 == kTile) {  // a whole run: its stored cells as bits
+          for (uint32_t bits = StoredBits(row + x0); bits != 0; bits &= bits - 1) {
+            const size_t i = row + x0 + static_cast<size_t>(__builtin_ctz(bits));
+            f(i, vx_[i], vy_[i]);
+          }
+          continue;
+        }
+        for (size_t i = row + x0; i < row + x_end; ++i) {
+          if (!std::isnan(vx_[i])) f(i, vx_[i], vy_[i]);
+        }
+      }
+    }
+  }
 }
 
 // Closest point to p on the segment [a, b] (a == b allowed).

@@ -1,13 +1,16 @@
 #include "common/scan_matching/reference_field.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "common/scan_matching/likelihood_grid.h"
+#include "common/scan_matching/max_grid_pyramid.h"
 
 namespace anchormap {
 namespace {
@@ -275,6 +278,137 @@ TEST(ReferenceFieldTest, LikelihoodIsAGaussianOfTheDistance) {
   }
   EXPECT_EQ(grid.Value(-1, 0), 0.0f);
   EXPECT_EQ(grid.Value(0, g.height), 0.0f);
+}
+
+// Three noisy scans over a room: walls, corners, lone returns and repeated points.
+std::vector<PointCloud> NoisyRoomScans(uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<PointCloud> scans(3);
+  for (int s = 0; s < 3; ++s) {
+    for (int i = 0; i < 360; ++i) {
+      const double angle = 0.0175 * i + 0.3 * s;
+      const double range = (i % 41 == 0) ? 1.2 : 4.0 + 2.0 * std::cos(2.0 * angle) + noise(rng);
+      scans[s].push_back({range * std::cos(angle) + 0.3 * s, range * std::sin(angle) - 0.1 * s});
+      if (i % 53 == 0) scans[s].push_back(scans[s].back());  // a zero-length segment
+    }
+  }
+  return scans;
+}
+
+TEST(ReferenceFieldTest, ForEachStoredVisitsEveryStoredCellOnceWithItsVector) {
+  // A room of 12 m across: most of the grid's tiles hold nothing and are skipped; the cells
+  // visited are exactly those StoredVector finds in a scan of every cell, each once.
+  for (const uint64_t seed : {1, 2}) {
+    const ReferenceField field(NoisyRoomScans(seed), ReferenceFieldOptions{});
+    const GridGeometry& g = field.geometry();
+    std::vector<int> visits(g.num_cells(), 0);
+    field.ForEachStored([&](size_t i, float x, float y) {
+      ASSERT_LT(i, g.num_cells());
+      ++visits[i];
+      float sx = 0.0f;
+      float sy = 0.0f;
+      ASSERT_TRUE(field.StoredVector(i, &sx, &sy));
+      EXPECT_EQ(x, sx);
+      EXPECT_EQ(y, sy);
+    });
+    size_t stored = 0;
+    for (size_t i = 0; i < g.num_cells(); ++i) {
+      float x = 0.0f;
+      float y = 0.0f;
+      const bool has = field.StoredVector(i, &x, &y);
+      ASSERT_EQ(visits[i], has ? 1 : 0) << i;
+      stored += has ? 1 : 0;
+    }
+    EXPECT_GT(stored, 5000u);
+    EXPECT_LT(stored, g.num_cells() / 4);
+  }
+}
+
+TEST(ReferenceFieldTest, TheScansNormalsAreTheirSurfacesToTheBit) {
+  // Built from the scans, a field makes the normals of the vertices its cells' primitives use
+  // only; built from the scans' surfaces it takes every one. Every cell reads the same
+  // primitive, the same normals (the primitive's, its two vertices') to the bit.
+  ReferenceFieldOptions options;
+  options.max_join_gap_m = 0.15;
+  const std::vector<PointCloud> scans = NoisyRoomScans(3);
+  std::vector<std::shared_ptr<const ScanSurface>> surfaces;
+  for (const PointCloud& scan : scans) {
+    surfaces.push_back(
+        std::make_shared<const ScanSurface>(MakeScanSurface(scan, options.max_join_gap_m)));
+  }
+  const ReferenceField from_scans(scans, options);
+  const ReferenceField from_surfaces(surfaces, options);
+  const GridGeometry& g = from_scans.geometry();
+  ASSERT_EQ(g.width, from_surfaces.geometry().width);
+  ASSERT_EQ(g.height, from_surfaces.geometry().height);
+  int with_normal = 0;
+  int lone = 0;
+  for (int iy = 0; iy < g.height; ++iy) {
+    for (int ix = 0; ix < g.width; ++ix) {
+      int a = 0;
+      int b = 0;
+      int sa = 0;
+      int sb = 0;
+      const bool has = from_scans.NearestPrimitive(ix, iy, &a, &b);
+      ASSERT_EQ(has, from_surfaces.NearestPrimitive(ix, iy, &sa, &sb));
+      if (!has) continue;
+      ASSERT_EQ(a, sa);
+      ASSERT_EQ(b, sb);
+      Eigen::Vector2d n = Eigen::Vector2d::Zero();
+      Eigen::Vector2d sn = Eigen::Vector2d::Zero();
+      const bool has_normal = from_scans.NearestNormal(ix, iy, &n);
+      ASSERT_EQ(has_normal, from_surfaces.NearestNormal(ix, iy, &sn));
+      ASSERT_EQ(has_normal, from_scans.PrimitiveNormal(a, b, &n));
+      ASSERT_EQ(has_normal, from_surfaces.PrimitiveNormal(a, b, &sn));
+      with_normal += has_normal ? 1 : 0;
+      lone += has_normal ? 0 : 1;
+      EXPECT_EQ(n.x(), sn.x());
+      EXPECT_EQ(n.y(), sn.y());
+      for (const int v : {a, b}) {
+        EXPECT_EQ(from_scans.vertex_normal(v).x(), from_surfaces.vertex_normal(v).x());
+        EXPECT_EQ(from_scans.vertex_normal(v).y(), from_surfaces.vertex_normal(v).y());
+      }
+    }
+  }
+  EXPECT_GT(with_normal, 5000);
+  EXPECT_GT(lone, 20);
+}
+
+TEST(ReferenceFieldTest, LikelihoodBoundsAreThoseOfItsValues) {
+  // The bounds the likelihood pass finds (over stored cells only) are the largest value and
+  // the exact-sums test of all its values: a pyramid on them equals one that scans level 0.
+  // sigma 0.05 (cut at 3 sigma: exact sums) and 0.02 (values below 2^-7: not exact).
+  const ReferenceField field(NoisyRoomScans(4), ReferenceFieldOptions{});
+  for (const double sigma : {0.05, 0.02}) {
+    const LikelihoodGrid grid(field, sigma);
+    ASSERT_TRUE(grid.bounds().has_value());
+    const GridGeometry& g = grid.geometry();
+    std::vector<float> values;
+    float most = 0.0f;
+    for (int iy = 0; iy < g.height; ++iy) {
+      for (int ix = 0; ix < g.width; ++ix) {
+        values.push_back(grid.Value(ix, iy));
+        most = std::max(most, values.back());
+      }
+    }
+    EXPECT_EQ(grid.bounds()->max_value, most);
+    const LikelihoodGrid given(g, values);
+    EXPECT_FALSE(given.bounds().has_value());
+    const MaxGridPyramid scanned(LikelihoodGrid(given), 3, /*build_levels=*/true);
+    const MaxGridPyramid bounded(LikelihoodGrid(grid), 3, /*build_levels=*/true);
+    EXPECT_EQ(bounded.max_value(), scanned.max_value());
+    EXPECT_EQ(bounded.exact_sums(), scanned.exact_sums());
+    EXPECT_EQ(bounded.exact_sums(), sigma == 0.05);
+    EXPECT_TRUE(bounded.SameBase(scanned));
+    for (int h = 0; h < 3; ++h) {
+      const auto a = bounded.level(h);
+      const auto b = scanned.level(h);
+      ASSERT_EQ(a.width, b.width);
+      ASSERT_EQ(a.height, b.height);
+      for (int k = 0; k < a.width * a.height; ++k) ASSERT_EQ(a.values[k], b.values[k]);
+    }
+  }
 }
 
 TEST(ReferenceFieldTest, EmptyReference) {
