@@ -96,42 +96,54 @@ void KeyframeGrid::TraceRows(const ScanTracer::Window& window, int sign) {
   // one run of consecutive cells per tile a row's traced extent crosses.
   tracer_.MarkCells();
   window_tiles_.assign(static_cast<size_t>(columns * rows), nullptr);
-  const uint16_t* const marks = tracer_.marks();
-  const uint16_t hit = tracer_.hit_mark();
-  const int32_t* const row_min = tracer_.row_min();
-  const int32_t* const row_max = tracer_.row_max();
   const int64_t cells = cells_per_tile_;
   const Count add = static_cast<Count>(sign);
-  for (int64_t wy = 0; wy < side; ++wy) {
-    if (row_min[wy] > row_max[wy]) continue;
+  // Hits are rare (at most one per beam): counted one by one, so that the rows below read
+  // and write only the misses' counts.
+  tracer_.ForEachHit([&](int64_t wx, int64_t wy) {
+    const int64_t x = window.min_x + wx, y = window.min_y + wy;
+    const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
+    void*& tile =
+        window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns + (tx - min_tile_x))];
+    if (tile == nullptr) tile = TouchTile<Count>(tx, ty);
+    static_cast<Count*>(tile)[(y - ty * size) * size + (x - tx * size)] += add;
+  });
+  tracer_.ForEachMarkedRow([&](int64_t wy, int64_t first, int64_t last, const uint8_t* marks) {
     const int64_t y = window.min_y + wy;
     const int64_t ty = FloorDiv(y, size);
     const int64_t row_offset = (y - ty * size) * size;
     void** const tile_row = &window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns)];
-    const int64_t last_x = window.min_x + row_max[wy];
-    for (int64_t x = window.min_x + row_min[wy]; x <= last_x;) {
+    const int64_t last_x = window.min_x + last;
+    for (int64_t x = window.min_x + first; x <= last_x;) {
       const int64_t tx = FloorDiv(x, size);
       const int64_t n = std::min(last_x + 1, (tx + 1) * size) - x;
-      const uint16_t* const run = marks + wy * side + (x - window.min_x);
+      const uint8_t* const run = marks + (x - window.min_x);
       void*& tile = tile_row[tx - min_tile_x];
       if (tile == nullptr) {
         // A run between two traced stretches of the row may hold none: a tile is touched
         // only for a traced cell, as cell by cell.
-        int traced = 0;
-        for (int64_t i = 0; i < n; ++i) traced |= static_cast<uint16_t>(run[i] - hit) <= 1;
+        uint8_t traced = 0;
+        for (int64_t i = 0; i < n; ++i) traced |= run[i];
         if (traced != 0) tile = TouchTile<Count>(tx, ty);
       }
       if (tile != nullptr) {
-        Count* const hits = static_cast<Count*>(tile) + row_offset + (x - tx * size);
-        Count* const misses = hits + cells;
-        for (int64_t i = 0; i < n; ++i) {
-          hits[i] += run[i] == hit ? add : Count{0};
-          misses[i] += run[i] == static_cast<uint16_t>(hit + 1) ? add : Count{0};
+        Count* const misses = static_cast<Count*>(tile) + cells + row_offset + (x - tx * size);
+        if (n % ScanTracer::kMarkGroup == 0) {
+          // Whole groups (the tile's side a multiple of the group's): no remainder loop.
+          for (int64_t g = 0; g < n; g += ScanTracer::kMarkGroup) {
+            for (int64_t i = g; i < g + ScanTracer::kMarkGroup; ++i) {
+              misses[i] += run[i] == ScanTracer::kMissMark ? add : Count{0};
+            }
+          }
+        } else {
+          for (int64_t i = 0; i < n; ++i) {
+            misses[i] += run[i] == ScanTracer::kMissMark ? add : Count{0};
+          }
         }
       }
       x += n;
     }
-  }
+  });
 }
 
 KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,

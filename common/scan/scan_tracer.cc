@@ -39,33 +39,22 @@ std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const
   // max_ray_length_m).
   const int64_t radius =
       static_cast<int64_t>(std::ceil(options.max_ray_length_m / options.resolution_m)) + 2;
-  window_ = {x0 - radius, y0 - radius, 2 * radius + 1};
-  sensor_wx_ = sensor_wy_ = radius;
-  const int64_t side = window_.side;
-  // The window costs 2 bytes a cell: up to 2049^2 cells (8 MB).
-  use_window_ = side <= kMaxWindowSide;
-  if (use_window_) {
-    if (stamps_.size() != static_cast<size_t>(side * side) || visited_stamp_ >= 0xfffe) {
-      stamps_.assign(static_cast<size_t>(side * side), 0);  // new size, or every stamp used
-      visited_stamp_ = 0;
-    }
-    hit_stamp_ = static_cast<uint16_t>(visited_stamp_ + 1);
-    visited_stamp_ = static_cast<uint16_t>(visited_stamp_ + 2);
-  } else {
-    far_cells_.clear();
-  }
-  // The beams' end cells; the ends of returns within the ray length are marked as hits
-  // first, so that each cell is reported once, with its final flag.
+  // The window's columns start at a multiple of kMarkGroup in map coordinates and its side
+  // is a multiple of it, so that MarkCells' rows come in whole aligned groups.
+  const int64_t min_x = FloorDiv(x0 - radius, kMarkGroup) * kMarkGroup;
+  // A side of a multiple of 64 (1024 for the server's 25 m at 5 cm) would put a beam's steps
+  // from row to row in few cache sets: one more group then.
+  int64_t side = (2 * radius + 2 * kMarkGroup - 1) / kMarkGroup * kMarkGroup;
+  if (side % 64 == 0) side += kMarkGroup;
+  window_ = {min_x, y0 - radius, side};
+  sensor_wx_ = x0 - min_x;
+  sensor_wy_ = radius;
+  // The window costs 2 bytes a cell in VisitCells' stamps: up to 2049^2 cells (8 MB).
+  use_window_ = 2 * radius + 1 <= kMaxWindowSide;
+  // The beams' end cells, and whether each is the end of a return within the ray length.
   auto end = [&](const Eigen::Vector2d& p_map, bool hit) {
     const auto [x1, y1] = Cell(p_map, options.resolution_m);
-    const BeamEnd beam_end{x1 - window_.min_x, y1 - window_.min_y};
-    ends_.push_back(beam_end);
-    if (!hit) return;
-    if (use_window_) {
-      stamps_[static_cast<size_t>(beam_end.wy * side + beam_end.wx)] = hit_stamp_;
-    } else {
-      far_cells_[TileKey(beam_end.wx, beam_end.wy)] = 1;
-    }
+    ends_.push_back({x1 - window_.min_x, y1 - window_.min_y, hit});
   };
   // The beams' directions in the sensor frame, computed again only when the scan's geometry
   // changes (a team's scans share one): the same values as per beam.
@@ -92,36 +81,93 @@ std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const
   return window_;
 }
 
+void ScanTracer::PrepareStamps() {
+  // The ends of returns within the ray length are marked as hits first, so that each cell
+  // is reported once, with its final flag.
+  if (use_window_) {
+    const int64_t side = window_.side;
+    if (stamps_.size() != static_cast<size_t>(side * side) || visited_stamp_ >= 0xfffe) {
+      stamps_.assign(static_cast<size_t>(side * side), 0);  // new size, or every stamp used
+      visited_stamp_ = 0;
+    }
+    hit_stamp_ = static_cast<uint16_t>(visited_stamp_ + 1);
+    visited_stamp_ = static_cast<uint16_t>(visited_stamp_ + 2);
+    for (const BeamEnd& end : ends_) {
+      if (end.hit) stamps_[static_cast<size_t>(end.wy * side + end.wx)] = hit_stamp_;
+    }
+  } else {
+    far_cells_.clear();
+    for (const BeamEnd& end : ends_) {
+      if (end.hit) far_cells_[TileKey(end.wx, end.wy)] = 1;
+    }
+  }
+}
+
+void ScanTracer::ClearMarks() {
+  ForEachMarkedRow([](int64_t, int64_t, int64_t, const uint8_t*) {});
+}
+
 void ScanTracer::MarkCells() {
   const int64_t side = window_.side;
-  row_min_.assign(static_cast<size_t>(side), static_cast<int32_t>(side));
-  row_max_.assign(static_cast<size_t>(side), -1);
-  uint16_t* const stamps = stamps_.data();
-  int32_t* const row_min = row_min_.data();
-  int32_t* const row_max = row_max_.data();
-  const uint16_t hit_stamp = hit_stamp_, visited_stamp = visited_stamp_;
-  auto extend = [&](int64_t x, int64_t y) {
-    row_min[y] = std::min(row_min[y], static_cast<int32_t>(x));
-    row_max[y] = std::max(row_max[y], static_cast<int32_t>(x));
-  };
-  extend(sensor_wx_, sensor_wy_);
-  // Walk's steps, with a row's extent widened only where a beam enters or leaves the row
-  // (x moves monotonically along a beam): at a step to the next row, the old row by the new
-  // x (one cell past its last, harmless) and the new row by it; the end cell's row by the
-  // end (a beam that ends in the row it started in).
-  for (const BeamEnd& end : ends_) {
-    Walk(
-        end,
-        [&](int64_t, int64_t, int64_t index) {
-          uint16_t& stamp = stamps[index];
-          stamp = stamp == hit_stamp ? hit_stamp : visited_stamp;
-        },
-        [&](int64_t x, int64_t from_y, int64_t to_y) {
-          extend(x, from_y);
-          extend(x, to_y);
-        });
-    extend(end.wx, end.wy);
+  if (marks_.size() != static_cast<size_t>(side * side)) {
+    marks_.assign(static_cast<size_t>(side * side), 0);
+    for (auto& reach : reach_) reach.assign(static_cast<size_t>(side), 0);
+    beam_reach_.assign(static_cast<size_t>(side), 0);
+    marks_dirty_ = false;
+  } else if (marks_dirty_) {
+    ClearMarks();
   }
+  uint8_t* const marks = marks_.data();
+  int16_t* const beam_reach = beam_reach_.data();
+  const int64_t x0 = sensor_wx_, y0 = sensor_wy_;
+  first_row_ = last_row_ = y0;
+  marked_x0_ = x0;
+  // Bresenham's line as ForEachBresenhamCell draws it, in closed form: along the major axis
+  // (the one with the larger |d|) every step moves one cell, and after k steps the minor
+  // axis has moved m_k = floor(k * minor / major + 1/2) cells (what the line's error term
+  // gives, ties rounded up). m_k is computed in 32.32 fixed point with the slope rounded up:
+  // the sum exceeds k * minor / major + 1/2 by less than k * 2^-32 <= 2^-21, below the
+  // 1 / (2 * major) >= 2^-13 between it and any larger integer, so the floor is exact; and no
+  // step waits on the last one's comparison (an error term's branches were mispredicted,
+  // its masks one long chain). A cell is marked a miss by a plain store (the hits are marked
+  // after every beam: a hit wins); the beam's reach from the sensor's column in each row it
+  // crosses (its cells' x moves away from the sensor's monotonically, so the row's last step
+  // holds it) is stored per step, then merged into the rows' reach on the beam's side in one
+  // pass over its rows.
+  for (const BeamEnd& end : ends_) {
+    const int64_t dx = std::abs(end.wx - x0), dy = std::abs(end.wy - y0);
+    const int64_t sx = x0 < end.wx ? 1 : -1, sy = y0 < end.wy ? 1 : -1;
+    const int64_t step_y = sy * side;
+    uint8_t* const start = marks + y0 * side + x0;
+    const int64_t major = std::max(dx, dy), minor = std::min(dx, dy);
+    // major >= 1 below (a zero-length beam marks the sensor's cell only).
+    const uint64_t slope =
+        major == 0 ? 0 : ((static_cast<uint64_t>(minor) << 32) + major - 1) / major;
+    uint64_t sum = uint64_t{1} << 31;
+    if (dx >= dy) {
+      int16_t* const reach_row = beam_reach + y0;
+      for (int64_t k = 0; k <= major; ++k, sum += slope) {
+        const int64_t m = static_cast<int64_t>(sum >> 32);
+        start[sx * k + m * step_y] = kMissMark;
+        reach_row[sy * m] = static_cast<int16_t>(k);
+      }
+    } else {
+      for (int64_t k = 0; k <= major; ++k, sum += slope) {
+        const int64_t m = static_cast<int64_t>(sum >> 32);
+        start[k * step_y + sx * m] = kMissMark;
+        beam_reach[y0 + sy * k] = static_cast<int16_t>(m);
+      }
+    }
+    int16_t* const reach = reach_[sx > 0 ? 1 : 0].data();
+    const int64_t from = std::min(y0, end.wy), to = std::max(y0, end.wy);
+    for (int64_t r = from; r <= to; ++r) reach[r] = std::max(reach[r], beam_reach[r]);
+    first_row_ = std::min(first_row_, from);
+    last_row_ = std::max(last_row_, to);
+  }
+  for (const BeamEnd& end : ends_) {
+    if (end.hit) marks[end.wy * side + end.wx] = kHitMark;
+  }
+  marks_dirty_ = true;
 }
 
 double ScanReach(const LaserScan& scan, const OccupancyGridOptions& options) {

@@ -5,8 +5,10 @@
 // density near the sensor does not count as repeated evidence. Deterministic: the same
 // scan at the same pose gives the same cells, which lets a grid take a scan out again.
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <optional>
 #include <unordered_map>
 #include <vector>
@@ -49,27 +51,37 @@ class ScanTracer {
   // The same cells left as marks in the window, for a caller that adds up whole rows (the
   // server's grid: its counts are then written along rows, not along the beams, whose steps
   // jump a row of cells at a time). Only when Start returned a window and MarksInWindow():
-  // MarkCells walks every beam once; then a cell (min_x + wx, min_y + wy) was traced when
-  // its mark, marks()[wy * side + wx], is hit_mark() (a hit) or hit_mark() + 1 (a miss),
-  // and the traced cells of row wy lie within [row_min()[wy], row_max()[wy]] (empty when
-  // min > max). The marks stay valid until the next Start.
+  // MarkCells walks every beam once; ForEachMarkedRow then calls row(wy, first, last, marks)
+  // for each window row wy holding traced cells, all of them within [first, last] (whole
+  // groups of kMarkGroup cells, each group's first cell's map x a multiple of kMarkGroup), where
+  // marks[wx] (first <= wx <= last) is kHitMark for the cell (min_x + wx, min_y + wy) traced
+  // as a hit, kMissMark for a miss, 0 for a cell not traced; and clears those marks again.
+  // Before it, ForEachHit may call hit(wx, wy) once per cell traced as a hit (at most one
+  // per beam: a caller may count them apart from the rows' misses).
+  static constexpr uint8_t kMissMark = 1, kHitMark = 2;
+  static constexpr int64_t kMarkGroup = 16;
   bool MarksInWindow() const { return use_window_; }
   void MarkCells();
-  const uint16_t* marks() const { return stamps_.data(); }
-  uint16_t hit_mark() const { return hit_stamp_; }
-  const int32_t* row_min() const { return row_min_.data(); }
-  const int32_t* row_max() const { return row_max_.data(); }
+  template <typename Hit>
+  void ForEachHit(Hit&& hit);
+  template <typename Row>
+  void ForEachMarkedRow(Row&& row);
 
  private:
-  // Calls step(wx, wy, index) for each cell of the line from the sensor to `end`, both
-  // included, with index = wy * side + wx: Bresenham's line as ForEachBresenhamCell
-  // (occupancy_grid.h) draws it, the same cells in the same order; and next_row(wx, wy,
-  // next_wy) at each step to the next row, wx the column of the step's next cell.
   struct BeamEnd {
     int64_t wx, wy;
+    bool hit;  // the end of a return within the ray length
   };
-  template <typename Step, typename NextRow>
-  void Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const;
+  // Calls step(wx, wy, index) for each cell of the line from the sensor to `end`, both
+  // included, with index = wy * side + wx: Bresenham's line as ForEachBresenhamCell
+  // (occupancy_grid.h) draws it, the same cells in the same order.
+  template <typename Step>
+  void Walk(const BeamEnd& end, Step&& step) const;
+
+  // VisitCells' de-duplication, prepared for the scan Start took.
+  void PrepareStamps();
+  // Zeroes the marks MarkCells left (when the caller did not read them).
+  void ClearMarks();
 
   Window window_;
   int64_t sensor_wx_ = 0, sensor_wy_ = 0;
@@ -85,7 +97,17 @@ class ScanTracer {
   bool use_window_ = false;
   std::vector<uint16_t> stamps_;
   uint16_t hit_stamp_ = 0, visited_stamp_ = 0;
-  std::vector<int32_t> row_min_, row_max_;  // MarkCells' rows' extents
+  // MarkCells' marks: one byte per window cell, zero outside a trace (ForEachMarkedRow
+  // clears what it reports, so a trace writes only the cells of its beams and no stamp needs
+  // reading). The traced rows are first_row_..last_row_ (the beams' ends' rows and the
+  // sensor's: each beam crosses every row between); row wy's cells lie within
+  // reach_[0][wy] cells left of the sensor's column and reach_[1][wy] right of it (the
+  // farthest any beam on that side reaches in the row; zero outside a trace).
+  std::vector<uint8_t> marks_;
+  bool marks_dirty_ = false;
+  int64_t first_row_ = 0, last_row_ = -1, marked_x0_ = 0;  // marked_x0_: the sensor's column
+  std::vector<int16_t> reach_[2];
+  std::vector<int16_t> beam_reach_;  // per row, of the beam being walked
   std::unordered_map<uint64_t, uint8_t> far_cells_;
   std::vector<TracedCell> cells_;
 };
@@ -94,8 +116,8 @@ class ScanTracer {
 // how far a rotation of the scan moves its cells.
 double ScanReach(const LaserScan& scan, const OccupancyGridOptions& options);
 
-template <typename Step, typename NextRow>
-void ScanTracer::Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const {
+template <typename Step>
+void ScanTracer::Walk(const BeamEnd& end, Step&& step) const {
   const int64_t side = window_.side;
   int64_t x = sensor_wx_, y = sensor_wy_;
   const int64_t dx = std::abs(end.wx - x), dy = -std::abs(end.wy - y);
@@ -114,7 +136,6 @@ void ScanTracer::Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const
       index += sx;
     }
     if (e2 <= dx) {
-      next_row(x, y, y + sy);
       error += dx;
       y += sy;
       index += step_y;
@@ -124,35 +145,64 @@ void ScanTracer::Walk(const BeamEnd& end, Step&& step, NextRow&& next_row) const
 
 template <typename Visit>
 void ScanTracer::VisitCells(Visit&& visit) {
+  PrepareStamps();
   if (use_window_) {
     uint16_t* const stamps = stamps_.data();
     const uint16_t hit_stamp = hit_stamp_, visited_stamp = visited_stamp_;
     for (const BeamEnd& end : ends_) {
-      Walk(
-          end,
-          [&](int64_t x, int64_t y, int64_t index) {
-            uint16_t& stamp = stamps[index];
-            if (stamp == visited_stamp) return;
-            const bool hit = stamp == hit_stamp;
-            stamp = visited_stamp;
-            visit(x, y, hit);
-          },
-          [](int64_t, int64_t, int64_t) {});
+      Walk(end, [&](int64_t x, int64_t y, int64_t index) {
+        uint16_t& stamp = stamps[index];
+        if (stamp == visited_stamp) return;
+        const bool hit = stamp == hit_stamp;
+        stamp = visited_stamp;
+        visit(x, y, hit);
+      });
     }
     return;
   }
   for (const BeamEnd& end : ends_) {
-    Walk(
-        end,
-        [&](int64_t x, int64_t y, int64_t) {
-          auto [it, inserted] = far_cells_.try_emplace(TileKey(x, y), 0);
-          if (it->second == 2) return;
-          const bool hit = it->second == 1;
-          it->second = 2;
-          visit(x, y, hit);
-        },
-        [](int64_t, int64_t, int64_t) {});
+    Walk(end, [&](int64_t x, int64_t y, int64_t) {
+      auto [it, inserted] = far_cells_.try_emplace(TileKey(x, y), 0);
+      if (it->second == 2) return;
+      const bool hit = it->second == 1;
+      it->second = 2;
+      visit(x, y, hit);
+    });
   }
+}
+
+template <typename Hit>
+void ScanTracer::ForEachHit(Hit&& hit) {
+  // Several beams may end in one cell: its mark is changed at the first, and restored after.
+  constexpr uint8_t kReported = kHitMark | 0x80;
+  const int64_t side = window_.side;
+  for (const BeamEnd& end : ends_) {
+    uint8_t& mark = marks_[static_cast<size_t>(end.wy * side + end.wx)];
+    if (!end.hit || mark != kHitMark) continue;
+    hit(end.wx, end.wy);
+    mark = kReported;
+  }
+  for (const BeamEnd& end : ends_) {
+    if (end.hit) marks_[static_cast<size_t>(end.wy * side + end.wx)] = kHitMark;
+  }
+}
+
+template <typename Row>
+void ScanTracer::ForEachMarkedRow(Row&& row) {
+  const int64_t side = window_.side;
+  int16_t* const left = reach_[0].data();
+  int16_t* const right = reach_[1].data();
+  for (int64_t wy = first_row_; wy <= last_row_; ++wy) {
+    // The window's first column is aligned (Start).
+    const int64_t first = (marked_x0_ - left[wy]) / kMarkGroup * kMarkGroup;
+    const int64_t last = (marked_x0_ + right[wy]) / kMarkGroup * kMarkGroup + kMarkGroup - 1;
+    uint8_t* const marks = marks_.data() + wy * side;
+    row(wy, first, last, static_cast<const uint8_t*>(marks));
+    constexpr uint64_t kZero = 0;
+    for (int64_t x = first; x <= last; x += 8) std::memcpy(marks + x, &kZero, 8);
+    left[wy] = right[wy] = 0;
+  }
+  marks_dirty_ = false;
 }
 
 }  // namespace anchormap
