@@ -34,6 +34,7 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   factor_vars_.resize(num_factors);
   factor_num_vars_.resize(num_factors);
   counted_.resize(num_factors, 0);
+  positions_.resize(num_factors);
   stale_.resize(num_factors, 0);
   term_offset_.resize(num_factors);
   squared_.resize(num_factors, 0.0);
@@ -93,6 +94,9 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
     stale_[id] = 0;
     if (counts) {
       const smoother_internal::FactorRecord& f = factors[id];
+      if (!counted_[id]) {  // else its positions are set (a reordering sets them all below)
+        for (int j = 0; j < f.num_vars; ++j) positions_[id][j] = position_[f.vars[j]];
+      }
       const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
       for (int j = 0; j < f.num_vars; ++j)
         Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
@@ -117,12 +121,18 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   // g where a term changed: by variable when few did, else by scattering every term (the
   // same additions in the same order).
   g_.resize(n);
+  if (!extends) {
+    for (int64_t id = 0; id < num_factors; ++id) {
+      if (!counted_[id]) continue;
+      for (int j = 0; j < factor_num_vars_[id]; ++j)
+        positions_[id][j] = position_[factor_vars_[id][j]];
+    }
+  }
   if (!extends || static_cast<int>(dirty_vars_.size()) > n / 4) {
     std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
     for (int64_t id = 0; id < num_factors; ++id) {
       if (!counted_[id]) continue;
-      for (int j = 0; j < factor_num_vars_[id]; ++j)
-        g_[position_[factor_vars_[id][j]]] += Term(id, j);
+      for (int j = 0; j < factor_num_vars_[id]; ++j) g_[positions_[id][j]] += Term(id, j);
     }
   } else {
     for (int var : dirty_vars_) SumAt(var, var_factors);
@@ -143,15 +153,22 @@ void IncrementalGradient::SumAt(int var, const std::vector<std::vector<int64_t>>
   g_[position_[var]] = sum;
 }
 
-void IncrementalGradient::CountedFactors(std::vector<PositionedFactor>* out) const {
-  out->clear();
-  for (size_t id = 0; id < counted_.size(); ++id) {
+double IncrementalGradient::MultiplyNormal(const std::vector<Eigen::Vector3d>& p,
+                                           std::vector<Eigen::Vector3d>* q) const {
+  std::fill(q->begin(), q->end(), Eigen::Vector3d::Zero());
+  double pq = 0.0;
+  const int64_t num_factors = static_cast<int64_t>(counted_.size());
+  for (int64_t id = 0; id < num_factors; ++id) {
     if (!counted_[id]) continue;
-    PositionedFactor pf;
-    for (int j = 0; j < factor_num_vars_[id]; ++j) pf.positions[j] = position_[factor_vars_[id][j]];
-    pf.lin = cache_.entry(static_cast<int64_t>(id));
-    out->push_back(pf);
+    const LinearizedView lin = cache_.entry(id);
+    const std::array<int, kMaxFactorKeys>& at = positions_[id];
+    Eigen::Vector3d jp = Eigen::Vector3d::Zero();
+    for (int j = 0; j < lin.num_keys(); ++j) jp.noalias() += lin.jacobian(j) * p[at[j]];
+    pq += jp.squaredNorm();
+    for (int j = 0; j < lin.num_keys(); ++j)
+      (*q)[at[j]].noalias() += lin.jacobian(j).transpose() * jp;
   }
+  return pq;
 }
 
 void IncrementalGradient::Clear() {
@@ -159,6 +176,7 @@ void IncrementalGradient::Clear() {
   factor_vars_.clear();
   factor_num_vars_.clear();
   counted_.clear();
+  positions_.clear();
   stale_.clear();
   terms_.clear();
   term_offset_.clear();
