@@ -130,7 +130,7 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
     xp[1] = y1;
     xp[2] = y2;
     // x_q -= R_pq^T y for the blocks right of the diagonal: x_q0 and x_q1 as one pair.
-    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2};
+    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2}, y01 = {y0, y1};
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
       const float* b = block + 9 * k;
@@ -139,7 +139,9 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
       std::memcpy(&xq01, xq, sizeof(xq01));
       xq01 -= (Widen(b) * y0s + Widen(b + 2) * y1s) + Widen(b + 4) * y2s;
       std::memcpy(xq, &xq01, sizeof(xq01));
-      xq[2] -= b[6] * y0 + b[7] * y1 + b[8] * y2;
+      // x_q2: R02 y0 and R12 y1 as one pair product, then summed in the scalar order.
+      const Pair products = Widen(b + 6) * y01;
+      xq[2] -= (products[0] + products[1]) + static_cast<double>(b[8]) * y2;
     }
     norm2 += y0 * y0 + y1 * y1 + y2 * y2;
   }
@@ -164,7 +166,9 @@ void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
       Pair column0, column1;
       WidenCrossed(b, &column0, &column1);
       s01 -= (column0 * Pair{x0, x0} + column1 * Pair{x1, x1}) + Widen(b + 6) * Pair{x2, x2};
-      s2 -= b[4] * x0 + b[5] * x1 + b[8] * x2;
+      // s2: R20 x0 and R21 x1 as one pair product, then summed in the scalar order.
+      const Pair products = Widen(b + 4) * Pair{x0, x1};
+      s2 -= (products[0] + products[1]) + static_cast<double>(b[8]) * x2;
     }
     const double s0 = s01[0], s1 = s01[1];
     // x_p = R_pp^-1 s.
