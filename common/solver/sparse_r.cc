@@ -214,22 +214,31 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
         while (union_columns_[k] != carry.columns[j]) ++k;
         carry.in_union[j] = 3 + 3 * k;
       }
-      const int* at = carry.at.data();
-      const int* in_union = carry.in_union.data();
+      // Columns adjacent both in the carry and in the union are copied as one run (a
+      // carry mostly holds a stretch of the last row's union), the gaps between runs zeroed.
+      runs_.clear();
+      for (int j = 1; j < n; ++j) {
+        if (!runs_.empty() && runs_.back().to + runs_.back().count == carry.in_union[j] &&
+            runs_.back().from + runs_.back().count == carry.at[j]) {
+          runs_.back().count += 3;
+        } else {
+          runs_.push_back({carry.in_union[j], carry.at[j], 3});
+        }
+      }
+      const int lead = carry.at[0];
       for (int r = 0; r < 3 * carry.triples; ++r, ++next_row) {
         double* lower = work_.row(next_row).data();
         const double* from = carry.panel.row(carry.first_row + r).data();
-        std::fill(lower + 3, lower + width - 1, 0.0);
-        lower[0] = from[at[0]];
-        lower[1] = from[at[0] + 1];
-        lower[2] = from[at[0] + 2];
-        for (int j = 1; j < n; ++j) {
-          double* to = lower + in_union[j];
-          const double* f = from + at[j];
-          to[0] = f[0];
-          to[1] = f[1];
-          to[2] = f[2];
+        lower[0] = from[lead];
+        lower[1] = from[lead + 1];
+        lower[2] = from[lead + 2];
+        int zero_from = 3;
+        for (const Run& run : runs_) {
+          std::fill(lower + zero_from, lower + run.to, 0.0);
+          std::copy(from + run.from, from + run.from + run.count, lower + run.to);
+          zero_from = run.to + run.count;
         }
+        std::fill(lower + zero_from, lower + width - 1, 0.0);
         lower[width - 1] = from[carry.rhs_at];
       }
     }

@@ -160,6 +160,10 @@ class SparseR {
   std::vector<int> merged_columns_;
   std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
   std::vector<int> meeting_;       // carries whose leading column is the current row
+  struct Run {                     // a carry's columns copied as one: scalar offsets, count
+    int to, from, count;
+  };
+  std::vector<Run> runs_;
   // The block rows an elimination writes, before its commit: their positions, the rows
   // (storage reused between calls) and the (column, row) references of their new fill.
   std::vector<int> staged_positions_;
