@@ -81,34 +81,51 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
       stale_[id] = any;
     }
   }
+  // g where a term changed: by variable when few moved, else by scattering every term in
+  // this loop (the same additions in the same order, so the same bits either way).
+  const bool full = !extends || num_moved > num_vars / 8;
+  g_.resize(n);
+  if (full) std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
   int64_t first_changed = known;
   const char* now = counted.data();
   for (int64_t id = 0; id < num_factors; ++id) {
-    if (id + 8 <= num_factors && (id & 7) == 0 &&
+    if (!full && id + 8 <= num_factors && (id & 7) == 0 &&
         ((Word(now + id) ^ Word(counted_.data() + id)) | Word(stale_.data() + id)) == 0) {
       id += 7;
       continue;
     }
     const bool counts = now[id] != 0;
-    if (!stale_[id] && counts == (counted_[id] != 0)) continue;
-    stale_[id] = 0;
-    if (counts) {
-      const smoother_internal::FactorRecord& f = factors[id];
-      if (!counted_[id]) {  // else its positions are set (a reordering sets them all below)
-        for (int j = 0; j < f.num_vars; ++j) positions_[id][j] = position_[f.vars[j]];
+    if (stale_[id] || counts != (counted_[id] != 0)) {
+      stale_[id] = 0;
+      if (counts) {
+        const smoother_internal::FactorRecord& f = factors[id];
+        if (!counted_[id] || !extends) {  // else its positions are set
+          for (int j = 0; j < f.num_vars; ++j) positions_[id][j] = position_[f.vars[j]];
+        }
+        const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
+        for (int j = 0; j < f.num_vars; ++j)
+          Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
+        squared_[id] = lin.whitened_error().squaredNorm();
+      } else {
+        cache_.Skip(id);  // its variables may move unseen before it counts again
       }
-      const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
-      for (int j = 0; j < f.num_vars; ++j)
-        Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
-      squared_[id] = lin.whitened_error().squaredNorm();
-    } else {
-      cache_.Skip(id);  // its variables may move unseen before it counts again
+      if (counts || counted_[id]) {
+        if (!full) {
+          for (int j = 0; j < factor_num_vars_[id]; ++j) mark(factor_vars_[id][j]);
+        }
+        first_changed = std::min(first_changed, id);
+      }
+      counted_[id] = counts ? 1 : 0;
+    } else if (counts && !extends) {
+      for (int j = 0; j < factor_num_vars_[id]; ++j)
+        positions_[id][j] = position_[factor_vars_[id][j]];
     }
-    if (counts || counted_[id]) {
-      for (int j = 0; j < factor_num_vars_[id]; ++j) mark(factor_vars_[id][j]);
-      first_changed = std::min(first_changed, id);
+    if (full && counted_[id]) {
+      for (int j = 0; j < factor_num_vars_[id]; ++j) g_[positions_[id][j]] += Term(id, j);
     }
-    counted_[id] = counts ? 1 : 0;
+  }
+  if (!full) {
+    for (int var : dirty_vars_) SumAt(var, var_factors);
   }
 
   // chi2 from the first changed factor on.
@@ -116,26 +133,6 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   for (int64_t id = first_changed; id < num_factors; ++id) {
     if (counted_[id]) chi2 += squared_[id];
     chi2_prefix_[id] = chi2;
-  }
-
-  // g where a term changed: by variable when few did, else by scattering every term (the
-  // same additions in the same order).
-  g_.resize(n);
-  if (!extends) {
-    for (int64_t id = 0; id < num_factors; ++id) {
-      if (!counted_[id]) continue;
-      for (int j = 0; j < factor_num_vars_[id]; ++j)
-        positions_[id][j] = position_[factor_vars_[id][j]];
-    }
-  }
-  if (!extends || static_cast<int>(dirty_vars_.size()) > n / 4) {
-    std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
-    for (int64_t id = 0; id < num_factors; ++id) {
-      if (!counted_[id]) continue;
-      for (int j = 0; j < factor_num_vars_[id]; ++j) g_[positions_[id][j]] += Term(id, j);
-    }
-  } else {
-    for (int var : dirty_vars_) SumAt(var, var_factors);
   }
   for (int var : dirty_vars_) dirty_[var] = 0;
   dirty_vars_.clear();
