@@ -73,7 +73,8 @@ Eigen::Matrix3d FlatR::Rounded(const Eigen::Matrix3d& block) {
 
 int FlatR::Refresh(const SparseR& r) {
   int from = 0;
-  if (r.instance_id() == source_id_) {
+  const bool same_source = r.instance_id() == source_id_;
+  if (same_source) {
     from = std::min(size(), r.FirstRowChangedAfter(source_revision_));
   }
   const int n = r.size();
@@ -83,17 +84,26 @@ int FlatR::Refresh(const SparseR& r) {
     return 0;
   }
   // Sized first, then filled: the source rows are scattered, the copy need not be.
+  const int old_n = size();
+  old_start_.assign(row_start_.begin() + std::min(from, old_n), row_start_.end());
   int64_t blocks = from == 0 ? 0 : row_start_[from];
   inverse_diagonals_.resize(n);
   row_start_.resize(n + 1);
+  // Rows from `from` on that did not change since the last refresh (most of them: a Givens
+  // update changes the rows on its path up R) are already here, only further on by the
+  // growth of the changed rows before them; they are moved within the copy, back to front,
+  // instead of read again from R's scattered rows. If a row moved toward the front (a
+  // changed row shrank), everything from `from` is read from R.
+  bool move_unchanged = same_source;
   for (int p = from; p < n; ++p) {
     row_start_[p] = blocks;
+    if (p < old_n && blocks < old_start_[p - from]) move_unchanged = false;
     blocks += static_cast<int64_t>(r.row(p).right.size());
   }
   row_start_[n] = blocks;
   columns_.resize(blocks);
   blocks_.resize(9 * blocks);
-  for (int p = from; p < n; ++p) {
+  auto copy_from_r = [&](int p) {
     const RBlockRow& row = r.row(p);
     inverse_diagonals_[p] = InverseUpper(row.diagonal);
     int64_t k = row_start_[p];
@@ -102,6 +112,19 @@ int FlatR::Refresh(const SparseR& r) {
       StoreBlock(block, blocks_.data() + 9 * k);
       ++k;
     }
+  };
+  for (int p = n - 1; p >= from; --p) {
+    const bool unchanged = move_unchanged && p < old_n && r.row_revision(p) <= source_revision_;
+    if (!unchanged) {
+      copy_from_r(p);
+      continue;
+    }
+    const int64_t old_first = old_start_[p - from];
+    const int64_t count = old_start_[p - from + 1] - old_first;
+    if (old_first == row_start_[p]) continue;
+    std::memmove(columns_.data() + row_start_[p], columns_.data() + old_first, count * sizeof(int));
+    std::memmove(blocks_.data() + 9 * row_start_[p], blocks_.data() + 9 * old_first,
+                 9 * count * sizeof(float));
   }
   source_id_ = r.instance_id();
   source_revision_ = r.revision();
@@ -130,7 +153,7 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
     xp[1] = y1;
     xp[2] = y2;
     // x_q -= R_pq^T y for the blocks right of the diagonal: x_q0 and x_q1 as one pair.
-    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2};
+    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2}, y01 = {y0, y1};
     const int64_t end = row_start_[p + 1];
     for (int64_t k = row_start_[p]; k < end; ++k) {
       const float* b = block + 9 * k;
@@ -139,7 +162,9 @@ double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
       std::memcpy(&xq01, xq, sizeof(xq01));
       xq01 -= (Widen(b) * y0s + Widen(b + 2) * y1s) + Widen(b + 4) * y2s;
       std::memcpy(xq, &xq01, sizeof(xq01));
-      xq[2] -= b[6] * y0 + b[7] * y1 + b[8] * y2;
+      // x_q2: R02 y0 and R12 y1 as one pair product, then summed in the scalar order.
+      const Pair products = Widen(b + 6) * y01;
+      xq[2] -= (products[0] + products[1]) + static_cast<double>(b[8]) * y2;
     }
     norm2 += y0 * y0 + y1 * y1 + y2 * y2;
   }
@@ -164,7 +189,9 @@ void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
       Pair column0, column1;
       WidenCrossed(b, &column0, &column1);
       s01 -= (column0 * Pair{x0, x0} + column1 * Pair{x1, x1}) + Widen(b + 6) * Pair{x2, x2};
-      s2 -= b[4] * x0 + b[5] * x1 + b[8] * x2;
+      // s2: R20 x0 and R21 x1 as one pair product, then summed in the scalar order.
+      const Pair products = Widen(b + 4) * Pair{x0, x1};
+      s2 -= (products[0] + products[1]) + static_cast<double>(b[8]) * x2;
     }
     const double s0 = s01[0], s1 = s01[1];
     // x_p = R_pp^-1 s.

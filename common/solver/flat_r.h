@@ -48,6 +48,7 @@ class FlatR {
   // The blocks themselves, same order, 9 floats each in the order the solves read them
   // (pairs of entries side by side: flat_r.cc's StoreBlock).
   std::vector<float> blocks_;
+  std::vector<int64_t> old_start_;  // work space of Refresh: row_start_ before it, from `from`
 };
 
 }  // namespace anchormap

@@ -85,6 +85,54 @@ TEST(FlatRTest, RefreshCopiesOnlyTheRowsFromTheFirstChangeAndSolvesStayExact) {
   ExpectSolvesMatchDense(flat, r, &rng);
 }
 
+// Bit for bit what a fresh copy's solves give.
+void ExpectSolvesEqualAFreshCopy(const FlatR& flat, const SparseR& r, std::mt19937* rng) {
+  FlatR fresh;
+  fresh.Refresh(r);
+  std::normal_distribution<double> g;
+  std::vector<Eigen::Vector3d> v(r.size());
+  for (Eigen::Vector3d& e : v) e = Eigen::Vector3d(g(*rng), g(*rng), g(*rng));
+  std::vector<Eigen::Vector3d> a = v, b = v;
+  EXPECT_EQ(flat.SolveTransposedInPlace(&a), fresh.SolveTransposedInPlace(&b));
+  flat.SolveInPlace(&a);
+  fresh.SolveInPlace(&b);
+  for (int p = 0; p < r.size(); ++p) EXPECT_EQ(a[p], b[p]) << "position " << p;
+}
+
+// A star (every variable tied to the last one, a hub): a measurement from variable 3 to the
+// hub changes rows 3 and the hub's only (the rows between them stay in place); one from 5 to
+// 8 fills row 5 with a block at 8, so the unchanged rows 6, 7, 9 and 10 are moved within the
+// copy. The solves are a fresh copy's bit for bit either way.
+TEST(FlatRTest, UnchangedRowsAfterTheFirstChangeAreMovedWithinTheCopy) {
+  std::mt19937 rng(13);
+  constexpr int kStar = 12;
+  constexpr int kHub = kStar - 1;
+  SparseR r;
+  r.Append(kStar);
+  r.Eliminate(RandomBetweenRows(kHub, -1, &rng), nullptr);
+  for (int p = 0; p < kHub; ++p) r.Eliminate(RandomBetweenRows(p, kHub, &rng), nullptr);
+  FlatR flat;
+  EXPECT_EQ(flat.Refresh(r), kStar);
+  ExpectSolvesMatchDense(flat, r, &rng);
+
+  std::vector<int> touched;
+  r.Eliminate(RandomBetweenRows(3, kHub, &rng), &touched);
+  std::sort(touched.begin(), touched.end());
+  EXPECT_EQ(touched, (std::vector<int>{3, kHub}));
+  EXPECT_EQ(flat.Refresh(r), kStar - 3);
+  ExpectSolvesMatchDense(flat, r, &rng);
+  ExpectSolvesEqualAFreshCopy(flat, r, &rng);
+
+  touched.clear();
+  std::vector<NewRows> two;
+  two.push_back(RandomBetweenRows(5, 8, &rng));
+  r.Eliminate(std::move(two), &touched);
+  EXPECT_EQ(r.row(5).right.size(), 2u);  // the hub and, new, 8
+  EXPECT_EQ(flat.Refresh(r), kStar - 5);
+  ExpectSolvesMatchDense(flat, r, &rng);
+  ExpectSolvesEqualAFreshCopy(flat, r, &rng);
+}
+
 TEST(FlatRTest, ACopyOfRIsCopiedWhole) {
   std::mt19937 rng(11);
   SparseR r;

@@ -34,6 +34,7 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   factor_vars_.resize(num_factors);
   factor_num_vars_.resize(num_factors);
   counted_.resize(num_factors, 0);
+  positions_.resize(num_factors);
   stale_.resize(num_factors, 0);
   term_offset_.resize(num_factors);
   squared_.resize(num_factors, 0.0);
@@ -80,31 +81,51 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
       stale_[id] = any;
     }
   }
+  // g where a term changed: by variable when few moved, else by scattering every term in
+  // this loop (the same additions in the same order, so the same bits either way).
+  const bool full = !extends || num_moved > num_vars / 8;
+  g_.resize(n);
+  if (full) std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
   int64_t first_changed = known;
   const char* now = counted.data();
   for (int64_t id = 0; id < num_factors; ++id) {
-    if (id + 8 <= num_factors && (id & 7) == 0 &&
+    if (!full && id + 8 <= num_factors && (id & 7) == 0 &&
         ((Word(now + id) ^ Word(counted_.data() + id)) | Word(stale_.data() + id)) == 0) {
       id += 7;
       continue;
     }
     const bool counts = now[id] != 0;
-    if (!stale_[id] && counts == (counted_[id] != 0)) continue;
-    stale_[id] = 0;
-    if (counts) {
-      const smoother_internal::FactorRecord& f = factors[id];
-      const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
-      for (int j = 0; j < f.num_vars; ++j)
-        Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
-      squared_[id] = lin.whitened_error().squaredNorm();
-    } else {
-      cache_.Skip(id);  // its variables may move unseen before it counts again
+    if (stale_[id] || counts != (counted_[id] != 0)) {
+      stale_[id] = 0;
+      if (counts) {
+        const smoother_internal::FactorRecord& f = factors[id];
+        if (!counted_[id] || !extends) {  // else its positions are set
+          for (int j = 0; j < f.num_vars; ++j) positions_[id][j] = position_[f.vars[j]];
+        }
+        const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
+        for (int j = 0; j < f.num_vars; ++j)
+          Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
+        squared_[id] = lin.whitened_error().squaredNorm();
+      } else {
+        cache_.Skip(id);  // its variables may move unseen before it counts again
+      }
+      if (counts || counted_[id]) {
+        if (!full) {
+          for (int j = 0; j < factor_num_vars_[id]; ++j) mark(factor_vars_[id][j]);
+        }
+        first_changed = std::min(first_changed, id);
+      }
+      counted_[id] = counts ? 1 : 0;
+    } else if (counts && !extends) {
+      for (int j = 0; j < factor_num_vars_[id]; ++j)
+        positions_[id][j] = position_[factor_vars_[id][j]];
     }
-    if (counts || counted_[id]) {
-      for (int j = 0; j < factor_num_vars_[id]; ++j) mark(factor_vars_[id][j]);
-      first_changed = std::min(first_changed, id);
+    if (full && counted_[id]) {
+      for (int j = 0; j < factor_num_vars_[id]; ++j) g_[positions_[id][j]] += Term(id, j);
     }
-    counted_[id] = counts ? 1 : 0;
+  }
+  if (!full) {
+    for (int var : dirty_vars_) SumAt(var, var_factors);
   }
 
   // chi2 from the first changed factor on.
@@ -112,20 +133,6 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
   for (int64_t id = first_changed; id < num_factors; ++id) {
     if (counted_[id]) chi2 += squared_[id];
     chi2_prefix_[id] = chi2;
-  }
-
-  // g where a term changed: by variable when few did, else by scattering every term (the
-  // same additions in the same order).
-  g_.resize(n);
-  if (!extends || static_cast<int>(dirty_vars_.size()) > n / 4) {
-    std::fill(g_.begin(), g_.end(), Eigen::Vector3d::Zero());
-    for (int64_t id = 0; id < num_factors; ++id) {
-      if (!counted_[id]) continue;
-      for (int j = 0; j < factor_num_vars_[id]; ++j)
-        g_[position_[factor_vars_[id][j]]] += Term(id, j);
-    }
-  } else {
-    for (int var : dirty_vars_) SumAt(var, var_factors);
   }
   for (int var : dirty_vars_) dirty_[var] = 0;
   dirty_vars_.clear();
@@ -143,15 +150,22 @@ void IncrementalGradient::SumAt(int var, const std::vector<std::vector<int64_t>>
   g_[position_[var]] = sum;
 }
 
-void IncrementalGradient::CountedFactors(std::vector<PositionedFactor>* out) const {
-  out->clear();
-  for (size_t id = 0; id < counted_.size(); ++id) {
+double IncrementalGradient::MultiplyNormal(const std::vector<Eigen::Vector3d>& p,
+                                           std::vector<Eigen::Vector3d>* q) const {
+  std::fill(q->begin(), q->end(), Eigen::Vector3d::Zero());
+  double pq = 0.0;
+  const int64_t num_factors = static_cast<int64_t>(counted_.size());
+  for (int64_t id = 0; id < num_factors; ++id) {
     if (!counted_[id]) continue;
-    PositionedFactor pf;
-    for (int j = 0; j < factor_num_vars_[id]; ++j) pf.positions[j] = position_[factor_vars_[id][j]];
-    pf.lin = cache_.entry(static_cast<int64_t>(id));
-    out->push_back(pf);
+    const LinearizedView lin = cache_.entry(id);
+    const std::array<int, kMaxFactorKeys>& at = positions_[id];
+    Eigen::Vector3d jp = Eigen::Vector3d::Zero();
+    for (int j = 0; j < lin.num_keys(); ++j) jp.noalias() += lin.jacobian(j) * p[at[j]];
+    pq += jp.squaredNorm();
+    for (int j = 0; j < lin.num_keys(); ++j)
+      (*q)[at[j]].noalias() += lin.jacobian(j).transpose() * jp;
   }
+  return pq;
 }
 
 void IncrementalGradient::Clear() {
@@ -159,6 +173,7 @@ void IncrementalGradient::Clear() {
   factor_vars_.clear();
   factor_num_vars_.clear();
   counted_.clear();
+  positions_.clear();
   stale_.clear();
   terms_.clear();
   term_offset_.clear();

@@ -26,12 +26,6 @@ namespace anchormap {
 
 class IncrementalGradient {
  public:
-  // A factor counted by the last pass, linearised there, with its variables' positions.
-  struct PositionedFactor {
-    std::array<int, kMaxFactorKeys> positions;
-    LinearizedView lin;
-  };
-
   // One pass at `values` (by variable). g is ordered by `position_to_var` (the variables
   // in R); `counted` (by factor id) says which of `factors` count (active, rows in R; all
   // their variables are in R); `var_factors` lists each variable's factor ids ascending.
@@ -41,9 +35,12 @@ class IncrementalGradient {
               const std::vector<char>& counted,
               const std::vector<std::vector<int64_t>>& var_factors);
   const std::vector<Eigen::Vector3d>& g() const { return g_; }
-  // The factors the last pass counted, in id order (replaces `out`); valid until the
-  // next pass.
-  void CountedFactors(std::vector<PositionedFactor>* out) const;
+  // q = J^T J p, J the factors the last pass counted, linearised there, by blocks (J^T J is
+  // never formed); p and q by position, q zeroed first. Returns |J p|^2. The conjugate
+  // gradients' product: factor by factor in id order, reading each entry where the pass
+  // left it.
+  double MultiplyNormal(const std::vector<Eigen::Vector3d>& p,
+                        std::vector<Eigen::Vector3d>* q) const;
   // Forgets everything: the next pass is a full one.
   void Clear();
 
@@ -64,7 +61,10 @@ class IncrementalGradient {
   std::vector<std::array<int, kMaxFactorKeys>> factor_vars_;
   std::vector<int> factor_num_vars_;
   std::vector<char> counted_;  // counted by the last pass
-  std::vector<char> stale_;    // work space: a variable of it moved in this pass
+  // Its variables' positions in g, valid while counted (the conjugate gradients' J p and the
+  // full scatter of g read them without going through the variables).
+  std::vector<std::array<int, kMaxFactorKeys>> positions_;
+  std::vector<char> stale_;  // work space: a variable of it moved in this pass
   // J_k^T e by key, at the last pass's values, packed: factor id's 3 x num_vars doubles
   // from term_offset_[id].
   std::vector<double> terms_;

@@ -146,29 +146,54 @@ TEST(IncrementalGradientTest, EqualsAFullPassBitForBitAfterRandomUpdates) {
   EXPECT_LT(incremental.linearized(), full_work / 3);
 }
 
-// The factors handed to the conjugate gradients are the counted ones, at their positions,
-// linearised at the pass's values.
-TEST(IncrementalGradientTest, CountedFactorsAreTheCountedOnesAtTheirPositions) {
+// The conjugate gradients' product J^T J p: the counted factors, linearised at the pass's
+// values, at their positions (here reversed, and again after a reordering), against the
+// dense J^T J p of the same factors.
+TEST(IncrementalGradientTest, MultiplyNormalIsTheCountedFactorsDenseProduct) {
   std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
   Graph graph;
-  for (int v = 0; v < 6; ++v) graph.AddVariable(Pose2(v, 0.1 * v, 0.0));
+  for (int v = 0; v < 6; ++v) graph.AddVariable(Pose2(v, 0.1 * v, 0.1 * u(rng)));
   for (int v = 1; v < 6; ++v) graph.AddFactor(MakeBetween(v - 1, v, &rng), {v - 1, v});
+  graph.AddFactor(MakeBetween(0, 4, &rng), {0, 4});
   graph.counted[2] = 0;
   std::reverse(graph.position_to_var.begin(), graph.position_to_var.end());
   IncrementalGradient gradient;
-  gradient.Pass(graph.values, graph.position_to_var, graph.factors, graph.counted,
-                graph.var_factors);
-  std::vector<IncrementalGradient::PositionedFactor> counted;
-  gradient.CountedFactors(&counted);
-  ASSERT_EQ(counted.size(), 4u);
-  const int ids[] = {0, 1, 3, 4};
-  for (int k = 0; k < 4; ++k) {
-    const FactorRecord& f = graph.factors[ids[k]];
-    EXPECT_EQ(counted[k].positions[0], 5 - f.vars[0]);
-    EXPECT_EQ(counted[k].positions[1], 5 - f.vars[1]);
-    const std::array<Pose2, kMaxFactorKeys> at = {graph.values[f.vars[0]], graph.values[f.vars[1]]};
-    EXPECT_TRUE(
-        SameBits(counted[k].lin.whitened_error(), Linearize(f.factor, at.data()).whitened_error));
+  for (int round = 0; round < 2; ++round) {
+    if (round == 1) std::shuffle(graph.position_to_var.begin(), graph.position_to_var.end(), rng);
+    gradient.Pass(graph.values, graph.position_to_var, graph.factors, graph.counted,
+                  graph.var_factors);
+    const int n = static_cast<int>(graph.position_to_var.size());
+    std::vector<int> position(n);
+    for (int p = 0; p < n; ++p) position[graph.position_to_var[p]] = p;
+    // Dense J (rows: counted factors' 3 residuals; columns: 3 per position).
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(3 * 6, 3 * n);
+    int rows = 0;
+    for (size_t id = 0; id < graph.factors.size(); ++id) {
+      if (!graph.counted[id]) continue;
+      const FactorRecord& f = graph.factors[id];
+      std::array<Pose2, kMaxFactorKeys> at;
+      for (int j = 0; j < f.num_vars; ++j) at[j] = graph.values[f.vars[j]];
+      const LinearizedFactor lin = Linearize(f.factor, at.data());
+      for (int j = 0; j < f.num_vars; ++j)
+        J.block<3, 3>(rows, 3 * position[f.vars[j]]) = lin.jacobians[j];
+      rows += 3;
+    }
+    ASSERT_EQ(rows, 3 * 5);
+    std::vector<Eigen::Vector3d> p(n), q(n, Eigen::Vector3d::Constant(7.0));
+    Eigen::VectorXd dense_p(3 * n);
+    for (int k = 0; k < n; ++k) {
+      p[k] = Eigen::Vector3d(u(rng), u(rng), u(rng));
+      dense_p.segment<3>(3 * k) = p[k];
+    }
+    const Eigen::VectorXd jp = J * dense_p;
+    const Eigen::VectorXd dense_q = J.transpose() * jp;
+    const double pq = gradient.MultiplyNormal(p, &q);
+    EXPECT_NEAR(pq, jp.squaredNorm(), 1e-9 * jp.squaredNorm());
+    for (int k = 0; k < n; ++k) {
+      EXPECT_LT((q[k] - dense_q.segment<3>(3 * k)).norm(), 1e-9 * (1.0 + dense_q.norm()))
+          << "position " << k;
+    }
   }
 }
 

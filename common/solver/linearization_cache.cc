@@ -1,5 +1,6 @@
 #include "common/solver/linearization_cache.h"
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 
@@ -22,14 +23,19 @@ void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num
     num_keys_.resize(num_factors, 0);
     valid_.resize(num_factors, 0);
   }
-  const size_t known = values_.size();
-  moved_.assign(values.size(), 1);
-  for (size_t v = 0; v < values.size() && v < known; ++v)
-    moved_[v] = !SameBits(values[v], values_[v]);
-  values_ = values;
-  rotations_.resize(values.size());
-  for (size_t v = 0; v < values.size(); ++v) {
-    if (moved_[v]) rotations_[v] = CosSin::Of(values[v].theta());
+  // One sweep: a variable not moved already has its value (bit for bit) and rotation.
+  const size_t n = values.size();
+  const size_t known = std::min(values_.size(), n);
+  moved_.resize(n);
+  values_.resize(n);
+  rotations_.resize(n);
+  for (size_t v = 0; v < n; ++v) {
+    const bool moved = v >= known || !SameBits(values[v], values_[v]);
+    moved_[v] = moved ? 1 : 0;
+    if (moved) {
+      values_[v] = values[v];
+      rotations_[v] = CosSin::Of(values[v].theta());
+    }
   }
 }
 

@@ -109,10 +109,6 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
   const int n = r_->size();
   const FlatR& R = flat_r_;
   const double tolerance = options_.correction_tolerance;
-  // The factors in R, linearised at the estimate: J(x) by blocks, applied factor by
-  // factor (J^T J is never formed).
-  std::vector<IncrementalGradient::PositionedFactor> factors;
-  factors.reserve(factors_.size());
   const Vectors& g = gradient_.g();
   Vectors r(n), z(n), p(n), q(n), h(n);
   double previous_chi2 = std::numeric_limits<double>::infinity();
@@ -146,23 +142,12 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     last_decrease_ = rz;
     const CorrectionEnd end = EndOfCorrection(options_, rz, stop, outer, cg_iterations);
     if (end != CorrectionEnd::kGoOn) return end == CorrectionEnd::kConverged;
-    // Only now the Jacobians, by position: most passes end above.
-    gradient_.CountedFactors(&factors);
     R.SolveInPlace(&z);
     p = z;
     std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
     while (cg_iterations < options_.correction_cg_iterations) {
-      // q = J^T J p.
-      std::fill(q.begin(), q.end(), Eigen::Vector3d::Zero());
-      double pq = 0.0;
-      for (const IncrementalGradient::PositionedFactor& l : factors) {
-        Eigen::Vector3d jp = Eigen::Vector3d::Zero();
-        for (int j = 0; j < l.lin.num_keys(); ++j)
-          jp.noalias() += l.lin.jacobian(j) * p[l.positions[j]];
-        pq += jp.squaredNorm();
-        for (int j = 0; j < l.lin.num_keys(); ++j)
-          q[l.positions[j]].noalias() += l.lin.jacobian(j).transpose() * jp;
-      }
+      // q = J^T J p, J the factors in R linearised at the estimate (the last pass's).
+      const double pq = gradient_.MultiplyNormal(p, &q);
       ++cg_iterations;
       ++stats_.correction_steps;
       if (!(pq > 0)) break;

@@ -246,7 +246,7 @@ class Smoother::Impl {
   void PlaceByNeighboursCorrection(const FactorRecord& f, const LinearizedFactor& lin,
                                    int first_new);
   // chi2 at the estimate over the factors in R; its half-gradient g by position in R is
-  // gradient_.g(), and gradient_.CountedFactors() the factors linearised there. Only what
+  // gradient_.g(), and gradient_.MultiplyNormal() applies J^T J there. Only what
   // the estimate's moves since the last pass changed is computed again, with the bits a
   // full pass gives (incremental_gradient.h).
   double GradientAtEstimate();

@@ -121,6 +121,10 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       carry.panel.block(0, 3 * k, 3, 3) += rows[i].blocks[b].second;
     }
     carry.panel.block<3, 1>(0, width - 1) = rows[i].rhs;
+    carry.at.resize(carry.columns.size());
+    for (size_t j = 0; j < carry.columns.size(); ++j) carry.at[j] = 3 * static_cast<int>(j);
+    carry.rhs_at = width - 1;
+    carry.first_row = 0;
     carry.triples = 1;
     carry.alive = !carry.columns.empty();
     if (!carry.alive) leftover += rows[i].rhs.squaredNorm();  // no variable to absorb it
@@ -158,6 +162,10 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       union_columns_.swap(merged_columns_);
     }
     const int m = static_cast<int>(union_columns_.size());
+    // The next block row met is most likely the union's first column: its row's storage is
+    // cold (R is larger than the cache), so its header is fetched now and its blocks after
+    // the rotations.
+    if (m > 0) __builtin_prefetch(&rows_[union_columns_[0]]);
     union_in_row_.assign(m, -1);
     for (int k = 0, r = 0; r < static_cast<int>(row.right.size()); ++k) {
       if (union_columns_[k] == row.right[r].first) union_in_row_[k] = r++;
@@ -175,22 +183,26 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
     }
     const int stride = static_cast<int>(work_.cols());
 
-    // Rows 0-2: R's row.
-    for (int i = 0; i < 3; ++i) {
-      double* upper = work_.row(i).data();
-      for (int j = 0; j < 3; ++j) upper[j] = row.diagonal(i, j);
+    // Rows 0-2: R's row, block by block (each block's 9 entries read once, column-major).
+    {
+      double* upper[3] = {work_.row(0).data(), work_.row(1).data(), work_.row(2).data()};
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) upper[i][j] = row.diagonal(i, j);
+        upper[i][width - 1] = row.rhs(i);
+      }
       for (int k = 0; k < m; ++k) {
-        double* up = upper + 3 + 3 * k;
+        const int to = 3 + 3 * k;
         if (union_in_row_[k] >= 0) {
-          const Eigen::Matrix3d& block = row.right[union_in_row_[k]].second;
-          up[0] = block(i, 0);
-          up[1] = block(i, 1);
-          up[2] = block(i, 2);
+          const double* b = row.right[union_in_row_[k]].second.data();
+          for (int i = 0; i < 3; ++i) {
+            upper[i][to] = b[i];
+            upper[i][to + 1] = b[i + 3];
+            upper[i][to + 2] = b[i + 6];
+          }
         } else {
-          up[0] = up[1] = up[2] = 0.0;
+          for (int i = 0; i < 3; ++i) upper[i][to] = upper[i][to + 1] = upper[i][to + 2] = 0.0;
         }
       }
-      upper[width - 1] = row.rhs(i);
     }
     // Then each meeting carry's rows, spread over the union's columns.
     int next_row = 3;
@@ -200,28 +212,50 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       carry.in_union.resize(n);
       for (int j = 1, k = 0; j < n; ++j) {
         while (union_columns_[k] != carry.columns[j]) ++k;
-        carry.in_union[j] = k;
+        carry.in_union[j] = 3 + 3 * k;
       }
+      // Columns adjacent both in the carry and in the union are copied as one run (a
+      // carry mostly holds a stretch of the last row's union), the gaps between runs zeroed.
+      runs_.clear();
+      for (int j = 1; j < n; ++j) {
+        if (!runs_.empty() && runs_.back().to + runs_.back().count == carry.in_union[j] &&
+            runs_.back().from + runs_.back().count == carry.at[j]) {
+          runs_.back().count += 3;
+        } else {
+          runs_.push_back({carry.in_union[j], carry.at[j], 3});
+        }
+      }
+      const int lead = carry.at[0];
       for (int r = 0; r < 3 * carry.triples; ++r, ++next_row) {
         double* lower = work_.row(next_row).data();
-        const double* from = carry.panel.row(r).data();
-        std::fill(lower + 3, lower + width - 1, 0.0);
-        lower[0] = from[0];
-        lower[1] = from[1];
-        lower[2] = from[2];
-        for (int j = 1; j < n; ++j) {
-          double* to = lower + 3 + 3 * carry.in_union[j];
-          to[0] = from[3 * j];
-          to[1] = from[3 * j + 1];
-          to[2] = from[3 * j + 2];
+        const double* from = carry.panel.row(carry.first_row + r).data();
+        lower[0] = from[lead];
+        lower[1] = from[lead + 1];
+        lower[2] = from[lead + 2];
+        int zero_from = 3;
+        for (const Run& run : runs_) {
+          std::fill(lower + zero_from, lower + run.to, 0.0);
+          std::copy(from + run.from, from + run.from + run.count, lower + run.to);
+          zero_from = run.to + run.count;
         }
-        lower[width - 1] = from[3 * n];
+        std::fill(lower + zero_from, lower + width - 1, 0.0);
+        lower[width - 1] = from[carry.rhs_at];
       }
     }
 
     // Zero the carried rows under the diagonal block, one triple after another.
     for (int t = 0; t < triples; ++t) {
       EliminateBlockRow(work_.data(), work_.row(3 + 3 * t).data(), stride, width);
+    }
+    // That row's blocks are fetched while this one is written out, a block's worth of lines
+    // per block: a row is a few kB, too short for the hardware's stream prefetch to warm up
+    // on, and all at once they would stall on the outstanding misses.
+    const char* next_first = nullptr;
+    const char* next_last = nullptr;
+    if (m > 0) {
+      const auto& next = rows_[union_columns_[0]].right;
+      next_first = reinterpret_cast<const char*>(next.data());
+      next_last = reinterpret_cast<const char*>(next.data() + next.size());
     }
 
     // R's new row, staged or in place (new fill registers in the column index).
@@ -244,13 +278,34 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       Stamp(c);
       if (touched) touched->push_back(c);
     }
-    out->diagonal = work_.block<3, 3>(0, 0);
-    out->right.resize(m);
-    for (int k = 0; k < m; ++k) {
-      out->right[k].first = union_columns_[k];
-      out->right[k].second = work_.block<3, 3>(0, 3 + 3 * k);
+    {
+      const double* upper[3] = {work_.row(0).data(), work_.row(1).data(), work_.row(2).data()};
+      double* d = out->diagonal.data();
+      for (int i = 0; i < 3; ++i) {
+        d[i] = upper[i][0];
+        d[i + 3] = upper[i][1];
+        d[i + 6] = upper[i][2];
+        out->rhs(i) = upper[i][width - 1];
+      }
+      out->right.resize(m);
+      constexpr int kBlockBytes = sizeof(std::pair<int, Eigen::Matrix3d>);
+      const char* ahead = next_first;
+      for (int k = 0; k < m; ++k, ahead += kBlockBytes) {
+        if (ahead < next_last) {
+          __builtin_prefetch(ahead);
+          __builtin_prefetch(ahead + 64);
+        }
+        const int from = 3 + 3 * k;
+        out->right[k].first = union_columns_[k];
+        double* b = out->right[k].second.data();
+        for (int i = 0; i < 3; ++i) {
+          b[i] = upper[i][from];
+          b[i + 3] = upper[i][from + 1];
+          b[i + 6] = upper[i][from + 2];
+        }
+      }
+      for (; ahead < next_last; ahead += 64) __builtin_prefetch(ahead);
     }
-    out->rhs = work_.block<3, 1>(0, width - 1);
 
     // The meeting carries continue as one: the triples that still have a block anywhere,
     // over the columns where some row is not zero. A triple with no block left has only
@@ -280,13 +335,13 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       ++kept;
     }
     merged.columns.clear();
+    merged.at.clear();
     merged.triples = kept;
     merged.alive = kept > 0;
     if (!merged.alive) continue;
+    // The kept rows stay where they are: the work panel becomes the carry's, and the
+    // carry's old panel the next work panel.
     const int kept_rows = 3 * kept;
-    if (merged.panel.rows() < kept_rows || merged.panel.cols() < 3 * m + 1) {
-      merged.panel.resize(std::max<Eigen::Index>(merged.panel.rows(), kept_rows), 2 * (3 * m + 1));
-    }
     for (int k = 0; k < m; ++k) {
       const int from = 3 + 3 * k;
       bool zero = true;
@@ -295,18 +350,12 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
         zero = lower[0] == 0.0 && lower[1] == 0.0 && lower[2] == 0.0;
       }
       if (zero) continue;
-      const int to = 3 * static_cast<int>(merged.columns.size());
-      for (int r = 0; r < kept_rows; ++r) {
-        const double* lower = work_.row(3 + r).data() + from;
-        double* out = merged.panel.row(r).data() + to;
-        out[0] = lower[0];
-        out[1] = lower[1];
-        out[2] = lower[2];
-      }
       merged.columns.push_back(union_columns_[k]);
+      merged.at.push_back(from);
     }
-    const int rhs = 3 * static_cast<int>(merged.columns.size());
-    for (int r = 0; r < kept_rows; ++r) merged.panel(r, rhs) = work_(3 + r, width - 1);
+    merged.first_row = 3;
+    merged.rhs_at = width - 1;
+    merged.panel.swap(work_);
   }
 
   if (staging) commit();  // within the budget

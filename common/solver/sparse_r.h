@@ -137,13 +137,19 @@ class SparseR {
 
   std::vector<RBlockRow> rows_;
   std::vector<std::vector<int>> column_rows_;
-  // New rows on their way up R: 3 * triples rows over `columns` (sorted; 3 scalar
-  // columns per block, rhs last), row-major in `panel` (capacity kept between calls).
+  // New rows on their way up R: 3 * triples rows of `panel` from `first_row` (row-major,
+  // capacity kept between calls), over `columns` (sorted): column j's 3 scalar columns
+  // start at at[j], the rhs at rhs_at. A carry that leaves a block row keeps the work
+  // panel it was rotated in (swapped, not copied), so its columns are where that row's
+  // union put them.
   using Panel = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   struct Carry {
     std::vector<int> columns;
+    std::vector<int> at;
     std::vector<int> in_union;  // work space: union index of each column
     Panel panel;
+    int first_row = 0;
+    int rhs_at = 0;
     int triples = 0;
     bool alive = false;
   };
@@ -154,6 +160,10 @@ class SparseR {
   std::vector<int> merged_columns_;
   std::vector<int> union_in_row_;  // index in the R row's `right`, or -1
   std::vector<int> meeting_;       // carries whose leading column is the current row
+  struct Run {                     // a carry's columns copied as one: scalar offsets, count
+    int to, from, count;
+  };
+  std::vector<Run> runs_;
   // The block rows an elimination writes, before its commit: their positions, the rows
   // (storage reused between calls) and the (column, row) references of their new fill.
   std::vector<int> staged_positions_;
