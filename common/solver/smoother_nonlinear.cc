@@ -76,7 +76,10 @@ bool Smoother::Impl::ShortenInTheCorrection(const std::vector<int64_t>& included
   const double step_chi2 = Chi2Of(included, delta_);
   const bool decrease_small = predicted_decrease < options_.convergence_decrease * chi2;
   if (decrease_small && step_chi2 <= chi2) return true;
-  if (!(step_chi2 > chi2 + predicted_decrease)) return false;
+  // A rise within chi2's round-off (a sum of many terms) is no overshoot: near the optimum
+  // the steps are noise and the last one is kept whole, as in the default mode.
+  const double round_off = 1e-12 * chi2;
+  if (!(step_chi2 > chi2 + predicted_decrease + round_off)) return false;
   double scale = 1.0, scaled_chi2 = step_chi2;
   std::vector<Eigen::Vector3d>& scaled = step_scratch_;
   scaled.resize(delta_.size());
