@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <iterator>
 #include <limits>
 
@@ -250,12 +251,14 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
     // That row's blocks are fetched while this one is written out, a block's worth of lines
     // per block: a row is a few kB, too short for the hardware's stream prefetch to warm up
     // on, and all at once they would stall on the outstanding misses.
-    const char* next_first = nullptr;
-    const char* next_last = nullptr;
+    // As addresses, not pointers: a prefetch may run past the row's end (or the row may be
+    // empty), where pointer arithmetic would be undefined.
+    uintptr_t next_first = 0;
+    uintptr_t next_bytes = 0;
     if (m > 0) {
       const auto& next = rows_[union_columns_[0]].right;
-      next_first = reinterpret_cast<const char*>(next.data());
-      next_last = reinterpret_cast<const char*>(next.data() + next.size());
+      next_first = reinterpret_cast<uintptr_t>(next.data());
+      next_bytes = next.size() * sizeof(next[0]);
     }
 
     // R's new row, staged or in place (new fill registers in the column index).
@@ -289,11 +292,14 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
       }
       out->right.resize(m);
       constexpr int kBlockBytes = sizeof(std::pair<int, Eigen::Matrix3d>);
-      const char* ahead = next_first;
+      auto prefetch = [next_first](uintptr_t offset) {
+        __builtin_prefetch(reinterpret_cast<const void*>(next_first + offset));
+      };
+      uintptr_t ahead = 0;
       for (int k = 0; k < m; ++k, ahead += kBlockBytes) {
-        if (ahead < next_last) {
-          __builtin_prefetch(ahead);
-          __builtin_prefetch(ahead + 64);
+        if (ahead < next_bytes) {
+          prefetch(ahead);
+          prefetch(ahead + 64);
         }
         const int from = 3 + 3 * k;
         out->right[k].first = union_columns_[k];
@@ -304,7 +310,7 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
           b[i + 6] = upper[i][from + 2];
         }
       }
-      for (; ahead < next_last; ahead += 64) __builtin_prefetch(ahead);
+      for (; ahead < next_bytes; ahead += 64) prefetch(ahead);
     }
 
     // The meeting carries continue as one: the triples that still have a block anywhere,
