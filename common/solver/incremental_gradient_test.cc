@@ -54,18 +54,30 @@ BetweenFactor MakeBetween(int a, int b, std::mt19937* rng) {
 
 // The sums as a full pass forms them: every counted factor at the values, terms added
 // in factor id order.
-double Reference(const Graph& graph, std::vector<Eigen::Vector3d>* g) {
+// Each variable's position (-1 where it has none).
+std::vector<int> PositionOfVariable(const Graph& graph) {
   std::vector<int> position(graph.values.size(), -1);
   for (size_t p = 0; p < graph.position_to_var.size(); ++p)
     position[graph.position_to_var[p]] = static_cast<int>(p);
+  return position;
+}
+
+// Factor `id` linearised at the graph's values.
+LinearizedFactor LinearizeAtValues(const Graph& graph, size_t id) {
+  const FactorRecord& f = graph.factors[id];
+  std::array<Pose2, kMaxFactorKeys> at;
+  for (int j = 0; j < f.num_vars; ++j) at[j] = graph.values[f.vars[j]];
+  return Linearize(f.factor, at.data());
+}
+
+double Reference(const Graph& graph, std::vector<Eigen::Vector3d>* g) {
+  const std::vector<int> position = PositionOfVariable(graph);
   g->assign(graph.position_to_var.size(), Eigen::Vector3d::Zero());
   double chi2 = 0.0;
   for (size_t id = 0; id < graph.factors.size(); ++id) {
     if (!graph.counted[id]) continue;
     const FactorRecord& f = graph.factors[id];
-    std::array<Pose2, kMaxFactorKeys> at;
-    for (int j = 0; j < f.num_vars; ++j) at[j] = graph.values[f.vars[j]];
-    const LinearizedFactor lin = Linearize(f.factor, at.data());
+    const LinearizedFactor lin = LinearizeAtValues(graph, id);
     chi2 += lin.whitened_error.squaredNorm();
     for (int j = 0; j < f.num_vars; ++j)
       (*g)[position[f.vars[j]]] += lin.jacobians[j].transpose() * lin.whitened_error;
@@ -164,17 +176,14 @@ TEST(IncrementalGradientTest, MultiplyNormalIsTheCountedFactorsDenseProduct) {
     gradient.Pass(graph.values, graph.position_to_var, graph.factors, graph.counted,
                   graph.var_factors);
     const int n = static_cast<int>(graph.position_to_var.size());
-    std::vector<int> position(n);
-    for (int p = 0; p < n; ++p) position[graph.position_to_var[p]] = p;
+    const std::vector<int> position = PositionOfVariable(graph);
     // Dense J (rows: counted factors' 3 residuals; columns: 3 per position).
     Eigen::MatrixXd J = Eigen::MatrixXd::Zero(3 * 6, 3 * n);
     int rows = 0;
     for (size_t id = 0; id < graph.factors.size(); ++id) {
       if (!graph.counted[id]) continue;
       const FactorRecord& f = graph.factors[id];
-      std::array<Pose2, kMaxFactorKeys> at;
-      for (int j = 0; j < f.num_vars; ++j) at[j] = graph.values[f.vars[j]];
-      const LinearizedFactor lin = Linearize(f.factor, at.data());
+      const LinearizedFactor lin = LinearizeAtValues(graph, id);
       for (int j = 0; j < f.num_vars; ++j)
         J.block<3, 3>(rows, 3 * position[f.vars[j]]) = lin.jacobians[j];
       rows += 3;
