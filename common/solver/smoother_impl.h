@@ -342,6 +342,11 @@ class Smoother::Impl {
   // correction's tolerance).
   bool ShortenInTheCorrection(const std::vector<int64_t>& included, double chi2,
                               double predicted_decrease, bool last);
+  // The power of two (halving up to 20 times) that scales delta to a step that does not
+  // raise chi2 above `chi2`; `step_chi2` holds chi2 at the full step on entry, at the scaled
+  // one on return. delta is left as it is.
+  double ScaleThatDoesNotRaiseChi2(const std::vector<int64_t>& included, double chi2,
+                                   double* step_chi2);
   // chi2 at linearisation point + step (step empty: at the linearisation point).
   double Chi2Of(const std::vector<int64_t>& included,
                 const std::vector<Eigen::Vector3d>& step) const;
@@ -417,7 +422,7 @@ class Smoother::Impl {
   std::vector<int> merge_vars_;
   double tolerance_ = 0.0;  // convergence step of the running batch step
   int updates_since_batch_ = 0;
-  std::vector<Eigen::Vector3d> step_scratch_;  // ShortenInTheCorrection's halved step
+  std::vector<Eigen::Vector3d> step_scratch_;  // ScaleThatDoesNotRaiseChi2's halved step
   int updates_since_drift_check_ = 0;
   int64_t nonzeros_after_batch_ = 0;
   SmootherStats stats_;

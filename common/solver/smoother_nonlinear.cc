@@ -80,14 +80,8 @@ bool Smoother::Impl::ShortenInTheCorrection(const std::vector<int64_t>& included
   // the steps are noise and the last one is kept whole, as in the default mode.
   const double round_off = 1e-12 * chi2;
   if (!(step_chi2 > chi2 + predicted_decrease + round_off)) return false;
-  double scale = 1.0, scaled_chi2 = step_chi2;
-  std::vector<Eigen::Vector3d>& scaled = step_scratch_;
-  scaled.resize(delta_.size());
-  for (int k = 0; k < 20 && !(scaled_chi2 <= chi2); ++k) {
-    scale *= 0.5;
-    for (size_t p = 0; p < delta_.size(); ++p) scaled[p] = scale * delta_[p];
-    scaled_chi2 = Chi2Of(included, scaled);
-  }
+  double scaled_chi2 = step_chi2;
+  const double scale = ScaleThatDoesNotRaiseChi2(included, chi2, &scaled_chi2);
   const bool exhausted = chi2 - scaled_chi2 < options_.correction_tolerance * chi2;
   if (last || exhausted) {
     for (int p = 0; p < static_cast<int>(delta_.size()); ++p)
@@ -107,10 +101,21 @@ void Smoother::Impl::ShortenOvershootingStep(const std::vector<int64_t>& include
   // rise: near the optimum the model holds and the steps stay full (M3500's first final
   // step: predicted 0.28, raised 0.06). The last iteration's delta stays R's solution.
   if (!(step_chi2 > chi2 + predicted_decrease)) return;
-  for (int k = 0; k < 20 && !(step_chi2 <= chi2); ++k) {
-    for (Eigen::Vector3d& d : delta_) d *= 0.5;
-    step_chi2 = Chi2Of(included, delta_);
+  const double scale = ScaleThatDoesNotRaiseChi2(included, chi2, &step_chi2);
+  for (Eigen::Vector3d& d : delta_) d *= scale;  // a power of two: the halved values exactly
+}
+
+double Smoother::Impl::ScaleThatDoesNotRaiseChi2(const std::vector<int64_t>& included, double chi2,
+                                                 double* step_chi2) {
+  double scale = 1.0;
+  std::vector<Eigen::Vector3d>& scaled = step_scratch_;
+  scaled.resize(delta_.size());
+  for (int k = 0; k < 20 && !(*step_chi2 <= chi2); ++k) {
+    scale *= 0.5;
+    for (size_t p = 0; p < delta_.size(); ++p) scaled[p] = scale * delta_[p];
+    *step_chi2 = Chi2Of(included, scaled);
   }
+  return scale;
 }
 
 void Smoother::Impl::DogLegIterations(const std::vector<int64_t>& included, int max_iterations,
