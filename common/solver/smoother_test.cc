@@ -525,6 +525,81 @@ TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStat
   EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
 }
 
+// 200 loop closures from one pose near the start of `chain` to its last pose, not yet
+// updated: their rows ride together through every row of the chain between them (200
+// triples carried through ~110 block rows), while each of those rows gains one block
+// only (the last pose's column).
+void AddManyClosuresToTheLastPose(Smoother* smoother, const PoseGraph& chain) {
+  const TrajectoryId t(0);
+  const int last = static_cast<int>(chain.vertices.size()) - 1;
+  const int first = 5;
+  for (int k = 0; k < 200; ++k) {
+    ASSERT_TRUE(smoother
+                    ->AddBetween({t, first}, {t, last},
+                                 Between(chain.vertices[first].pose, chain.vertices[last].pose),
+                                 kCovariance)
+                    .ok());
+  }
+}
+
+TEST(SmootherTest, UpdatePastItsGivensWorkBudgetIsABatchStepInstead) {
+  // The server's configuration. The update above adds little fill (the fill budget lets it
+  // through: without the work budget it is a Givens update) but carries many rows through
+  // R; with the work budget it is a batch step. Both end at the optimum.
+  SmootherOptions without_budget = ServerModeWithCorrectionOptions();
+  without_budget.givens_work_budget = 0.0;
+  for (const SmootherOptions& options : {ServerModeWithCorrectionOptions(), without_budget}) {
+    const bool budgeted = options.givens_work_budget > 0;
+    Smoother smoother(options);
+    PoseGraph chain;
+    ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+    const int64_t batch_steps = smoother.stats().batch_steps_on_fill;
+    ASSERT_NO_FATAL_FAILURE(AddManyClosuresToTheLastPose(&smoother, chain));
+    const UpdateResult result = smoother.Update();
+    ASSERT_TRUE(result.status.ok());
+    EXPECT_EQ(result.batch_step, budgeted) << budgeted;
+    EXPECT_EQ(smoother.stats().batch_steps_on_fill, batch_steps + (budgeted ? 1 : 0));
+    const DenseOracle oracle(smoother.ActiveFactors());
+    const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+    EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum)) << budgeted;
+  }
+}
+
+TEST(SmootherTest, GivensUpdatePastItsWorkBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
+  // The update above with its batch step failing (the ordering): the Givens rotations
+  // stopped at the work budget before writing R and were taken back, so the smoother is
+  // exactly as before the update; the next update makes the batch step.
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  PoseGraph chain;
+  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+  ASSERT_NO_FATAL_FAILURE(AddManyClosuresToTheLastPose(&smoother, chain));
+  const TrajectoryId t(0);
+  const int poses = static_cast<int>(chain.vertices.size());
+  std::vector<Pose2> before;
+  for (int i = 0; i < poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
+  const double chi2_before = smoother.Chi2();
+  const SmootherStats stats_before = smoother.stats();
+  FailNextOrderingsForTesting(1);
+  const UpdateResult failed = smoother.Update();
+  FailNextOrderingsForTesting(0);
+  ASSERT_FALSE(failed.status.ok());
+  EXPECT_EQ(smoother.stats().nnz_r, stats_before.nnz_r);
+  EXPECT_EQ(smoother.stats().givens_block_rows, stats_before.givens_block_rows);
+  EXPECT_EQ(smoother.Chi2(), chi2_before);
+  for (int i = 0; i < poses; ++i) {
+    const Pose2 value = smoother.Value(PoseKey{t, i});
+    EXPECT_EQ(value.x(), before[i].x()) << i;
+    EXPECT_EQ(value.y(), before[i].y()) << i;
+    EXPECT_EQ(value.theta(), before[i].theta()) << i;
+  }
+  const UpdateResult result = smoother.Update();
+  ASSERT_TRUE(result.status.ok());
+  EXPECT_TRUE(result.batch_step);
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+}
+
 TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {
   SmootherOptions options;
   options.convergence_step = 1e-13;  // R linearised at the estimate itself
