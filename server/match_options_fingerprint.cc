@@ -16,7 +16,7 @@ static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
 static_assert(sizeof(ScanEncounterOptions) == 544,
               "new ScanEncounterOptions field: add it to the fingerprint");
-static_assert(sizeof(SmootherOptions) == 128,
+static_assert(sizeof(SmootherOptions) == 136,
               "new SmootherOptions field: add it to the fingerprint");
 #endif
 
@@ -178,6 +178,7 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
   h->I(static_cast<int64_t>(s.method));
   h->I(s.batch_every_updates);
   h->F(s.batch_when_fill_grows);
+  h->F(s.givens_work_budget);
   h->F(s.backsubstitution_threshold);
   h->F(s.relinearize_threshold);
   h->B(s.partial_relinearization);

@@ -43,6 +43,7 @@ TEST(MatchOptionsFingerprintTest, ChangesWithTheOptionsThatChangeResults) {
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->match_schedule.lag_s = 0.5; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->smoother.convergence_step = 1e-6; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->smoother.convergence_decrease = 1e-7; }));
+  EXPECT_TRUE(changed([](MappingServerOptions* o) { o->smoother.givens_work_budget = 0.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop_closures = false; }));
   EXPECT_FALSE(changed([](MappingServerOptions* o) { o->match_workers = 0; }));
   EXPECT_FALSE(changed([](MappingServerOptions* o) { o->loop.submap_cache.budget_mb = 1.0; }));

@@ -205,9 +205,11 @@ class Smoother::Impl {
   void TakeOutOfPending(const std::vector<int64_t>& done);
   // Givens updates of the pending measurements; `solve` false leaves delta as it was
   // (a partial merge step solves after it). False, with nothing changed, when they would
-  // add more than `max_fill` non-zeros to R.
+  // add more than `max_fill` non-zeros to R or take more than `max_work` of the rotations'
+  // work (SparseR::eliminated_work).
   bool IncrementalStep(bool solve, UpdateResult* result,
-                       int64_t max_fill = std::numeric_limits<int64_t>::max());
+                       int64_t max_fill = std::numeric_limits<int64_t>::max(),
+                       int64_t max_work = std::numeric_limits<int64_t>::max());
   // IncrementalStep's budget: more fill than R had after its last ordering would make the
   // Givens update dearer than the batch step (whose factorisation is about that size), and
   // R past the fill trigger after it. Eliminating many rows through an ordering that no
@@ -219,6 +221,15 @@ class Smoother::Impl {
   int64_t GivensFillBudget() const {
     return options_.batch_when_fill_grows > 0 && nonzeros_after_batch_ > 0
                ? nonzeros_after_batch_
+               : std::numeric_limits<int64_t>::max();
+  }
+  // IncrementalStep's work budget (givens_work_budget): about what the batch step that
+  // would reorder R costs, in the rotations' units.
+  int64_t GivensWorkBudget() const {
+    return options_.batch_when_fill_grows > 0 && options_.givens_work_budget > 0 &&
+                   nonzeros_after_batch_ > 0
+               ? static_cast<int64_t>(options_.givens_work_budget *
+                                      static_cast<double>(nonzeros_after_batch_))
                : std::numeric_limits<int64_t>::max();
   }
   // iSAM2's idea on R: relinearises the variables whose delta exceeds the threshold, and

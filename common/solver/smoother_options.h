@@ -37,6 +37,16 @@ struct SmootherOptions {
   // Batch on evidence: when the number of non-zeros of R has grown by this factor since
   // the last reordering (fill-in from incremental updates). 0 disables.
   double batch_when_fill_grows = 4.0;
+  // With batch_when_fill_grows, an update whose Givens rotations would take more than this
+  // many units of work (a triple of rows carried through one block of R,
+  // SparseR::eliminated_work) per non-zero of R after its last ordering is a batch step on
+  // fill instead; the work is predicted from the patterns, before any arithmetic. About
+  // what that batch step costs (100 x 180: 12.6 ns of CPU per unit, a fill batch step
+  // 400-450 ns per non-zero). The fill budget misses an update whose many rows meet R's
+  // wide rows near the root while adding little fill: after a merge, the caught-up
+  // encounters (100 x 180 seed 1: 752 triples through 1419 rows, 44 units per non-zero,
+  // 1.3 s of CPU). 0 disables.
+  double givens_work_budget = 32.0;
 
   // Back-substitution after each incremental update recomputes only rows whose inputs
   // changed; a change of a variable below this (max-abs of its 3-vector) does not
@@ -132,6 +142,7 @@ struct SmootherOptions {
     if (batch_when_fill_grows != 0 && batch_when_fill_grows <= 1.0) {
       return Status::Error("batch_when_fill_grows must be 0 (off) or > 1");
     }
+    if (!(givens_work_budget >= 0)) return Status::Error("givens_work_budget must be >= 0");
     if (!(relinearize_threshold >= 0)) return Status::Error("relinearize_threshold must be >= 0");
     if (relinearize_skip < 1) return Status::Error("relinearize_skip must be >= 1");
     if (backsubstitution_threshold < 0)

@@ -486,43 +486,97 @@ TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
   EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
 }
 
-TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
-  // The update above, with the batch step that replaces its Givens updates failing (its
-  // ordering): the Givens updates stopped at the budget and were taken back, so the
-  // smoother is exactly as before the update (estimates, chi2, R's size), and the next
-  // update makes the batch step and ends at the optimum.
-  Smoother smoother(ServerModeWithCorrectionOptions());
-  PoseGraph chain;
-  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
-  ASSERT_NO_FATAL_FAILURE(AddClosuresAcrossTheChain(&smoother, chain));
+// The pending update of `smoother` (over `chain`) past a Givens budget, with the batch step
+// that replaces it failing (its ordering): the Givens updates stopped at the budget and
+// were taken back, so the smoother is exactly as before the update (estimates, chi2, R's
+// size), and the next update makes the batch step and ends at the optimum.
+void ExpectAFailedBatchStepLeavesTheStateAsItWas(Smoother* smoother, const PoseGraph& chain) {
   const TrajectoryId t(0);
   const int poses = static_cast<int>(chain.vertices.size());
   std::vector<Pose2> before;
-  for (int i = 0; i < poses; ++i) before.push_back(smoother.Value(PoseKey{t, i}));
-  const double chi2_before = smoother.Chi2();
-  const SmootherStats stats_before = smoother.stats();
+  for (int i = 0; i < poses; ++i) before.push_back(smoother->Value(PoseKey{t, i}));
+  const double chi2_before = smoother->Chi2();
+  const SmootherStats stats_before = smoother->stats();
   FailNextOrderingsForTesting(1);
-  const UpdateResult failed = smoother.Update();
+  const UpdateResult failed = smoother->Update();
   FailNextOrderingsForTesting(0);
   ASSERT_FALSE(failed.status.ok());
-  EXPECT_EQ(smoother.stats().failed_batch_steps, stats_before.failed_batch_steps + 1);
-  EXPECT_EQ(smoother.stats().nnz_r, stats_before.nnz_r);
-  EXPECT_EQ(smoother.Chi2(), chi2_before);
+  EXPECT_EQ(smoother->stats().failed_batch_steps, stats_before.failed_batch_steps + 1);
+  EXPECT_EQ(smoother->stats().nnz_r, stats_before.nnz_r);
+  EXPECT_EQ(smoother->stats().givens_block_rows, stats_before.givens_block_rows);
+  EXPECT_EQ(smoother->Chi2(), chi2_before);
   for (int i = 0; i < poses; ++i) {
-    const Pose2 value = smoother.Value(PoseKey{t, i});
+    const Pose2 value = smoother->Value(PoseKey{t, i});
     EXPECT_EQ(value.x(), before[i].x()) << i;
     EXPECT_EQ(value.y(), before[i].y()) << i;
     EXPECT_EQ(value.theta(), before[i].theta()) << i;
   }
 
-  const UpdateResult result = smoother.Update();
+  const UpdateResult result = smoother->Update();
   ASSERT_TRUE(result.status.ok());
   EXPECT_TRUE(result.batch_step);
   // The failed batch step is counted as tried, as every batch step is.
-  EXPECT_EQ(smoother.stats().batch_steps_on_fill, stats_before.batch_steps_on_fill + 2);
-  const DenseOracle oracle(smoother.ActiveFactors());
-  const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
-  EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+  EXPECT_EQ(smoother->stats().batch_steps_on_fill, stats_before.batch_steps_on_fill + 2);
+  const DenseOracle oracle(smoother->ActiveFactors());
+  const Values optimum = oracle.Solve(CurrentValues(*smoother), 1e-14, 50);
+  EXPECT_NEAR(smoother->Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum));
+}
+
+TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  PoseGraph chain;
+  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+  ASSERT_NO_FATAL_FAILURE(AddClosuresAcrossTheChain(&smoother, chain));
+  ExpectAFailedBatchStepLeavesTheStateAsItWas(&smoother, chain);
+}
+
+// 200 loop closures from one pose near the start of `chain` to its last pose, not yet
+// updated: their rows ride together through every row of the chain between them (200
+// triples carried through ~110 block rows), while each of those rows gains one block
+// only (the last pose's column).
+void AddManyClosuresToTheLastPose(Smoother* smoother, const PoseGraph& chain) {
+  const TrajectoryId t(0);
+  const int last = static_cast<int>(chain.vertices.size()) - 1;
+  const int first = 5;
+  for (int k = 0; k < 200; ++k) {
+    ASSERT_TRUE(smoother
+                    ->AddBetween({t, first}, {t, last},
+                                 Between(chain.vertices[first].pose, chain.vertices[last].pose),
+                                 kCovariance)
+                    .ok());
+  }
+}
+
+TEST(SmootherTest, UpdatePastItsGivensWorkBudgetIsABatchStepInstead) {
+  // The server's configuration. The update above adds little fill (the fill budget lets it
+  // through: without the work budget it is a Givens update) but carries many rows through
+  // R; with the work budget it is a batch step. Both end at the optimum.
+  SmootherOptions without_budget = ServerModeWithCorrectionOptions();
+  without_budget.givens_work_budget = 0.0;
+  for (const SmootherOptions& options : {ServerModeWithCorrectionOptions(), without_budget}) {
+    const bool budgeted = options.givens_work_budget > 0;
+    Smoother smoother(options);
+    PoseGraph chain;
+    ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+    const int64_t batch_steps = smoother.stats().batch_steps_on_fill;
+    ASSERT_NO_FATAL_FAILURE(AddManyClosuresToTheLastPose(&smoother, chain));
+    const UpdateResult result = smoother.Update();
+    ASSERT_TRUE(result.status.ok());
+    EXPECT_EQ(result.batch_step, budgeted) << budgeted;
+    EXPECT_EQ(smoother.stats().batch_steps_on_fill, batch_steps + (budgeted ? 1 : 0));
+    const DenseOracle oracle(smoother.ActiveFactors());
+    const Values optimum = oracle.Solve(CurrentValues(smoother), 1e-14, 50);
+    EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-3 * oracle.Chi2(optimum)) << budgeted;
+  }
+}
+
+TEST(SmootherTest, GivensUpdatePastItsWorkBudgetWhoseBatchStepFailsLeavesTheStateAsItWas) {
+  // The work budget stops the Givens update before it writes R, as the fill budget does.
+  Smoother smoother(ServerModeWithCorrectionOptions());
+  PoseGraph chain;
+  ASSERT_NO_FATAL_FAILURE(AddUpdatedChain(&smoother, &chain));
+  ASSERT_NO_FATAL_FAILURE(AddManyClosuresToTheLastPose(&smoother, chain));
+  ExpectAFailedBatchStepLeavesTheStateAsItWas(&smoother, chain);
 }
 
 TEST(SmootherTest, CovariancesEqualDenseInverseAtConvergence) {

@@ -77,7 +77,8 @@ std::vector<int64_t> Smoother::Impl::FactorsReadyForGivens(std::vector<char>* gr
   return GroundPendingFactors(grounded);
 }
 
-bool Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result, int64_t max_fill) {
+bool Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result, int64_t max_fill,
+                                     int64_t max_work) {
   std::vector<char>& grounded = grounded_;
   const std::vector<int64_t> ready = FactorsReadyForGivens(&grounded);
 
@@ -125,7 +126,7 @@ bool Smoother::Impl::IncrementalStep(bool solve, UpdateResult* result, int64_t m
   }
   // All at once: their paths up R share the rows near the root.
   double leftover = 0.0;
-  if (!R.EliminateWithin(std::move(new_rows), max_fill, &touched, &leftover)) {
+  if (!R.EliminateWithin(std::move(new_rows), max_fill, max_work, &touched, &leftover)) {
     // Past the budget: R is as it was; the rest of this step is taken back.
     for (int64_t id : ready) TakeOutOfR(id);
     for (int p = first_new; p < R.size(); ++p) {
@@ -695,9 +696,10 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
   StepKind kind = ChooseStep(options_, {force_batch, merge_pending_, updates_since_batch_,
                                         r_->NonZeros(), nonzeros_after_batch_});
   if (kind == StepKind::kIncremental &&
-      !IncrementalStep(/*solve=*/true, &result, GivensFillBudget())) {
-    // The Givens updates would fill R more than a batch step costs (the next update would
-    // reorder anyway): nothing changed, a batch step (a fresh ordering) takes the factors.
+      !IncrementalStep(/*solve=*/true, &result, GivensFillBudget(), GivensWorkBudget())) {
+    // The Givens updates would fill R, or take work, more than a batch step costs (with
+    // the fill the next update would reorder anyway): nothing changed, a batch step (a
+    // fresh ordering) takes the factors.
     kind = StepKind::kBatchOnFill;
   }
   if (kind == StepKind::kBatchOnMerge && MergesByPartialStep()) {

@@ -64,28 +64,116 @@ double SparseR::Eliminate(NewRows rows, std::vector<int>* touched) {
 
 double SparseR::Eliminate(std::vector<NewRows> rows, std::vector<int>* touched) {
   double leftover = 0.0;
-  EliminateWithin(std::move(rows), std::numeric_limits<int64_t>::max(), touched, &leftover);
+  constexpr int64_t kNoBudget = std::numeric_limits<int64_t>::max();
+  EliminateWithin(std::move(rows), kNoBudget, kNoBudget, touched, &leftover);
   return leftover;
 }
 
-bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
+bool SparseR::WorkCouldPass(const std::vector<NewRows>& rows, int64_t max_fill,
+                            int64_t max_work) const {
+  // Every row met takes at most all the triples; the rows met span at most R's blocks and
+  // the fill (within its budget), one block per diagonal, or (rows after c) the blocks
+  // right of c.
+  int first = size();
+  for (const NewRows& r : rows) {
+    for (const auto& entry : r.blocks) first = std::min(first, entry.first);
+  }
+  const int64_t k = size() - first;
+  int64_t spanned = k * (k + 1) / 2;
+  if (max_fill < std::numeric_limits<int64_t>::max()) {
+    spanned = std::min(spanned, (nonzeros_ + max_fill) / kBlockNonZeros + k);
+  }
+  const int64_t triples = static_cast<int64_t>(rows.size());
+  return spanned > 0 && triples > max_work / spanned;
+}
+
+int64_t SparseR::PredictedWork(const std::vector<NewRows>& rows, int64_t max_work) const {
+  // Eliminate's walk on patterns: the lowest leading column c of the carries; the carries
+  // leading with c merge, and R's row c and the merged carry both take the union of their
+  // columns right of c; the work there is the triples met times the union's blocks and the
+  // diagonal. Each row is met once (c only grows), so R's own patterns are read. Exact
+  // zeros aside (they drop blocks and triples), it is Eliminate's work.
+  struct Pattern {
+    std::vector<int> columns;  // sorted
+    int64_t triples = 0;
+  };
+  std::vector<Pattern> carries;
+  carries.reserve(rows.size());
+  for (const NewRows& r : rows) {
+    Pattern carry;
+    for (const auto& entry : r.blocks) carry.columns.push_back(entry.first);
+    std::sort(carry.columns.begin(), carry.columns.end());
+    carry.columns.erase(std::unique(carry.columns.begin(), carry.columns.end()),
+                        carry.columns.end());
+    carry.triples = 1;
+    if (!carry.columns.empty()) carries.push_back(std::move(carry));
+  }
+  int64_t work = 0;
+  std::vector<int> merged, merged_next;
+  while (!carries.empty() && work <= max_work) {
+    int c = carries.front().columns.front();
+    for (const Pattern& carry : carries) c = std::min(c, carry.columns.front());
+    const RBlockRow& row = rows_[c];
+    merged.clear();
+    for (const auto& entry : row.right) merged.push_back(entry.first);
+    // The meeting carries leave; the first one's slot is kept for the merged carry.
+    int64_t triples = 0;
+    size_t kept = 0, slot = carries.size();
+    for (size_t i = 0; i < carries.size(); ++i) {
+      if (carries[i].columns.front() == c) {
+        triples += carries[i].triples;
+        merged_next.clear();
+        std::set_union(merged.begin(), merged.end(), carries[i].columns.begin() + 1,
+                       carries[i].columns.end(), std::back_inserter(merged_next));
+        merged.swap(merged_next);
+        if (slot < carries.size()) continue;
+        slot = kept;
+      }
+      if (kept != i) std::swap(carries[kept], carries[i]);
+      ++kept;
+    }
+    carries.resize(kept);
+    work += triples * static_cast<int64_t>(merged.size() + 1);
+    // An empty row takes the first triple whole (its rotations are exact swaps), the
+    // others go on; nothing goes on past the last column.
+    const bool was_empty = row.diagonal.isZero(0.0) && row.right.empty();
+    const int64_t going_on = merged.empty() ? 0 : triples - (was_empty ? 1 : 0);
+    if (going_on > 0) {
+      carries[slot].columns.swap(merged);
+      carries[slot].triples = going_on;
+    } else {
+      std::swap(carries[slot], carries.back());
+      carries.pop_back();
+    }
+  }
+  return work;
+}
+
+bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64_t max_work,
                               std::vector<int>* touched, double* leftover_out) {
-  // While the budget could still be passed, the new block rows are written aside (staged_),
-  // so that an update past it leaves R as it was: the fill is known at each row met before
-  // any arithmetic there (the union of the columns), so the walk stops at once. As soon as
-  // the rows left cannot pass it (row c' can gain at most the blocks right of it and a
-  // diagonal), the staged rows are committed and the rest is written in place, as without
-  // a budget: the dense rows near the root, where most of the work is, are never staged.
+  // The work budget is tested first, on the walk's patterns alone (PredictedWork), when
+  // a bound says it could be passed: stopping the arithmetic there would have spent the
+  // budget. While the fill budget could still be passed, the new block rows are written
+  // aside (staged_), so that an update past it leaves R as it was: the fill is known at
+  // each row met before any arithmetic there (the union of the columns), so the walk stops
+  // at once. As soon as the rows left cannot pass it (row c' can gain at most the blocks
+  // right of it and a diagonal), the staged rows are committed and the rest is written in
+  // place, as without a budget: the dense rows near the root, where most of the work is,
+  // are never staged.
   const int64_t n = size();
   auto most_fill_from = [n](int64_t c) {  // of the block rows c..n-1
     const int64_t k = n - c;
     return kBlockNonZeros * k * (k - 1) / 2 + kDiagonalNonZeros * k;
   };
+  if (max_work < std::numeric_limits<int64_t>::max() && WorkCouldPass(rows, max_fill, max_work) &&
+      PredictedWork(rows, max_work) > max_work) {
+    return false;
+  }
   bool staging = true;
   int staged = 0;
   staged_positions_.clear();
   new_references_.clear();
-  int64_t fill = 0, met_rows = 0, met_columns = 0;  // met: work counters
+  int64_t fill = 0, met_rows = 0, met_columns = 0, work = 0;  // met, work: work counters
   // Commits the staged rows (in the order they were met; their old storage is kept for the
   // next call) and starts writing in place.
   auto commit = [&]() {
@@ -177,6 +265,7 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
     if (fill > max_fill) return false;  // still staging: nothing written
     ++met_rows;
     met_columns += m + 1;
+    work += static_cast<int64_t>(triples) * (m + 1);
     const int width = 3 + 3 * m + 1;
     const int panel_rows = 3 + 3 * triples;
     if (work_.rows() < panel_rows || work_.cols() < width) {
@@ -368,6 +457,7 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill,
   nonzeros_ += fill;
   eliminated_block_rows_ += met_rows;
   eliminated_block_columns_ += met_columns;
+  eliminated_work_ += work;
   *leftover_out = leftover;
   return true;
 }

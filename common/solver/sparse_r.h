@@ -65,13 +65,19 @@ class SparseR {
   // per measurement. Returns the summed leftover.
   double Eliminate(std::vector<NewRows> rows, std::vector<int>* touched);
 
-  // The same with a budget: if the rows would add more than `max_fill` scalar non-zeros to
-  // R, R is left exactly as it was and false is returned (the walk stops at the row where
-  // the fill passes the budget, before its arithmetic); else true and the leftover in
-  // `leftover`. A Givens update that fills R past its last ordering's size is dearer than
-  // the batch step that would reorder it.
-  bool EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, std::vector<int>* touched,
-                       double* leftover);
+  // The same with budgets: if the rows would add more than `max_fill` scalar non-zeros to
+  // R, or take more than `max_work` of the rotations' work (eliminated_work()), R is left
+  // exactly as it was and false is returned (the walk stops at the row where a budget is
+  // passed, before its arithmetic); else true and the leftover in `leftover`. A Givens
+  // update that fills R past its last ordering's size, or that carries many rows through
+  // R's wide rows near the root, is dearer than the batch step that would reorder it.
+  bool EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64_t max_work,
+                       std::vector<int>* touched, double* leftover);
+
+  // The work (eliminated_work()) Eliminate would take for `rows`, from the patterns alone
+  // (no arithmetic; exact zeros aside, which only drop blocks, it is Eliminate's); the walk
+  // stops once it passes `max_work`.
+  int64_t PredictedWork(const std::vector<NewRows>& rows, int64_t max_work) const;
 
   // Partial re-elimination: replaces the block rows from `p0` on. `new_position[q - p0]`
   // is the new position of old position q >= p0. The old rows `kept` (ascending) stay
@@ -100,6 +106,9 @@ class SparseR {
   // Work counters: block rows met by Eliminate, and the block columns they spanned.
   int64_t eliminated_block_rows() const { return eliminated_block_rows_; }
   int64_t eliminated_block_columns() const { return eliminated_block_columns_; }
+  // The rotations' work: at every block row met, the carried triples times the blocks of
+  // the row's union (diagonal included), summed.
+  int64_t eliminated_work() const { return eliminated_work_; }
 
   // Scalar non-zeros of R (6 per diagonal block, 9 per off-diagonal block).
   int64_t NonZeros() const { return nonzeros_; }
@@ -134,6 +143,9 @@ class SparseR {
   void StampAll() { row_revision_.assign(rows_.size(), revision_); }
 
   Eigen::Vector3d SolveRow(int p, const std::vector<Eigen::Vector3d>& delta) const;
+  // False when `rows` cannot take more than `max_work` (a bound without the walk: every
+  // triple at every row, over at most the blocks R and the fill budget allow).
+  bool WorkCouldPass(const std::vector<NewRows>& rows, int64_t max_fill, int64_t max_work) const;
 
   std::vector<RBlockRow> rows_;
   std::vector<std::vector<int>> column_rows_;
@@ -176,6 +188,7 @@ class SparseR {
   int64_t nonzeros_ = 0;
   int64_t eliminated_block_rows_ = 0;
   int64_t eliminated_block_columns_ = 0;
+  int64_t eliminated_work_ = 0;
 };
 
 // Solves R^T y = g by block forward substitution, R given by its block rows and g indexed

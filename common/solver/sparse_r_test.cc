@@ -200,8 +200,10 @@ TEST(SparseRTest, SolveTransposedInvertsRTranspose) {
 
 TEST(SparseRTest, EliminationPastItsBudgetLeavesRAsItWas) {
   // A chain, then updates of several measurements (loop closures, some on variables the
-  // update appends): with a budget one non-zero below the fill the update adds, R stays
-  // exactly as it was; with the fill itself, R is what an unbudgeted elimination gives.
+  // update appends): with a budget one non-zero below the fill the update adds, or one unit
+  // below the work it takes, R stays exactly as it was; with the fill or the work itself, R
+  // is what an unbudgeted elimination gives.
+  constexpr int64_t kNoBudget = std::numeric_limits<int64_t>::max();
   std::mt19937 rng(5);
   SparseR r;
   r.Append(60);
@@ -241,15 +243,31 @@ TEST(SparseRTest, EliminationPastItsBudgetLeavesRAsItWas) {
     std::vector<int> touched_unbudgeted;
     const double leftover_unbudgeted = unbudgeted.Eliminate(rows, &touched_unbudgeted);
     const int64_t fill = unbudgeted.NonZeros() - r.NonZeros();
+    const int64_t work = unbudgeted.eliminated_work() - r.eliminated_work();
     ASSERT_GT(fill, 0);
+    ASSERT_GT(work, 0);
     const SparseR before = r;
     std::vector<int> touched;
     double leftover = -1.0;
-    EXPECT_FALSE(r.EliminateWithin(rows, fill - 1, &touched, &leftover)) << update;
+    {
+      SparseR on_work = r;
+      EXPECT_FALSE(on_work.EliminateWithin(rows, kNoBudget, work - 1, &touched, &leftover));
+      EXPECT_TRUE(same(on_work, before)) << update;
+      EXPECT_TRUE(touched.empty());
+      EXPECT_EQ(on_work.eliminated_work(), before.eliminated_work());
+      EXPECT_TRUE(on_work.EliminateWithin(rows, kNoBudget, work, &touched, &leftover));
+      EXPECT_TRUE(same(on_work, unbudgeted)) << update;
+      EXPECT_EQ(touched, touched_unbudgeted);
+      EXPECT_EQ(leftover, leftover_unbudgeted);
+      EXPECT_EQ(on_work.eliminated_work(), unbudgeted.eliminated_work());
+      touched.clear();
+      leftover = -1.0;
+    }
+    EXPECT_FALSE(r.EliminateWithin(rows, fill - 1, kNoBudget, &touched, &leftover)) << update;
     EXPECT_TRUE(same(r, before)) << update;
     EXPECT_TRUE(touched.empty());
     EXPECT_EQ(r.eliminated_block_rows(), before.eliminated_block_rows());
-    EXPECT_TRUE(r.EliminateWithin(rows, fill, &touched, &leftover)) << update;
+    EXPECT_TRUE(r.EliminateWithin(rows, fill, kNoBudget, &touched, &leftover)) << update;
     EXPECT_TRUE(same(r, unbudgeted)) << update;
     EXPECT_EQ(touched, touched_unbudgeted);
     EXPECT_EQ(leftover, leftover_unbudgeted);

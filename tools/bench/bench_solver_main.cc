@@ -53,6 +53,9 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
                               chi2 excess of the step's estimate over it (0 = off)
   --fill-factor F             batch when nnz(R) grows by F since the last one (default 4,
                               --server-mode 1.5; 0 = off)
+  --givens-work-budget F      an update whose Givens rotations would take more than F work
+                              units per non-zero of R after its last ordering is a batch
+                              step instead (default 4; 0 = off)
   --convergence-decrease F    batch steps also stop when the chi2 decrease their step
                               predicts is below F x chi2 (default 0 = off)
   --converge-batches          periodic batch steps iterate to convergence (the thesis'
@@ -137,6 +140,8 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.convergence_decrease = ParseNumber(arg, value());
     } else if (arg == "--fill-factor") {
       flags.smoother.batch_when_fill_grows = ParseNumber(arg, value());
+    } else if (arg == "--givens-work-budget") {
+      flags.smoother.givens_work_budget = ParseNumber(arg, value());
     } else if (arg == "--relinearize-skip") {
       flags.smoother.relinearize_skip = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--correct") {
