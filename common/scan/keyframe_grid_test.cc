@@ -295,5 +295,53 @@ TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {
   for (const GridTile& t : full) EXPECT_EQ(subscriber.at({t.tile_x, t.tile_y}), t.cells);
 }
 
+// A move is one pass over both traces' rows (when the sensor moved little) or two traces:
+// either way the grid publishes exactly what taking the scan out at its old pose and in at
+// its new one (Remove, then Place) publishes, round after round: the same changed tiles with
+// the same cells, and at the end the same tiles.
+TEST(KeyframeGridTest, AMoveChangesWhatTakingOutAndPuttingInChanges) {
+  OccupancyGridOptions options = SmallOptions();
+  options.resolution_m = 0.05;  // the slack, 32 cells, is then 1.6 m
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  std::normal_distribution<double> small(0.0, 0.1), large(0.0, 1.5);
+  KeyframeGrid moving(options), out_and_in(options);
+  std::vector<Pose2> poses;
+  std::vector<LaserScan> scans;
+  for (uint64_t key = 0; key < 30; ++key) {
+    const double pose_theta = theta(rng);
+    const double pose_y = y(rng);
+    const double pose_x = x(rng);
+    poses.emplace_back(pose_x, pose_y, pose_theta);
+    scans.push_back(BoxScan(poses.back(), 180));
+    moving.Place(key, scans.back(), poses.back());
+    out_and_in.Place(key, scans.back(), poses.back());
+  }
+  ExpectSameTiles(out_and_in.TakeChangedTiles(0, 0), moving.TakeChangedTiles(0, 0));
+  int moved = 0;
+  for (int round = 0; round < 5; ++round) {
+    for (uint64_t key = 0; key < poses.size(); ++key) {
+      if (std::uniform_int_distribution<int>(0, 2)(rng) == 0) continue;
+      auto& noise = std::uniform_int_distribution<int>(0, 4)(rng) == 0 ? large : small;
+      const double noise_theta = 0.05 * noise(rng);
+      const double noise_y = noise(rng);
+      const double noise_x = noise(rng);
+      const Pose2& pose = poses[key];
+      poses[key] = Pose2(pose.x() + noise_x, pose.y() + noise_y, pose.theta() + noise_theta);
+      if (moving.Place(key, scans[key], poses[key]) == KeyframeGrid::Placement::kMoved) {
+        ++moved;
+        ASSERT_TRUE(out_and_in.Remove(key, scans[key]));
+        out_and_in.Place(key, scans[key], poses[key]);
+      } else {
+        poses[key] = moving.placed().at(key);
+      }
+    }
+    ExpectSameTiles(out_and_in.TakeChangedTiles(0, round), moving.TakeChangedTiles(0, round));
+  }
+  EXPECT_GT(moved, 60);
+  ExpectSameTiles(out_and_in.Tiles(0, 9), moving.Tiles(0, 9));
+  ExpectSameCells(moving, out_and_in);
+}
+
 }  // namespace
 }  // namespace anchormap
