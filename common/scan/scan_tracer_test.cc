@@ -208,8 +208,10 @@ TEST(ScanTracerTest, AMovesTwoTracesAreTheCellsOfBothPoses) {
       const LaserScan scan =
           RandomScan(&rng, 361, static_cast<float>(-kPi), static_cast<float>(kPi / 180));
       const Pose2 from = RandomPose(&rng);
-      // Up to 2.5 m: the slack is 32 cells (1.6 m at 5 cm) along each axis.
-      const double scale = n % 4 == 0 ? 2.5 : 0.2;
+      // Up to 1.6 slacks along each axis (beyond it ~60 % of them), or 20 cm.
+      const double scale =
+          n % 4 == 0 ? 1.6 * static_cast<double>(ScanTracer::kMoveSlack) * options.resolution_m
+                     : 0.2;
       const double dx = scale * shift(rng);
       const double dy = scale * shift(rng);
       const double dtheta = 0.1 * shift(rng);
