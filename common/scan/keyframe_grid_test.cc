@@ -84,6 +84,16 @@ void ExpectSameTiles(const std::vector<GridTile>& expected, const std::vector<Gr
   }
 }
 
+// A pose in the box's inner part, any heading (one draw per statement: a call's argument
+// order is unspecified; gcc's order kept).
+Pose2 PoseInBox(std::mt19937* rng) {
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  const double pose_theta = theta(*rng);
+  const double pose_y = y(*rng);
+  const double pose_x = x(*rng);
+  return Pose2(pose_x, pose_y, pose_theta);
+}
+
 // With the tiles found through the tracer's window (few tiles per window) and per cell
 // (rays long for the tile size: 77 x 77 tiles span the window of the second options).
 TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
@@ -168,16 +178,12 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
 TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
   const OccupancyGridOptions options = SmallOptions();
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
   std::normal_distribution<double> move(0.0, 0.4);
   KeyframeGrid one_by_one(options), rebuilt(options);
   std::vector<LaserScan> scans;
   std::vector<Pose2> poses;
   for (uint64_t key = 0; key < 30; ++key) {
-    const double pose_theta = theta(rng);
-    const double pose_y = y(rng);
-    const double pose_x = x(rng);
-    poses.emplace_back(pose_x, pose_y, pose_theta);
+    poses.push_back(PoseInBox(&rng));
     scans.push_back(BoxScan(poses.back(), 180));
     one_by_one.Place(key, scans.back(), poses.back());
     rebuilt.Place(key, scans.back(), poses.back());
@@ -303,7 +309,6 @@ TEST(KeyframeGridTest, AMoveChangesWhatTakingOutAndPuttingInChanges) {
   OccupancyGridOptions options = SmallOptions();
   options.resolution_m = 0.05;
   std::mt19937 rng(31);
-  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
   // Moves of a few cells, of metres, and past the tracer's slack (two traces then).
   const double slack_m = static_cast<double>(ScanTracer::kMoveSlack) * options.resolution_m;
   std::normal_distribution<double> small(0.0, 0.1), large(0.0, 1.5), far(0.0, 1.5 * slack_m);
@@ -311,10 +316,7 @@ TEST(KeyframeGridTest, AMoveChangesWhatTakingOutAndPuttingInChanges) {
   std::vector<Pose2> poses;
   std::vector<LaserScan> scans;
   for (uint64_t key = 0; key < 30; ++key) {
-    const double pose_theta = theta(rng);
-    const double pose_y = y(rng);
-    const double pose_x = x(rng);
-    poses.emplace_back(pose_x, pose_y, pose_theta);
+    poses.push_back(PoseInBox(&rng));
     scans.push_back(BoxScan(poses.back(), 180));
     moving.Place(key, scans.back(), poses.back());
     out_and_in.Place(key, scans.back(), poses.back());
