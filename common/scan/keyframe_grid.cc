@@ -72,78 +72,120 @@ void KeyframeGrid::TraceCellByCell(const ScanTracer::Window& window, int sign) {
 void KeyframeGrid::Trace(const LaserScan& scan, const Pose2& T_map_body, int sign) {
   const std::optional<ScanTracer::Window> window = tracer_.Start(scan, T_map_body, options_);
   if (!window) return;
-  const int64_t size = options_.tile_size_cells;
-  const int64_t side = window->side;
-  const int64_t columns =
-      FloorDiv(window->min_x + side - 1, size) - FloorDiv(window->min_x, size) + 1;
-  const int64_t rows = FloorDiv(window->min_y + side - 1, size) - FloorDiv(window->min_y, size) + 1;
-  if (!tracer_.MarksInWindow() || columns * rows > kMaxWindowTiles) {
+  if (!tracer_.MarksInWindow() || WindowTiles(*window).count() > kMaxWindowTiles) {
     wide_ ? TraceCellByCell<int32_t>(*window, sign) : TraceCellByCell<int16_t>(*window, sign);
   } else {
     wide_ ? TraceRows<int32_t>(*window, sign) : TraceRows<int16_t>(*window, sign);
   }
 }
 
+void KeyframeGrid::Move(const LaserScan& scan, const Pose2& T_map_from, const Pose2& T_map_to) {
+  const std::optional<ScanTracer::Window> window =
+      tracer_.StartMove(scan, T_map_from, T_map_to, options_);
+  if (!window || !tracer_.MarksInWindow() || WindowTiles(*window).count() > kMaxWindowTiles) {
+    Trace(scan, T_map_from, -1);
+    Trace(scan, T_map_to, +1);
+    return;
+  }
+  wide_ ? TraceMoveRows<int32_t>(*window) : TraceMoveRows<int16_t>(*window);
+}
+
+KeyframeGrid::TileSpan KeyframeGrid::WindowTiles(const ScanTracer::Window& window) const {
+  const int64_t size = options_.tile_size_cells;
+  TileSpan span;
+  span.min_x = FloorDiv(window.min_x, size);
+  span.min_y = FloorDiv(window.min_y, size);
+  span.columns = FloorDiv(window.min_x + window.side - 1, size) - span.min_x + 1;
+  span.rows = FloorDiv(window.min_y + window.side - 1, size) - span.min_y + 1;
+  return span;
+}
+
+template <typename Count>
+void KeyframeGrid::AddHit(const ScanTracer::Window& window, const TileSpan& span, int64_t wx,
+                          int64_t wy, Count add) {
+  const int64_t size = options_.tile_size_cells;
+  const int64_t x = window.min_x + wx, y = window.min_y + wy;
+  const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
+  void*& tile =
+      window_tiles_[static_cast<size_t>((ty - span.min_y) * span.columns + (tx - span.min_x))];
+  if (tile == nullptr) tile = TouchTile<Count>(tx, ty);
+  static_cast<Count*>(tile)[(y - ty * size) * size + (x - tx * size)] += add;
+}
+
+template <typename Count, typename Traced, typename Add>
+void KeyframeGrid::AddRowMisses(const ScanTracer::Window& window, const TileSpan& span, int64_t wy,
+                                int64_t first, int64_t last, Traced traced, Add add) {
+  // One run of consecutive cells per tile the row's extent crosses.
+  const int64_t size = options_.tile_size_cells;
+  const int64_t y = window.min_y + wy;
+  const int64_t ty = FloorDiv(y, size);
+  const int64_t row_offset = (y - ty * size) * size;
+  void** const tile_row = &window_tiles_[static_cast<size_t>((ty - span.min_y) * span.columns)];
+  const int64_t last_x = window.min_x + last;
+  for (int64_t x = window.min_x + first; x <= last_x;) {
+    const int64_t tx = FloorDiv(x, size);
+    const int64_t n = std::min(last_x + 1, (tx + 1) * size) - x;
+    const int64_t wx = x - window.min_x;
+    void*& tile = tile_row[tx - span.min_x];
+    if (tile == nullptr) {
+      // A run between two traced stretches of the row may hold none: a tile is touched
+      // only for a traced cell, as cell by cell.
+      uint8_t any = 0;
+      for (int64_t i = 0; i < n; ++i) any |= traced(wx + i);
+      if (any != 0) tile = TouchTile<Count>(tx, ty);
+    }
+    if (tile != nullptr) {
+      Count* const misses =
+          static_cast<Count*>(tile) + cells_per_tile_ + row_offset + (x - tx * size);
+      // In whole groups when it can (the tile's side a multiple of the group's): no
+      // remainder loop.
+      const int64_t groups = n % ScanTracer::kMarkGroup == 0 ? n : 0;
+      for (int64_t g = 0; g < groups; g += ScanTracer::kMarkGroup) {
+        for (int64_t i = g; i < g + ScanTracer::kMarkGroup; ++i) misses[i] += add(wx + i);
+      }
+      for (int64_t i = groups; i < n; ++i) misses[i] += add(wx + i);
+    }
+    x += n;
+  }
+}
+
 template <typename Count>
 void KeyframeGrid::TraceRows(const ScanTracer::Window& window, int sign) {
-  const int64_t size = options_.tile_size_cells;
-  const int64_t side = window.side;
-  const int64_t min_tile_x = FloorDiv(window.min_x, size);
-  const int64_t min_tile_y = FloorDiv(window.min_y, size);
-  const int64_t columns = FloorDiv(window.min_x + side - 1, size) - min_tile_x + 1;
-  const int64_t rows = FloorDiv(window.min_y + side - 1, size) - min_tile_y + 1;
-  // The beams leave marks in the tracer's window; the counts are then added row by row,
-  // one run of consecutive cells per tile a row's traced extent crosses.
+  const TileSpan span = WindowTiles(window);
+  // The beams leave marks in the tracer's window; the counts are then added row by row.
   tracer_.MarkCells();
-  window_tiles_.assign(static_cast<size_t>(columns * rows), nullptr);
-  const int64_t cells = cells_per_tile_;
+  window_tiles_.assign(static_cast<size_t>(span.count()), nullptr);
   const Count add = static_cast<Count>(sign);
   // Hits are rare (at most one per beam): counted one by one, so that the rows below read
   // and write only the misses' counts.
-  tracer_.ForEachHit([&](int64_t wx, int64_t wy) {
-    const int64_t x = window.min_x + wx, y = window.min_y + wy;
-    const int64_t tx = FloorDiv(x, size), ty = FloorDiv(y, size);
-    void*& tile =
-        window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns + (tx - min_tile_x))];
-    if (tile == nullptr) tile = TouchTile<Count>(tx, ty);
-    static_cast<Count*>(tile)[(y - ty * size) * size + (x - tx * size)] += add;
-  });
+  tracer_.ForEachHit([&](int64_t wx, int64_t wy) { AddHit(window, span, wx, wy, add); });
   tracer_.ForEachMarkedRow([&](int64_t wy, int64_t first, int64_t last, const uint8_t* marks) {
-    const int64_t y = window.min_y + wy;
-    const int64_t ty = FloorDiv(y, size);
-    const int64_t row_offset = (y - ty * size) * size;
-    void** const tile_row = &window_tiles_[static_cast<size_t>((ty - min_tile_y) * columns)];
-    const int64_t last_x = window.min_x + last;
-    for (int64_t x = window.min_x + first; x <= last_x;) {
-      const int64_t tx = FloorDiv(x, size);
-      const int64_t n = std::min(last_x + 1, (tx + 1) * size) - x;
-      const uint8_t* const run = marks + (x - window.min_x);
-      void*& tile = tile_row[tx - min_tile_x];
-      if (tile == nullptr) {
-        // A run between two traced stretches of the row may hold none: a tile is touched
-        // only for a traced cell, as cell by cell.
-        uint8_t traced = 0;
-        for (int64_t i = 0; i < n; ++i) traced |= run[i];
-        if (traced != 0) tile = TouchTile<Count>(tx, ty);
-      }
-      if (tile != nullptr) {
-        Count* const misses = static_cast<Count*>(tile) + cells + row_offset + (x - tx * size);
-        if (n % ScanTracer::kMarkGroup == 0) {
-          // Whole groups (the tile's side a multiple of the group's): no remainder loop.
-          for (int64_t g = 0; g < n; g += ScanTracer::kMarkGroup) {
-            for (int64_t i = g; i < g + ScanTracer::kMarkGroup; ++i) {
-              misses[i] += run[i] == ScanTracer::kMissMark ? add : Count{0};
-            }
-          }
-        } else {
-          for (int64_t i = 0; i < n; ++i) {
-            misses[i] += run[i] == ScanTracer::kMissMark ? add : Count{0};
-          }
-        }
-      }
-      x += n;
-    }
+    AddRowMisses<Count>(
+        window, span, wy, first, last, [marks](int64_t wx) { return marks[wx]; },
+        [marks, add](int64_t wx) { return marks[wx] == ScanTracer::kMissMark ? add : Count{0}; });
   });
+}
+
+template <typename Count>
+void KeyframeGrid::TraceMoveRows(const ScanTracer::Window& window) {
+  const TileSpan span = WindowTiles(window);
+  // Both traces leave marks in one window; each row's counts are then read and written once
+  // for both, by the difference of the two traces' misses.
+  tracer_.MarkMove();
+  window_tiles_.assign(static_cast<size_t>(span.count()), nullptr);
+  tracer_.ForEachMoveHit([&](int64_t wx, int64_t wy, bool in) {
+    AddHit(window, span, wx, wy, static_cast<Count>(in ? 1 : -1));
+  });
+  tracer_.ForEachMoveRow(
+      [&](int64_t wy, int64_t first, int64_t last, const uint8_t* out, const uint8_t* in) {
+        AddRowMisses<Count>(
+            window, span, wy, first, last,
+            [out, in](int64_t wx) { return static_cast<uint8_t>(out[wx] | in[wx]); },
+            [out, in](int64_t wx) {
+              return static_cast<Count>((in[wx] == ScanTracer::kMissMark) -
+                                        (out[wx] == ScanTracer::kMissMark));
+            });
+      });
 }
 
 KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
@@ -159,8 +201,7 @@ KeyframeGrid::Placement KeyframeGrid::Place(uint64_t key, const LaserScan& scan,
   const Pose2& old = it->second;
   const double moved = *Displacement(key, T_map_body);
   if (!(moved > move_tolerance_m_)) return Placement::kUnchanged;
-  Trace(scan, old, -1);
-  Trace(scan, T_map_body, +1);
+  Move(scan, old, T_map_body);
   it->second = T_map_body;
   return Placement::kMoved;
 }

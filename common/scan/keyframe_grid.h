@@ -87,8 +87,28 @@ class KeyframeGrid {
   void Reserve(size_t placed);
   // Adds (sign +1) or takes out (-1) the cells of `scan` at T_map_body.
   void Trace(const LaserScan& scan, const Pose2& T_map_body, int sign);
+  // Takes the scan out at T_map_from and in at T_map_to (two traces; one pass over their rows'
+  // counts when the tracer holds both in one window).
+  void Move(const LaserScan& scan, const Pose2& T_map_from, const Pose2& T_map_to);
+  // The tiles a tracer's window spans.
+  struct TileSpan {
+    int64_t min_x = 0, min_y = 0, columns = 0, rows = 0;
+    int64_t count() const { return columns * rows; }
+  };
+  TileSpan WindowTiles(const ScanTracer::Window& window) const;
   template <typename Count>
   void TraceRows(const ScanTracer::Window& window, int sign);
+  template <typename Count>
+  void TraceMoveRows(const ScanTracer::Window& window);
+  // Adds `add` to the hits of window cell (wx, wy).
+  template <typename Count>
+  void AddHit(const ScanTracer::Window& window, const TileSpan& span, int64_t wx, int64_t wy,
+              Count add);
+  // Adds add(wx) to the misses of each cell wx of window row wy in [first, last]; a tile is
+  // touched (made, marked changed) only when traced(wx) is nonzero for one of its cells.
+  template <typename Count, typename Traced, typename Add>
+  void AddRowMisses(const ScanTracer::Window& window, const TileSpan& span, int64_t wy,
+                    int64_t first, int64_t last, Traced traced, Add add);
   // The same when the tracer's window does not apply (rays very long for the cell size):
   // cell by cell, a tile found per cell.
   template <typename Count>

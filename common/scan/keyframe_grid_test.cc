@@ -84,6 +84,16 @@ void ExpectSameTiles(const std::vector<GridTile>& expected, const std::vector<Gr
   }
 }
 
+// A pose in the box's inner part, any heading (one draw per statement: a call's argument
+// order is unspecified; gcc's order kept).
+Pose2 PoseInBox(std::mt19937* rng) {
+  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
+  const double pose_theta = theta(*rng);
+  const double pose_y = y(*rng);
+  const double pose_x = x(*rng);
+  return Pose2(pose_x, pose_y, pose_theta);
+}
+
 // With the tiles found through the tracer's window (few tiles per window) and per cell
 // (rays long for the tile size: 77 x 77 tiles span the window of the second options).
 TEST(KeyframeGridTest, OneScanHasTheCellsOfTheOccupancyGrid) {
@@ -168,16 +178,12 @@ TEST(KeyframeGridTest, MovedScansGiveTheGridBuiltFromScratch) {
 TEST(KeyframeGridTest, RebuildEqualsMovingAndRemovingOneByOne) {
   const OccupancyGridOptions options = SmallOptions();
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> x(-4.5, 4.5), y(-3.0, 3.0), theta(-kPi, kPi);
   std::normal_distribution<double> move(0.0, 0.4);
   KeyframeGrid one_by_one(options), rebuilt(options);
   std::vector<LaserScan> scans;
   std::vector<Pose2> poses;
   for (uint64_t key = 0; key < 30; ++key) {
-    const double pose_theta = theta(rng);
-    const double pose_y = y(rng);
-    const double pose_x = x(rng);
-    poses.emplace_back(pose_x, pose_y, pose_theta);
+    poses.push_back(PoseInBox(&rng));
     scans.push_back(BoxScan(poses.back(), 180));
     one_by_one.Place(key, scans.back(), poses.back());
     rebuilt.Place(key, scans.back(), poses.back());
@@ -293,6 +299,53 @@ TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {
   const std::vector<GridTile> full = grid.Tiles(0, 4);
   ASSERT_EQ(subscriber.size(), full.size());
   for (const GridTile& t : full) EXPECT_EQ(subscriber.at({t.tile_x, t.tile_y}), t.cells);
+}
+
+// A move is one pass over both traces' rows (when the sensor moved little) or two traces:
+// either way the grid publishes exactly what taking the scan out at its old pose and in at
+// its new one (Remove, then Place) publishes, round after round: the same changed tiles with
+// the same cells, and at the end the same tiles.
+TEST(KeyframeGridTest, AMoveChangesWhatTakingOutAndPuttingInChanges) {
+  OccupancyGridOptions options = SmallOptions();
+  options.resolution_m = 0.05;
+  std::mt19937 rng(31);
+  // Moves of a few cells, of metres, and past the tracer's slack (two traces then).
+  const double slack_m = static_cast<double>(ScanTracer::kMoveSlack) * options.resolution_m;
+  std::normal_distribution<double> small(0.0, 0.1), large(0.0, 1.5), far(0.0, 1.5 * slack_m);
+  KeyframeGrid moving(options), out_and_in(options);
+  std::vector<Pose2> poses;
+  std::vector<LaserScan> scans;
+  for (uint64_t key = 0; key < 30; ++key) {
+    poses.push_back(PoseInBox(&rng));
+    scans.push_back(BoxScan(poses.back(), 180));
+    moving.Place(key, scans.back(), poses.back());
+    out_and_in.Place(key, scans.back(), poses.back());
+  }
+  ExpectSameTiles(out_and_in.TakeChangedTiles(0, 0), moving.TakeChangedTiles(0, 0));
+  int moved = 0;
+  for (int round = 0; round < 5; ++round) {
+    for (uint64_t key = 0; key < poses.size(); ++key) {
+      if (std::uniform_int_distribution<int>(0, 2)(rng) == 0) continue;
+      const int kind = std::uniform_int_distribution<int>(0, 5)(rng);
+      auto& noise = kind == 0 ? far : kind == 1 ? large : small;
+      const double noise_theta = 0.05 * noise(rng);
+      const double noise_y = noise(rng);
+      const double noise_x = noise(rng);
+      const Pose2& pose = poses[key];
+      poses[key] = Pose2(pose.x() + noise_x, pose.y() + noise_y, pose.theta() + noise_theta);
+      if (moving.Place(key, scans[key], poses[key]) == KeyframeGrid::Placement::kMoved) {
+        ++moved;
+        ASSERT_TRUE(out_and_in.Remove(key, scans[key]));
+        out_and_in.Place(key, scans[key], poses[key]);
+      } else {
+        poses[key] = moving.placed().at(key);
+      }
+    }
+    ExpectSameTiles(out_and_in.TakeChangedTiles(0, round), moving.TakeChangedTiles(0, round));
+  }
+  EXPECT_GT(moved, 50);
+  ExpectSameTiles(out_and_in.Tiles(0, 9), moving.Tiles(0, 9));
+  ExpectSameCells(moving, out_and_in);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 namespace anchormap {
 namespace {
@@ -24,37 +25,69 @@ const std::vector<TracedCell>& ScanTracer::Trace(const LaserScan& scan, const Po
   return cells_;
 }
 
-std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const Pose2& T_map_body,
-                                                    const OccupancyGridOptions& options) {
-  ends_.clear();
-  const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
+bool ScanTracer::SensorCell(const Pose2& T_map_sensor, const OccupancyGridOptions& options,
+                            int64_t* x0, int64_t* y0) const {
   const Eigen::Vector2d origin = T_map_sensor.translation();
   // A pose that is not finite, or absurdly far away, has no cells (the fuzzer fed one
   // through the server).
   if (!T_map_sensor.IsFinite() || origin.cwiseAbs().maxCoeff() > kMaxGridCoordinateM) {
-    return std::nullopt;
+    return false;
   }
-  const auto [x0, y0] = Cell(origin, options.resolution_m);
+  std::tie(*x0, *y0) = Cell(origin, options.resolution_m);
+  return true;
+}
+
+std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const Pose2& T_map_body,
+                                                    const OccupancyGridOptions& options) {
+  beams_[0].ends.clear();
+  const Pose2 T_map_sensor = Compose(T_map_body, scan.T_body_sensor);
+  int64_t x0 = 0, y0 = 0;
+  if (!SensorCell(T_map_sensor, options, &x0, &y0)) return std::nullopt;
   // Every traced cell lies within `radius` of the sensor's cell (rays end within
-  // max_ray_length_m).
+  // max_ray_length_m); the window reaches kMoveSlack cells farther, so that a move's trace in
+  // fits in its trace out's window (StartMove).
   const int64_t radius =
       static_cast<int64_t>(std::ceil(options.max_ray_length_m / options.resolution_m)) + 2;
+  const int64_t reach = radius + kMoveSlack;
   // The window's columns start at a multiple of kMarkGroup in map coordinates and its side
   // is a multiple of it, so that MarkCells' rows come in whole aligned groups.
-  const int64_t min_x = FloorDiv(x0 - radius, kMarkGroup) * kMarkGroup;
+  const int64_t min_x = FloorDiv(x0 - reach, kMarkGroup) * kMarkGroup;
   // A side of a multiple of 64 (1024 for the server's 25 m at 5 cm) would put a beam's steps
   // from row to row in few cache sets: one more group then.
-  int64_t side = (2 * radius + 2 * kMarkGroup - 1) / kMarkGroup * kMarkGroup;
+  int64_t side = (2 * reach + 2 * kMarkGroup - 1) / kMarkGroup * kMarkGroup;
   if (side % 64 == 0) side += kMarkGroup;
-  window_ = {min_x, y0 - radius, side};
-  sensor_wx_ = x0 - min_x;
-  sensor_wy_ = radius;
-  // The window costs 2 bytes a cell in VisitCells' stamps: up to 2049^2 cells (8 MB).
+  window_ = {min_x, y0 - reach, side};
+  // The window costs 2 bytes a cell in VisitCells' stamps: rays of up to 1024 cells.
   use_window_ = 2 * radius + 1 <= kMaxWindowSide;
+  EndCells(scan, T_map_sensor, options, &beams_[0]);
+  return window_;
+}
+
+std::optional<ScanTracer::Window> ScanTracer::StartMove(const LaserScan& scan,
+                                                        const Pose2& T_map_from,
+                                                        const Pose2& T_map_to,
+                                                        const OccupancyGridOptions& options) {
+  const Pose2 T_map_to_sensor = Compose(T_map_to, scan.T_body_sensor);
+  int64_t x1 = 0, y1 = 0;
+  if (!SensorCell(T_map_to_sensor, options, &x1, &y1)) return std::nullopt;
+  const std::optional<Window> window = Start(scan, T_map_from, options);
+  if (!window) return std::nullopt;
+  const int64_t x0 = window->min_x + beams_[0].sensor_wx, y0 = window->min_y + beams_[0].sensor_wy;
+  if (std::abs(x1 - x0) > kMoveSlack || std::abs(y1 - y0) > kMoveSlack) return std::nullopt;
+  EndCells(scan, T_map_to_sensor, options, &beams_[1]);
+  return window;
+}
+
+void ScanTracer::EndCells(const LaserScan& scan, const Pose2& T_map_sensor,
+                          const OccupancyGridOptions& options, Beams* beams) {
+  const auto [x0, y0] = Cell(T_map_sensor.translation(), options.resolution_m);
+  beams->sensor_wx = x0 - window_.min_x;
+  beams->sensor_wy = y0 - window_.min_y;
+  beams->ends.clear();
   // The beams' end cells, and whether each is the end of a return within the ray length.
   auto end = [&](const Eigen::Vector2d& p_map, bool hit) {
     const auto [x1, y1] = Cell(p_map, options.resolution_m);
-    ends_.push_back({x1 - window_.min_x, y1 - window_.min_y, hit});
+    beams->ends.push_back({x1 - window_.min_x, y1 - window_.min_y, hit});
   };
   // The beams' directions in the sensor frame, computed again only when the scan's geometry
   // changes (a team's scans share one): the same values as per beam.
@@ -78,7 +111,6 @@ std::optional<ScanTracer::Window> ScanTracer::Start(const LaserScan& scan, const
       end(T_map_sensor.TransformPoint(options.max_ray_length_m * direction), false);
     }
   }
-  return window_;
 }
 
 void ScanTracer::PrepareStamps() {
@@ -92,36 +124,48 @@ void ScanTracer::PrepareStamps() {
     }
     hit_stamp_ = static_cast<uint16_t>(visited_stamp_ + 1);
     visited_stamp_ = static_cast<uint16_t>(visited_stamp_ + 2);
-    for (const BeamEnd& end : ends_) {
+    for (const BeamEnd& end : beams_[0].ends) {
       if (end.hit) stamps_[static_cast<size_t>(end.wy * side + end.wx)] = hit_stamp_;
     }
   } else {
     far_cells_.clear();
-    for (const BeamEnd& end : ends_) {
+    for (const BeamEnd& end : beams_[0].ends) {
       if (end.hit) far_cells_[TileKey(end.wx, end.wy)] = 1;
     }
   }
 }
 
-void ScanTracer::ClearMarks() {
-  ForEachMarkedRow([](int64_t, int64_t, int64_t, const uint8_t*) {});
+void ScanTracer::ClearMarks(Marks* marks) {
+  for (int64_t wy = marks->first_row; wy <= marks->last_row; ++wy) {
+    marks->ClearRow(wy, window_.side, marks->First(wy), marks->Last(wy));
+  }
+  marks->dirty = false;
 }
 
-void ScanTracer::MarkCells() {
+void ScanTracer::MarkCells() { MarkBeams(beams_[0], &marks_[0]); }
+
+void ScanTracer::MarkMove() {
+  MarkBeams(beams_[0], &marks_[0]);
+  MarkBeams(beams_[1], &marks_[1]);
+}
+
+void ScanTracer::MarkBeams(const Beams& beams, Marks* set) {
   const int64_t side = window_.side;
-  if (marks_.size() != static_cast<size_t>(side * side)) {
-    marks_.assign(static_cast<size_t>(side * side), 0);
-    for (auto& reach : reach_) reach.assign(static_cast<size_t>(side), 0);
-    beam_reach_.assign(static_cast<size_t>(side), 0);
-    marks_dirty_ = false;
-  } else if (marks_dirty_) {
-    ClearMarks();
+  if (set->cells.size() != static_cast<size_t>(side * side)) {
+    set->cells.assign(static_cast<size_t>(side * side), 0);
+    for (auto& reach : set->reach) reach.assign(static_cast<size_t>(side), 0);
+    set->dirty = false;
+  } else if (set->dirty) {
+    ClearMarks(set);
   }
-  uint8_t* const marks = marks_.data();
+  if (beam_reach_.size() != static_cast<size_t>(side)) {
+    beam_reach_.assign(static_cast<size_t>(side), 0);
+  }
+  uint8_t* const marks = set->cells.data();
   int16_t* const beam_reach = beam_reach_.data();
-  const int64_t x0 = sensor_wx_, y0 = sensor_wy_;
-  first_row_ = last_row_ = y0;
-  marked_x0_ = x0;
+  const int64_t x0 = beams.sensor_wx, y0 = beams.sensor_wy;
+  int64_t first_row = y0, last_row = y0;
+  set->x0 = x0;
   // Bresenham's line as ForEachBresenhamCell draws it, in closed form: along the major axis
   // (the one with the larger |d|) every step moves one cell, and after k steps the minor
   // axis has moved m_k = floor(k * minor / major + 1/2) cells (what the line's error term
@@ -134,7 +178,7 @@ void ScanTracer::MarkCells() {
   // crosses (its cells' x moves away from the sensor's monotonically, so the row's last step
   // holds it) is stored per step, then merged into the rows' reach on the beam's side in one
   // pass over its rows.
-  for (const BeamEnd& end : ends_) {
+  for (const BeamEnd& end : beams.ends) {
     const int64_t dx = std::abs(end.wx - x0), dy = std::abs(end.wy - y0);
     const int64_t sx = x0 < end.wx ? 1 : -1, sy = y0 < end.wy ? 1 : -1;
     const int64_t step_y = sy * side;
@@ -158,16 +202,18 @@ void ScanTracer::MarkCells() {
         beam_reach[y0 + sy * k] = static_cast<int16_t>(m);
       }
     }
-    int16_t* const reach = reach_[sx > 0 ? 1 : 0].data();
+    int16_t* const reach = set->reach[sx > 0 ? 1 : 0].data();
     const int64_t from = std::min(y0, end.wy), to = std::max(y0, end.wy);
     for (int64_t r = from; r <= to; ++r) reach[r] = std::max(reach[r], beam_reach[r]);
-    first_row_ = std::min(first_row_, from);
-    last_row_ = std::max(last_row_, to);
+    first_row = std::min(first_row, from);
+    last_row = std::max(last_row, to);
   }
-  for (const BeamEnd& end : ends_) {
+  for (const BeamEnd& end : beams.ends) {
     if (end.hit) marks[end.wy * side + end.wx] = kHitMark;
   }
-  marks_dirty_ = true;
+  set->first_row = first_row;
+  set->last_row = last_row;
+  set->dirty = true;
 }
 
 double ScanReach(const LaserScan& scan, const OccupancyGridOptions& options) {

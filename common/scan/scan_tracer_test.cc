@@ -1,5 +1,6 @@
 #include "common/scan/scan_tracer.h"
 
+#include <array>
 #include <cmath>
 #include <map>
 #include <random>
@@ -146,6 +147,109 @@ TEST(ScanTracerTest, MarksAreTheCellsOfEveryBeamsBresenhamLine) {
       EXPECT_GT(hits, resolution_m == 0.05 ? 4000 : 300);
       EXPECT_GT(misses, 100000);
     }
+  }
+}
+
+// The two traces a move leaves, read through ForEachMoveHit and ForEachMoveRow, as
+// MarkedCells reads one: [0] the trace out, [1] the trace in.
+std::array<std::map<Cell, bool>, 2> MovedCells(ScanTracer* tracer,
+                                               const ScanTracer::Window& window) {
+  tracer->MarkMove();
+  std::array<std::map<Cell, int>, 2> hits;
+  tracer->ForEachMoveHit([&](int64_t wx, int64_t wy, bool in) {
+    ++hits[in ? 1 : 0][{window.min_x + wx, window.min_y + wy}];
+  });
+  std::array<std::map<Cell, bool>, 2> cells;
+  int64_t last_row = -1;
+  tracer->ForEachMoveRow([&](int64_t wy, int64_t first, int64_t last, const uint8_t* out,
+                             const uint8_t* in) {
+    EXPECT_GT(wy, last_row);
+    last_row = wy;
+    EXPECT_LE(0, first);
+    EXPECT_LE(first, last);
+    EXPECT_LT(last, window.side);
+    EXPECT_EQ((window.min_x + first) % ScanTracer::kMarkGroup, 0);
+    EXPECT_EQ((last - first + 1) % ScanTracer::kMarkGroup, 0);
+    for (int trace = 0; trace < 2; ++trace) {
+      const uint8_t* const marks = trace == 0 ? out : in;
+      for (int64_t wx = first; wx <= last; ++wx) {
+        if (marks[wx] == 0) continue;
+        EXPECT_TRUE(marks[wx] == ScanTracer::kHitMark || marks[wx] == ScanTracer::kMissMark);
+        cells[trace][{window.min_x + wx, window.min_y + wy}] = marks[wx] == ScanTracer::kHitMark;
+      }
+    }
+  });
+  for (int trace = 0; trace < 2; ++trace) {
+    for (const auto& [cell, hit] : cells[trace]) {
+      EXPECT_EQ(hits[trace].count(cell) != 0, hit);
+      if (hit) {
+        EXPECT_EQ(hits[trace].at(cell), 1);
+      }
+    }
+    EXPECT_LE(hits[trace].size(), cells[trace].size());
+  }
+  return cells;
+}
+
+// Random scans moved by random shifts (within the slack and beyond it: then no move window),
+// interleaved with single traces on the same tracer: a move's two traces are exactly the
+// Bresenham cells of the scan at each pose, and every trace clears the marks the last one
+// left, read or not.
+TEST(ScanTracerTest, AMovesTwoTracesAreTheCellsOfBothPoses) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> shift(-1.0, 1.0);
+  for (const bool no_return_as_free : {false, true}) {
+    OccupancyGridOptions options;
+    options.max_ray_length_m = 5.0;
+    options.no_return_as_free = no_return_as_free;
+    ScanTracer tracer;
+    int moves = 0, apart = 0;
+    for (int n = 0; n < 40; ++n) {
+      const LaserScan scan =
+          RandomScan(&rng, 361, static_cast<float>(-kPi), static_cast<float>(kPi / 180));
+      const Pose2 from = RandomPose(&rng);
+      // Up to 1.6 slacks along each axis (beyond it ~60 % of them), or 20 cm.
+      const double scale =
+          n % 4 == 0 ? 1.6 * static_cast<double>(ScanTracer::kMoveSlack) * options.resolution_m
+                     : 0.2;
+      const double dx = scale * shift(rng);
+      const double dy = scale * shift(rng);
+      const double dtheta = 0.1 * shift(rng);
+      const Pose2 to(from.x() + dx, from.y() + dy, from.theta() + dtheta);
+      if (n % 3 == 1) {  // a single trace between moves, its marks left unread
+        ASSERT_TRUE(tracer.Start(scan, to, options).has_value());
+        tracer.MarkCells();
+      }
+      const std::optional<ScanTracer::Window> window = tracer.StartMove(scan, from, to, options);
+      const Pose2 sensor_from = Compose(from, scan.T_body_sensor);
+      const Pose2 sensor_to = Compose(to, scan.T_body_sensor);
+      const auto cell = [&](double v) {
+        return static_cast<int64_t>(std::floor(v / options.resolution_m));
+      };
+      const bool within =
+          std::abs(cell(sensor_to.x()) - cell(sensor_from.x())) <= ScanTracer::kMoveSlack &&
+          std::abs(cell(sensor_to.y()) - cell(sensor_from.y())) <= ScanTracer::kMoveSlack;
+      ASSERT_EQ(window.has_value(), within) << "scan " << n;
+      if (!window) {
+        ++apart;
+        continue;
+      }
+      ASSERT_TRUE(tracer.MarksInWindow());
+      if (n % 5 == 2) {
+        tracer.MarkMove();  // marks left unread: the next trace clears them
+        continue;
+      }
+      const auto cells = MovedCells(&tracer, *window);
+      EXPECT_EQ(cells[0], BruteForceCells(scan, from, options)) << "scan " << n;
+      EXPECT_EQ(cells[1], BruteForceCells(scan, to, options)) << "scan " << n;
+      ++moves;
+      // A single trace after a move sees its own cells only.
+      const std::optional<ScanTracer::Window> single = tracer.Start(scan, to, options);
+      ASSERT_TRUE(single.has_value());
+      EXPECT_EQ(MarkedCells(&tracer, *single), BruteForceCells(scan, to, options));
+    }
+    EXPECT_GT(moves, 15);
+    EXPECT_GT(apart, 2);
   }
 }
 

@@ -1,6 +1,8 @@
 #include "common/scan_matching/byte_max_grids.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <vector>
@@ -34,25 +36,76 @@ __attribute__((target("avx2"))) size_t RoundUpAvx2(const float* values, size_t n
 }
 #endif
 
+// RoundedUp of values [0, n).
+void RoundUp(const float* values, size_t n, uint8_t* out) {
+  size_t i = 0;
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx2()) i = RoundUpAvx2(values, n, out);
+#endif
+  for (; i < n; ++i) out[i] = RoundedUp(values[i]);
+}
+
+// Calls run(first, last) for each run of consecutive nonzero entries of a row of `n` tiles.
+template <typename Run>
+void ForEachRun(const uint8_t* tiles, int n, Run&& run) {
+  for (int c = 0; c < n;) {
+    if (!tiles[c]) {
+      ++c;
+      continue;
+    }
+    const int first = c;
+    while (c < n && tiles[c]) ++c;
+    run(first, c - 1);
+  }
+}
+
 }  // namespace
 
 ByteMaxGrids::ByteMaxGrids(const MaxGridPyramid& pyramid) {
   if (!pyramid.exact_sums()) {
     throw std::invalid_argument("ByteMaxGrids: the pyramid's values must lie in [0, 1]");
   }
-  levels_.resize(static_cast<size_t>(pyramid.num_levels()));
   const MaxGridPyramid::LevelView base = pyramid.level(0);
   const size_t base_cells = static_cast<size_t>(base.width) * static_cast<size_t>(base.height);
   std::vector<uint8_t> below(base_cells);
-  size_t i = 0;
-#ifdef ANCHORMAP_AVX2_DISPATCH
-  if (CpuHasAvx2()) i = RoundUpAvx2(base.values, base_cells, below.data());
-#endif
-  for (; i < base_cells; ++i) below[i] = RoundedUp(base.values[i]);
-  const uint8_t* previous = below.data();
-  int width = base.width;
-  int height = base.height;
-  for (int h = 1; h < pyramid.num_levels(); ++h) {
+  RoundUp(base.values, base_cells, below.data());
+  BuildLevels(below.data(), base.width, base.height, pyramid.num_levels());
+  max_value_ = RoundedUp(pyramid.max_value());
+}
+
+ByteMaxGrids::ByteMaxGrids(const MaxGridPyramid& pyramid, const NonzeroTiles& nonzero) {
+  if (!pyramid.exact_sums()) {
+    throw std::invalid_argument("ByteMaxGrids: the pyramid's values must lie in [0, 1]");
+  }
+  const MaxGridPyramid::LevelView base = pyramid.level(0);
+  const int shift = nonzero.tile_shift;
+  const int tile = 1 << shift;
+  if (shift < 0 || shift > 16 || nonzero.tiles_width != (base.width + tile - 1) >> shift) {
+    throw std::invalid_argument("ByteMaxGrids: the tiles must cover the grid");
+  }
+  // Level 0 rounded up on its nonzero tiles (whole runs of them a row at a time), 0 elsewhere.
+  const size_t base_cells = static_cast<size_t>(base.width) * static_cast<size_t>(base.height);
+  std::vector<uint8_t> below(base_cells, 0);
+  for (int r = 0; r < (base.height + tile - 1) >> shift; ++r) {
+    ForEachRun(nonzero.tiles + static_cast<size_t>(r) * nonzero.tiles_width, nonzero.tiles_width,
+               [&](int first, int last) {
+                 const int x0 = first << shift;
+                 const int x1 = std::min((last + 1) << shift, base.width);
+                 for (int y = r << shift; y < std::min((r + 1) << shift, base.height); ++y) {
+                   const size_t row = static_cast<size_t>(y) * base.width;
+                   RoundUp(base.values + row + x0, static_cast<size_t>(x1 - x0),
+                           below.data() + row + x0);
+                 }
+               });
+  }
+  BuildLevels(below.data(), base.width, base.height, pyramid.num_levels());
+  max_value_ = RoundedUp(pyramid.max_value());
+}
+
+void ByteMaxGrids::BuildLevels(const uint8_t* base, int width, int height, int num_levels) {
+  levels_.resize(static_cast<size_t>(num_levels));
+  const uint8_t* previous = base;
+  for (int h = 1; h < num_levels; ++h) {
     const int half = 1 << (h - 1);
     Level& level = levels_[static_cast<size_t>(h)];
     level.offset = (1 << h) - 1;
@@ -66,7 +119,6 @@ ByteMaxGrids::ByteMaxGrids(const MaxGridPyramid& pyramid) {
     width = level.width;
     height = level.height;
   }
-  max_value_ = RoundedUp(pyramid.max_value());
 }
 
 ByteMaxGrids::LevelView ByteMaxGrids::level(int h) const {

@@ -82,6 +82,10 @@ class ReferenceField {
   static constexpr int kTile = 1 << kTileShift;
   template <typename F>
   void ForEachStored(F&& f) const;
+  // Those tiles: row-major, tiles_width() a row, 1 where a box reached the tile (every stored
+  // cell lies in one).
+  int tiles_width() const { return tiles_width_; }
+  const std::vector<uint8_t>& reached_tiles() const { return reached_tiles_; }
   // Bilinear interpolation of the four cell vectors around p, and optionally its derivative
   // with respect to p; false when any of the four is missing.
   bool Interpolate(const Eigen::Vector2d& p, Eigen::Vector2d* v,

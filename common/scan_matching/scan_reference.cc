@@ -56,7 +56,15 @@ const MaxGridPyramid& ScanReference::pyramid() const {
 
 const ByteMaxGrids* ScanReference::byte_bounds() const {
   if (!pyramid_.exact_sums()) return nullptr;
-  std::call_once(lazy_->bytes, [this] { lazy_->grids = std::make_unique<ByteMaxGrids>(pyramid_); });
+  std::call_once(lazy_->bytes, [this] {
+    // The likelihood is 0 outside the field's reached tiles (LikelihoodGrid stores only the
+    // cells holding a vector): level 0 is rounded up on those tiles alone.
+    const ByteMaxGrids::NonzeroTiles nonzero{ReferenceField::kTileShift, field_.tiles_width(),
+                                             field_.reached_tiles().data()};
+    lazy_->grids = field_.reached_tiles().empty()
+                       ? std::make_unique<ByteMaxGrids>(pyramid_)
+                       : std::make_unique<ByteMaxGrids>(pyramid_, nonzero);
+  });
   return lazy_->grids.get();
 }
 
