@@ -771,19 +771,7 @@ class BranchAndBoundSearch {
         children.push_back(Node{k, 0, node.b, node.dx, node.dy, 0.0, 0, false});
       }
     } else {
-      // Halves of the group (none for a single heading) times quarters of the block.
-      const int half = 1 << (node.b - 1);
-      const int group_step = node.g > 0 ? 1 << (node.g - 1) : 1;
-      for (int k = node.k; k <= LastHeading(node.k, node.g); k += group_step) {
-        for (int oy = 0; oy <= half; oy += half) {
-          for (int ox = 0; ox <= half; ox += half) {
-            const int dx = node.dx + ox;
-            const int dy = node.dy + oy;
-            if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
-            children.push_back(Group(k, std::max(node.g - 1, 0), node.b - 1, dx, dy));
-          }
-        }
-      }
+      ForEachHalfTimesQuarter(node, [&children](const Node& child) { children.push_back(child); });
     }
     // Single headings below a node that dominates them stop early on its sums; a group's
     // bound is read elsewhere than its parent's and cannot.
@@ -822,8 +810,7 @@ class BranchAndBoundSearch {
     deviations_.resize(static_cast<size_t>(top_g) + 1);
     std::vector<Lazy> queue;
     std::vector<Node> groups;
-    auto push_group = [&](int k, int g, int b, int dx, int dy) {
-      Node group = Group(k, g, b, dx, dy);
+    auto push_group = [&](Node group) {
       group.bound = LazyGroupBound(group, top);
       group.slot = static_cast<int>(groups.size());
       groups.push_back(group);
@@ -845,7 +832,7 @@ class BranchAndBoundSearch {
     for (int k = -window_.half_angles; k <= window_.half_angles; k += 1 << top_g) {
       for (int dy = -window_.half_cells_y; dy <= window_.half_cells_y; dy += top_step) {
         for (int dx = -window_.half_cells_x; dx <= window_.half_cells_x; dx += top_step) {
-          push_group(k, top_g, top_b, dx, dy);
+          push_group(Group(k, top_g, top_b, dx, dy));
         }
       }
     }
@@ -866,17 +853,23 @@ class BranchAndBoundSearch {
         }
         continue;
       }
-      // Halves of the group (none for a single heading) times quarters of the block.
-      const int half = 1 << (group.b - 1);
-      const int group_step = group.g > 0 ? 1 << (group.g - 1) : 1;
-      for (int k = group.k; k <= LastHeading(group.k, group.g); k += group_step) {
-        for (int oy = 0; oy <= half; oy += half) {
-          for (int ox = 0; ox <= half; ox += half) {
-            const int dx = group.dx + ox;
-            const int dy = group.dy + oy;
-            if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
-            push_group(k, std::max(group.g - 1, 0), group.b - 1, dx, dy);
-          }
+      ForEachHalfTimesQuarter(group, push_group);
+    }
+  }
+
+  // The children of a node that splits both ways: halves of its group (none for a single
+  // heading) times quarters of its block, cut at the window, in (k, dy, dx) order.
+  template <typename Use>
+  void ForEachHalfTimesQuarter(const Node& node, const Use& use) const {
+    const int half = 1 << (node.b - 1);
+    const int group_step = node.g > 0 ? 1 << (node.g - 1) : 1;
+    for (int k = node.k; k <= LastHeading(node.k, node.g); k += group_step) {
+      for (int oy = 0; oy <= half; oy += half) {
+        for (int ox = 0; ox <= half; ox += half) {
+          const int dx = node.dx + ox;
+          const int dy = node.dy + oy;
+          if (dx > window_.half_cells_x || dy > window_.half_cells_y) continue;
+          use(Group(k, std::max(node.g - 1, 0), node.b - 1, dx, dy));
         }
       }
     }

@@ -323,7 +323,7 @@ TEST(LatticeSearchTest, LazyRootsVisitTheEagerRootsNodesAndFindTheirPose) {
   std::uniform_int_distribution<int> length(5, 40);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   int lazy_cases = 0;
-  for (int trial = 0; trial < 12; ++trial) {
+  for (int trial = 0; trial < 16; ++trial) {
     GridGeometry g;
     g.resolution = 0.05;
     g.width = 120 + 10 * trial;
@@ -338,8 +338,11 @@ TEST(LatticeSearchTest, LazyRootsVisitTheEagerRootsNodesAndFindTheirPose) {
       for (int i = 0; i < length(rng); ++i) {
         const int wx = along_x ? std::min(x + i, g.width - 1) : x;
         const int wy = along_x ? y : std::min(y + i, g.height - 1);
-        // Plateaus of equal values too (ties between roots and groups).
-        values[g.Index(wx, wy)] = wall % 3 == 0 ? 1.0f : std::max(1.0f / 128.0f, unit(rng));
+        // Plateaus of equal values too, and in odd trials only three values (equal bounds
+        // between roots and groups, ties between leaves).
+        const float random = std::max(1.0f / 128.0f, unit(rng));
+        const float quantised = random < 0.4f ? 0.25f : random < 0.8f ? 0.5f : 1.0f;
+        values[g.Index(wx, wy)] = wall % 3 == 0 ? 1.0f : trial % 2 == 1 ? quantised : random;
       }
     }
     const LikelihoodGrid grid(g, values);
