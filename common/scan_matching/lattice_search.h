@@ -94,8 +94,10 @@ double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const Discretis
 int MaxCellMove(const int32_t* a, const int32_t* b, size_t n);
 
 struct LatticeSearchStats {
-  int64_t scored_nodes = 0;  // scores computed (any level)
-  int64_t leaves = 0;        // level-0 scores computed
+  // Scores computed (any level), as the eager descent computes them: every root counted, lazy
+  // roots (BranchAndBound) scored or not (the loop budget's measure of a search's size).
+  int64_t scored_nodes = 0;
+  int64_t leaves = 0;  // level-0 scores computed
 };
 
 // The best lattice pose with a score above min_score (the first in (k, dy, dx) order among
