@@ -94,8 +94,10 @@ double ScoreOnLevelAbove(const MaxGridPyramid& grids, int level, const Discretis
 int MaxCellMove(const int32_t* a, const int32_t* b, size_t n);
 
 struct LatticeSearchStats {
-  int64_t scored_nodes = 0;  // scores computed (any level)
-  int64_t leaves = 0;        // level-0 scores computed
+  // Scores computed (any level), as the eager descent computes them: every root counted, lazy
+  // roots (BranchAndBound) scored or not (the loop budget's measure of a search's size).
+  int64_t scored_nodes = 0;
+  int64_t leaves = 0;  // level-0 scores computed
 };
 
 // The best lattice pose with a score above min_score (the first in (k, dy, dx) order among
@@ -115,11 +117,14 @@ bool ByteBoundsApply(const MaxGridPyramid& grids, const DiscretisedQuery& query)
 // the grids' level 0 is read (its levels above need not be built). With
 // `centre_first`, the window's centre (a local match's guess) is scored before any node: a
 // good guess's score prunes from the first node on (the same best pose; the nodes scored
-// differ).
+// differ). With `lazy_roots`, roots on single headings (a pyramid too shallow for heading
+// groups, bounded on the floats) are bounded only where groups of them, bounded on two levels
+// built above the top, may beat the best leaf: the same pose, nodes below the roots and stats
+// (every root counted) as without (the reference for tests).
 std::optional<LatticePose> BranchAndBound(const MaxGridPyramid& grids,
                                           const DiscretisedQuery& query, const SearchWindow& window,
                                           double min_score, LatticeSearchStats* stats = nullptr,
                                           const ByteMaxGrids* bytes = nullptr,
-                                          bool centre_first = false);
+                                          bool centre_first = false, bool lazy_roots = true);
 
 }  // namespace anchormap

@@ -312,6 +312,86 @@ TEST(LatticeSearchTest, HeadingGroupsFindTheExhaustivePoseOnEveryLevelCount) {
   }
 }
 
+TEST(LatticeSearchTest, LazyRootsVisitTheEagerRootsNodesAndFindTheirPose) {
+  // Pyramids too shallow for heading groups (3-5 levels: single-heading roots, the loop
+  // closures' wide searches), windows of hundreds to thousands of roots on rooms of walls: the
+  // lazy roots give the eager descent's pose and score, and its stats to the node (every root
+  // counted, the same nodes below them), at bars from none to above the best; against
+  // exhaustive search on the small windows. Fails if a lazy root's bound, its sums or the order
+  // the roots are descended in differed.
+  std::mt19937_64 rng(29);
+  std::uniform_int_distribution<int> length(5, 40);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  int lazy_cases = 0;
+  for (int trial = 0; trial < 16; ++trial) {
+    GridGeometry g;
+    g.resolution = 0.05;
+    g.width = 120 + 10 * trial;
+    g.height = 100 + 7 * trial;
+    std::vector<float> values(g.num_cells(), 0.0f);
+    std::uniform_int_distribution<int> cell_x(0, g.width - 1);
+    std::uniform_int_distribution<int> cell_y(0, g.height - 1);
+    for (int wall = 0; wall < 30; ++wall) {
+      const int x = cell_x(rng);
+      const int y = cell_y(rng);
+      const bool along_x = wall % 2 == 0;
+      for (int i = 0; i < length(rng); ++i) {
+        const int wx = along_x ? std::min(x + i, g.width - 1) : x;
+        const int wy = along_x ? y : std::min(y + i, g.height - 1);
+        // Plateaus of equal values too, and in odd trials only three values (equal bounds
+        // between roots and groups, ties between leaves).
+        const float random = std::max(1.0f / 128.0f, unit(rng));
+        const float quantised = random < 0.4f ? 0.25f : random < 0.8f ? 0.5f : 1.0f;
+        values[g.Index(wx, wy)] = wall % 3 == 0 ? 1.0f : trial % 2 == 1 ? quantised : random;
+      }
+    }
+    const LikelihoodGrid grid(g, values);
+    // A scan of the room from near its middle: points on the walls, a few off them.
+    PointCloud query;
+    const Eigen::Vector2d origin(0.5 * g.width * g.resolution, 0.5 * g.height * g.resolution);
+    for (int y = 0; y < g.height; ++y) {
+      for (int x = 0; x < g.width; ++x) {
+        if (values[g.Index(x, y)] > 0.0f && unit(rng) < 0.3f) {
+          query.push_back(g.CellCentre(x, y) - origin);
+        }
+      }
+    }
+    for (int i = 0; i < 10; ++i) query.push_back({unit(rng) - 0.5, unit(rng) - 0.5});
+    const int levels = 3 + trial % 3;
+    const MaxGridPyramid pyramid(grid, levels);
+    ASSERT_TRUE(pyramid.exact_sums());
+    SearchWindow window;
+    window.center =
+        Pose2(origin.x() + 0.1 * (trial % 4), origin.y() - 0.05 * (trial % 3), 0.01 * trial);
+    window.angle_step_rad = AngleStepForRange(g.resolution, MaxPointRange(query));
+    window.half_angles = trial < 6 ? 6 + 5 * trial : 60 + 10 * trial;
+    window.half_cells_x = 10 + 4 * trial;
+    window.half_cells_y = 8 + 3 * trial;
+    const DiscretisedQuery discretised(query, window, g);
+    const bool small = trial < 4;
+    std::optional<LatticePose> all;
+    if (small) all = ExhaustiveSearch(pyramid, discretised, window, 0.0);
+    for (const double min_score : {0.0, 0.2, 0.5, 0.999}) {
+      for (const bool centre_first : {false, true}) {
+        SCOPED_TRACE(testing::Message() << "trial " << trial << ", " << levels << " levels, bar "
+                                        << min_score << (centre_first ? ", centre first" : ""));
+        LatticeSearchStats eager_stats;
+        LatticeSearchStats lazy_stats;
+        const auto eager = BranchAndBound(pyramid, discretised, window, min_score, &eager_stats,
+                                          nullptr, centre_first, /*lazy_roots=*/false);
+        const auto lazy = BranchAndBound(pyramid, discretised, window, min_score, &lazy_stats,
+                                         nullptr, centre_first, /*lazy_roots=*/true);
+        ExpectSameLatticePose(lazy, eager);
+        EXPECT_EQ(lazy_stats.scored_nodes, eager_stats.scored_nodes);
+        EXPECT_EQ(lazy_stats.leaves, eager_stats.leaves);
+        if (small && min_score == 0.0) ExpectSameLatticePose(lazy, all);
+        if (lazy && lazy->score > 0.3) ++lazy_cases;
+      }
+    }
+  }
+  EXPECT_GT(lazy_cases, 40);  // most searches found a pose well above the lowest bars
+}
+
 TEST(LatticeSearchTest, MaxCellMoveIsTheLargestDifference) {
   // Against the definition, one difference at a time: lengths around the vectorised eight
   // (tails), differences of both signs, the largest anywhere.
