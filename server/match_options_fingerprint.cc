@@ -193,7 +193,8 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
   h->B(s.converge_periodic_batches);
   h->F(s.convergence_step);
   h->I(s.max_batch_iterations);
-  if (s.convergence_decrease != 0) h->F(s.convergence_decrease);  // only when set, as above
+  if (s.convergence_decrease != 0) h->F(s.convergence_decrease);    // only when set, as above
+  if (s.correction_local_hops != 0) h->I(s.correction_local_hops);  // the same
   h->F(s.dogleg_initial_radius);
   h->F(s.gauge_prior_sigma);
 }

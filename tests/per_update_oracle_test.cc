@@ -224,6 +224,32 @@ TEST(PerUpdateOracleTest, ServerModeWithConjugateGradientCorrection) {
   RunPerUpdateOracle(options, kServerChi2);
 }
 
+// The scenarios' conjugate-gradient steps in all (no oracle: only the work).
+int64_t CorrectionSteps(const SmootherOptions& options) {
+  int64_t steps = 0;
+  for (const Scenario& scenario : Scenarios()) {
+    const PoseGraph graph = ScenarioGraph(scenario, 90);
+    const GraphReplay replay(graph, scenario.robots);
+    Smoother smoother(options);
+    for (int k = 0; k < replay.num_steps(); ++k) {
+      EXPECT_TRUE(replay.AddStep(k, &smoother).ok());
+      EXPECT_TRUE(smoother.Update().status.ok());
+    }
+    steps += smoother.stats().correction_steps;
+  }
+  return steps;
+}
+
+TEST(PerUpdateOracleTest, ServerModeWithLocalCorrection) {
+  // Updates corrected near their new factors only, the whole map only when the bound on
+  // what is left exceeds the skip budget: every update still within the tolerance.
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 4;
+  RunPerUpdateOracle(options, kServerChi2);
+  // The local corrections ran instead of part of the global ones.
+  EXPECT_LT(CorrectionSteps(options), CorrectionSteps(ServerModeWithCorrectionOptions()));
+}
+
 // --- Broken odometry chains -------------------------------------------------------------
 
 // Runs `graph` pose by pose (Update after each) and as one batch; both must end at the

@@ -11,6 +11,8 @@
 #include <vector>
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 
 #include "common/solver/smoother_impl.h"
 
@@ -30,7 +32,16 @@ bool Smoother::Impl::CorrectEstimate() {
     ++stats_.correction_skips;
     return true;
   }
+  // correction_local_hops: near the new factors first; the whole map only if that leaves
+  // more than the budget (from the estimate the local steps reached).
+  if (correction_converged_ && LocalHops() > 0) {
+    const auto local_start = std::chrono::steady_clock::now();
+    const bool within = CorrectLocally(budget);
+    stats_.correction_seconds += Seconds(local_start);
+    if (within) return true;
+  }
   uncorrected_factors_.clear();
+  ForgetLocalMoves();
   const auto start = std::chrono::steady_clock::now();
   flat_r_.Refresh(*r_);
   const bool converged = options_.correction_cg_iterations > 0 ? CorrectByConjugateGradients()
@@ -68,8 +79,180 @@ bool Smoother::Impl::UncorrectedDecreaseWithin(double budget) {
     }
   }
   // |R^-T J^T e|^2 <= |e|^2 (the factors are in R): within the budget without a solve.
-  if (chi2 <= root * root) return true;
+  if (moved_factors_.empty() && chi2 <= root * root) return true;
+  // Factors the last pass counted whose variables a local correction moved since: what
+  // they add to g is their term now minus their term at the last pass's values.
+  for (int64_t id : moved_factors_) {
+    if (!counted_in_gradient_[id]) continue;
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+    const LinearizedFactor now = Linearize(f.factor, values.data());
+    for (int j = 0; j < f.num_vars; ++j) values[j] = PassValueOf(f.vars[j]);
+    const LinearizedFactor then = Linearize(f.factor, values.data());
+    for (int j = 0; j < f.num_vars; ++j) {
+      new_gradient_.emplace_back(vars_[f.vars[j]].position,
+                                 now.jacobians[j].transpose() * now.whitened_error -
+                                     then.jacobians[j].transpose() * then.whitened_error);
+    }
+  }
   return path_solve_.SquaredNorm(*r_, new_gradient_, root * root) <= root * root;
+}
+
+bool Smoother::Impl::CorrectLocally(double budget) {
+  // The region: the uncorrected factors' variables and those within LocalHops() factor
+  // hops, anchors excluded (an anchor's factors are all its trajectory's encounters: the
+  // map), breadth first in the order of the factors.
+  const int num_vars = static_cast<int>(vars_.size());
+  local_index_.resize(num_vars, -1);  // -1 everywhere between calls
+  local_factor_.resize(factors_.size(), 0);
+  std::vector<int> region;
+  auto add = [&](int var) {
+    if (local_index_[var] >= 0 || vars_[var].position < 0 || vars_[var].key.is_anchor()) return;
+    if (region.size() >= SmootherOptions::kLocalCorrectionMaxVariables) return;
+    local_index_[var] = static_cast<int>(region.size());
+    region.push_back(var);
+  };
+  // Seeds: the factors that entered R since the last correction, local or global.
+  for (size_t k = std::min(local_seeds_from_, uncorrected_factors_.size());
+       k < uncorrected_factors_.size(); ++k) {
+    const int64_t id = uncorrected_factors_[k];
+    if (!counted_in_gradient_[id]) continue;
+    const FactorRecord& f = factors_[id];
+    for (int j = 0; j < f.num_vars; ++j) add(f.vars[j]);
+  }
+  // Many new variables at once (a large team's update): the region would hold little
+  // more than them, and the bound would mostly fail (the update pays both).
+  if (region.size() > SmootherOptions::kLocalCorrectionMaxVariables / 4) {
+    for (int var : region) local_index_[var] = -1;
+    return false;
+  }
+  size_t level_begin = 0;
+  for (int hop = 0; hop < LocalHops() && level_begin < region.size(); ++hop) {
+    const size_t level_end = region.size();
+    for (size_t k = level_begin; k < level_end; ++k) {
+      for (int64_t id : var_factors_[region[k]]) {
+        if (!counted_in_gradient_[id]) continue;
+        const FactorRecord& f = factors_[id];
+        for (int j = 0; j < f.num_vars; ++j) add(f.vars[j]);
+      }
+    }
+    level_begin = level_end;
+  }
+  // Eliminated in R's order (CCOLAMD's on the whole graph, restricted to the region).
+  std::sort(region.begin(), region.end(),
+            [&](int a, int b) { return vars_[a].position < vars_[b].position; });
+  for (size_t k = 0; k < region.size(); ++k) local_index_[region[k]] = static_cast<int>(k);
+  // The factors that see the region: their errors change with it.
+  std::vector<int64_t> seen;
+  for (int var : region) {
+    for (int64_t id : var_factors_[var]) {
+      if (!counted_in_gradient_[id] || local_factor_[id]) continue;
+      local_factor_[id] = 1;
+      seen.push_back(id);
+    }
+  }
+  for (int64_t id : seen) local_factor_[id] = 0;
+  std::sort(seen.begin(), seen.end());
+  // The region's values at the last pass (before its first local move since), and the
+  // factors the last pass counted that see it: the bound measures them against those.
+  pass_index_.resize(num_vars, -1);
+  for (int var : region) {
+    if (pass_index_[var] >= 0) continue;
+    pass_index_[var] = static_cast<int>(pass_values_.size());
+    pass_values_.emplace_back(var, EstimateOf(var));
+  }
+  for (int64_t id : uncorrected_factors_) local_factor_[id] = 1;  // new since the last pass
+  for (int64_t id : seen) {
+    if (!local_factor_[id]) moved_factors_.push_back(id);
+  }
+  for (int64_t id : uncorrected_factors_) local_factor_[id] = 0;
+  std::sort(moved_factors_.begin(), moved_factors_.end());
+  moved_factors_.erase(std::unique(moved_factors_.begin(), moved_factors_.end()),
+                       moved_factors_.end());
+  const bool solved = SolveRegion(region, seen);
+  for (int var : region) local_index_[var] = -1;
+  local_seeds_from_ = uncorrected_factors_.size();
+  if (!solved) return false;
+  return UncorrectedDecreaseWithin(budget);
+}
+
+bool Smoother::Impl::SolveRegion(const std::vector<int>& region, const std::vector<int64_t>& seen) {
+  // Gauss-Newton on the region, the rest fixed: H = sum J_A^T J_A, g = sum J_A^T e.
+  if (region.empty()) return false;
+  const int n = static_cast<int>(region.size());
+  std::array<Pose2, kMaxFactorKeys> values;
+  auto local_chi2 = [&]() {
+    double chi2 = 0.0;
+    for (int64_t id : seen) {
+      const FactorRecord& f = factors_[id];
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      chi2 += FactorChi2(f.factor, values.data());
+    }
+    return chi2;
+  };
+  const double stop = options_.correction_tolerance * std::max(last_chi2_, 1e-12);
+  std::vector<Eigen::Triplet<double>> triplets;
+  Eigen::VectorXd g(3 * n), h(3 * n);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>
+      ldlt;
+  for (int it = 0; it < 3; ++it) {
+    triplets.clear();
+    g.setZero();
+    double chi2 = 0.0;
+    for (int64_t id : seen) {
+      const FactorRecord& f = factors_[id];
+      for (int j = 0; j < f.num_vars; ++j) values[j] = EstimateOf(f.vars[j]);
+      const LinearizedFactor lin = Linearize(f.factor, values.data());
+      chi2 += lin.whitened_error.squaredNorm();
+      for (int j = 0; j < f.num_vars; ++j) {
+        const int a = local_index_[f.vars[j]];
+        if (a < 0) continue;
+        g.segment<3>(3 * a).noalias() += lin.jacobians[j].transpose() * lin.whitened_error;
+        for (int i = 0; i < f.num_vars; ++i) {
+          const int b = local_index_[f.vars[i]];
+          if (b < 0 || b > a) continue;  // the lower triangle
+          const Eigen::Matrix3d block = lin.jacobians[j].transpose() * lin.jacobians[i];
+          for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) {
+              if (3 * a + r >= 3 * b + c) triplets.emplace_back(3 * a + r, 3 * b + c, block(r, c));
+            }
+          }
+        }
+      }
+    }
+    Eigen::SparseMatrix<double> H(3 * n, 3 * n);
+    H.setFromTriplets(triplets.begin(), triplets.end());
+    if (it == 0) ldlt.analyzePattern(H);
+    ldlt.factorize(H);
+    if (ldlt.info() != Eigen::Success) return false;
+    h = -ldlt.solve(g);
+    const double predicted = -g.dot(h);
+    if (!(predicted > stop)) break;
+    for (int k = 0; k < n; ++k) correction_[region[k]] += h.segment<3>(3 * k);
+    double after = local_chi2();
+    for (int halving = 0; after > chi2 && halving < 3; ++halving) {
+      for (int k = 0; k < n; ++k) correction_[region[k]] -= 0.5 * h.segment<3>(3 * k);
+      h *= 0.5;
+      after = local_chi2();
+    }
+    if (after > chi2) {
+      for (int k = 0; k < n; ++k) correction_[region[k]] -= h.segment<3>(3 * k);
+      break;
+    }
+  }
+  return true;
+}
+
+Pose2 Smoother::Impl::PassValueOf(int var) const {
+  const int k = var < static_cast<int>(pass_index_.size()) ? pass_index_[var] : -1;
+  return k >= 0 ? pass_values_[k].second : EstimateOf(var);
+}
+
+void Smoother::Impl::ForgetLocalMoves() {
+  for (const auto& [var, value] : pass_values_) pass_index_[var] = -1;
+  pass_values_.clear();
+  moved_factors_.clear();
+  local_seeds_from_ = 0;
 }
 
 double Smoother::Impl::GradientAtEstimate() {

@@ -250,6 +250,17 @@ class Smoother::Impl {
   // Kept-estimate mode's skip test: whether the decrease a correction would predict now
   // is surely at most `budget` (innovation_ and the uncorrected factors' errors).
   bool UncorrectedDecreaseWithin(double budget);
+  // correction_local_hops: Gauss-Newton on the variables near the uncorrected factors
+  // (the rest fixed); true when afterwards the decrease a global correction would bring is
+  // surely within `budget` (else the caller corrects globally from there).
+  bool CorrectLocally(double budget);
+  // A variable's value at the last gradient pass (its estimate unless a local correction
+  // moved it since), and forgetting those moves (a pass took them in).
+  Pose2 PassValueOf(int var) const;
+  void ForgetLocalMoves();
+  // Gauss-Newton on `region` (variables in R's order) with every other variable fixed;
+  // `seen` are the counted factors on it. False if its normal equations are singular.
+  bool SolveRegion(const std::vector<int>& region, const std::vector<int64_t>& seen);
   bool CorrectByFixedPointSteps();
   bool CorrectByConjugateGradients();
   // A new variable of `f` (position >= first_new) with no correction yet gets the one its
@@ -276,6 +287,7 @@ class Smoother::Impl {
   double SkipFactor() const {
     return options_.correction_cg_iterations > 0 ? options_.correction_skip_factor : 1.0;
   }
+  int LocalHops() const { return KeepsEstimate() ? options_.correction_local_hops : 0; }
   // Kept-estimate mode, after IncrementalStep's Givens updates (no back-substitution):
   // each new variable (position >= first_new) is placed by the factor that determines it
   // (`jacobians`, by factor of `ready`) relative to its neighbours' estimates, as R's
@@ -420,6 +432,15 @@ class Smoother::Impl {
   // The skip test's work space.
   PathSolve path_solve_;
   std::vector<std::pair<int, Eigen::Vector3d>> new_gradient_;
+  // CorrectLocally's work space, by variable (-1: outside the region) and by factor id.
+  std::vector<int> local_index_;
+  std::vector<char> local_factor_;
+  size_t local_seeds_from_ = 0;  // uncorrected_factors_ from here on entered since
+  // Variables local corrections moved since the last pass, with their value there, and
+  // the factors that pass counted which see them (sorted).
+  std::vector<std::pair<int, Pose2>> pass_values_;
+  std::vector<int> pass_index_;  // by variable: into pass_values_, -1 if not moved
+  std::vector<int64_t> moved_factors_;
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
   CovarianceProjection projected_;  // work space only

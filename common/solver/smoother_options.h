@@ -102,6 +102,16 @@ struct SmootherOptions {
   // at 5: 0.288 / 0.399 / 0.344 m (one seed's ATE moves by round-off; no worse across
   // seeds). 1 = skip only within correction_tolerance.
   double correction_skip_factor = 5.0;
+  // With correction_cg_iterations: an update that the skip test would correct is first
+  // corrected near its new factors only: Gauss-Newton on the variables within this many
+  // factor hops of theirs (at most kLocalCorrectionMaxVariables, anchors excluded), every
+  // other variable fixed. The correction over the whole map runs only when a bound on the
+  // decrease it would still bring (the skip test's, with the moved factors' change of
+  // gradient) exceeds the skip budget. Why: at 20 robots nearly every update is corrected
+  // and each correction streams the whole map several times. 0 = off. Not yet in the
+  // snapshot state (a restored smoother forgets the local moves' reference values).
+  int correction_local_hops = 0;
+  static constexpr size_t kLocalCorrectionMaxVariables = 400;
 
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
@@ -152,6 +162,7 @@ struct SmootherOptions {
     if (correction_cg_iterations < 0) return Status::Error("correction_cg_iterations must be >= 0");
     if (!(correction_skip_factor >= 1.0))
       return Status::Error("correction_skip_factor must be >= 1");
+    if (correction_local_hops < 0) return Status::Error("correction_local_hops must be >= 0");
     if (!(convergence_step > 0)) return Status::Error("convergence_step must be > 0");
     if (max_batch_iterations < 1) return Status::Error("max_batch_iterations must be >= 1");
     if (!(convergence_decrease >= 0)) return Status::Error("convergence_decrease must be >= 0");

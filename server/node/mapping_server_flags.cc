@@ -66,6 +66,9 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("smoother.correction_skip_factor", "correction-skip", &s.smoother.correction_skip_factor,
       "an update is left uncorrected while the decrease a correction would bring stays below "
       "this multiple of correction_tolerance x chi2 (>= 1)");
+  add("smoother.correction_local_hops", "correction-local-hops", &s.smoother.correction_local_hops,
+      "correct an update first near its new factors (this many factor hops; 0 = off), the whole "
+      "map only when what that leaves may exceed the skip budget");
   add("smoother.gauge_prior_sigma", "gauge-prior-sigma", &s.smoother.gauge_prior_sigma,
       "sigma of the gauge priors (m, rad)");
   add("table.max_held", "max-held-keyframes", &s.table.max_held,

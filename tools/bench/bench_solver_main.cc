@@ -48,6 +48,8 @@ Replays GRAPH (g2o or TORO) into the incremental smoother and prints figures.
                               preconditioner); more than M iterations in an update is a stall
   --correct-skip F            with --correct-cg: leave an update uncorrected while the
                               predicted decrease stays below F x TOL x chi2 (default 5)
+  --correct-local H           with --correct-cg: correct an update first on the variables
+                              within H factor hops of its new factors (default 0 = off)
   --check-every K             untimed: every K steps, the batch optimum of the edges so far
                               (started from the current estimate); prints the worst relative
                               chi2 excess of the step's estimate over it (0 = off)
@@ -150,6 +152,8 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.correction_cg_iterations = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--correct-skip") {
       flags.smoother.correction_skip_factor = ParseNumber(arg, value());
+    } else if (arg == "--correct-local") {
+      flags.smoother.correction_local_hops = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--correct-iterations") {
       flags.smoother.correction_iterations = static_cast<int>(ParseNumber(arg, value()));
     } else if (arg == "--relinearize-on-stall") {
