@@ -20,31 +20,21 @@
 #include <boost/program_options.hpp>
 
 #include "common/scan/keyframe_grid.h"
-#include "tools/sim/simulator.h"
+#include "tools/bench/simulated_keyframes.h"
 
 namespace anchormap {
 namespace {
 
 double CpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
-struct Keyframe {
-  LaserScan scan;
-  Pose2 pose;
-  double time_s = 0.0;
-};
-
 uint64_t HashTiles(const std::vector<GridTile>& tiles) {
-  uint64_t hash = 1469598103934665603ull;
-  auto mix = [&](uint64_t v) {
-    hash ^= v;
-    hash *= 1099511628211ull;
-  };
+  Fnv1aHash hash;
   for (const GridTile& tile : tiles) {
-    mix(static_cast<uint64_t>(tile.tile_x));
-    mix(static_cast<uint64_t>(tile.tile_y));
-    for (int8_t c : tile.cells) mix(static_cast<uint8_t>(c));
+    hash.Mix(static_cast<uint64_t>(tile.tile_x));
+    hash.Mix(static_cast<uint64_t>(tile.tile_y));
+    for (int8_t c : tile.cells) hash.Mix(static_cast<uint8_t>(c));
   }
-  return hash;
+  return hash.value;
 }
 
 int Run(int argc, char** argv) {
@@ -76,27 +66,11 @@ int Run(int argc, char** argv) {
     std::printf("%s", "see the comment at the top of bench_keyframe_grid_main.cc\n");
     return 0;
   }
-  if (const Status status = sim_options.Validate(); !status.ok()) {
+  std::vector<SimulatedKeyframe> keyframes;
+  if (const Status status = SimulateKeyframes(sim_options, keyframe_period_s, &keyframes);
+      !status.ok()) {
     std::fprintf(stderr, "%s\n", status.message().c_str());
     return 1;
-  }
-  std::unique_ptr<sim::Simulator> simulator;
-  if (const Status status = sim::Simulator::Create(sim_options, &simulator); !status.ok()) {
-    std::fprintf(stderr, "%s\n", status.message().c_str());
-    return 1;
-  }
-  std::vector<Keyframe> keyframes;
-  std::vector<double> last_keyframe_s(static_cast<size_t>(simulator->num_robots()), -1e9);
-  const int64_t start_utime = sim_options.start_utime;
-  while (!simulator->Done()) {
-    sim::SimFrame frame = simulator->Step();
-    if (!frame.has_scans) continue;
-    const double t = 1e-6 * static_cast<double>(frame.utime - start_utime);
-    for (int r = 0; r < simulator->num_robots(); ++r) {
-      if (t - last_keyframe_s[r] < keyframe_period_s) continue;
-      last_keyframe_s[r] = t;
-      keyframes.push_back({frame.scans[r], simulator->robot(r).T_world_body(), t});
-    }
   }
   std::printf("keyframes %zu\n", keyframes.size());
 
@@ -116,7 +90,7 @@ int Run(int argc, char** argv) {
   for (double until = period_s; next < keyframes.size(); until += period_s) {
     const double start = CpuSeconds();
     for (; next < keyframes.size() && keyframes[next].time_s < until; ++next) {
-      estimate.push_back(keyframes[next].pose);
+      estimate.push_back(keyframes[next].T_world_body);
       grid.Place(next, keyframes[next].scan, estimate[next]);
       ++inserted;
     }

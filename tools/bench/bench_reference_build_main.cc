@@ -26,22 +26,14 @@
 #include "common/scan_matching/byte_max_grids.h"
 #include "common/scan_matching/point_cloud.h"
 #include "common/scan_matching/scan_reference.h"
-#include "tools/sim/simulator.h"
+#include "tools/bench/simulated_keyframes.h"
 
 namespace anchormap {
 namespace {
 
 double CpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
-struct Hash {
-  uint64_t value = 1469598103934665603ull;
-  void Mix(uint64_t v) {
-    value ^= v;
-    value *= 1099511628211ull;
-  }
-};
-
-void MixReference(const ScanReference& reference, const ByteMaxGrids* bytes, Hash* hash) {
+void MixReference(const ScanReference& reference, const ByteMaxGrids* bytes, Fnv1aHash* hash) {
   const MaxGridPyramid::LevelView base = reference.base().level(0);
   hash->Mix(static_cast<uint64_t>(base.width));
   hash->Mix(static_cast<uint64_t>(base.height));
@@ -96,16 +88,13 @@ int Run(int argc, char** argv) {
     std::printf("%s", "see the comment at the top of bench_reference_build_main.cc\n");
     return 0;
   }
-  if (const Status status = sim_options.Validate(); !status.ok()) {
-    std::fprintf(stderr, "%s\n", status.message().c_str());
-    return 1;
-  }
   if (half_width < 0 || stride < 1 || passes < 1) {
     std::fprintf(stderr, "--half-width must be >= 0, --stride and --passes >= 1\n");
     return 1;
   }
-  std::unique_ptr<sim::Simulator> simulator;
-  if (const Status status = sim::Simulator::Create(sim_options, &simulator); !status.ok()) {
+  std::vector<SimulatedKeyframe> simulated;
+  if (const Status status = SimulateKeyframes(sim_options, keyframe_period_s, &simulated);
+      !status.ok()) {
     std::fprintf(stderr, "%s\n", status.message().c_str());
     return 1;
   }
@@ -114,19 +103,10 @@ int Run(int argc, char** argv) {
     PointCloud points;
     Pose2 pose;
   };
-  std::vector<std::vector<Keyframe>> robots(static_cast<size_t>(simulator->num_robots()));
-  std::vector<double> last_keyframe_s(robots.size(), -1e9);
-  const int64_t start_utime = sim_options.start_utime;
-  while (!simulator->Done()) {
-    sim::SimFrame frame = simulator->Step();
-    if (!frame.has_scans) continue;
-    const double t = 1e-6 * static_cast<double>(frame.utime - start_utime);
-    for (size_t r = 0; r < robots.size(); ++r) {
-      if (t - last_keyframe_s[r] < keyframe_period_s) continue;
-      last_keyframe_s[r] = t;
-      robots[r].push_back({ScanToPointCloud(frame.scans[r], max_range_m),
-                           simulator->robot(static_cast<int>(r)).T_world_body()});
-    }
+  std::vector<std::vector<Keyframe>> robots(static_cast<size_t>(sim_options.robots));
+  for (const SimulatedKeyframe& k : simulated) {
+    robots[static_cast<size_t>(k.robot)].push_back(
+        {ScanToPointCloud(k.scan, max_range_m), k.T_world_body});
   }
   // The submaps: each keyframe's points in its centre's frame.
   std::vector<std::vector<PointCloud>> submaps;
@@ -150,7 +130,7 @@ int Run(int argc, char** argv) {
   const ScanReferenceOptions options;
   double best_build = std::numeric_limits<double>::infinity();
   double best_bytes = best_build;
-  Hash hash;
+  Fnv1aHash hash;
   for (int pass = 0; pass < passes; ++pass) {
     double build_s = 0.0, bytes_s = 0.0;
     for (const std::vector<PointCloud>& scans : submaps) {
