@@ -50,6 +50,40 @@ std::map<Cell, bool> BruteForceCells(const LaserScan& scan, const Pose2& T_map_b
   return cells;
 }
 
+// A row ForEachMarkedRow or ForEachMoveRow reports: after the last one (`last_row`), inside
+// the window, whole aligned groups.
+void ExpectAlignedRow(const ScanTracer::Window& window, int64_t wy, int64_t first, int64_t last,
+                      int64_t* last_row) {
+  EXPECT_GT(wy, *last_row);
+  *last_row = wy;
+  EXPECT_LE(0, first);
+  EXPECT_LE(first, last);
+  EXPECT_LT(last, window.side);
+  EXPECT_EQ((window.min_x + first) % ScanTracer::kMarkGroup, 0);
+  EXPECT_EQ((last - first + 1) % ScanTracer::kMarkGroup, 0);
+}
+
+// The marked cells of row wy's [first, last] into `cells` (true: a hit).
+void AddMarkedCells(const ScanTracer::Window& window, int64_t wy, int64_t first, int64_t last,
+                    const uint8_t* marks, std::map<Cell, bool>* cells) {
+  for (int64_t wx = first; wx <= last; ++wx) {
+    if (marks[wx] == 0) continue;
+    EXPECT_TRUE(marks[wx] == ScanTracer::kHitMark || marks[wx] == ScanTracer::kMissMark);
+    (*cells)[{window.min_x + wx, window.min_y + wy}] = marks[wx] == ScanTracer::kHitMark;
+  }
+}
+
+// Every hit cell among `cells` reported once, and nothing else.
+void ExpectHitsReportedOnce(const std::map<Cell, int>& hits, const std::map<Cell, bool>& cells) {
+  for (const auto& [cell, hit] : cells) {
+    EXPECT_EQ(hits.count(cell) != 0, hit);
+    if (hit) {
+      EXPECT_EQ(hits.at(cell), 1);
+    }
+  }
+  EXPECT_LE(hits.size(), cells.size());
+}
+
 // The cells MarkCells leaves, read through ForEachHit and ForEachMarkedRow; every traced
 // cell must lie within its row's reported extent, every row must be reported once, in
 // order, and every hit once by ForEachHit.
@@ -62,26 +96,10 @@ std::map<Cell, bool> MarkedCells(ScanTracer* tracer, const ScanTracer::Window& w
   std::map<Cell, bool> cells;
   int64_t last_row = -1;
   tracer->ForEachMarkedRow([&](int64_t wy, int64_t first, int64_t last, const uint8_t* marks) {
-    EXPECT_GT(wy, last_row);
-    last_row = wy;
-    EXPECT_LE(0, first);
-    EXPECT_LE(first, last);
-    EXPECT_LT(last, window.side);
-    EXPECT_EQ((window.min_x + first) % ScanTracer::kMarkGroup, 0);
-    EXPECT_EQ((last - first + 1) % ScanTracer::kMarkGroup, 0);
-    for (int64_t wx = first; wx <= last; ++wx) {
-      if (marks[wx] == 0) continue;
-      EXPECT_TRUE(marks[wx] == ScanTracer::kHitMark || marks[wx] == ScanTracer::kMissMark);
-      cells[{window.min_x + wx, window.min_y + wy}] = marks[wx] == ScanTracer::kHitMark;
-    }
+    ExpectAlignedRow(window, wy, first, last, &last_row);
+    AddMarkedCells(window, wy, first, last, marks, &cells);
   });
-  for (const auto& [cell, hit] : cells) {
-    EXPECT_EQ(hits.count(cell) != 0, hit);
-    if (hit) {
-      EXPECT_EQ(hits.at(cell), 1);
-    }
-  }
-  EXPECT_LE(hits.size(), cells.size());
+  ExpectHitsReportedOnce(hits, cells);
   return cells;
 }
 
@@ -161,33 +179,13 @@ std::array<std::map<Cell, bool>, 2> MovedCells(ScanTracer* tracer,
   });
   std::array<std::map<Cell, bool>, 2> cells;
   int64_t last_row = -1;
-  tracer->ForEachMoveRow([&](int64_t wy, int64_t first, int64_t last, const uint8_t* out,
-                             const uint8_t* in) {
-    EXPECT_GT(wy, last_row);
-    last_row = wy;
-    EXPECT_LE(0, first);
-    EXPECT_LE(first, last);
-    EXPECT_LT(last, window.side);
-    EXPECT_EQ((window.min_x + first) % ScanTracer::kMarkGroup, 0);
-    EXPECT_EQ((last - first + 1) % ScanTracer::kMarkGroup, 0);
-    for (int trace = 0; trace < 2; ++trace) {
-      const uint8_t* const marks = trace == 0 ? out : in;
-      for (int64_t wx = first; wx <= last; ++wx) {
-        if (marks[wx] == 0) continue;
-        EXPECT_TRUE(marks[wx] == ScanTracer::kHitMark || marks[wx] == ScanTracer::kMissMark);
-        cells[trace][{window.min_x + wx, window.min_y + wy}] = marks[wx] == ScanTracer::kHitMark;
-      }
-    }
-  });
-  for (int trace = 0; trace < 2; ++trace) {
-    for (const auto& [cell, hit] : cells[trace]) {
-      EXPECT_EQ(hits[trace].count(cell) != 0, hit);
-      if (hit) {
-        EXPECT_EQ(hits[trace].at(cell), 1);
-      }
-    }
-    EXPECT_LE(hits[trace].size(), cells[trace].size());
-  }
+  tracer->ForEachMoveRow(
+      [&](int64_t wy, int64_t first, int64_t last, const uint8_t* out, const uint8_t* in) {
+        ExpectAlignedRow(window, wy, first, last, &last_row);
+        AddMarkedCells(window, wy, first, last, out, &cells[0]);
+        AddMarkedCells(window, wy, first, last, in, &cells[1]);
+      });
+  for (int trace = 0; trace < 2; ++trace) ExpectHitsReportedOnce(hits[trace], cells[trace]);
   return cells;
 }
 

@@ -446,20 +446,21 @@ void AddUpdatedChain(Smoother* smoother, PoseGraph* chain) {
   }
 }
 
+// A loop closure from pose i to pose j of `chain` (trajectory 0), measured exactly.
+void AddTrueClosure(Smoother* smoother, const PoseGraph& chain, int i, int j) {
+  const TrajectoryId t(0);
+  ASSERT_TRUE(smoother
+                  ->AddBetween({t, i}, {t, j},
+                               Between(chain.vertices[i].pose, chain.vertices[j].pose), kCovariance)
+                  .ok());
+}
+
 // 16 loop closures between the start and the end of `chain`, on different poses, not yet
 // updated: eliminated through the chain's ordering, each row between them would take every
 // later closure's column.
 void AddClosuresAcrossTheChain(Smoother* smoother, const PoseGraph& chain) {
-  const TrajectoryId t(0);
   const int poses = static_cast<int>(chain.vertices.size());
-  for (int i = 0; i < 16; ++i) {
-    const int j = poses - 1 - 2 * i;
-    ASSERT_TRUE(smoother
-                    ->AddBetween({t, i}, {t, j},
-                                 Between(chain.vertices[i].pose, chain.vertices[j].pose),
-                                 kCovariance)
-                    .ok());
-  }
+  for (int i = 0; i < 16; ++i) AddTrueClosure(smoother, chain, i, poses - 1 - 2 * i);
 }
 
 TEST(SmootherTest, UpdateThatWouldFillRPastTheFillTriggerIsABatchStepInstead) {
@@ -535,16 +536,8 @@ TEST(SmootherTest, GivensUpdatePastItsFillBudgetWhoseBatchStepFailsLeavesTheStat
 // triples carried through ~110 block rows), while each of those rows gains one block
 // only (the last pose's column).
 void AddManyClosuresToTheLastPose(Smoother* smoother, const PoseGraph& chain) {
-  const TrajectoryId t(0);
   const int last = static_cast<int>(chain.vertices.size()) - 1;
-  const int first = 5;
-  for (int k = 0; k < 200; ++k) {
-    ASSERT_TRUE(smoother
-                    ->AddBetween({t, first}, {t, last},
-                                 Between(chain.vertices[first].pose, chain.vertices[last].pose),
-                                 kCovariance)
-                    .ok());
-  }
+  for (int k = 0; k < 200; ++k) AddTrueClosure(smoother, chain, 5, last);
 }
 
 TEST(SmootherTest, UpdatePastItsGivensWorkBudgetIsABatchStepInstead) {
