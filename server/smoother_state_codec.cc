@@ -94,14 +94,28 @@ void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherSt
   PutVectors(w, s.correction);
   w->Bool(s.correction_converged);
   w->F64(s.last_chi2);
+  // A format with no room for the factors since the last correction (before 8) or for the
+  // local corrections' moves (before 11) writes an infinite bound when it leaves any out:
+  // the restored smoother then corrects the whole map at its next update instead of
+  // skipping on a bound that misses them (which clears them).
+  const bool local_moves =
+      !s.local_pass_values.empty() || !s.local_moved_factors.empty() || s.local_seeds_from > 0;
+  const bool left_out = (snapshot_version < 8 && !s.uncorrected_factors.empty()) ||
+                        (snapshot_version < 11 && local_moves);
+  w->F64(left_out ? std::numeric_limits<double>::infinity() : s.innovation);
   if (snapshot_version >= 8) {
-    w->F64(s.innovation);
     w->Size(s.uncorrected_factors.size());
     for (int64_t f : s.uncorrected_factors) w->I64(f);
-  } else {
-    // No room for the factors: an infinite bound makes the restored smoother correct at
-    // its next update instead of skipping on a bound that leaves them out.
-    w->F64(s.uncorrected_factors.empty() ? s.innovation : std::numeric_limits<double>::infinity());
+  }
+  if (snapshot_version >= 11) {
+    w->Size(s.local_pass_values.size());
+    for (const SmootherState::PassValue& p : s.local_pass_values) {
+      w->I32(p.variable);
+      w->Pose(p.value);
+    }
+    w->Size(s.local_moved_factors.size());
+    for (int64_t f : s.local_moved_factors) w->I64(f);
+    w->I64(s.local_seeds_from);
   }
   w->Size(s.r.rows.size());
   for (const RBlockRow& row : s.r.rows) {
@@ -155,6 +169,19 @@ void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* s
   if (snapshot_version >= 8) {
     s->uncorrected_factors.resize(r->Count(sizeof(int64_t)));
     for (int64_t& f : s->uncorrected_factors) f = r->I64();
+  }
+  s->local_pass_values.clear();  // before version 11 none was kept
+  s->local_moved_factors.clear();
+  s->local_seeds_from = 0;
+  if (snapshot_version >= 11) {
+    s->local_pass_values.resize(r->Count(sizeof(int32_t) + 3 * sizeof(double)));
+    for (SmootherState::PassValue& p : s->local_pass_values) {
+      p.variable = r->I32();
+      p.value = r->Pose();
+    }
+    s->local_moved_factors.resize(r->Count(sizeof(int64_t)));
+    for (int64_t& f : s->local_moved_factors) f = r->I64();
+    s->local_seeds_from = r->I64();
   }
   s->r.rows.resize(r->Count(12 * sizeof(double)));
   for (RBlockRow& row : s->r.rows) {

@@ -14,6 +14,11 @@ namespace anchormap {
 // In the snapshot format `snapshot_version` (server/snapshot_codec.h): version 8 adds the
 // uncorrected factors; older ones read as none (before version 8 the skip test's bound,
 // `innovation`, covered them; written in an older format, it is infinite if there are any).
+// Version 11 adds the local corrections' moves (correction_local_hops); older ones read as
+// none, and written in an older format the bound is infinite if there are any. A version-10
+// snapshot of a server that ran the then opt-in local correction lacks them: restored, its
+// first skip test may leave out the moved factors' terms (the next whole-map correction
+// clears them).
 void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherState& state);
 // A failed read latches in `r` (the caller checks r->failed()).
 void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* state);

@@ -64,7 +64,9 @@ namespace anchormap {
 // trajectory's drive and skips at its last served keyframe); older ones read as none (the
 // restored sources keep fresh budgets). Version 10 adds a scan encounter's kept candidate's
 // own maps' conflict (what guides a global search); older ones read as not measured.
-inline constexpr uint32_t kSnapshotVersion = 10;
+// Version 11 adds the smoother's local corrections' moves since its last gradient pass
+// (correction_local_hops); older ones read as none (server/smoother_state_codec.h).
+inline constexpr uint32_t kSnapshotVersion = 11;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

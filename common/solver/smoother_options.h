@@ -108,8 +108,8 @@ struct SmootherOptions {
   // other variable fixed. The correction over the whole map runs only when a bound on the
   // decrease it would still bring (the skip test's, with the moved factors' change of
   // gradient) exceeds the skip budget. Why: at 20 robots nearly every update is corrected
-  // and each correction streams the whole map several times. 0 = off. Not yet in the
-  // snapshot state (a restored smoother forgets the local moves' reference values).
+  // and each correction streams the whole map several times. 0 = off. The local moves'
+  // reference values are in the snapshot state (SmootherState, format 11).
   int correction_local_hops = 0;
   static constexpr size_t kLocalCorrectionMaxVariables = 400;
 

@@ -5,6 +5,7 @@
 
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "common/solver/smoother_impl.h"
 
@@ -28,6 +29,10 @@ SmootherState Smoother::Impl::ExportState() const {
   s.last_chi2 = last_chi2_;
   s.innovation = innovation_;
   s.uncorrected_factors = uncorrected_factors_;
+  s.local_pass_values.reserve(pass_values_.size());
+  for (const auto& [var, value] : pass_values_) s.local_pass_values.push_back({var, value});
+  s.local_moved_factors = moved_factors_;
+  s.local_seeds_from = static_cast<int64_t>(local_seeds_from_);
   s.r = r_->ExportState();
   s.merge_pending = merge_pending_;
   s.merge_variables = merge_vars_;
@@ -69,6 +74,25 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   for (int64_t f : s.uncorrected_factors) {
     if (f < 0 || f >= num_factors) return refuse("uncorrected factor");
   }
+  if (s.local_seeds_from < 0 ||
+      s.local_seeds_from > static_cast<int64_t>(s.uncorrected_factors.size())) {
+    return refuse("local seeds");
+  }
+  for (size_t k = 0; k < s.local_moved_factors.size(); ++k) {
+    const int64_t f = s.local_moved_factors[k];
+    if (f < 0 || f >= num_factors || (k > 0 && f <= s.local_moved_factors[k - 1])) {
+      return refuse("locally moved factor");
+    }
+  }
+  {
+    std::vector<char> seen(vars_.size(), 0);
+    for (const SmootherState::PassValue& p : s.local_pass_values) {
+      if (p.variable < 0 || p.variable >= num_vars || seen[p.variable]) {
+        return refuse("local pass value");
+      }
+      seen[p.variable] = 1;
+    }
+  }
   for (int var : s.pending_variables) {
     if (var < 0 || var >= num_vars) return refuse("pending variable");
   }
@@ -100,6 +124,14 @@ Status Smoother::Impl::ImportState(SmootherState s) {
   last_chi2_ = s.last_chi2;
   innovation_ = s.innovation;
   uncorrected_factors_ = std::move(s.uncorrected_factors);
+  pass_values_.clear();
+  pass_index_.assign(vars_.size(), -1);
+  for (const SmootherState::PassValue& p : s.local_pass_values) {
+    pass_index_[p.variable] = static_cast<int>(pass_values_.size());
+    pass_values_.emplace_back(p.variable, p.value);
+  }
+  moved_factors_ = std::move(s.local_moved_factors);
+  local_seeds_from_ = static_cast<size_t>(s.local_seeds_from);
   RecountFactorsInR();
   gradient_.Clear();  // a function of the estimate: rebuilt by the next pass
   r_ = std::move(r);

@@ -46,6 +46,18 @@ struct SmootherState {
   // Kept-estimate mode: the factors that entered R since the last correction ran (the
   // skip test sums their gradient).
   std::vector<int64_t> uncorrected_factors;
+  // correction_local_hops: the variables local corrections moved since the last gradient
+  // pass, each with its value at that pass (in the order they were first moved); the
+  // factors that pass counted which see them (sorted; the skip test adds their change);
+  // and where in uncorrected_factors the factors since the last local correction begin
+  // (its next region's seeds).
+  struct PassValue {
+    int variable = -1;
+    Pose2 value;
+  };
+  std::vector<PassValue> local_pass_values;
+  std::vector<int64_t> local_moved_factors;
+  int64_t local_seeds_from = 0;
   SparseR::State r;
   bool merge_pending = false;
   std::vector<int> merge_variables;

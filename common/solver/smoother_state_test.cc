@@ -148,7 +148,16 @@ void ExpectSameSmoother(const Smoother& a, const Smoother& b) {
   EXPECT_EQ(s.rows_reeliminated, u.rows_reeliminated);
   EXPECT_EQ(s.correction_steps, u.correction_steps);
   EXPECT_EQ(s.correction_skips, u.correction_skips);
-  EXPECT_EQ(a.ExportState().uncorrected_factors, b.ExportState().uncorrected_factors);
+  const SmootherState sa = a.ExportState();
+  const SmootherState sb = b.ExportState();
+  EXPECT_EQ(sa.uncorrected_factors, sb.uncorrected_factors);
+  ASSERT_EQ(sa.local_pass_values.size(), sb.local_pass_values.size());
+  for (size_t k = 0; k < sa.local_pass_values.size(); ++k) {
+    EXPECT_EQ(sa.local_pass_values[k].variable, sb.local_pass_values[k].variable);
+    EXPECT_EQ(Bits(sa.local_pass_values[k].value), Bits(sb.local_pass_values[k].value));
+  }
+  EXPECT_EQ(sa.local_moved_factors, sb.local_moved_factors);
+  EXPECT_EQ(sa.local_seeds_from, sb.local_seeds_from);
   EXPECT_EQ(s.nnz_r, u.nnz_r);
   EXPECT_EQ(a.Chi2(), b.Chi2());
 }
@@ -158,7 +167,8 @@ void ExpectSameSmoother(const Smoother& a, const Smoother& b) {
 // linearisation points, estimate and step counters, to the bit (the server's options:
 // partial relinearisation, partial merges, batch steps on fill). States are taken between
 // updates and with measurements pending (added, not yet folded in).
-void ExpectImportedStatesContinueExactly(const SmootherOptions& options) {
+// `with_local_moves`: how many of the exported states held local corrections' moves.
+void ExpectImportedStatesContinueExactly(const SmootherOptions& options, int* with_local_moves) {
   const std::vector<Edit> edits = Mission();
   Smoother live(options);
   std::vector<std::pair<size_t, SmootherState>> exported;  // (edits applied, state)
@@ -179,9 +189,11 @@ void ExpectImportedStatesContinueExactly(const SmootherOptions& options) {
   }
 
   int with_pending = 0;
+  *with_local_moves = 0;
   for (auto& [cut, state] : exported) {
     SCOPED_TRACE("state after edit " + std::to_string(cut));
     with_pending += state.pending_factors.empty() ? 0 : 1;
+    *with_local_moves += state.local_pass_values.empty() ? 0 : 1;
     Smoother restored(options);
     for (size_t e = 0; e < cut; ++e) Apply(edits[e], &restored);
     ASSERT_TRUE(restored.ImportState(state).ok());
@@ -190,6 +202,8 @@ void ExpectImportedStatesContinueExactly(const SmootherOptions& options) {
     EXPECT_EQ(reexported.pending_factors, state.pending_factors);
     EXPECT_EQ(reexported.grounded, state.grounded);
     EXPECT_EQ(reexported.uncorrected_factors, state.uncorrected_factors);
+    EXPECT_EQ(reexported.local_moved_factors, state.local_moved_factors);
+    EXPECT_EQ(reexported.local_seeds_from, state.local_seeds_from);
     for (size_t e = cut; e < edits.size(); ++e) {
       Apply(edits[e], &restored);
       ASSERT_TRUE(Solve(edits[e], &restored).ok());
@@ -200,14 +214,29 @@ void ExpectImportedStatesContinueExactly(const SmootherOptions& options) {
 }
 
 TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
-  ExpectImportedStatesContinueExactly(ServerModeOptions());
+  int with_local_moves = 0;
+  ExpectImportedStatesContinueExactly(ServerModeOptions(), &with_local_moves);
 }
 
 TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheConjugateGradientCorrection) {
   // The estimate is then theta + delta + correction with the correction carried across
   // updates: it must be in the state too.
   SmootherOptions options = ServerModeWithCorrectionOptions();
-  ExpectImportedStatesContinueExactly(options);
+  int with_local_moves = 0;
+  ExpectImportedStatesContinueExactly(options, &with_local_moves);
+  EXPECT_EQ(with_local_moves, 0);
+}
+
+TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheLocalCorrection) {
+  // correction_local_hops: the values local steps moved since the last gradient pass and
+  // the factors that see them enter the skip test's bound until the next whole-map
+  // correction, so they are state too (without them the restored smoother's bound leaves
+  // their terms out and it skips where the exporting one corrects).
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 4;
+  int with_local_moves = 0;
+  ExpectImportedStatesContinueExactly(options, &with_local_moves);
+  EXPECT_GT(with_local_moves, 0);
 }
 
 // The correction's gradient passes reuse the factors linearised at the estimate
@@ -240,6 +269,34 @@ TEST(SmootherStateTest, EveryCorrectedUpdateIsWhatAFullGradientPassGives) {
   const CorrectionWork work = live.correction_work();
   EXPECT_GT(work.gradient_passes, 60);
   EXPECT_LT(work.factors_linearized, work.gradient_passes * live.stats().factors * 3 / 4);
+}
+
+// correction_local_hops, at every update of the mission: a smoother restored from the
+// state just before it makes the same update to the bit, including those whose skip test
+// must add the change of the factors that earlier local steps moved since the last pass.
+TEST(SmootherStateTest, EveryUpdateAfterLocalCorrectionsContinuesExactlyFromTheState) {
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 4;
+  const std::vector<Edit> edits = Mission();
+  Smoother live(options);
+  int compared = 0;
+  int with_local_moves = 0;
+  for (size_t e = 0; e < edits.size(); ++e) {
+    Apply(edits[e], &live);
+    if (!edits[e].update && !edits[e].batch) continue;
+    const SmootherState before = live.ExportState();
+    with_local_moves += before.local_pass_values.empty() ? 0 : 1;
+    ASSERT_TRUE(Solve(edits[e], &live).ok());
+    Smoother restored(options);
+    for (size_t k = 0; k <= e; ++k) Apply(edits[k], &restored);
+    ASSERT_TRUE(restored.ImportState(before).ok());
+    ASSERT_TRUE(Solve(edits[e], &restored).ok());
+    SCOPED_TRACE("update after edit " + std::to_string(e));
+    ExpectSameSmoother(live, restored);
+    ++compared;
+  }
+  EXPECT_EQ(compared, 60);
+  EXPECT_GT(with_local_moves, 5);
 }
 
 TEST(SmootherStateTest, AStateOfAnotherGraphIsRefusedAndChangesNothing) {
