@@ -238,8 +238,11 @@ class Smoother::Impl {
   // tree), locally reordered; factors no longer active leave R on the way. `full_solve`
   // back-substitutes all of R afterwards. All or nothing: false (result->status) leaves
   // the smoother as it was. True without work when nothing drifted and nothing is forced.
+  // False with result->status ok, nothing changed, when it would re-eliminate more than
+  // `max_rows` block rows.
   bool PartialRelinearization(const std::vector<int>& forced, bool full_solve, UpdateResult* result,
-                              bool keep_estimate = false);
+                              bool keep_estimate = false,
+                              int max_rows = std::numeric_limits<int>::max());
   // Two anchored groups joined (relative formulation, partial_merges): the new
   // measurements by Givens updates, then a partial step over the moved anchors and the
   // one whose gauge prior was dropped. Falls back to a batch step if that fails.
@@ -274,7 +277,10 @@ class Smoother::Impl {
   double GradientAtEstimate();
   // The drift check: a partial step (or a batch step) on the variables whose estimate
   // moved more than relinearize_threshold from their linearisation point; false if none.
-  bool RelinearizeDrifted(UpdateResult* result);
+  // A partial step that would re-eliminate more than `max_partial_rows` block rows is a
+  // batch step instead.
+  bool RelinearizeDrifted(UpdateResult* result,
+                          int max_partial_rows = std::numeric_limits<int>::max());
   // After a correction that stalled: relinearise and correct again, up to three times.
   void RelinearizeUntilCorrected(UpdateResult* result);
   // correction_cg_iterations: R only preconditions the correction; the estimate moves only

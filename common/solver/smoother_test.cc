@@ -712,6 +712,53 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
   EXPECT_GT(worst_error[0], worst_error[1]);
 }
 
+// A stalled correction whose drift covers most of the map (a long chain's loop closure
+// after heading drift): the partial step would re-eliminate more than half of R, so the
+// update takes a batch step instead, and relinearises nothing more after it (every row is
+// then at one point; a correction that still stalls stalls on the nonlinearity). One outer
+// step per correction makes the closure's correction stall.
+TEST(SmootherTest, StallWhoseDriftCoversMostOfRIsOneBatchStepInsteadOfPartialSteps) {
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_iterations = 1;
+  Smoother smoother(options);
+  testing::RandomGraphOptions g;
+  g.poses = 120;
+  g.loop_closures = 0;
+  g.sigma_theta_rad = 0.05;
+  g.seed = 7;
+  const PoseGraph graph = testing::RandomGraph(g);
+  const TrajectoryId t(0);
+  for (int i = 0; i < g.poses; ++i) {
+    ASSERT_TRUE(AddPoseAndItsEdges(&smoother, graph, t, i));
+    ASSERT_TRUE(smoother.Update().status.ok());
+  }
+  const SmootherStats before = smoother.stats();
+  const int last = g.poses - 1;
+  ASSERT_TRUE(smoother
+                  .AddBetween({t, 0}, {t, last},
+                              Between(graph.vertices[0].pose, graph.vertices[last].pose),
+                              kCovariance)
+                  .ok());
+  const UpdateResult closure = smoother.Update();
+  ASSERT_TRUE(closure.status.ok());
+  const SmootherStats after = smoother.stats();
+  std::printf(
+      "closure: %lld stalls, %lld batch steps on drift, %lld partial steps\n",
+      static_cast<long long>(after.correction_stalls - before.correction_stalls),
+      static_cast<long long>(after.batch_steps_on_drift - before.batch_steps_on_drift),
+      static_cast<long long>(after.partial_relinearizations - before.partial_relinearizations));
+  EXPECT_GT(after.correction_stalls, before.correction_stalls);
+  EXPECT_TRUE(closure.batch_step);
+  EXPECT_EQ(after.batch_steps_on_drift - before.batch_steps_on_drift, 1);
+  EXPECT_EQ(after.partial_relinearizations, before.partial_relinearizations);
+  // The next updates (no new factors) converge to the dense optimum.
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(smoother.Update().status.ok());
+  const DenseOracle oracle(smoother.ActiveFactors());
+  const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 20));
+  std::printf("chi2 %.6f, optimum %.6f\n", smoother.Chi2(), optimum);
+  EXPECT_LE(smoother.Chi2(), optimum * (1 + 1e-3));
+}
+
 // Two trajectories (one encounter joins them) with relinearisation at 0.01: partial steps
 // run, a forced ordering failure in the middle changes nothing, and the end is the dense
 // optimum. (The per-update checks of R are tests/per_update_oracle_test.cc; this one is

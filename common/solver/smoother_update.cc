@@ -243,7 +243,8 @@ void Smoother::Impl::KeepEstimate(const std::vector<Pose2>& estimate) {
 }
 
 bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool full_solve,
-                                            UpdateResult* result, bool keep_estimate) {
+                                            UpdateResult* result, bool keep_estimate,
+                                            int max_rows) {
   const auto start = std::chrono::steady_clock::now();
   const int n = r_->size();
   // 1. The drifted variables S (by position) and their new linearisation points.
@@ -304,6 +305,7 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
     }
   }
   const int nb = static_cast<int>(b_positions.size());
+  if (nb > max_rows) return false;
 
   // 3. Factors with a variable in B (relinearised if they touch S), and the rows outside
   // B that reference B (their part in B is subtracted: R_BB^T R_BB = H_BB - R_FB^T R_FB).
@@ -766,14 +768,21 @@ UpdateResult Smoother::Impl::Update(bool force_batch, double convergence_step) {
 
 void Smoother::Impl::RelinearizeUntilCorrected(UpdateResult* result) {
   // R was too stale to converge: relinearise what drifted and correct again (a fresher R
-  // is a better preconditioner), at most three times, as after a merge.
+  // is a better preconditioner), at most three times, as after a merge. A partial step
+  // that would re-eliminate more than half of R is a batch step instead (about the same
+  // work, every row at one point, R reordered), unless this update took one already, and
+  // after it nothing is relinearised again in this update: a correction that still stalls
+  // then stalls on the problem's nonlinearity (a large closure bending the map), which
+  // relinearising again only chases.
   for (int k = 0; k < 3 && result->status.ok(); ++k) {
-    if (!RelinearizeDrifted(result) || !result->status.ok()) return;
-    if (CorrectEstimate()) return;
+    const bool batch_before = result->batch_step;
+    const int max_partial_rows = batch_before ? std::numeric_limits<int>::max() : r_->size() / 2;
+    if (!RelinearizeDrifted(result, max_partial_rows) || !result->status.ok()) return;
+    if (CorrectEstimate() || result->batch_step != batch_before) return;
   }
 }
 
-bool Smoother::Impl::RelinearizeDrifted(UpdateResult* result) {
+bool Smoother::Impl::RelinearizeDrifted(UpdateResult* result, int max_partial_rows) {
   double max_drift = 0.0;
   const std::vector<int> drifted = DriftedPositions(&max_drift);
   if (drifted.empty()) return false;
@@ -781,7 +790,12 @@ bool Smoother::Impl::RelinearizeDrifted(UpdateResult* result) {
     case DriftAction::kNone:
       break;
     case DriftAction::kPartialRelinearization:
-      PartialRelinearization(drifted, /*full_solve=*/false, result, KeepsEstimate());
+      if (!PartialRelinearization(drifted, /*full_solve=*/false, result, KeepsEstimate(),
+                                  max_partial_rows) &&
+          result->status.ok()) {
+        ++stats_.batch_steps_on_drift;
+        BatchStep(options_.converge_periodic_batches, options_.convergence_step, result);
+      }
       break;
     case DriftAction::kBatchStep:
       ++stats_.batch_steps_on_drift;
