@@ -68,8 +68,11 @@ class GlobalSearchPlanner {
   int SearchGlobally(PoseKey key, const GlobalTarget& target, const GraphView& graph);
   // The submaps of `other` (at most `most`, nearest first) a global search of `key` is guided
   // to (guide_*), if any; `nearest_m`: the first one's centre from where the hypothesis puts key.
-  std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, const GraphView& graph,
-                                    size_t most, double* nearest_m = nullptr) const;
+  // `grouped`: another of the table's trajectories is in other's anchored group (none: other
+  // is searched in turn).
+  std::vector<size_t> GuidedSubmaps(PoseKey key, TrajectoryId other, bool grouped,
+                                    const GraphView& graph, size_t most,
+                                    double* nearest_m = nullptr) const;
   // The submaps of `submaps` (at most `most`, nearest first) within guide_max_distance_m of
   // where `hypothesis` (a candidate of key's trajectory against their group) puts key.
   std::vector<size_t> GuidedByHypothesis(PoseKey key, const EncounterCandidate& hypothesis,

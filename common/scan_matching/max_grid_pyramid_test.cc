@@ -46,6 +46,8 @@ TEST(MaxGridPyramidTest, EveryLevelEqualsBruteForceBlockMaxima) {
         RandomGrid(13 + static_cast<int>(seed), 9 + 2 * static_cast<int>(seed), seed);
     ExpectBruteForceBlockMaxima(grid, 5, seed);
   }
+  // Rows wide enough for several vector steps of the levels' build, and a remainder.
+  ExpectBruteForceBlockMaxima(RandomGrid(83, 21, 6), 5, 6);
 }
 
 // Grids narrower than the largest blocks (the levels' borders are most of them).

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/scan_matching/avx2_dispatch.h"
 #include "common/scan_matching/likelihood_grid.h"
 #include "common/scan_matching/max_grid_pyramid.h"
 
@@ -51,11 +52,11 @@ TEST(ReferenceFieldTest, CellVectorsPointToTheNearestSurfacePoint) {
   EXPECT_GT(stored, 100);
 }
 
-TEST(ReferenceFieldTest, CellsHoldTheNearestPrimitiveToTheBitWithTiesToTheLater) {
-  // Three noisy scans (walls, corners, lone returns, repeated points, segments at every
-  // angle): every cell of the field equals the definition evaluated cell by cell over all
-  // primitives in order - the same float vector, the same primitive - whatever rows, columns
-  // or vector lanes the build visits.
+// Three noisy scans (walls, corners, lone returns, repeated points, segments at every angle):
+// every cell of the field equals the definition evaluated cell by cell over all primitives in
+// order - the same float vector, the same primitive - whatever rows, columns or vector lanes
+// the build visits.
+void ExpectCellsHoldTheNearestPrimitive() {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> noise(0.0, 0.01);
   std::vector<PointCloud> scans(3);
@@ -117,6 +118,18 @@ TEST(ReferenceFieldTest, CellsHoldTheNearestPrimitiveToTheBitWithTiesToTheLater)
     }
   }
   EXPECT_GT(stored, 2000);
+}
+
+TEST(ReferenceFieldTest, CellsHoldTheNearestPrimitiveToTheBitWithTiesToTheLater) {
+  ExpectCellsHoldTheNearestPrimitive();
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  // Where the CPU has AVX-512 the build above ran its eight-lane path: the AVX2 one too.
+  if (CpuHasAvx512()) {
+    Avx512Allowed() = false;
+    ExpectCellsHoldTheNearestPrimitive();
+    Avx512Allowed() = true;
+  }
+#endif
 }
 
 TEST(ReferenceFieldTest, JoinsOnlyCloseConsecutiveReturns) {
@@ -199,6 +212,34 @@ TEST(ReferenceFieldTest, InterpolateInCellIsInterpolateAndCellOfToTheBit) {
   EXPECT_GT(inside, 1000);
 }
 
+// The batch's answers are each point's single calls' (InterpolateInCell, NearestNormal), to the
+// bit, wherever a point is found; over a wall and lone returns.
+void ExpectSingleCallsAnswers(const ReferenceField& field, ReferenceField::Lookups lookups) {
+  field.InterpolateWithNormals(&lookups);
+  int found = 0;
+  int with_normal = 0;
+  for (size_t i = 0; i < lookups.qx.size(); ++i) {
+    const Eigen::Vector2d p(lookups.qx[i], lookups.qy[i]);
+    Eigen::Vector2d v = Eigen::Vector2d::Zero();
+    Eigen::Vector2i cell = Eigen::Vector2i::Zero();
+    const bool inside = field.InterpolateInCell(p, &v, &cell);
+    ASSERT_EQ(lookups.found[i] != 0, inside) << p.transpose();
+    if (!inside) continue;
+    ++found;
+    EXPECT_EQ(lookups.vx[i], v.x());
+    EXPECT_EQ(lookups.vy[i], v.y());
+    Eigen::Vector2d n = Eigen::Vector2d::Zero();
+    const bool has_normal = field.NearestNormal(cell.x(), cell.y(), &n);
+    ASSERT_EQ(lookups.has_normal[i] != 0, has_normal) << p.transpose();
+    if (!has_normal) continue;
+    ++with_normal;
+    EXPECT_EQ(lookups.nx[i], n.x());
+    EXPECT_EQ(lookups.ny[i], n.y());
+  }
+  EXPECT_GT(with_normal, 1000);
+  EXPECT_GT(found - with_normal, 100);
+}
+
 TEST(ReferenceFieldTest, InterpolateWithNormalsIsInterpolateInCellAndNearestNormalToTheBit) {
   // A wall (joined returns: normals) and lone returns (none), points over the grid, past its
   // edges, on cell borders and centres, and not finite; an odd count (the last points go one
@@ -233,30 +274,29 @@ TEST(ReferenceFieldTest, InterpolateWithNormalsIsInterpolateInCellAndNearestNorm
     lookups.qx.push_back(0.5);
     lookups.qy.push_back(bad);
   }
-  lookups.resize(lookups.qx.size());
-  field.InterpolateWithNormals(&lookups);
-  int found = 0;
-  int with_normal = 0;
-  for (size_t i = 0; i < lookups.qx.size(); ++i) {
-    const Eigen::Vector2d p(lookups.qx[i], lookups.qy[i]);
-    Eigen::Vector2d v = Eigen::Vector2d::Zero();
-    Eigen::Vector2i cell = Eigen::Vector2i::Zero();
-    const bool inside = field.InterpolateInCell(p, &v, &cell);
-    ASSERT_EQ(lookups.found[i] != 0, inside) << p.transpose();
-    if (!inside) continue;
-    ++found;
-    EXPECT_EQ(lookups.vx[i], v.x());
-    EXPECT_EQ(lookups.vy[i], v.y());
-    Eigen::Vector2d n = Eigen::Vector2d::Zero();
-    const bool has_normal = field.NearestNormal(cell.x(), cell.y(), &n);
-    ASSERT_EQ(lookups.has_normal[i] != 0, has_normal) << p.transpose();
-    if (!has_normal) continue;
-    ++with_normal;
-    EXPECT_EQ(lookups.nx[i], n.x());
-    EXPECT_EQ(lookups.ny[i], n.y());
+  // Every count modulo 8 (the batch's last points go four, then one at a time), on each vector
+  // path the CPU has.
+  const std::vector<double> all_x = lookups.qx;
+  const std::vector<double> all_y = lookups.qy;
+  std::vector<bool> avx512_allowed = {true};
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  if (CpuHasAvx512()) avx512_allowed.push_back(false);
+#endif
+  for (const bool allowed : avx512_allowed) {
+#ifdef ANCHORMAP_AVX2_DISPATCH
+    Avx512Allowed() = allowed;
+#endif
+    for (size_t count = all_x.size() - 7; count <= all_x.size(); ++count) {
+      SCOPED_TRACE(testing::Message() << "AVX-512 allowed " << allowed << ", " << count);
+      lookups.qx.assign(all_x.end() - static_cast<std::ptrdiff_t>(count), all_x.end());
+      lookups.qy.assign(all_y.end() - static_cast<std::ptrdiff_t>(count), all_y.end());
+      lookups.resize(count);
+      ExpectSingleCallsAnswers(field, lookups);
+    }
   }
-  EXPECT_GT(with_normal, 1000);
-  EXPECT_GT(found - with_normal, 100);
+#ifdef ANCHORMAP_AVX2_DISPATCH
+  Avx512Allowed() = true;
+#endif
   // An empty field finds nothing.
   const ReferenceField empty(std::vector<PointCloud>{}, ReferenceFieldOptions{});
   empty.InterpolateWithNormals(&lookups);
