@@ -292,6 +292,15 @@ Eigen::Matrix3d Smoother::ProjectedCovariance(const std::vector<Key>& keys,
                                               const std::vector<Eigen::Matrix3d>& jacobians) {
   return impl_->ProjectedCovariance(keys, jacobians);
 }
+bool Smoother::ProjectedCovarianceUntil(const std::vector<Key>& keys,
+                                        const std::vector<Eigen::Matrix3d>& jacobians,
+                                        const std::function<bool(const Eigen::Matrix3d&)>& enough,
+                                        Eigen::Matrix3d* covariance) {
+  return impl_->ProjectedCovarianceUntil(keys, jacobians, enough, covariance);
+}
+std::vector<Eigen::Matrix3d> Smoother::ProjectedMarginals(const std::vector<Key>& keys) {
+  return impl_->ProjectedMarginals(keys);
+}
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
