@@ -324,11 +324,12 @@ std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   const bool anchored =
       impl_->options().formulation == Formulation::kRelative && impl_->IsAnchored(t);
   const Pose2 anchor = anchored ? impl_->Estimate(AnchorKey{t}) : Pose2();
+  const CosSin rotation = CosSin::Of(anchor.theta());  // once, not per keyframe: the same bits
   std::vector<Pose2> poses;
   poses.reserve(static_cast<size_t>(impl_->NumPoses(t)));
   for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) {
     const Pose2 local = impl_->Estimate(PoseKey{t, i});
-    poses.push_back(anchored ? Compose(anchor, local) : local);
+    poses.push_back(anchored ? Compose(anchor, rotation, local) : local);
   }
   return poses;
 }
