@@ -62,18 +62,24 @@ double PairwiseChi2(const EncounterCandidate& c1, const EncounterCandidate& c2,
 
 bool WithinGate(const EncounterCandidate& candidate, const GraphView& graph, bool widened,
                 const Eigen::Matrix3d& drift, const ScanEncounterOptions& options) {
+  const auto passes = [&](const Pose2& T_a_b, const Eigen::Matrix3d& predicted) {
+    Eigen::Matrix3d covariance = predicted;
+    if (widened) {
+      // In every direction by the largest sigma: the estimate of two drifted-apart
+      // trajectories is off along axes its covariance does not know.
+      const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
+      covariance.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
+    }
+    return Mahalanobis2(T_a_b, candidate.T_a_b, covariance + drift + candidate.covariance) <=
+           options.gate_chi2;
+  };
+  // The distance only falls as the predicted covariance grows (the widening with it): once
+  // a partial sum of its solve passes, the exact covariance passes too, and the rest of
+  // the solve (the wide rows at R's bottom) is not needed.
   const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, candidate.a, candidate.b);
+      PredictRelativePose(graph.covariances, candidate.a, candidate.b, passes);
   if (!predicted) return false;
-  Eigen::Matrix3d covariance = predicted->covariance;
-  if (widened) {
-    // In every direction by the largest sigma: the estimate of two drifted-apart
-    // trajectories is off along axes its covariance does not know.
-    const double sigma = LargestSigma(covariance.topLeftCorner<2, 2>());
-    covariance.topLeftCorner<2, 2>() += sigma * sigma * Eigen::Matrix2d::Identity();
-  }
-  return Mahalanobis2(predicted->T_a_b, candidate.T_a_b,
-                      covariance + drift + candidate.covariance) <= options.gate_chi2;
+  return predicted->partial || passes(predicted->T_a_b, predicted->covariance);
 }
 
 void Emit(const EncounterCandidate& candidate, const std::string& source_name,

@@ -36,6 +36,7 @@ MapChunker::Split MapChunker::Update(const MergedMap& map, bool full) {
   for (const MergedTrajectory& t : map.trajectories) {
     by_name[{t.robot, t.trajectory_id}] = &t;
     const Pose2 T_local_global = t.T_global_local.Inverse();
+    const CosSin rotation = CosSin::Of(T_local_global.theta());  // once per trajectory
     const auto poses = static_cast<int64_t>(t.poses.size());
     for (int64_t first = 0; first < poses; first += size) {
       MergedMapChunk chunk;
@@ -45,7 +46,8 @@ MapChunker::Split MapChunker::Update(const MergedMap& map, bool full) {
       chunk.chunk_index = static_cast<int32_t>(first / size);
       const int64_t end = std::min(poses, first + size);
       for (int64_t i = first; i < end; ++i) {
-        chunk.local_poses.push_back(Compose(T_local_global, t.poses[static_cast<size_t>(i)]));
+        chunk.local_poses.push_back(
+            Compose(T_local_global, rotation, t.poses[static_cast<size_t>(i)]));
         chunk.pose_utimes.push_back(i < static_cast<int64_t>(t.pose_utimes.size())
                                         ? t.pose_utimes[static_cast<size_t>(i)]
                                         : 0);

@@ -116,15 +116,27 @@ bool NearSearch::Saturated(PoseKey key, PoseKey center, const GraphView& graph) 
 
 bool NearSearch::SearchNear(PoseKey key, const NearTarget& target, const GraphView& graph) {
   const Submap& nearest = submaps_->Of(target.other)[target.submap];
+  // Whether the pair can be predicted at all, before the drive's tie search (no solve yet).
+  const auto at_once = [](const Pose2&, const Eigen::Matrix3d&) { return true; };
+  if (!PredictRelativePose(graph.covariances, nearest.center, key, at_once)) return false;
+  const Eigen::Matrix3d drift = NearWindowDrift(nearest.center, key, graph);
+  // The window only widens as the predicted covariance grows: once a partial sum of its
+  // solve (a lower bound) with the drift gives the widest window in both axes, the exact
+  // covariance gives it too, bit for bit, and the rest of the solve is not needed.
+  const auto widest = [&](const Pose2&, const Eigen::Matrix3d& so_far) {
+    bool wide = false;
+    const LocalMatchOptions at = NearSearchWindow(so_far + drift, options_, &wide);
+    return wide && at.linear_window_m == options_.near_wide_max_window_m &&
+           at.angular_window_rad == options_.max_window_rad;
+  };
   const std::optional<PredictedRelativePose> predicted =
-      PredictRelativePose(graph.covariances, nearest.center, key);
+      PredictRelativePose(graph.covariances, nearest.center, key, widest);
   if (!predicted) return false;
   const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
   auto query =
       std::make_shared<const PointCloud>(KeyframePoints(*record, key.index, options_.max_range_m));
   bool wide = false;
-  LocalMatchOptions window = NearSearchWindow(
-      predicted->covariance + NearWindowDrift(nearest.center, key, graph), options_, &wide);
+  LocalMatchOptions window = NearSearchWindow(predicted->covariance + drift, options_, &wide);
   window.match.covariance_min_score = options_.near_min_score;  // UseMatches' bars
   window.match.covariance_min_overlap = options_.near_min_overlap;
   std::shared_ptr<const ScanReference> reference = submaps_->Reference(nearest, graph);

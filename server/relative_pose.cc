@@ -30,30 +30,46 @@ TrajectoryFrames FramesOf(const TrajectoryTable& table, const Smoother& smoother
 }
 
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b) {
+  return PredictRelativePose(smoother, a, b, nullptr);
+}
+
+std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b,
+                                                         const EnoughCovariance& enough) {
   if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
   // Only from a solved graph: a covariance read across a pending merge or anchor would
   // describe the graph before it (MappingServer solves before its sources see one).
   if (!smoother->IsSolved(a) || !smoother->IsSolved(b)) return std::nullopt;
   PredictedRelativePose out;
+  std::vector<Key> keys;
+  std::vector<Eigen::Matrix3d> jacobians;
   if (a.trajectory == b.trajectory) {
     Eigen::Matrix3d J_a, J_b;
     out.T_a_b = Between(smoother->FramePose(a), smoother->FramePose(b), &J_a, &J_b);
-    out.covariance = smoother->ProjectedCovariance({a, b}, {J_a, J_b});
-    return out;
+    keys = {a, b};
+    jacobians = {J_a, J_b};
+  } else {
+    const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
+    if (!smoother->IsSolved(anchor_a) || !smoother->IsSolved(anchor_b)) {
+      return std::nullopt;
+    }
+    Eigen::Matrix3d dga_dA, dga_dx, dgb_dA, dgb_dx, dh_dga, dh_dgb;
+    const Pose2 global_a =
+        Compose(smoother->Value(anchor_a), smoother->FramePose(a), &dga_dA, &dga_dx);
+    const Pose2 global_b =
+        Compose(smoother->Value(anchor_b), smoother->FramePose(b), &dgb_dA, &dgb_dx);
+    out.T_a_b = Between(global_a, global_b, &dh_dga, &dh_dgb);
+    keys = {a, b, anchor_a, anchor_b};
+    jacobians = {dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA};
   }
-  const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
-  if (!smoother->IsSolved(anchor_a) || !smoother->IsSolved(anchor_b)) {
-    return std::nullopt;
+  if (!enough) {
+    out.covariance = smoother->ProjectedCovariance(keys, jacobians);
+  } else {
+    const Pose2 T_a_b = out.T_a_b;
+    out.partial = !smoother->ProjectedCovarianceUntil(
+        keys, jacobians,
+        [&enough, &T_a_b](const Eigen::Matrix3d& so_far) { return enough(T_a_b, so_far); },
+        &out.covariance);
   }
-  Eigen::Matrix3d dga_dA, dga_dx, dgb_dA, dgb_dx, dh_dga, dh_dgb;
-  const Pose2 global_a =
-      Compose(smoother->Value(anchor_a), smoother->FramePose(a), &dga_dA, &dga_dx);
-  const Pose2 global_b =
-      Compose(smoother->Value(anchor_b), smoother->FramePose(b), &dgb_dA, &dgb_dx);
-  out.T_a_b = Between(global_a, global_b, &dh_dga, &dh_dgb);
-  out.covariance = smoother->ProjectedCovariance(
-      {a, b, anchor_a, anchor_b},
-      {dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA});
   return out;
 }
 

@@ -5,6 +5,7 @@
 // trajectories share an anchored group. It is what a loop-closure or encounter candidate
 // is gated against before it may enter the graph.
 
+#include <functional>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -21,11 +22,25 @@ namespace anchormap {
 struct PredictedRelativePose {
   Pose2 T_a_b;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // (x, y, theta) of T_a_b
+  // The covariance's solve stopped early (the overload with `enough` below): `covariance`
+  // is only a lower bound of the exact one.
+  bool partial = false;
 };
 
 // nullopt when a and b are not in one frame (different groups, or unanchored and in
 // different trajectories) or a variable is not solved yet.
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b);
+
+// The same, the covariance's solve stopped once `enough(T_a_b, covariance so far)` holds
+// (Smoother::ProjectedCovarianceUntil; asked before the solve too): then `partial` is set
+// and the covariance is a lower bound of the exact one in the positive semidefinite order,
+// fit only for a test that gets easier to pass as the covariance grows (a Mahalanobis
+// distance under it at most a bound): passed under the bound, it passes under the exact
+// covariance. Without a stop, the bits of the overload above.
+using EnoughCovariance =
+    std::function<bool(const Pose2& T_a_b, const Eigen::Matrix3d& covariance_so_far)>;
+std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b,
+                                                         const EnoughCovariance& enough);
 
 // True when a and b are expressed in one frame (same trajectory, or one anchored group).
 bool InOneFrame(const Smoother& smoother, TrajectoryId a, TrajectoryId b);

@@ -188,6 +188,22 @@ TEST(PredictRelativePoseTest, CovarianceEqualsTheJointCovarianceProjectedAfterEv
         }
         worst = std::max(worst, (predicted->covariance - expected).cwiseAbs().maxCoeff() /
                                     expected.cwiseAbs().maxCoeff());
+        EXPECT_FALSE(predicted->partial);
+        // A solve never stopped gives the plain prediction's bits; so does one that could
+        // stop at once, as R has not changed since the plain one: the memo answers, exact.
+        // (Stopped solves: CovarianceProjectionTest.StoppedSolvesGiveLowerBounds...)
+        const auto never = [](const Pose2&, const Eigen::Matrix3d&) { return false; };
+        const auto at_once = [](const Pose2&, const Eigen::Matrix3d&) { return true; };
+        for (const EnoughCovariance& enough :
+             {EnoughCovariance(never), EnoughCovariance(at_once)}) {
+          const std::optional<PredictedRelativePose> again =
+              PredictRelativePose(&smoother, a, b, enough);
+          ASSERT_TRUE(again);
+          EXPECT_FALSE(again->partial);
+          EXPECT_EQ(again->covariance, predicted->covariance);
+          EXPECT_EQ(again->T_a_b.x(), predicted->T_a_b.x());
+          EXPECT_EQ(again->T_a_b.theta(), predicted->T_a_b.theta());
+        }
       }
     }
   }

@@ -43,6 +43,13 @@ Pose2 Compose(const Pose2& T_a_b, const Pose2& T_b_c, Eigen::Matrix3d* J_ab,
                T_a_b.theta() + T_b_c.theta());
 }
 
+Pose2 Compose(const Pose2& T_a_b, const CosSin& rotation_a_b, const Pose2& T_b_c) {
+  const double c = rotation_a_b.c, s = rotation_a_b.s;
+  const double dx = T_b_c.x(), dy = T_b_c.y();
+  return Pose2(T_a_b.x() + c * dx - s * dy, T_a_b.y() + s * dx + c * dy,
+               T_a_b.theta() + T_b_c.theta());
+}
+
 Pose2 Between(const Pose2& T_w_a, const Pose2& T_w_b, Eigen::Matrix3d* J_a, Eigen::Matrix3d* J_b) {
   return Between(T_w_a, CosSin::Of(T_w_a.theta()), T_w_b, J_a, J_b);
 }

@@ -52,6 +52,10 @@ struct CosSin {
   static CosSin Of(double angle) { return {std::cos(angle), std::sin(angle)}; }
 };
 
+// Compose without Jacobians, `rotation_a_b` = CosSin::Of(T_a_b.theta()) given (the same
+// bits): the map publication composes every keyframe with its trajectory's anchor.
+Pose2 Compose(const Pose2& T_a_b, const CosSin& rotation_a_b, const Pose2& T_b_c);
+
 // T_a_b = T_w_b (-) T_w_a: the pose b expressed in the frame of a. Optional Jacobians
 // d(result)/d(T_w_a) and d(result)/d(T_w_b).
 Pose2 Between(const Pose2& T_w_a, const Pose2& T_w_b, Eigen::Matrix3d* J_a = nullptr,

@@ -46,6 +46,27 @@ TEST(Pose2Test, ComposeMatchesAlgorithmFormula) {
   EXPECT_NEAR(p.theta(), kPi / 2 + 0.25, 1e-12);
 }
 
+// With the first pose's cos and sin given (computed once for many poses), Compose gives the
+// same bits as computing them itself.
+TEST(Pose2Test, ComposeWithGivenRotationHasTheSameBits) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-50.0, 50.0), angle(-4.0, 4.0);
+  int checked = 0;
+  for (const Pose2& a : HardPoses()) {
+    const CosSin rotation = CosSin::Of(a.theta());
+    for (int k = 0; k < 200; ++k) {
+      const Pose2 b(coordinate(rng), coordinate(rng), angle(rng));
+      const Pose2 expected = Compose(a, b);
+      const Pose2 actual = Compose(a, rotation, b);
+      EXPECT_EQ(actual.x(), expected.x());
+      EXPECT_EQ(actual.y(), expected.y());
+      EXPECT_EQ(actual.theta(), expected.theta());
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 0);
+}
+
 TEST(Pose2Test, BetweenInvertsCompose) {
   for (const Pose2& a : HardPoses()) {
     for (const Pose2& d : HardPoses()) {

@@ -1,5 +1,6 @@
 #include "common/solver/covariances.h"
 
+#include <cstring>
 #include <stdexcept>
 #include <utility>
 
@@ -102,18 +103,97 @@ Eigen::MatrixXd CovarianceRecovery::Joint(const std::vector<int>& positions) {
   return joint;
 }
 
-Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vector<int>& positions,
-                                              const std::vector<Eigen::Matrix3d>& jacobians) {
+uint64_t CovarianceProjection::HashOf(const std::vector<int>& positions,
+                                      const std::vector<Eigen::Matrix3d>& jacobians) {
+  // FNV-1a over the positions and the Jacobians' bits.
+  uint64_t hash = 1469598103934665603ull;
+  const auto mix = [&hash](const void* data, size_t bytes) {
+    const auto* c = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < bytes; ++i) hash = (hash ^ c[i]) * 1099511628211ull;
+  };
+  for (size_t s = 0; s < positions.size(); ++s) {
+    mix(&positions[s], sizeof(int));
+    mix(jacobians[s].data(), 9 * sizeof(double));
+  }
+  return hash;
+}
+
+const Eigen::Matrix3d* CovarianceProjection::Remembered(
+    uint64_t hash, const std::vector<int>& positions,
+    const std::vector<Eigen::Matrix3d>& jacobians) const {
+  const auto [first, last] = memo_index_.equal_range(hash);
+  for (auto it = first; it != last; ++it) {
+    const Query& query = memo_[it->second];
+    if (query.positions != positions) continue;
+    bool same = true;
+    for (size_t s = 0; s < jacobians.size() && same; ++s) {
+      // Bit for bit (memcmp): the memo must give what the solve gives for these bits.
+      same = std::memcmp(query.jacobians[s].data(), jacobians[s].data(), 9 * sizeof(double)) == 0;
+    }
+    if (same) return &query.result;
+  }
+  return nullptr;
+}
+
+void CovarianceProjection::Prepare(const SparseR& r, const std::vector<int>& positions,
+                                   const std::vector<Eigen::Matrix3d>& jacobians) {
   if (positions.size() != jacobians.size()) {
     throw std::invalid_argument("CovarianceProjection: one Jacobian block per position");
   }
+  for (int p : positions) {
+    if (p < 0 || p >= r.size()) throw std::out_of_range("CovarianceProjection: position outside R");
+  }
+  const std::pair<uint64_t, uint64_t> version{r.instance_id(), r.revision()};
+  if (!memo_valid_ || memo_r_ != version) {
+    memo_r_ = version;
+    memo_valid_ = true;
+    memo_index_.clear();
+    memo_.clear();
+  }
+}
+
+Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vector<int>& positions,
+                                              const std::vector<Eigen::Matrix3d>& jacobians) {
+  Eigen::Matrix3d result;
+  ComputeUntil(r, positions, jacobians, nullptr, &result);
+  return result;
+}
+
+bool CovarianceProjection::ComputeUntil(const SparseR& r, const std::vector<int>& positions,
+                                        const std::vector<Eigen::Matrix3d>& jacobians,
+                                        const Enough& enough, Eigen::Matrix3d* result) {
+  Prepare(r, positions, jacobians);
+  const uint64_t hash = HashOf(positions, jacobians);
+  if (const Eigen::Matrix3d* known = Remembered(hash, positions, jacobians)) {
+    ++memo_hits_;
+    *result = *known;
+    return true;
+  }
+  if (!Solve(r, positions, jacobians, enough ? &enough : nullptr, result)) {
+    ++stopped_early_;
+    return false;
+  }
+  ++computed_;
+  memo_index_.emplace(hash, memo_.size());
+  memo_.push_back({positions, jacobians, *result});
+  return true;
+}
+
+bool CovarianceProjection::Solve(const SparseR& r, const std::vector<int>& positions,
+                                 const std::vector<Eigen::Matrix3d>& jacobians,
+                                 const Enough* enough, Eigen::Matrix3d* out) {
   const int n = r.size();
   if (static_cast<int>(pending_.size()) < n) {
     pending_.resize(n, Eigen::Matrix3d::Zero());
     queued_.resize(n, 0);
   }
-  for (int p : positions) {
-    if (p < 0 || p >= n) throw std::out_of_range("CovarianceProjection: position outside R");
+  // Rows between two asks of `enough`: a row late in a large map holds ~100 blocks, and
+  // one ask costs about one block's product.
+  constexpr int kRowsPerAsk = 8;
+  Eigen::Matrix3d result = Eigen::Matrix3d::Zero();
+  if (enough != nullptr && (*enough)(result)) {
+    *out = result;
+    return false;
   }
   for (size_t s = 0; s < positions.size(); ++s) {
     const int p = positions[s];
@@ -125,7 +205,7 @@ Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vecto
   }
   // Forward substitution on R^T, rows in ascending order; each solved row pushes its part
   // into the rows its blocks reach (all later), so only ancestors are visited.
-  Eigen::Matrix3d result = Eigen::Matrix3d::Zero();
+  int rows = 0;
   while (!queue_.empty()) {
     const int p = queue_.top();
     queue_.pop();
@@ -143,8 +223,77 @@ Eigen::Matrix3d CovarianceProjection::Compute(const SparseR& r, const std::vecto
         queue_.push(q);
       }
     }
+    if (enough != nullptr && ++rows % kRowsPerAsk == 0 && !queue_.empty() &&
+        (*enough)(0.5 * (result + result.transpose()))) {
+      while (!queue_.empty()) {  // leave the work space clean for the next query
+        pending_[queue_.top()].setZero();
+        queued_[queue_.top()] = 0;
+        queue_.pop();
+      }
+      *out = 0.5 * (result + result.transpose());
+      return false;
+    }
   }
-  return 0.5 * (result + result.transpose());  // symmetric by construction; remove round-off
+  *out = 0.5 * (result + result.transpose());  // symmetric by construction; remove round-off
+  return true;
+}
+
+std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
+                                                             const std::vector<int>& positions) {
+  const int n = r.size();
+  const size_t k = positions.size();
+  for (int p : positions) {
+    if (p < 0 || p >= n) throw std::out_of_range("CovarianceProjection: position outside R");
+  }
+  if (static_cast<int>(slot_.size()) < n) slot_.resize(n, -1);
+  slot_pending_.clear();
+  slot_queued_.clear();
+  std::vector<int> used;  // positions given a slot, in the order they got it
+  // A row's slot, made (and the row queued) the first time a position's solve reaches it.
+  const auto slot_of = [&](int p) {
+    if (slot_[p] < 0) {
+      slot_[p] = static_cast<int>(used.size());
+      used.push_back(p);
+      slot_pending_.resize(slot_pending_.size() + k, Eigen::Matrix3d::Zero());
+      slot_queued_.resize(slot_queued_.size() + k, 0);
+      queue_.push(p);
+    }
+    return static_cast<size_t>(slot_[p]);
+  };
+  for (size_t g = 0; g < k; ++g) {
+    const size_t s = slot_of(positions[g]);
+    slot_pending_[s * k + g] += Eigen::Matrix3d::Identity();  // J^T, J = I: Compute's bits
+    slot_queued_[s * k + g] = 1;
+  }
+  // Each position's solve is Compute's: the same rows in the same (ascending) order, the
+  // same operations on its own blocks; they only share the walk.
+  std::vector<Eigen::Matrix3d> results(k, Eigen::Matrix3d::Zero());
+  std::vector<Eigen::Matrix3d> y(k);
+  std::vector<size_t> active;
+  while (!queue_.empty()) {
+    const int p = queue_.top();
+    queue_.pop();
+    const RBlockRow& row = r.row(p);
+    const size_t s = static_cast<size_t>(slot_[p]);
+    active.clear();
+    for (size_t g = 0; g < k; ++g) {
+      if (!slot_queued_[s * k + g]) continue;
+      active.push_back(g);
+      y[g] =
+          row.diagonal.transpose().triangularView<Eigen::Lower>().solve(slot_pending_[s * k + g]);
+      results[g].noalias() += y[g].transpose() * y[g];
+    }
+    for (const auto& [q, block] : row.right) {
+      const size_t sq = slot_of(q);
+      for (size_t g : active) {
+        slot_pending_[sq * k + g].noalias() -= block.transpose() * y[g];
+        slot_queued_[sq * k + g] = 1;
+      }
+    }
+  }
+  for (int p : used) slot_[p] = -1;
+  for (Eigen::Matrix3d& result : results) result = 0.5 * (result + result.transpose());
+  return results;
 }
 
 }  // namespace anchormap

@@ -1,6 +1,8 @@
 #include "common/solver/covariances.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <stdexcept>
@@ -158,6 +160,141 @@ TEST(CovarianceProjectionTest, TheLastPositionNeedsOnlyItsDiagonalBlock) {
   EXPECT_LT(
       (projected.Compute(*r, {39}, {Eigen::Matrix3d::Identity()}) - expected).cwiseAbs().maxCoeff(),
       1e-12 * expected.cwiseAbs().maxCoeff());
+}
+
+// Random queries of 1-4 positions (repeats within a query allowed) and Jacobians.
+struct Query {
+  std::vector<int> positions;
+  std::vector<Eigen::Matrix3d> jacobians;
+};
+std::vector<Query> RandomQueries(int n, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::vector<Query> queries(count);
+  for (int q = 0; q < count; ++q) {
+    for (int s = 0; s <= q % 4; ++s) {
+      queries[q].positions.push_back(std::uniform_int_distribution<int>(0, n - 1)(rng));
+      queries[q].jacobians.push_back(Eigen::Matrix3d::Random());
+    }
+  }
+  return queries;
+}
+
+bool SameBits(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return std::memcmp(a.data(), b.data(), sizeof(double) * 9) == 0;
+}
+
+// A query asked again of the same R is answered from the memo with the bits a fresh solve
+// gives; once R changes (new rows eliminated into it) it is solved again, and again
+// gives a fresh solve's bits, the new matrix's answer.
+TEST(CovarianceProjectionTest, TheMemoGivesTheSolvesBitsUntilRChanges) {
+  const int n = 50;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 20, 17);
+  const std::vector<Query> queries = RandomQueries(n, 40, 9);
+  CovarianceProjection projected;
+  std::vector<Eigen::Matrix3d> first;
+  for (const Query& q : queries) first.push_back(projected.Compute(*r, q.positions, q.jacobians));
+  EXPECT_EQ(projected.computed(), 40);
+  EXPECT_EQ(projected.memo_hits(), 0);
+  for (size_t i = 0; i < queries.size(); ++i) {
+    CovarianceProjection fresh;
+    EXPECT_TRUE(SameBits(first[i], fresh.Compute(*r, queries[i].positions, queries[i].jacobians)));
+    EXPECT_TRUE(
+        SameBits(first[i], projected.Compute(*r, queries[i].positions, queries[i].jacobians)));
+  }
+  EXPECT_EQ(projected.computed(), 40);
+  EXPECT_EQ(projected.memo_hits(), 40);
+  // A Jacobian that differs in one bit is another query.
+  Query nudged = queries[5];
+  nudged.jacobians[0](1, 2) = std::nextafter(nudged.jacobians[0](1, 2), 10.0);
+  projected.Compute(*r, nudged.positions, nudged.jacobians);
+  EXPECT_EQ(projected.computed(), 41);
+
+  // A loop closure between the first and the last pose: every answer moves.
+  NewRows closure;
+  closure.blocks.emplace_back(0, Eigen::Matrix3d::Identity());
+  closure.blocks.emplace_back(n - 1, -Eigen::Matrix3d::Identity());
+  r->Eliminate(closure, nullptr);
+  int moved = 0;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    CovarianceProjection fresh;
+    const Eigen::Matrix3d now = projected.Compute(*r, queries[i].positions, queries[i].jacobians);
+    EXPECT_TRUE(SameBits(now, fresh.Compute(*r, queries[i].positions, queries[i].jacobians)));
+    moved += SameBits(now, first[i]) ? 0 : 1;
+  }
+  EXPECT_EQ(projected.computed(), 81);
+  EXPECT_EQ(moved, 40);
+  // A copy of R is another matrix (its own instance): solved, not remembered.
+  const SparseR copy = *r;
+  projected.Compute(copy, queries[0].positions, queries[0].jacobians);
+  EXPECT_EQ(projected.computed(), 82);
+}
+
+// The marginals of several positions, solved side by side, have each position's own
+// solve's bits (Compute with J = I), repeated and unordered positions included, and the
+// work space is left clean for the next call.
+TEST(CovarianceProjectionTest, MarginalsSideBySideHaveEachSolvesBits) {
+  const int n = 70;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 30, 23);
+  CovarianceProjection projected;
+  const std::vector<std::vector<int>> sets = {{69}, {0, 69, 35}, {12, 12, 40, 3, 55, 68}, {}};
+  for (int round = 0; round < 2; ++round) {
+    for (const std::vector<int>& positions : sets) {
+      const std::vector<Eigen::Matrix3d> marginals = projected.Marginals(*r, positions);
+      ASSERT_EQ(marginals.size(), positions.size());
+      for (size_t g = 0; g < positions.size(); ++g) {
+        CovarianceProjection alone;
+        const int p = positions[g];
+        EXPECT_TRUE(SameBits(marginals[g], alone.Compute(*r, {p}, {Eigen::Matrix3d::Identity()})));
+        const Eigen::Matrix3d expected = sigma.block<3, 3>(3 * p, 3 * p);
+        EXPECT_LT((marginals[g] - expected).cwiseAbs().maxCoeff(),
+                  1e-9 * expected.cwiseAbs().maxCoeff());
+      }
+    }
+  }
+  EXPECT_THROW(projected.Marginals(*r, {4, n}), std::out_of_range);
+  CovarianceProjection alone;
+  EXPECT_TRUE(SameBits(projected.Marginals(*r, {7})[0],
+                       alone.Compute(*r, {7}, {Eigen::Matrix3d::Identity()})));
+}
+
+// ComputeUntil: a test that passes under the zero matrix stops before any row; one that
+// never passes gives Compute's bits (and fills the memo); one that passes on the way stops
+// with a partial sum that is a lower bound of the result in the positive semidefinite order
+// (the exact result minus it has no negative eigenvalue), and the next query is unharmed.
+TEST(CovarianceProjectionTest, StoppedSolvesGiveLowerBoundsAndLeaveNoTrace) {
+  const int n = 80;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 35, 29);
+  const std::vector<Query> queries = RandomQueries(n, 60, 31);
+  CovarianceProjection projected;
+  int stopped = 0;
+  for (const Query& q : queries) {
+    CovarianceProjection fresh;
+    const Eigen::Matrix3d exact = fresh.Compute(*r, q.positions, q.jacobians);
+    Eigen::Matrix3d result;
+    EXPECT_FALSE(projected.ComputeUntil(
+        *r, q.positions, q.jacobians, [](const Eigen::Matrix3d&) { return true; }, &result));
+    EXPECT_EQ(result, Eigen::Matrix3d::Zero());
+    // Stops once the trace passes half the exact one.
+    const double half = 0.5 * exact.trace();
+    if (!projected.ComputeUntil(
+            *r, q.positions, q.jacobians,
+            [half](const Eigen::Matrix3d& so_far) { return so_far.trace() >= half; }, &result)) {
+      ++stopped;
+      EXPECT_GE(result.trace(), half);
+      EXPECT_LT(result.trace(), exact.trace());
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> rest(exact - result);
+      EXPECT_GE(rest.eigenvalues().minCoeff(), -1e-12 * exact.cwiseAbs().maxCoeff());
+    } else {
+      EXPECT_TRUE(SameBits(result, exact));
+    }
+    EXPECT_TRUE(projected.ComputeUntil(
+        *r, q.positions, q.jacobians, [](const Eigen::Matrix3d&) { return false; }, &result));
+    EXPECT_TRUE(SameBits(result, exact));
+    EXPECT_TRUE(SameBits(projected.Compute(*r, q.positions, q.jacobians), exact));
+  }
+  EXPECT_GT(stopped, 20);
+  EXPECT_EQ(projected.stopped_early(), 60 + stopped);
+  EXPECT_EQ(projected.computed() + projected.memo_hits(), 120 + (60 - stopped));
 }
 
 }  // namespace

@@ -292,6 +292,15 @@ Eigen::Matrix3d Smoother::ProjectedCovariance(const std::vector<Key>& keys,
                                               const std::vector<Eigen::Matrix3d>& jacobians) {
   return impl_->ProjectedCovariance(keys, jacobians);
 }
+bool Smoother::ProjectedCovarianceUntil(const std::vector<Key>& keys,
+                                        const std::vector<Eigen::Matrix3d>& jacobians,
+                                        const std::function<bool(const Eigen::Matrix3d&)>& enough,
+                                        Eigen::Matrix3d* covariance) {
+  return impl_->ProjectedCovarianceUntil(keys, jacobians, enough, covariance);
+}
+std::vector<Eigen::Matrix3d> Smoother::ProjectedMarginals(const std::vector<Key>& keys) {
+  return impl_->ProjectedMarginals(keys);
+}
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }
@@ -315,11 +324,12 @@ std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {
   const bool anchored =
       impl_->options().formulation == Formulation::kRelative && impl_->IsAnchored(t);
   const Pose2 anchor = anchored ? impl_->Estimate(AnchorKey{t}) : Pose2();
+  const CosSin rotation = CosSin::Of(anchor.theta());  // once, not per keyframe: the same bits
   std::vector<Pose2> poses;
   poses.reserve(static_cast<size_t>(impl_->NumPoses(t)));
   for (int32_t i = 0; impl_->Has(PoseKey{t, i}); ++i) {
     const Pose2 local = impl_->Estimate(PoseKey{t, i});
-    poses.push_back(anchored ? Compose(anchor, local) : local);
+    poses.push_back(anchored ? Compose(anchor, rotation, local) : local);
   }
   return poses;
 }

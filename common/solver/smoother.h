@@ -7,6 +7,7 @@
 // batch step) and solves. Estimates and covariances are read between updates.
 // Single-threaded: callers serialise access (the server runs it on its event loop).
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -165,9 +166,20 @@ class Smoother {
   // J Sigma J^T of a 3-row Jacobian J = [J_1 ... J_k] of the variables `keys` (e.g. a
   // relative pose's): one sparse solve, without the joint's blocks, so it costs what the
   // variables' paths to the bottom of R hold, not that corner's cube
-  // (CovarianceProjection, covariances.h). Not memoised.
+  // (CovarianceProjection, covariances.h). The same query asked again before R changes is
+  // answered from a memo, with the same bits.
   Eigen::Matrix3d ProjectedCovariance(const std::vector<Key>& keys,
                                       const std::vector<Eigen::Matrix3d>& jacobians);
+  // The same solve, stopped once `enough` holds for the sum so far, a lower bound of the
+  // result (CovarianceProjection::ComputeUntil): false and that bound when it stopped early,
+  // true and ProjectedCovariance's bits otherwise.
+  bool ProjectedCovarianceUntil(const std::vector<Key>& keys,
+                                const std::vector<Eigen::Matrix3d>& jacobians,
+                                const std::function<bool(const Eigen::Matrix3d&)>& enough,
+                                Eigen::Matrix3d* covariance);
+  // Each key's marginal covariance by the same solve (ProjectedCovariance(key, I)'s bits),
+  // the keys' solves run side by side, reading each row of R once for all of them.
+  std::vector<Eigen::Matrix3d> ProjectedMarginals(const std::vector<Key>& keys);
 
   // The current estimate of any variable (pose: local frame; anchor: T_global_local).
   Pose2 Value(const Key& key) const;

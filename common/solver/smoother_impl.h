@@ -129,6 +129,15 @@ class Smoother::Impl {
   Eigen::MatrixXd JointCovariance(const std::vector<Key>& keys);
   Eigen::Matrix3d ProjectedCovariance(const std::vector<Key>& keys,
                                       const std::vector<Eigen::Matrix3d>& jacobians);
+  bool ProjectedCovarianceUntil(const std::vector<Key>& keys,
+                                const std::vector<Eigen::Matrix3d>& jacobians,
+                                const CovarianceProjection::Enough& enough,
+                                Eigen::Matrix3d* covariance) {
+    return projected_.ComputeUntil(*r_, SolvedPositions(keys), jacobians, enough, covariance);
+  }
+  std::vector<Eigen::Matrix3d> ProjectedMarginals(const std::vector<Key>& keys) {
+    return projected_.Marginals(*r_, SolvedPositions(keys));
+  }
   // Positions in R of solved variables; std::invalid_argument for any other.
   std::vector<int> SolvedPositions(const std::vector<Key>& keys) const;
   double Chi2() const;
@@ -449,7 +458,7 @@ class Smoother::Impl {
   std::vector<int64_t> moved_factors_;
   std::shared_ptr<SparseR> r_;
   std::unique_ptr<CovarianceRecovery> covariances_;
-  CovarianceProjection projected_;  // work space only
+  CovarianceProjection projected_;  // work space, and the memo of one R revision's queries
   BatchFactorization batch_;
   AnchorGroups groups_;
   std::unordered_map<TrajectoryId, TrajectoryInfo> trajectories_;
