@@ -307,10 +307,12 @@ __attribute__((target("avx2"))) void AddPrimitiveAvx2(const PrimitiveBox& box, f
 // AddPrimitiveAvx2 with eight cells a step on AVX-512: the same IEEE operations in the same
 // order, so the same bits. Its masked loads and stores are single operations (AVX2's masked
 // stores were most of AddPrimitiveAvx2's samples): a reference build 1.28-1.35 -> 1.05-1.07 ms
-// (anchormap-bench-reference-build). AVX-512F has FMA, and GCC contracts a multiply and an add
-// into one in C++ unless told not to (fp-contract=off: no vfmadd in the object code).
-__attribute__((target("avx512f,avx512vl"), optimize("fp-contract=off"))) void AddPrimitiveAvx512(
-    const PrimitiveBox& box, float* best_sq, float* vx, float* vy, int32_t* primitive_a) {
+// (anchormap-bench-reference-build). AVX-512F has FMA: the module is built with
+// -ffp-contract=off (its CMakeLists.txt), so no multiply and add is fused (no vfmadd).
+__attribute__((target("avx512f,avx512vl"))) void AddPrimitiveAvx512(const PrimitiveBox& box,
+                                                                    float* best_sq, float* vx,
+                                                                    float* vy,
+                                                                    int32_t* primitive_a) {
   const __m512d ax = _mm512_set1_pd(box.a.x());
   const __m512d ay = _mm512_set1_pd(box.a.y());
   const __m512d abx = _mm512_set1_pd(box.ab.x());
@@ -506,10 +508,10 @@ __attribute__((target("avx512f,avx512vl"))) inline __m512d GatherAsDoubles(const
 }
 
 // InterpolateWithNormalsAvx2 for points [0, n - n % 8), eight at a time on AVX-512 (F and VL):
-// the same IEEE operations in the same order, without FMA contraction (fp-contract=off: AVX-512F
-// has FMA), so the same bits; returns the points done.
-__attribute__((target("avx512f,avx512vl"), optimize("fp-contract=off"))) size_t
-InterpolateWithNormalsAvx512(const FieldArrays& f, ReferenceField::Lookups* out) {
+// the same IEEE operations in the same order, without FMA contraction (-ffp-contract=off for the
+// module: AVX-512F has FMA), so the same bits; returns the points done.
+__attribute__((target("avx512f,avx512vl"))) size_t InterpolateWithNormalsAvx512(
+    const FieldArrays& f, ReferenceField::Lookups* out) {
   const size_t n = out->qx.size();
   const __m512d origin_x = _mm512_set1_pd(f.origin_x);
   const __m512d origin_y = _mm512_set1_pd(f.origin_y);
