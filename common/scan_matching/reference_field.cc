@@ -226,6 +226,13 @@ void ReferenceField::Build(const std::vector<const ScanSurface*>& surfaces) {
 
 namespace {
 
+// How far y lies outside [lo, hi] (0 inside): a primitive's box skips the rows whose centre
+// lies farther than its reach from the segment's y range. One definition for the scalar and
+// vector builds, which must skip the same rows.
+inline double DistanceOutside(double y, double lo, double hi) {
+  return y < lo ? lo - y : (y > hi ? y - hi : 0.0);
+}
+
 #ifdef ANCHORMAP_AVX2_DISPATCH
 // AddPrimitive's box of cells, its rows' cells four at a time (each row's last four masked):
 // the same IEEE operations in the same order as the scalar loop (no FMA: the target is AVX2
@@ -261,9 +268,7 @@ __attribute__((target("avx2"))) void AddPrimitiveAvx2(const PrimitiveBox& box, f
   const int last = box.x1;
   for (int iy = box.y0; iy <= box.y1; ++iy) {
     const double centre_y = box.origin_y + box.resolution * (iy + 0.5);
-    const double dy = centre_y < box.lo_y ? box.lo_y - centre_y
-                                          : (centre_y > box.hi_y ? centre_y - box.hi_y : 0.0);
-    if (!(dy <= box.reach)) continue;
+    if (!(DistanceOutside(centre_y, box.lo_y, box.hi_y) <= box.reach)) continue;
     const int row_index = iy * box.width;
     const __m256d cy = _mm256_set1_pd(centre_y);
     // (p - a).dot(ab) takes its y term once per row.
@@ -327,9 +332,7 @@ __attribute__((target("avx512f,avx512vl"))) void AddPrimitiveAvx512(const Primit
   const int last = box.x1;
   for (int iy = box.y0; iy <= box.y1; ++iy) {
     const double centre_y = box.origin_y + box.resolution * (iy + 0.5);
-    const double dy = centre_y < box.lo_y ? box.lo_y - centre_y
-                                          : (centre_y > box.hi_y ? centre_y - box.hi_y : 0.0);
-    if (!(dy <= box.reach)) continue;
+    if (!(DistanceOutside(centre_y, box.lo_y, box.hi_y) <= box.reach)) continue;
     const int row_index = iy * box.width;
     const __m512d cy = _mm512_set1_pd(centre_y);
     const __m512d dy_term = _mm512_mul_pd(_mm512_sub_pd(cy, ay), aby);
@@ -713,8 +716,7 @@ void ReferenceField::AddPrimitive(int a_index, int b_index, const std::vector<do
 #endif
   for (int iy = y0; iy <= y1; ++iy) {
     const double centre_y = geometry_.origin.y() + r * (iy + 0.5);
-    const double dy = centre_y < lo_y ? lo_y - centre_y : (centre_y > hi_y ? centre_y - hi_y : 0.0);
-    if (!(dy <= reach)) continue;
+    if (!(DistanceOutside(centre_y, lo_y, hi_y) <= reach)) continue;
     const int row_index = geometry_.Index(0, iy);
     for (int ix = x0; ix <= x1; ++ix) {
       // geometry_.CellCentre(ix, iy), its x from the table (the same bits).
