@@ -87,7 +87,7 @@ bool UseAvx512Copies() {
     __builtin_cpu_init();
     return __builtin_cpu_supports("avx512f") != 0;
   }();
-  return has;
+  return has && SparseR::VectorCopiesAllowed().load(std::memory_order_relaxed);
 }
 
 __attribute__((target("avx512f"))) void RowToPanelAvx512(const RBlockRow& row,
@@ -141,6 +141,11 @@ __attribute__((target("avx512f"))) void PanelToRowAvx512(const double* const upp
 #endif
 
 }  // namespace
+
+std::atomic<bool>& SparseR::VectorCopiesAllowed() {
+  static std::atomic<bool> allowed{true};
+  return allowed;
+}
 
 uint64_t SparseR::InstanceId::Next() {
   static std::atomic<uint64_t> next{1};
