@@ -54,7 +54,8 @@ inline __attribute__((always_inline)) void ApplyRotations(
 bool UseAvx512() {
   static const bool has = [] {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0 && __builtin_cpu_supports("fma") != 0;
+    // Exactly where the loader picks the AVX2 + FMA build, whose bits these are.
+    return __builtin_cpu_supports("x86-64-v3") != 0 && __builtin_cpu_supports("avx512f") != 0;
   }();
   return has && BlockGivensAvx512Allowed().load(std::memory_order_relaxed);
 }
