@@ -8,8 +8,14 @@
 // column is loaded and stored once instead of nine times. On x86-64 the kernel is
 // compiled twice (AVX2 + FMA, and baseline) and the loader picks the one the CPU runs.
 
+#include <atomic>
+
 namespace anchormap {
 
 void EliminateBlockRow(double* upper, double* lower, int stride, int width);
+
+// Tests turn the AVX-512 rotations off to compare them with the AVX2 + FMA build's (x86-64
+// with GCC only; elsewhere there is no AVX-512 path).
+std::atomic<bool>& BlockGivensAvx512Allowed();
 
 }  // namespace anchormap

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cstring>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
 #endif
 
 namespace anchormap {
@@ -16,44 +16,35 @@ static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double) &&
 
 double* Doubles(std::vector<Eigen::Vector3d>* v) { return reinterpret_cast<double*>(v->data()); }
 
-// Two doubles in one register (SSE2 on x86-64), through GCC's and Clang's vector
-// extensions. The solves work on two entries of a 3-vector at once; each lane does the
-// scalar code's operations in its order (no fused multiply-add on the baseline target), so
-// the results are the scalar code's bits.
-using Pair = double __attribute__((vector_size(16)));
+// Four doubles, through GCC's and Clang's vector extensions; each lane does the scalar
+// code's operations in its order. A block's row or column is lanes 0-2; lane 3 is unused.
+using Lanes = double __attribute__((vector_size(32)));
+using FloatLanes = float __attribute__((vector_size(16)));
 
-// f[0], f[1], widened exactly to doubles (one 8-byte load and one conversion on SSE2,
-// where GCC's generic conversion widens them one by one).
-Pair Widen(const float* f) {
-#if defined(__SSE2__)
-  const __m128 two = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(f));
-  return reinterpret_cast<Pair>(_mm_cvtps_pd(two));
-#else
-  return Pair{f[0], f[1]};
+// f[0..3] widened exactly to doubles (f[3] is the block's next row's first entry, the next
+// block's, or the array's zero padding: it only ever lands in lane 3). Through a pointer: a
+// 32-byte vector returned by value has another ABI where AVX is not enabled.
+inline __attribute__((always_inline)) void Widen(const float* f, Lanes* out) {
+  FloatLanes four;
+  std::memcpy(&four, f, sizeof(four));
+  *out = __builtin_convertvector(four, Lanes);
+}
+
+// An AVX2 build of both solves beside the portable one, chosen at run time (one binary for
+// every x86-64 CPU): the same operations per lane in the same order, in registers of four
+// doubles, where GCC's generic code widens floats two at a time. No build fuses a product
+// into a sum (the AVX2 target has no FMA, and this file is compiled with -ffp-contract=off),
+// so both give the plain scalar code's bits (flat_r_test.cc).
+#if defined(__x86_64__) && defined(__GNUC__)
+#define ANCHORMAP_FLAT_R_AVX2 1
+bool UseAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has && FlatR::VectorSolvesAllowed().load(std::memory_order_relaxed);
+}
 #endif
-}
-
-// (f[0], f[2]) and (f[1], f[3]), widened.
-void WidenCrossed(const float* f, Pair* even, Pair* odd) {
-#if defined(__SSE2__)
-  __m128 four = _mm_loadu_ps(f);
-  four = _mm_shuffle_ps(four, four, _MM_SHUFFLE(3, 1, 2, 0));
-  *even = reinterpret_cast<Pair>(_mm_cvtps_pd(four));
-  *odd = reinterpret_cast<Pair>(_mm_cvtps_pd(_mm_movehl_ps(four, four)));
-#else
-  *even = Pair{f[0], f[2]};
-  *odd = Pair{f[1], f[3]};
-#endif
-}
-
-// A block's 9 floats, in the order the solves read them: rows 0-2 of columns 0 and 1 as
-// pairs (R00 R01, R10 R11, R20 R21), then column 2 (R02 R12 R22). The forward solve's
-// x_q0, x_q1 take the row pairs, the back solve's s0, s1 rows 0 and 1 of each column.
-void StoreBlock(const Eigen::Matrix3d& m, float* b) {
-  const double* d = m.data();  // column-major: d[i + 3 * j] is (i, j)
-  constexpr int kFrom[9] = {0, 3, 1, 4, 2, 5, 6, 7, 8};
-  for (int i = 0; i < 9; ++i) b[i] = static_cast<float>(d[kFrom[i]]);
-}
 
 // The inverse of an upper triangular 3x3 block (column-major: d[i + 3 * j] is (i, j)).
 std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
@@ -64,6 +55,146 @@ std::array<double, 6> InverseUpper(const Eigen::Matrix3d& m) {
   const double i02 = -(d[3] * i12 + d[6] * i22) * i00;
   return {i00, i01, i02, i11, i12, i22};
 }
+
+// The solves' arguments: FlatR's arrays.
+struct Arrays {
+  int n;
+  const std::array<double, 6>* inverse_diagonals;
+  const int64_t* row_start;
+  const int* column;
+  const float* blocks;  // row-major
+};
+
+// y = R_pp^-T x_p (x_p: 3 doubles).
+inline __attribute__((always_inline)) void SolveDiagonalTransposed(const double* i,
+                                                                   const double* xp, double y[3]) {
+  y[0] = i[0] * xp[0];
+  y[1] = i[1] * xp[0] + i[3] * xp[1];
+  y[2] = i[2] * xp[0] + i[4] * xp[1] + i[5] * xp[2];
+}
+
+// x_p = R_pp^-1 s.
+inline __attribute__((always_inline)) void SolveDiagonal(const double* i, double s0, double s1,
+                                                         double s2, double* xp) {
+  xp[0] = i[0] * s0 + i[1] * s1 + i[2] * s2;
+  xp[1] = i[3] * s1 + i[4] * s2;
+  xp[2] = i[5] * s2;
+}
+
+// v <- R^-T v with x the work space (4 doubles per entry, 32-byte aligned); returns
+// |R^-T v|^2. Row p's y goes to v as soon as it is known (nothing reads v_p after that).
+// x_q -= R_pq^T y: entry j of x_q less (R_0j y0 + R_1j y1) + R_2j y2, the block's rows as
+// lanes j. Lane 3's y is zero, so x_q's lane 3 stays zero.
+double ForwardSolve(const Arrays& a, double* v, double* x) {
+  for (int p = 0; p < a.n; ++p) {
+    const Lanes entry = {v[3 * p], v[3 * p + 1], v[3 * p + 2], 0.0};
+    std::memcpy(x + 4 * p, &entry, sizeof(entry));
+  }
+  double norm2 = 0.0;
+  for (int p = 0; p < a.n; ++p) {
+    double y[3];
+    SolveDiagonalTransposed(a.inverse_diagonals[p].data(), x + 4 * p, y);
+    std::memcpy(v + 3 * p, y, sizeof(y));
+    const Lanes y0 = {y[0], y[0], y[0], 0.0}, y1 = {y[1], y[1], y[1], 0.0};
+    const Lanes y2 = {y[2], y[2], y[2], 0.0};
+    for (int64_t k = a.row_start[p]; k < a.row_start[p + 1]; ++k) {
+      const float* b = a.blocks + 9 * k;
+      double* xq = x + 4 * static_cast<int64_t>(a.column[k]);
+      Lanes value, row0, row1, row2;
+      std::memcpy(&value, xq, sizeof(value));
+      Widen(b, &row0);
+      Widen(b + 3, &row1);
+      Widen(b + 6, &row2);
+      value -= (row0 * y0 + row1 * y1) + row2 * y2;
+      std::memcpy(xq, &value, sizeof(value));
+    }
+    norm2 += y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+  }
+  return norm2;
+}
+
+// v <- R^-1 v. s_p less R_pq x_q: entry i of s less (R_i0 x0 + R_i1 x1) + R_i2 x2, the
+// block's columns (gathered from its rows) as lanes i.
+void BackSolve(const Arrays& a, double* v) {
+  for (int p = a.n - 1; p >= 0; --p) {
+    double* xp = v + 3 * p;
+    Lanes s = {xp[0], xp[1], xp[2], 0.0};
+    for (int64_t k = a.row_start[p]; k < a.row_start[p + 1]; ++k) {
+      const float* b = a.blocks + 9 * k;
+      const double* xq = v + 3 * static_cast<int64_t>(a.column[k]);
+      const Lanes x0 = {xq[0], xq[0], xq[0], xq[0]}, x1 = {xq[1], xq[1], xq[1], xq[1]};
+      const Lanes x2 = {xq[2], xq[2], xq[2], xq[2]};
+      const Lanes column0 = {b[0], b[3], b[6], 0.0}, column1 = {b[1], b[4], b[7], 0.0};
+      const Lanes column2 = {b[2], b[5], b[8], 0.0};
+      s -= (column0 * x0 + column1 * x1) + column2 * x2;
+    }
+    SolveDiagonal(a.inverse_diagonals[p].data(), s[0], s[1], s[2], xp);
+  }
+}
+
+#ifdef ANCHORMAP_FLAT_R_AVX2
+// The same two solves with AVX2 registers (see above).
+__attribute__((target("avx2"))) inline __m256d WidenAvx2(const float* f) {
+  return _mm256_cvtps_pd(_mm_loadu_ps(f));
+}
+
+__attribute__((target("avx2"))) double ForwardSolveAvx2(const Arrays& arrays, double* v,
+                                                        double* x) {
+  const Arrays a = arrays;  // in registers: the stores through v and x could alias it
+  for (int p = 0; p < a.n; ++p) {
+    _mm256_store_pd(x + 4 * p, _mm256_setr_pd(v[3 * p], v[3 * p + 1], v[3 * p + 2], 0.0));
+  }
+  double norm2 = 0.0;
+  for (int p = 0; p < a.n; ++p) {
+    double y[3];
+    SolveDiagonalTransposed(a.inverse_diagonals[p].data(), x + 4 * p, y);
+    std::memcpy(v + 3 * p, y, sizeof(y));
+    const __m256d y0 = _mm256_setr_pd(y[0], y[0], y[0], 0.0);
+    const __m256d y1 = _mm256_setr_pd(y[1], y[1], y[1], 0.0);
+    const __m256d y2 = _mm256_setr_pd(y[2], y[2], y[2], 0.0);
+    const int64_t end = a.row_start[p + 1];
+    for (int64_t k = a.row_start[p]; k < end; ++k) {
+      const float* b = a.blocks + 9 * k;
+      double* xq = x + 4 * static_cast<int64_t>(a.column[k]);
+      const __m256d sum = _mm256_add_pd(
+          _mm256_add_pd(_mm256_mul_pd(WidenAvx2(b), y0), _mm256_mul_pd(WidenAvx2(b + 3), y1)),
+          _mm256_mul_pd(WidenAvx2(b + 6), y2));
+      _mm256_store_pd(xq, _mm256_sub_pd(_mm256_load_pd(xq), sum));
+    }
+    norm2 += y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+  }
+  return norm2;
+}
+
+__attribute__((target("avx2"))) void BackSolveAvx2(const Arrays& arrays, double* v) {
+  const Arrays a = arrays;  // in registers: the stores through v could alias it
+  for (int p = a.n - 1; p >= 0; --p) {
+    double* xp = v + 3 * p;
+    __m256d s = _mm256_setr_pd(xp[0], xp[1], xp[2], 0.0);
+    const int64_t end = a.row_start[p + 1];
+    for (int64_t k = a.row_start[p]; k < end; ++k) {
+      const float* b = a.blocks + 9 * k;
+      const double* xq = v + 3 * static_cast<int64_t>(a.column[k]);
+      // The block's columns from its rows: entries (0, 3, 6) and (1, 4, 7) of its first
+      // eight by one permutation, (2, 5, 8) by one shuffle of two overlapping loads.
+      const __m256 columns01 =
+          _mm256_permutevar8x32_ps(_mm256_loadu_ps(b), _mm256_setr_epi32(0, 3, 6, 6, 1, 4, 7, 7));
+      const __m128 column2 =
+          _mm_shuffle_ps(_mm_loadu_ps(b + 2), _mm_loadu_ps(b + 5), _MM_SHUFFLE(3, 3, 3, 0));
+      const __m256d sum = _mm256_add_pd(
+          _mm256_add_pd(_mm256_mul_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(columns01)),
+                                      _mm256_broadcast_sd(xq)),
+                        _mm256_mul_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(columns01, 1)),
+                                      _mm256_broadcast_sd(xq + 1))),
+          _mm256_mul_pd(_mm256_cvtps_pd(column2), _mm256_broadcast_sd(xq + 2)));
+      s = _mm256_sub_pd(s, sum);
+    }
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, s);
+    SolveDiagonal(a.inverse_diagonals[p].data(), lanes[0], lanes[1], lanes[2], xp);
+  }
+}
+#endif
 
 }  // namespace
 
@@ -102,14 +233,19 @@ int FlatR::Refresh(const SparseR& r) {
   }
   row_start_[n] = blocks;
   columns_.resize(blocks);
-  blocks_.resize(9 * blocks);
+  constexpr int kPadding = 3;
+  row_major_.resize(9 * blocks + kPadding);
   auto copy_from_r = [&](int p) {
     const RBlockRow& row = r.row(p);
     inverse_diagonals_[p] = InverseUpper(row.diagonal);
     int64_t k = row_start_[p];
     for (const auto& [q, block] : row.right) {
       columns_[k] = q;
-      StoreBlock(block, blocks_.data() + 9 * k);
+      const double* d = block.data();  // column-major: d[i + 3 * j] is (i, j)
+      float* by_row = row_major_.data() + 9 * k;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) by_row[3 * i + j] = static_cast<float>(d[i + 3 * j]);
+      }
       ++k;
     }
   };
@@ -123,83 +259,38 @@ int FlatR::Refresh(const SparseR& r) {
     const int64_t count = old_start_[p - from + 1] - old_first;
     if (old_first == row_start_[p]) continue;
     std::memmove(columns_.data() + row_start_[p], columns_.data() + old_first, count * sizeof(int));
-    std::memmove(blocks_.data() + 9 * row_start_[p], blocks_.data() + 9 * old_first,
+    std::memmove(row_major_.data() + 9 * row_start_[p], row_major_.data() + 9 * old_first,
                  9 * count * sizeof(float));
   }
+  std::fill(row_major_.end() - kPadding, row_major_.end(), 0.0f);
   source_id_ = r.instance_id();
   source_revision_ = r.revision();
   return n - from;
 }
 
-// Both solves keep the vector's entries being worked on in locals: through the vector
-// itself, the compiler must assume every store may alias the next load (and Eigen's
-// 3-vector solve stored and reloaded x_p piecewise, stalling store forwarding). Blocks
-// are stored as StoreBlock lays them out; b[0..5] are the pairs (R00 R01), (R10 R11),
-// (R20 R21), b[6..8] column 2.
+std::atomic<bool>& FlatR::VectorSolvesAllowed() {
+  static std::atomic<bool> allowed{true};
+  return allowed;
+}
+
 double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
-  double* x = Doubles(v);
-  const int n = size();
-  const int* column = columns_.data();
-  const float* block = blocks_.data();
-  double norm2 = 0.0;
-  for (int p = 0; p < n; ++p) {
-    // y = R_pp^-T x_p.
-    const double* i = inverse_diagonals_[p].data();
-    double* xp = x + 3 * p;
-    const double y0 = i[0] * xp[0];
-    const double y1 = i[1] * xp[0] + i[3] * xp[1];
-    const double y2 = i[2] * xp[0] + i[4] * xp[1] + i[5] * xp[2];
-    xp[0] = y0;
-    xp[1] = y1;
-    xp[2] = y2;
-    // x_q -= R_pq^T y for the blocks right of the diagonal: x_q0 and x_q1 as one pair.
-    const Pair y0s = {y0, y0}, y1s = {y1, y1}, y2s = {y2, y2}, y01 = {y0, y1};
-    const int64_t end = row_start_[p + 1];
-    for (int64_t k = row_start_[p]; k < end; ++k) {
-      const float* b = block + 9 * k;
-      double* xq = x + 3 * column[k];
-      Pair xq01;
-      std::memcpy(&xq01, xq, sizeof(xq01));
-      xq01 -= (Widen(b) * y0s + Widen(b + 2) * y1s) + Widen(b + 4) * y2s;
-      std::memcpy(xq, &xq01, sizeof(xq01));
-      // x_q2: R02 y0 and R12 y1 as one pair product, then summed in the scalar order.
-      const Pair products = Widen(b + 6) * y01;
-      xq[2] -= (products[0] + products[1]) + static_cast<double>(b[8]) * y2;
-    }
-    norm2 += y0 * y0 + y1 * y1 + y2 * y2;
-  }
-  return norm2;
+  const Arrays a{size(), inverse_diagonals_.data(), row_start_.data(), columns_.data(),
+                 row_major_.data()};
+  padded_.resize(a.n + 1);  // never empty: its data() is a valid address
+  double* x = padded_.data()->x;
+#ifdef ANCHORMAP_FLAT_R_AVX2
+  if (UseAvx2()) return ForwardSolveAvx2(a, Doubles(v), x);
+#endif
+  return ForwardSolve(a, Doubles(v), x);
 }
 
 void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {
-  double* x = Doubles(v);
-  const int* column = columns_.data();
-  const float* block = blocks_.data();
-  for (int p = size() - 1; p >= 0; --p) {
-    double* xp = x + 3 * p;
-    Pair s01 = {xp[0], xp[1]};
-    double s2 = xp[2];
-    // s -= R_pq x_q for the blocks right of the diagonal (already solved): s0 and s1 as
-    // one pair (rows 0 and 1 of each column).
-    const int64_t end = row_start_[p + 1];
-    for (int64_t k = row_start_[p]; k < end; ++k) {
-      const float* b = block + 9 * k;
-      const double* xq = x + 3 * column[k];
-      const double x0 = xq[0], x1 = xq[1], x2 = xq[2];
-      Pair column0, column1;
-      WidenCrossed(b, &column0, &column1);
-      s01 -= (column0 * Pair{x0, x0} + column1 * Pair{x1, x1}) + Widen(b + 6) * Pair{x2, x2};
-      // s2: R20 x0 and R21 x1 as one pair product, then summed in the scalar order.
-      const Pair products = Widen(b + 4) * Pair{x0, x1};
-      s2 -= (products[0] + products[1]) + static_cast<double>(b[8]) * x2;
-    }
-    const double s0 = s01[0], s1 = s01[1];
-    // x_p = R_pp^-1 s.
-    const double* i = inverse_diagonals_[p].data();
-    xp[0] = i[0] * s0 + i[1] * s1 + i[2] * s2;
-    xp[1] = i[3] * s1 + i[4] * s2;
-    xp[2] = i[5] * s2;
-  }
+  const Arrays a{size(), inverse_diagonals_.data(), row_start_.data(), columns_.data(),
+                 row_major_.data()};
+#ifdef ANCHORMAP_FLAT_R_AVX2
+  if (UseAvx2()) return BackSolveAvx2(a, Doubles(v));
+#endif
+  BackSolve(a, Doubles(v));
 }
 
 }  // namespace anchormap

@@ -14,8 +14,16 @@
 // floats: the solves stream all of R and are memory-bound on a large one, and R only
 // preconditions the correction (both solves use the same rounded R, and J^T J is applied
 // exactly). The results differ from SparseR's solves by that rounding.
+//
+// The blocks are kept row-major: the forward solve takes a block's three rows as three
+// 4-lane vectors, the back solve its three columns (permuted out of the rows: one copy of
+// R serves both, so the back solve finds the end of R that the forward solve just read
+// still in the cache). Both work in registers of four doubles (AVX2 where the CPU has it)
+// with the plain scalar code's operations per entry, in its order: the same bits
+// (flat_r_test.cc compares them with a scalar reference).
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -37,6 +45,8 @@ class FlatR {
   double SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const;
   // v <- R^-1 v by block back-substitution.
   void SolveInPlace(std::vector<Eigen::Vector3d>* v) const;
+  // Tests turn the AVX2 solves off to run their portable twins (the same bits).
+  static std::atomic<bool>& VectorSolvesAllowed();
 
  private:
   uint64_t source_id_ = 0;  // SparseR::instance_id() copied from; 0: none
@@ -45,10 +55,17 @@ class FlatR {
   std::vector<std::array<double, 6>> inverse_diagonals_;
   std::vector<int64_t> row_start_{0};  // by block row, and one past the last
   std::vector<int> columns_;           // off-diagonal blocks' columns, in row order
-  // The blocks themselves, same order, 9 floats each in the order the solves read them
-  // (pairs of entries side by side: flat_r.cc's StoreBlock).
-  std::vector<float> blocks_;
+  // The blocks themselves, same order, 9 floats each, row-major; then 3 zeros, read by the
+  // last block's last 4-float load.
+  std::vector<float> row_major_;
   std::vector<int64_t> old_start_;  // work space of Refresh: row_start_ before it, from `from`
+  // Work space of the forward solve: the vector with 4 doubles per entry (the 4th zero), so
+  // that each x_q is read and written as one aligned 32-byte vector. The solves are const
+  // for their callers; FlatR is the smoother's own (one thread).
+  struct alignas(32) Padded {
+    double x[4];
+  };
+  mutable std::vector<Padded> padded_;
 };
 
 }  // namespace anchormap

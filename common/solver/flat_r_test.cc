@@ -2,6 +2,7 @@
 #include "common/solver/sparse_r_testing.h"
 
 #include <algorithm>
+#include <array>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -149,6 +150,82 @@ TEST(FlatRTest, ACopyOfRIsCopiedWhole) {
   ExpectSolvesMatchDense(flat, older, &rng);
   EXPECT_EQ(flat.Refresh(r), 10);
   ExpectSolvesMatchDense(flat, r, &rng);
+}
+
+// The plain scalar solves FlatR's builds must reproduce bit for bit: blocks rounded to
+// float, diagonal blocks inverted, each entry's products summed in the documented order.
+std::array<double, 6> InverseUpper(const Eigen::Matrix3d& d) {
+  const double i00 = 1.0 / d(0, 0), i11 = 1.0 / d(1, 1), i22 = 1.0 / d(2, 2);
+  const double i01 = -d(0, 1) * i00 * i11;
+  const double i12 = -d(1, 2) * i11 * i22;
+  const double i02 = -(d(0, 1) * i12 + d(0, 2) * i22) * i00;
+  return {i00, i01, i02, i11, i12, i22};
+}
+
+double PlainSolveTransposed(const SparseR& r, std::vector<Eigen::Vector3d>* x) {
+  double norm2 = 0.0;
+  for (int p = 0; p < r.size(); ++p) {
+    const std::array<double, 6> i = InverseUpper(r.row(p).diagonal);
+    const Eigen::Vector3d xp = (*x)[p];
+    const double y0 = i[0] * xp[0];
+    const double y1 = i[1] * xp[0] + i[3] * xp[1];
+    const double y2 = i[2] * xp[0] + i[4] * xp[1] + i[5] * xp[2];
+    (*x)[p] = Eigen::Vector3d(y0, y1, y2);
+    for (const auto& [q, block] : r.row(p).right) {
+      const Eigen::Matrix3d b = FlatR::Rounded(block);
+      for (int j = 0; j < 3; ++j) (*x)[q][j] -= (b(0, j) * y0 + b(1, j) * y1) + b(2, j) * y2;
+    }
+    norm2 += y0 * y0 + y1 * y1 + y2 * y2;
+  }
+  return norm2;
+}
+
+void PlainSolve(const SparseR& r, std::vector<Eigen::Vector3d>* x) {
+  for (int p = r.size() - 1; p >= 0; --p) {
+    double s[3] = {(*x)[p][0], (*x)[p][1], (*x)[p][2]};
+    for (const auto& [q, block] : r.row(p).right) {
+      const Eigen::Matrix3d b = FlatR::Rounded(block);
+      const Eigen::Vector3d& xq = (*x)[q];
+      for (int i = 0; i < 3; ++i) s[i] -= (b(i, 0) * xq[0] + b(i, 1) * xq[1]) + b(i, 2) * xq[2];
+    }
+    const std::array<double, 6> i = InverseUpper(r.row(p).diagonal);
+    (*x)[p] = Eigen::Vector3d(i[0] * s[0] + i[1] * s[1] + i[2] * s[2], i[3] * s[1] + i[4] * s[2],
+                              i[5] * s[2]);
+  }
+}
+
+// The vector builds (AVX2 where the CPU has it) and the portable one give the plain solves'
+// bits, on an R with rows of 0 to 9 off-diagonal blocks (a chain and closures to far back),
+// refreshed after each change.
+TEST(FlatRTest, EveryBuildOfTheSolvesGivesThePlainSolvesBits) {
+  std::mt19937 rng(17);
+  constexpr int kChain = 60;
+  SparseR r;
+  r.Append(kChain);
+  for (int p = 0; p < kChain; ++p) r.Eliminate(RandomBetweenRows(p, p - 1, &rng), nullptr);
+  FlatR flat;
+  std::normal_distribution<double> g;
+  for (int round = 0; round < 12; ++round) {
+    std::uniform_int_distribution<int> pick(0, kChain - 2);
+    const int from = pick(rng);
+    r.Eliminate(RandomBetweenRows(kChain - 1 - round % 5, from, &rng), nullptr);
+    flat.Refresh(r);
+    std::vector<Eigen::Vector3d> v(r.size());
+    for (Eigen::Vector3d& e : v) e = Eigen::Vector3d(g(rng), g(rng), g(rng));
+    std::vector<Eigen::Vector3d> plain = v;
+    const double plain_norm2 = PlainSolveTransposed(r, &plain);
+    std::vector<Eigen::Vector3d> back = plain;
+    PlainSolve(r, &back);
+    for (const bool vector_solves : {true, false}) {
+      FlatR::VectorSolvesAllowed() = vector_solves;
+      std::vector<Eigen::Vector3d> x = v;
+      EXPECT_EQ(flat.SolveTransposedInPlace(&x), plain_norm2);
+      for (int p = 0; p < r.size(); ++p) ASSERT_EQ(x[p], plain[p]) << "position " << p;
+      flat.SolveInPlace(&x);
+      for (int p = 0; p < r.size(); ++p) ASSERT_EQ(x[p], back[p]) << "position " << p;
+    }
+    FlatR::VectorSolvesAllowed() = true;
+  }
 }
 
 }  // namespace

@@ -10,13 +10,142 @@
 
 #include "common/solver/block_givens.h"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define ANCHORMAP_SPARSE_R_AVX512 1
+#include <immintrin.h>
+#endif
+
 namespace anchormap {
 namespace {
 
 constexpr int64_t kDiagonalNonZeros = 6;
 constexpr int64_t kBlockNonZeros = 9;
 
+// R's block row into rows 0-2 of the work panel, right of the diagonal block: the union's
+// block k at columns 3 + 3k (R's block union_in_row[k], or zeros). Each block's 3 x 3
+// entries go from column-major to the panel's rows.
+void RowToPanel(const RBlockRow& row, const int* union_in_row, int m, double* const upper[3]) {
+  for (int k = 0; k < m; ++k) {
+    const int to = 3 + 3 * k;
+    if (union_in_row[k] >= 0) {
+      const double* b = row.right[union_in_row[k]].second.data();
+      for (int i = 0; i < 3; ++i) {
+        upper[i][to] = b[i];
+        upper[i][to + 1] = b[i + 3];
+        upper[i][to + 2] = b[i + 6];
+      }
+    } else {
+      for (int i = 0; i < 3; ++i) upper[i][to] = upper[i][to + 1] = upper[i][to + 2] = 0.0;
+    }
+  }
+}
+
+// The panel's rows 0-2 back into R's row `out` (its `right` sized m): block k from columns
+// 3 + 3k, column union_columns[k]. The next block row's blocks (next_first, next_bytes:
+// addresses, as a prefetch may run past the row's end) are fetched meanwhile, a block's
+// worth of lines per block: a row is a few kB, too short for the hardware's stream
+// prefetch to warm up on, and all at once they would stall on the outstanding misses.
+inline __attribute__((always_inline)) void PrefetchAhead(uintptr_t next_first, uintptr_t next_bytes,
+                                                         uintptr_t ahead) {
+  if (ahead < next_bytes) {
+    __builtin_prefetch(reinterpret_cast<const void*>(next_first + ahead));
+    __builtin_prefetch(reinterpret_cast<const void*>(next_first + ahead + 64));
+  }
+}
+
+inline __attribute__((always_inline)) void PrefetchRest(uintptr_t next_first, uintptr_t next_bytes,
+                                                        uintptr_t ahead) {
+  for (; ahead < next_bytes; ahead += 64) {
+    __builtin_prefetch(reinterpret_cast<const void*>(next_first + ahead));
+  }
+}
+
+constexpr uintptr_t kBlockBytes = sizeof(std::pair<int, Eigen::Matrix3d>);
+
+void PanelToRow(const double* const upper[3], const int* union_columns, int m, uintptr_t next_first,
+                uintptr_t next_bytes, RBlockRow* out) {
+  uintptr_t ahead = 0;
+  for (int k = 0; k < m; ++k, ahead += kBlockBytes) {
+    PrefetchAhead(next_first, next_bytes, ahead);
+    const int from = 3 + 3 * k;
+    out->right[k].first = union_columns[k];
+    double* b = out->right[k].second.data();
+    for (int i = 0; i < 3; ++i) {
+      b[i] = upper[i][from];
+      b[i + 3] = upper[i][from + 1];
+      b[i + 6] = upper[i][from + 2];
+    }
+  }
+  PrefetchRest(next_first, next_bytes, ahead);
+}
+
+#ifdef ANCHORMAP_SPARSE_R_AVX512
+// The same two copies with AVX-512 permutations: a block's nine entries in three stores (or
+// two and a scalar) instead of nine. Moves only, so the same bits.
+bool UseAvx512Copies() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") != 0;
+  }();
+  return has && SparseR::VectorCopiesAllowed().load(std::memory_order_relaxed);
+}
+
+__attribute__((target("avx512f"))) void RowToPanelAvx512(const RBlockRow& row,
+                                                         const int* union_in_row, int m,
+                                                         double* const upper[3]) {
+  // Row i of a column-major block is entries i, i + 3, i + 6 (8: the second source). The
+  // intrinsics are the zero-masked forms: GCC 12 warns on the others' undefined inputs.
+  const __m512i row0 = _mm512_setr_epi64(0, 3, 6, 0, 0, 0, 0, 0);
+  const __m512i row1 = _mm512_setr_epi64(1, 4, 7, 0, 0, 0, 0, 0);
+  const __m512i row2 = _mm512_setr_epi64(2, 5, 8, 0, 0, 0, 0, 0);
+  constexpr __mmask8 kAll = 0xFF, kThree = 0x07;
+  const __m512d zero = _mm512_setzero_pd();
+  for (int k = 0; k < m; ++k) {
+    const int to = 3 + 3 * k;
+    if (union_in_row[k] >= 0) {
+      const double* b = row.right[union_in_row[k]].second.data();
+      const __m512d first8 = _mm512_loadu_pd(b);
+      const __m512d last = _mm512_set1_pd(b[8]);
+      _mm512_mask_storeu_pd(upper[0] + to, kThree, _mm512_maskz_permutexvar_pd(kAll, row0, first8));
+      _mm512_mask_storeu_pd(upper[1] + to, kThree, _mm512_maskz_permutexvar_pd(kAll, row1, first8));
+      _mm512_mask_storeu_pd(upper[2] + to, kThree,
+                            _mm512_maskz_permutex2var_pd(kAll, first8, row2, last));
+    } else {
+      for (int i = 0; i < 3; ++i) _mm512_mask_storeu_pd(upper[i] + to, kThree, zero);
+    }
+  }
+}
+
+__attribute__((target("avx512f"))) void PanelToRowAvx512(const double* const upper[3],
+                                                         const int* union_columns, int m,
+                                                         uintptr_t next_first, uintptr_t next_bytes,
+                                                         RBlockRow* out) {
+  // Column-major entries 0-7 of a block from rows 0 and 1 (lanes 0-2 and 4-6 of the first
+  // source) and row 2 (lanes 0-1 of the second); entry 8 is row 2's third.
+  const __m512i column_major = _mm512_setr_epi64(0, 4, 8, 1, 5, 9, 2, 6);
+  constexpr __mmask8 kAll = 0xFF, kThree = 0x07;
+  uintptr_t ahead = 0;
+  for (int k = 0; k < m; ++k, ahead += kBlockBytes) {
+    PrefetchAhead(next_first, next_bytes, ahead);
+    const int from = 3 + 3 * k;
+    const __m512d rows01 = _mm512_maskz_insertf64x4(
+        kAll, _mm512_maskz_loadu_pd(kThree, upper[0] + from), _mm256_loadu_pd(upper[1] + from), 1);
+    const __m512d row2 = _mm512_maskz_loadu_pd(kThree, upper[2] + from);
+    out->right[k].first = union_columns[k];
+    double* b = out->right[k].second.data();
+    _mm512_storeu_pd(b, _mm512_maskz_permutex2var_pd(kAll, rows01, column_major, row2));
+    b[8] = upper[2][from + 2];
+  }
+  PrefetchRest(next_first, next_bytes, ahead);
+}
+#endif
+
 }  // namespace
+
+std::atomic<bool>& SparseR::VectorCopiesAllowed() {
+  static std::atomic<bool> allowed{true};
+  return allowed;
+}
 
 uint64_t SparseR::InstanceId::Next() {
   static std::atomic<uint64_t> next{1};
@@ -278,21 +407,17 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64
       double* upper[3] = {work_.row(0).data(), work_.row(1).data(), work_.row(2).data()};
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) upper[i][j] = row.diagonal(i, j);
-        upper[i][width - 1] = row.rhs(i);
       }
-      for (int k = 0; k < m; ++k) {
-        const int to = 3 + 3 * k;
-        if (union_in_row_[k] >= 0) {
-          const double* b = row.right[union_in_row_[k]].second.data();
-          for (int i = 0; i < 3; ++i) {
-            upper[i][to] = b[i];
-            upper[i][to + 1] = b[i + 3];
-            upper[i][to + 2] = b[i + 6];
-          }
-        } else {
-          for (int i = 0; i < 3; ++i) upper[i][to] = upper[i][to + 1] = upper[i][to + 2] = 0.0;
-        }
+#ifdef ANCHORMAP_SPARSE_R_AVX512
+      if (UseAvx512Copies()) {
+        RowToPanelAvx512(row, union_in_row_.data(), m, upper);
+      } else {
+        RowToPanel(row, union_in_row_.data(), m, upper);
       }
+#else
+      RowToPanel(row, union_in_row_.data(), m, upper);
+#endif
+      for (int i = 0; i < 3; ++i) upper[i][width - 1] = row.rhs(i);
     }
     // Then each meeting carry's rows, spread over the union's columns.
     int next_row = 3;
@@ -380,26 +505,15 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64
         out->rhs(i) = upper[i][width - 1];
       }
       out->right.resize(m);
-      constexpr int kBlockBytes = sizeof(std::pair<int, Eigen::Matrix3d>);
-      auto prefetch = [next_first](uintptr_t offset) {
-        __builtin_prefetch(reinterpret_cast<const void*>(next_first + offset));
-      };
-      uintptr_t ahead = 0;
-      for (int k = 0; k < m; ++k, ahead += kBlockBytes) {
-        if (ahead < next_bytes) {
-          prefetch(ahead);
-          prefetch(ahead + 64);
-        }
-        const int from = 3 + 3 * k;
-        out->right[k].first = union_columns_[k];
-        double* b = out->right[k].second.data();
-        for (int i = 0; i < 3; ++i) {
-          b[i] = upper[i][from];
-          b[i + 3] = upper[i][from + 1];
-          b[i + 6] = upper[i][from + 2];
-        }
+#ifdef ANCHORMAP_SPARSE_R_AVX512
+      if (UseAvx512Copies()) {
+        PanelToRowAvx512(upper, union_columns_.data(), m, next_first, next_bytes, out);
+      } else {
+        PanelToRow(upper, union_columns_.data(), m, next_first, next_bytes, out);
       }
-      for (; ahead < next_bytes; ahead += 64) prefetch(ahead);
+#else
+      PanelToRow(upper, union_columns_.data(), m, next_first, next_bytes, out);
+#endif
     }
 
     // The meeting carries continue as one: the triples that still have a block anywhere,

@@ -7,6 +7,7 @@
 // variables append empty block rows/columns at the end. R^T R = A^T A and R delta = d
 // is the least-squares solution of A delta = b.
 
+#include <atomic>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -46,6 +47,9 @@ class SparseR {
   // False (nothing changed) when the column lists do not fit the rows.
   bool ImportState(State state);
 
+  // Tests turn the AVX-512 copies between R's rows and the elimination's work panel off, to
+  // compare them with the portable ones (moves: the same bits).
+  static std::atomic<bool>& VectorCopiesAllowed();
   int size() const { return static_cast<int>(rows_.size()); }
   // Appends `count` empty block rows/columns at the end (new variables).
   void Append(int count);

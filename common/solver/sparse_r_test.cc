@@ -277,5 +277,41 @@ TEST(SparseRTest, EliminationPastItsBudgetLeavesRAsItWas) {
   EXPECT_GT(largest_fill, 9 * 20);  // closures on old variables filled rows
 }
 
+// The elimination with R's rows copied to and from its work panel by the vector copies
+// (AVX-512 where the CPU has it) and by the portable ones: R bit for bit the same, with
+// updates of one measurement and of many together (carries merging on their way up R).
+TEST(SparseRTest, EveryBuildOfTheRowCopiesGivesTheSameR) {
+  std::mt19937 rng(23);
+  constexpr int kVars = 40;
+  std::vector<NewRows> rows = RandomRows(kVars, 60, &rng);
+  SparseR vector_copies, portable_copies;
+  vector_copies.Append(kVars);
+  portable_copies.Append(kVars);
+  for (size_t i = 0; i < rows.size();) {
+    const size_t together = i < 60 ? 1 : 5;
+    std::vector<NewRows> batch(rows.begin() + i,
+                               rows.begin() + std::min(rows.size(), i + together));
+    i += together;
+    SparseR::VectorCopiesAllowed() = true;
+    const double a = vector_copies.Eliminate(batch, nullptr);
+    SparseR::VectorCopiesAllowed() = false;
+    const double b = portable_copies.Eliminate(batch, nullptr);
+    SparseR::VectorCopiesAllowed() = true;
+    EXPECT_EQ(a, b);
+  }
+  for (int p = 0; p < kVars; ++p) {
+    const RBlockRow& x = vector_copies.row(p);
+    const RBlockRow& y = portable_copies.row(p);
+    EXPECT_EQ(x.diagonal, y.diagonal) << "row " << p;
+    EXPECT_EQ(x.rhs, y.rhs) << "row " << p;
+    ASSERT_EQ(x.right.size(), y.right.size()) << "row " << p;
+    for (size_t k = 0; k < x.right.size(); ++k) {
+      EXPECT_EQ(x.right[k].first, y.right[k].first);
+      EXPECT_EQ(x.right[k].second, y.right[k].second) << "row " << p << " block " << k;
+    }
+  }
+  EXPECT_GT(vector_copies.row(0).right.size(), 2u);  // the closures filled R
+}
+
 }  // namespace
 }  // namespace anchormap
