@@ -15,6 +15,12 @@ namespace anchormap {
 void GlobalSearchPlanner::ServeGlobalQueue(const GraphView& graph) {
   const int most_per_target = std::max(0, options_.max_global_per_keyframe);
   for (std::optional<PoseKey> key = global_queue_.Next(); key; key = global_queue_.Next()) {
+    // Every target costs at least one search: without a token for one, a head with any target
+    // waits whatever its targets are, and ranking them (GlobalTargets, ~1 % of a 100 x 180
+    // replay, asked at every examined keyframe while the head waited) is not needed to know.
+    if (most_per_target >= 1 && !global_queue_.CanAfford(1) && HasGlobalTarget(*key, graph)) {
+      return;
+    }
     const std::vector<GlobalTarget> targets = GlobalTargets(*key, graph);
     int cost = 0;
     for (const GlobalTarget& target : targets) {
@@ -28,6 +34,18 @@ void GlobalSearchPlanner::ServeGlobalQueue(const GraphView& graph) {
     for (const GlobalTarget& target : targets) spent += SearchGlobally(*key, target, graph);
     global_queue_.Served(*key, spent);
   }
+}
+
+bool GlobalSearchPlanner::HasGlobalTarget(PoseKey key, const GraphView& graph) const {
+  if (options_.max_global_groups_per_keyframe < 1) return false;
+  // GlobalTargets' first pass, stopped at the first trajectory it would rank.
+  for (const TrajectoryRecord& other : graph.table.records()) {
+    const TrajectoryId id = other.solver_id;
+    if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
+    const std::vector<Submap>* submaps = submaps_->Find(id);
+    if (submaps != nullptr && !submaps->empty()) return true;
+  }
+  return false;
 }
 
 std::vector<GlobalSearchPlanner::GlobalTarget> GlobalSearchPlanner::GlobalTargets(

@@ -62,6 +62,9 @@ class GlobalSearchPlanner {
   // The trajectories `key` is searched against: one of each other group (the pair
   // searched least so far), at most max_global_groups_per_keyframe groups.
   std::vector<GlobalTarget> GlobalTargets(PoseKey key, const GraphView& graph) const;
+  // Whether GlobalTargets(key) is not empty: some other group holds a trajectory with submaps
+  // (and max_global_groups_per_keyframe >= 1), found without ranking them.
+  bool HasGlobalTarget(PoseKey key, const GraphView& graph) const;
   // The submaps of `other` one keyframe's global search takes (max_global_per_keyframe).
   size_t GlobalTries(TrajectoryId other) const;
   // Submits the searches of `key` against the target's submaps; returns how many.

@@ -86,6 +86,7 @@ int ScanEncounters::ExamineKeyframe(PoseKey key, const GraphView& graph, bool ne
     if (other.solver_id != key.trajectory &&
         !InOneFrame(graph.smoother, key.trajectory, other.solver_id)) {
       unjoined = true;
+      break;
     }
   }
   int searches = 0;

@@ -12,7 +12,15 @@ namespace anchormap {
 KeyframeGrid::KeyframeGrid(const OccupancyGridOptions& options, double move_tolerance_cells)
     : options_(options),
       move_tolerance_m_(move_tolerance_cells * options.resolution_m),
-      cells_per_tile_(static_cast<int64_t>(options.tile_size_cells) * options.tile_size_cells) {}
+      cells_per_tile_(static_cast<int64_t>(options.tile_size_cells) * options.tile_size_cells),
+      small_counts_(static_cast<size_t>(kTableHits * kTableMisses)) {
+  for (int32_t hits = 0; hits < kTableHits; ++hits) {
+    for (int32_t misses = 0; misses < kTableMisses; ++misses) {
+      small_counts_[static_cast<size_t>(hits * kTableMisses + misses)] =
+          CellOccupancy(hits, misses);
+    }
+  }
+}
 
 namespace {
 // A tile's counts of width Count.
@@ -282,31 +290,30 @@ GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int
   return t;
 }
 
+int8_t KeyframeGrid::CellOccupancy(int32_t hits, int32_t misses) const {
+  // Most observed cells sit at a clamp bound (free space seen often, walls): the same values
+  // as Occupancy's without the exponential.
+  if (hits == 0 && misses == 0) return -1;
+  const double sum = hits * options_.log_odds_hit + misses * options_.log_odds_miss;
+  if (sum <= options_.log_odds_min) return OccupancyFromLogOdds(options_.log_odds_min);
+  if (sum >= options_.log_odds_max) return OccupancyFromLogOdds(options_.log_odds_max);
+  return OccupancyFromLogOdds(sum);
+}
+
 template <typename Count>
 void KeyframeGrid::ExportCells(const Count* hits, GridTile* tile) const {
-  // Most observed cells sit at a clamp bound (free space seen often, walls): their value is
-  // computed once, as is that of a run of equal counts; the same values as Occupancy's.
-  const int8_t at_min = OccupancyFromLogOdds(options_.log_odds_min);
-  const int8_t at_max = OccupancyFromLogOdds(options_.log_odds_max);
+  // Counts within the table are looked up (a publication exports every cell of each changed
+  // tile; free space's counts change from cell to cell, so a run's value rarely served), the
+  // others computed.
   const Count* const misses = hits + cells_per_tile_;
-  int32_t last_hits = 0, last_misses = 0;
-  int8_t last = -1;
+  const int8_t* const table = small_counts_.data();
   for (int64_t i = 0; i < cells_per_tile_; ++i) {
-    if (hits[i] != last_hits || misses[i] != last_misses) {
-      last_hits = hits[i];
-      last_misses = misses[i];
-      const double sum = last_hits * options_.log_odds_hit + last_misses * options_.log_odds_miss;
-      if (last_hits == 0 && last_misses == 0) {
-        last = -1;
-      } else if (sum <= options_.log_odds_min) {
-        last = at_min;
-      } else if (sum >= options_.log_odds_max) {
-        last = at_max;
-      } else {
-        last = OccupancyFromLogOdds(sum);
-      }
-    }
-    tile->cells[static_cast<size_t>(i)] = last;
+    const int32_t h = hits[i], m = misses[i];
+    tile->cells[static_cast<size_t>(i)] =
+        static_cast<uint32_t>(h) < static_cast<uint32_t>(kTableHits) &&
+                static_cast<uint32_t>(m) < static_cast<uint32_t>(kTableMisses)
+            ? table[h * kTableMisses + m]
+            : CellOccupancy(h, m);
   }
 }
 

@@ -123,6 +123,8 @@ class KeyframeGrid {
   GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
   template <typename Count>
   void ExportCells(const Count* hits, GridTile* tile) const;
+  // Occupancy of a cell with these counts (Occupancy's value).
+  int8_t CellOccupancy(int32_t hits, int32_t misses) const;
 
   OccupancyGridOptions options_;
   double move_tolerance_m_;
@@ -136,6 +138,10 @@ class KeyframeGrid {
   std::unordered_set<uint64_t> changed_;
   std::unordered_map<uint64_t, Pose2> placed_pose_;
   std::unordered_map<uint64_t, double> reach_m_;  // from the body origin, per placed key
+  // CellOccupancy of hits < kTableHits, misses < kTableMisses (64 KB, made once): what
+  // exporting a tile reads for nearly every cell.
+  static constexpr int32_t kTableHits = 32, kTableMisses = 2048;
+  std::vector<int8_t> small_counts_;
 };
 
 }  // namespace anchormap

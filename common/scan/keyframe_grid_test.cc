@@ -267,6 +267,51 @@ TEST(KeyframeGridTest, CountsStayExactPastSixteenBits) {
   ExpectSameTiles(expected, actual);
 }
 
+// Exported cells are Occupancy's value of their counts, inside and beyond the export's table of
+// small counts (hits < 32, misses < 2048), clamped or not (weak log-odds: never clamped).
+TEST(KeyframeGridTest, ExportedCellsAreOccupancyInsideAndBeyondTheTable) {
+  OccupancyGridOptions clamped = SmallOptions();
+  OccupancyGridOptions weak = SmallOptions();
+  weak.log_odds_hit = 0.013;
+  weak.log_odds_miss = -0.0021;
+  weak.log_odds_min = -100.0;
+  weak.log_odds_max = 100.0;
+  for (const OccupancyGridOptions& options : {clamped, weak}) {
+    for (int copies : {1, 3, 40, 2100}) {
+      KeyframeGrid grid(options);
+      std::mt19937 rng(copies);
+      // `copies` scans at one pose (counts up to copies) and a few elsewhere (mixed counts).
+      const Pose2 pose(1.0, -0.5, 0.3);
+      const LaserScan scan = BoxScan(pose, 90);
+      uint64_t key = 0;
+      for (int i = 0; i < copies; ++i) grid.Place(key++, scan, pose);
+      for (int i = 0; i < 5; ++i) {
+        const Pose2 other = PoseInBox(&rng);
+        grid.Place(key++, BoxScan(other, 90), other);
+      }
+      const int64_t size = options.tile_size_cells;
+      int64_t observed = 0, between = 0;
+      for (const GridTile& tile : grid.Tiles(0, 0)) {
+        for (int64_t y = 0; y < size; ++y) {
+          for (int64_t x = 0; x < size; ++x) {
+            const int64_t cx = tile.tile_x * size + x, cy = tile.tile_y * size + y;
+            ASSERT_EQ(tile.cells[static_cast<size_t>(y * size + x)], grid.Occupancy(cx, cy))
+                << "copies " << copies << " cell " << cx << " " << cy;
+            const auto log_odds = grid.LogOdds(cx, cy);
+            observed += log_odds.has_value();
+            between +=
+                log_odds && *log_odds > options.log_odds_min && *log_odds < options.log_odds_max;
+          }
+        }
+      }
+      EXPECT_GT(observed, 500);
+      if (&options == &weak) {
+        EXPECT_EQ(between, observed);
+      }
+    }
+  }
+}
+
 // A subscriber that holds the first full export and applies every batch of changed tiles
 // holds the full export at the end; untouched tiles are not re-sent.
 TEST(KeyframeGridTest, ChangedTilesBringASubscriberUpToDate) {

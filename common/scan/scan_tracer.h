@@ -162,7 +162,8 @@ class ScanTracer {
   uint16_t hit_stamp_ = 0, visited_stamp_ = 0;
   // The marks of beams_[0] and beams_[1].
   Marks marks_[2];
-  std::vector<int16_t> beam_reach_;  // per row, of the beam being walked
+  // Per row, of the beam being walked and of the one before (merged after the next walk).
+  std::vector<int16_t> beam_reach_[2];
   std::unordered_map<uint64_t, uint8_t> far_cells_;
   std::vector<TracedCell> cells_;
 };
