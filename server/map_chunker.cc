@@ -1,30 +1,42 @@
 #include "server/map_chunker.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
+#include <vector>
 
 #include "common/geometry/angle.h"
 
 namespace anchormap {
 
-bool MapChunker::Changed(const MergedMapChunk& sent, const MergedMapChunk& now) const {
-  if (sent.local_poses.size() != now.local_poses.size() || sent.pose_utimes != now.pose_utimes ||
-      sent.encounter_positions != now.encounter_positions || sent.encounters != now.encounters) {
-    return true;
-  }
+bool MapChunker::Rewritten(const MergedMapChunk& sent, const MergedMapChunk& now) {
+  return sent.local_poses.size() != now.local_poses.size() || sent.pose_utimes != now.pose_utimes ||
+         sent.encounter_positions != now.encounter_positions || sent.encounters != now.encounters;
+}
+
+namespace {
+// A difference in tolerances: 0 within it.
+double Excess(double difference, double tolerance) {
+  if (difference <= tolerance) return 0.0;
+  return tolerance > 0.0 ? difference / tolerance : std::numeric_limits<double>::infinity();
+}
+}  // namespace
+
+double MapChunker::Moved(const MergedMapChunk& sent, const MergedMapChunk& now) const {
+  double moved = 0.0;
   for (size_t i = 0; i < now.local_poses.size(); ++i) {
     const Pose2& a = sent.local_poses[i];
     const Pose2& b = now.local_poses[i];
-    if (std::abs(a.x() - b.x()) > options_.tolerance_m ||
-        std::abs(a.y() - b.y()) > options_.tolerance_m ||
-        std::abs(AngleDifference(a.theta(), b.theta())) > options_.tolerance_rad) {
-      return true;
-    }
+    moved =
+        std::max({moved, Excess(std::abs(a.x() - b.x()), options_.tolerance_m),
+                  Excess(std::abs(a.y() - b.y()), options_.tolerance_m),
+                  Excess(std::abs(AngleDifference(a.theta(), b.theta())), options_.tolerance_rad)});
   }
-  return false;
+  return moved;
 }
 
-MapChunker::Split MapChunker::Update(const MergedMap& map, bool full) {
+MapChunker::Split MapChunker::Update(const MergedMap& map, bool full, double refresh) {
   const int64_t size = options_.chunk_poses;
   Split out;
   out.header.utime = map.utime;
@@ -76,16 +88,52 @@ MapChunker::Split MapChunker::Update(const MergedMap& map, bool full) {
     }
   }
   out.header.num_encounters = placed;
-  // Changed chunks get this update as their version; the others keep theirs.
-  for (auto& [id, chunk] : now) {
-    const auto sent = sent_.find(id);
-    if (!full && sent != sent_.end() && !Changed(sent->second, chunk)) {
-      chunk.version = sent->second.version;
+  // The chunks to send get this update as their version; the others keep theirs.
+  using Entry = std::map<ChunkId, MergedMapChunk>::iterator;
+  std::vector<Entry> send;
+  std::vector<std::pair<double, Entry>> moved;  // (how far, chunk), in the map's order
+  std::vector<std::pair<int64_t, Entry>> kept;  // (version sent, chunk), in the map's order
+  for (auto it = now.begin(); it != now.end(); ++it) {
+    const auto sent = sent_.find(it->first);
+    if (full || sent == sent_.end() || Rewritten(sent->second, it->second)) {
+      send.push_back(it);
       continue;
     }
-    chunk.version = map.update;
-    out.chunks.push_back(chunk);
-    sent_[id] = std::move(chunk);
+    it->second.version = sent->second.version;
+    const double how_far = Moved(sent->second, it->second);
+    if (how_far > 0.0) {
+      moved.emplace_back(how_far, it);
+    } else {
+      kept.emplace_back(it->second.version, it);
+    }
+  }
+  // The farthest moved first, within the budget; the others wait like unmoved chunks.
+  std::stable_sort(moved.begin(), moved.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  const size_t budget =
+      options_.max_moved_chunks > 0 ? static_cast<size_t>(options_.max_moved_chunks) : moved.size();
+  for (size_t i = 0; i < moved.size(); ++i) {
+    if (i < budget) {
+      send.push_back(moved[i].second);
+    } else {
+      kept.emplace_back(moved[i].second->second.version, moved[i].second);
+    }
+  }
+  // The refresh: the least recently sent first, ties in the map's order.
+  std::stable_sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second->first < b.second->first;
+  });
+  const auto refreshed =
+      std::min(kept.size(), static_cast<size_t>(std::ceil(std::clamp(refresh, 0.0, 1.0) *
+                                                          static_cast<double>(now.size()))));
+  for (size_t i = 0; i < refreshed; ++i) send.push_back(kept[i].second);
+  // Sent in the map's order.
+  std::sort(send.begin(), send.end(),
+            [](const Entry& a, const Entry& b) { return a->first < b->first; });
+  for (const Entry& it : send) {
+    it->second.version = map.update;
+    out.chunks.push_back(it->second);
+    sent_[it->first] = std::move(it->second);
   }
   // Chunks that no longer exist (a trajectory lost keyframes: a server restart) are forgotten.
   for (auto it = sent_.begin(); it != sent_.end();) {

@@ -30,12 +30,16 @@ MergedMap MapPublisher::BuildMergedMap(const Smoother& smoother, const Trajector
 }
 
 MapChunker::Split MapPublisher::SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full) {
-  if (!last_map_full_utime_ ||
-      1e-6 * static_cast<double>(now_utime - *last_map_full_utime_) >= options_.map_full_period_s) {
-    full = true;
+  // The share of the chunks sent again whatever changed: the time since the last map over
+  // map_full_period_s, so that every chunk goes out about once per period, a few at each map
+  // rather than all at once (all of them on the first map, or with a period of 0).
+  double refresh = 1.0;
+  if (last_map_split_utime_ && options_.map_full_period_s > 0) {
+    refresh =
+        1e-6 * static_cast<double>(now_utime - *last_map_split_utime_) / options_.map_full_period_s;
   }
-  if (full) last_map_full_utime_ = now_utime;
-  return chunker_.Update(map, full);
+  last_map_split_utime_ = now_utime;
+  return chunker_.Update(map, full || refresh >= 1.0, refresh);
 }
 
 AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
