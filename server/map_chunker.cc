@@ -4,16 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <utility>
-#include <vector>
 
 #include "common/geometry/angle.h"
 
 namespace anchormap {
-
-bool MapChunker::Rewritten(const MergedMapChunk& sent, const MergedMapChunk& now) {
-  return sent.local_poses.size() != now.local_poses.size() || sent.pose_utimes != now.pose_utimes ||
-         sent.encounter_positions != now.encounter_positions || sent.encounters != now.encounters;
-}
 
 namespace {
 // A difference in tolerances: 0 within it.
@@ -23,11 +17,11 @@ double Excess(double difference, double tolerance) {
 }
 }  // namespace
 
-double MapChunker::Moved(const MergedMapChunk& sent, const MergedMapChunk& now) const {
+double MapChunker::Moved(const std::vector<Pose2>& sent, const std::vector<Pose2>& now) const {
   double moved = 0.0;
-  for (size_t i = 0; i < now.local_poses.size(); ++i) {
-    const Pose2& a = sent.local_poses[i];
-    const Pose2& b = now.local_poses[i];
+  for (size_t i = 0; i < now.size(); ++i) {
+    const Pose2& a = sent[i];
+    const Pose2& b = now[i];
     moved =
         std::max({moved, Excess(std::abs(a.x() - b.x()), options_.tolerance_m),
                   Excess(std::abs(a.y() - b.y()), options_.tolerance_m),
@@ -37,117 +31,179 @@ double MapChunker::Moved(const MergedMapChunk& sent, const MergedMapChunk& now) 
 }
 
 MapChunker::Split MapChunker::Update(const MergedMap& map, bool full, double refresh) {
-  const int64_t size = options_.chunk_poses;
-  Split out;
-  out.header.utime = map.utime;
-  out.header.update = map.update;
-  out.header.chunk_poses = options_.chunk_poses;
-  // Every chunk's current content, poses first.
-  std::map<ChunkId, MergedMapChunk> now;
-  std::map<std::pair<std::string, int64_t>, const MergedTrajectory*> by_name;
+  std::vector<Trajectory> trajectories;
+  trajectories.reserve(map.trajectories.size());
   for (const MergedTrajectory& t : map.trajectories) {
-    by_name[{t.robot, t.trajectory_id}] = &t;
+    Trajectory view;
+    view.robot = t.robot;
+    view.trajectory_id = t.trajectory_id;
+    view.anchored = t.anchored;
+    view.T_global_local = t.T_global_local;
+    view.num_poses = static_cast<int64_t>(t.poses.size());
+    view.pose_utimes = &t.pose_utimes;
     const Pose2 T_local_global = t.T_global_local.Inverse();
     const CosSin rotation = CosSin::Of(T_local_global.theta());  // once per trajectory
-    const auto poses = static_cast<int64_t>(t.poses.size());
-    for (int64_t first = 0; first < poses; first += size) {
-      MergedMapChunk chunk;
-      chunk.utime = map.utime;
-      chunk.robot = t.robot;
-      chunk.trajectory_id = t.trajectory_id;
-      chunk.chunk_index = static_cast<int32_t>(first / size);
-      const int64_t end = std::min(poses, first + size);
+    view.local_poses = [&t, T_local_global, rotation](int64_t first, int64_t end, Pose2* out) {
       for (int64_t i = first; i < end; ++i) {
-        chunk.local_poses.push_back(
-            Compose(T_local_global, rotation, t.poses[static_cast<size_t>(i)]));
-        chunk.pose_utimes.push_back(i < static_cast<int64_t>(t.pose_utimes.size())
-                                        ? t.pose_utimes[static_cast<size_t>(i)]
-                                        : 0);
+        out[i - first] = Compose(T_local_global, rotation, t.poses[static_cast<size_t>(i)]);
       }
-      now.emplace(ChunkId{t.robot, t.trajectory_id, chunk.chunk_index}, std::move(chunk));
-    }
+    };
+    trajectories.push_back(std::move(view));
   }
+  return Update(map.utime, map.update, trajectories, map.encounters, full, refresh);
+}
+
+MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
+                                     const std::vector<Trajectory>& trajectories,
+                                     const std::vector<EncounterLink>& encounters, bool full,
+                                     double refresh) {
+  const int64_t size = options_.chunk_poses;
+  Split out;
+  out.header.utime = utime;
+  out.header.update = update;
+  out.header.chunk_poses = options_.chunk_poses;
   // Each encounter in the chunk of its second keyframe, else of its first; one that joins
   // no keyframe of the map has no chunk and is left out (the header counts the others).
+  std::map<std::pair<std::string, int64_t>, const Trajectory*> by_name;
+  for (const Trajectory& t : trajectories) by_name[{t.robot, t.trajectory_id}] = &t;
+  struct Links {
+    std::vector<EncounterLink> links;
+    std::vector<int32_t> positions;
+  };
+  std::map<ChunkId, Links> links;
   int32_t placed = 0;
-  for (size_t e = 0; e < map.encounters.size(); ++e) {
-    const EncounterLink& link = map.encounters[e];
+  for (const EncounterLink& link : encounters) {
     for (const auto& [robot, trajectory, index] :
          {std::tuple(link.robot_b, link.trajectory_b, link.index_b),
           std::tuple(link.robot_a, link.trajectory_a, link.index_a)}) {
       const auto it = by_name.find({robot, trajectory});
-      if (it == by_name.end() || index < 0 ||
-          index >= static_cast<int64_t>(it->second->poses.size())) {
-        continue;
-      }
-      MergedMapChunk& chunk =
-          now.at(ChunkId{robot, trajectory, static_cast<int32_t>(index / size)});
-      chunk.encounters.push_back(link);
-      chunk.encounter_positions.push_back(placed++);
+      if (it == by_name.end() || index < 0 || index >= it->second->num_poses) continue;
+      Links& chunk = links[ChunkId{robot, trajectory, static_cast<int32_t>(index / size)}];
+      chunk.links.push_back(link);
+      chunk.positions.push_back(placed++);
       break;
     }
   }
   out.header.num_encounters = placed;
-  // The chunks to send get this update as their version; the others keep theirs.
-  using Entry = std::map<ChunkId, MergedMapChunk>::iterator;
-  std::vector<Entry> send;
-  std::vector<std::pair<double, Entry>> moved;  // (how far, chunk), in the map's order
-  std::vector<std::pair<int64_t, Entry>> kept;  // (version sent, chunk), in the map's order
-  for (auto it = now.begin(); it != now.end(); ++it) {
-    const auto sent = sent_.find(it->first);
-    if (full || sent == sent_.end() || Rewritten(sent->second, it->second)) {
-      send.push_back(it);
-      continue;
-    }
-    it->second.version = sent->second.version;
-    const double how_far = Moved(sent->second, it->second);
-    if (how_far > 0.0) {
-      moved.emplace_back(how_far, it);
-    } else {
-      kept.emplace_back(it->second.version, it);
+
+  // Every chunk of the map, in the order robot, trajectory, index.
+  struct Chunk {
+    ChunkId id;
+    const Trajectory* trajectory = nullptr;
+    int64_t first = 0;
+    int64_t end = 0;
+    Sent* sent = nullptr;  // nullptr: new
+    const Links* links = nullptr;
+    bool send = false;
+    bool read = false;
+    double moved = 0.0;
+    std::vector<Pose2> poses;  // once read
+  };
+  static const Links kNoLinks;
+  std::vector<Chunk> chunks;
+  for (const Trajectory& t : trajectories) {
+    for (int64_t first = 0; first < t.num_poses; first += size) {
+      ChunkId id{t.robot, t.trajectory_id, static_cast<int32_t>(first / size)};
+      const auto sent = sent_.find(id);
+      const auto linked = links.find(id);
+      Chunk c;
+      c.id = std::move(id);
+      c.trajectory = &t;
+      c.first = first;
+      c.end = std::min(t.num_poses, first + size);
+      c.sent = sent == sent_.end() ? nullptr : &sent->second;
+      c.links = linked == links.end() ? &kNoLinks : &linked->second;
+      chunks.push_back(std::move(c));
     }
   }
-  // The farthest moved first, within the budget; the others wait like unmoved chunks.
-  std::stable_sort(moved.begin(), moved.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first; });
-  const size_t budget =
-      options_.max_moved_chunks > 0 ? static_cast<size_t>(options_.max_moved_chunks) : moved.size();
-  for (size_t i = 0; i < moved.size(); ++i) {
-    if (i < budget) {
-      send.push_back(moved[i].second);
-    } else {
-      kept.emplace_back(moved[i].second->second.version, moved[i].second);
+  std::sort(chunks.begin(), chunks.end(),
+            [](const Chunk& a, const Chunk& b) { return a.id < b.id; });
+  const auto read = [&](Chunk* c) {
+    c->read = true;
+    c->poses.resize(static_cast<size_t>(c->end - c->first));
+    c->trajectory->local_poses(c->first, c->end, c->poses.data());
+  };
+  const auto utimes_of = [](const Chunk& c) {
+    std::vector<int64_t> utimes(static_cast<size_t>(c.end - c.first), 0);
+    const std::vector<int64_t>& all = *c.trajectory->pose_utimes;
+    for (int64_t i = c.first; i < c.end && i < static_cast<int64_t>(all.size()); ++i) {
+      utimes[static_cast<size_t>(i - c.first)] = all[static_cast<size_t>(i)];
     }
+    return utimes;
+  };
+  // Sent anyway: new, keyframes added or lost, encounters changed (or everything: `full`).
+  std::vector<Chunk*> rest;
+  for (Chunk& c : chunks) {
+    c.send = full || c.sent == nullptr ||
+             c.sent->chunk.local_poses.size() != static_cast<size_t>(c.end - c.first) ||
+             c.sent->chunk.encounters != c.links->links ||
+             c.sent->chunk.encounter_positions != c.links->positions;
+    if (!c.send) rest.push_back(&c);
   }
-  // The refresh: the least recently sent first, ties in the map's order.
-  std::stable_sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) {
-    return a.first != b.first ? a.first < b.first : a.second->first < b.second->first;
+  // The refresh: the least recently sent first, ties in the chunks' order.
+  std::stable_sort(rest.begin(), rest.end(), [](const Chunk* a, const Chunk* b) {
+    return a->sent->chunk.version < b->sent->chunk.version;
   });
   const auto refreshed =
-      std::min(kept.size(), static_cast<size_t>(std::ceil(std::clamp(refresh, 0.0, 1.0) *
-                                                          static_cast<double>(now.size()))));
-  for (size_t i = 0; i < refreshed; ++i) send.push_back(kept[i].second);
-  // Sent in the map's order.
-  std::sort(send.begin(), send.end(),
-            [](const Entry& a, const Entry& b) { return a->first < b->first; });
-  for (const Entry& it : send) {
-    it->second.version = map.update;
-    out.chunks.push_back(it->second);
-    sent_[it->first] = std::move(it->second);
+      std::min(rest.size(), static_cast<size_t>(std::ceil(std::clamp(refresh, 0.0, 1.0) *
+                                                          static_cast<double>(chunks.size()))));
+  for (size_t i = 0; i < refreshed; ++i) rest[i]->send = true;
+  rest.erase(rest.begin(), rest.begin() + static_cast<std::ptrdiff_t>(refreshed));
+  // The poses of the least recently read: the chunks whose keyframes' times changed (a
+  // restarted server's) go; those that moved compete for the budget, the farthest first.
+  std::stable_sort(rest.begin(), rest.end(),
+                   [](const Chunk* a, const Chunk* b) { return a->sent->read < b->sent->read; });
+  if (options_.max_read_chunks > 0) {
+    rest.resize(std::min(rest.size(), static_cast<size_t>(options_.max_read_chunks)));
+  }
+  std::vector<Chunk*> moved;
+  for (Chunk* c : rest) {
+    read(c);
+    c->sent->read = update;
+    if (c->sent->chunk.pose_utimes != utimes_of(*c)) {
+      c->send = true;
+    } else if ((c->moved = Moved(c->sent->chunk.local_poses, c->poses)) > 0.0) {
+      moved.push_back(c);
+    }
+  }
+  std::stable_sort(moved.begin(), moved.end(),
+                   [](const Chunk* a, const Chunk* b) { return a->moved > b->moved; });
+  if (options_.max_moved_chunks > 0) {
+    moved.resize(std::min(moved.size(), static_cast<size_t>(options_.max_moved_chunks)));
+  }
+  for (Chunk* c : moved) c->send = true;
+  // The chunks to send, at their current content and this update's version.
+  for (Chunk& c : chunks) {
+    if (!c.send) continue;
+    if (!c.read) read(&c);
+    MergedMapChunk chunk;
+    chunk.utime = utime;
+    chunk.version = update;
+    chunk.robot = std::get<0>(c.id);
+    chunk.trajectory_id = std::get<1>(c.id);
+    chunk.chunk_index = std::get<2>(c.id);
+    chunk.pose_utimes = utimes_of(c);
+    chunk.local_poses = std::move(c.poses);
+    chunk.encounters = c.links->links;
+    chunk.encounter_positions = c.links->positions;
+    out.chunks.push_back(chunk);
+    sent_[c.id] = Sent{std::move(chunk), update};
   }
   // Chunks that no longer exist (a trajectory lost keyframes: a server restart) are forgotten.
+  auto current = chunks.begin();
   for (auto it = sent_.begin(); it != sent_.end();) {
-    it = now.count(it->first) ? std::next(it) : sent_.erase(it);
+    while (current != chunks.end() && current->id < it->first) ++current;
+    it = current != chunks.end() && current->id == it->first ? std::next(it) : sent_.erase(it);
   }
-  for (const MergedTrajectory& t : map.trajectories) {
+  for (const Trajectory& t : trajectories) {
     MergedMapHeader::Trajectory h;
     h.robot = t.robot;
     h.trajectory_id = t.trajectory_id;
     h.anchored = t.anchored;
     h.T_global_local = t.T_global_local;
-    h.num_poses = static_cast<int32_t>(t.poses.size());
+    h.num_poses = static_cast<int32_t>(t.num_poses);
     for (int32_t k = 0; static_cast<int64_t>(k) * size < h.num_poses; ++k) {
-      h.chunk_versions.push_back(sent_.at(ChunkId{t.robot, t.trajectory_id, k}).version);
+      h.chunk_versions.push_back(sent_.at(ChunkId{t.robot, t.trajectory_id, k}).chunk.version);
     }
     out.header.trajectories.push_back(std::move(h));
   }

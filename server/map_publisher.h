@@ -70,6 +70,8 @@ struct MapPublisherOptions {
       return Status::Error("publish.chunks tolerances must be >= 0");
     if (chunks.max_moved_chunks < 0)
       return Status::Error("publish.chunks.max_moved_chunks must be >= 0");
+    if (chunks.max_read_chunks < 0)
+      return Status::Error("publish.chunks.max_read_chunks must be >= 0");
     if (!(grid_period_s >= 0)) return Status::Error("publish.grid_period_s must be >= 0");
     if (!(grid_full_period_s >= 0)) return Status::Error("publish.grid_full_period_s must be >= 0");
     if (!(grid_move_tolerance_cells >= 0))
@@ -98,6 +100,12 @@ class MapPublisher {
   // proportion to the time since the last call over map_full_period_s; every chunk when
   // `full`, on the first call, or when that period has passed since the last call.
   MapChunker::Split SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full = false);
+  // The same for the current estimate, without building the merged map: only the poses of
+  // the chunks the chunker reads are looked up, in the frame the smoother keeps them in
+  // (after a full split a subscriber's map holds GlobalTrajectory's bits).
+  MapChunker::Split SplitMap(const Smoother& smoother, const TrajectoryTable& table,
+                             const std::vector<EncounterLink>& links, int64_t utime, int64_t update,
+                             int64_t now_utime, bool full = false);
   // Non-const smoother: it keeps the covariance solves' scratch. Each anchor's marginal is
   // one sparse solve through the rows below it in R (Smoother::ProjectedCovariance).
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,
@@ -148,6 +156,8 @@ class MapPublisher {
   std::optional<int64_t> last_grid_utime_;
   int64_t last_grid_update_ = 0;
   std::optional<int64_t> last_grid_full_utime_;
+  // The share of the chunks SplitMergedMap sends again whatever changed; `*full` when all.
+  double Refresh(int64_t now_utime, bool* full);
   std::optional<int64_t> last_map_split_utime_;
   MapChunker chunker_;
   KeyframeGrid grid_;

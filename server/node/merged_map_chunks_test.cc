@@ -223,6 +223,7 @@ TEST(MergedMapChunksTest, MovedChunksGoByABudgetFarthestFirstEachAgainWithinTheR
   MapChunkerOptions options;
   options.chunk_poses = 16;
   options.max_moved_chunks = 4;
+  options.max_read_chunks = 0;  // every chunk's poses read at every update
   MapChunker chunker(options);
   MergedMapAssembler assembler;
   const MapChunker::Split first = chunker.Update(map, /*full=*/false, /*refresh=*/0.1);
@@ -271,6 +272,44 @@ TEST(MergedMapChunksTest, MovedChunksGoByABudgetFarthestFirstEachAgainWithinTheR
   }
   EXPECT_TRUE(found);
   EXPECT_LE(split.chunks.size(), 4u);
+}
+
+TEST(MergedMapChunksTest, AnUpdateReadsTheLeastRecentlyReadChunksWithinItsBound) {
+  MergedMap map = TestMap();  // 38 + 7 + 1 chunks of 16 poses
+  MapChunkerOptions options;
+  options.chunk_poses = 16;
+  options.max_moved_chunks = 0;  // every chunk read and moved goes
+  options.max_read_chunks = 8;
+  MapChunker chunker(options);
+  MergedMapAssembler assembler;
+  ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  // Everything moves at every update: only the chunks read can be seen to, 8 per update,
+  // each chunk once per ceil(46 / 8) = 6 updates.
+  std::map<std::tuple<std::string, int64_t, int32_t>, int> times_sent;
+  for (int64_t update = 2; update <= 13; ++update) {
+    map.update = update;
+    Correct(&map, 0.003);
+    const MapChunker::Split split = chunker.Update(map, false);
+    EXPECT_EQ(split.chunks.size(), 8u) << update;
+    for (const MergedMapChunk& c : split.chunks)
+      ++times_sent[{c.robot, c.trajectory_id, c.chunk_index}];
+    ASSERT_TRUE(Deliver(split, &assembler));
+  }
+  // 12 updates x 8 = 96 reads: every chunk twice, four of them a third time.
+  ASSERT_EQ(times_sent.size(), 46u);
+  for (const auto& [id, times] : times_sent) {
+    EXPECT_GE(times, 2) << std::get<0>(id) << " " << std::get<2>(id);
+    EXPECT_LE(times, 3) << std::get<0>(id) << " " << std::get<2>(id);
+  }
+  // Once the map stops moving, the subscriber's map is the server's within 6 updates; then
+  // the chunks read (all unmoved) are not sent.
+  for (int64_t update = 14; update <= 19; ++update) {
+    map.update = update;
+    ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  }
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+  map.update = 20;
+  EXPECT_TRUE(chunker.Update(map, false).chunks.empty());
 }
 
 TEST(MergedMapChunksTest, TheLastFullMapIsTheServersMapAndAFreshChunkersToTheBit) {
