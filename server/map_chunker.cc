@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string_view>
 #include <utility>
 
 #include "common/geometry/angle.h"
@@ -62,62 +63,94 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
   out.header.utime = utime;
   out.header.update = update;
   out.header.chunk_poses = options_.chunk_poses;
+  // Every chunk of the map, numbered trajectory by trajectory (chunk k of trajectory t is
+  // chunk first_chunk[t] + k), then put in the order robot, trajectory, index.
+  std::map<std::pair<std::string_view, int64_t>, size_t> by_name;
+  std::vector<int64_t> first_chunk;
+  int64_t num_chunks = 0;
+  for (size_t t = 0; t < trajectories.size(); ++t) {
+    by_name[{trajectories[t].robot, trajectories[t].trajectory_id}] = t;
+    first_chunk.push_back(num_chunks);
+    num_chunks += (trajectories[t].num_poses + size - 1) / size;
+  }
   // Each encounter in the chunk of its second keyframe, else of its first; one that joins
-  // no keyframe of the map has no chunk and is left out (the header counts the others).
-  std::map<std::pair<std::string, int64_t>, const Trajectory*> by_name;
-  for (const Trajectory& t : trajectories) by_name[{t.robot, t.trajectory_id}] = &t;
-  struct Links {
-    std::vector<EncounterLink> links;
-    std::vector<int32_t> positions;
-  };
-  std::map<ChunkId, Links> links;
-  int32_t placed = 0;
-  for (const EncounterLink& link : encounters) {
-    for (const auto& [robot, trajectory, index] :
-         {std::tuple(link.robot_b, link.trajectory_b, link.index_b),
-          std::tuple(link.robot_a, link.trajectory_a, link.index_a)}) {
-      const auto it = by_name.find({robot, trajectory});
-      if (it == by_name.end() || index < 0 || index >= it->second->num_poses) continue;
-      Links& chunk = links[ChunkId{robot, trajectory, static_cast<int32_t>(index / size)}];
-      chunk.links.push_back(link);
-      chunk.positions.push_back(placed++);
-      break;
+  // no keyframe of the map has no chunk and is left out (the header counts the others). By
+  // chunk, [link_begin[c], link_begin[c + 1]) of link_index (the encounter) and
+  // link_position (its position among those placed): indices, no copies of the links.
+  const auto chunk_of = [&](const std::string& robot, int64_t trajectory, int32_t index) {
+    const auto it = by_name.find({robot, trajectory});
+    if (it == by_name.end() || index < 0 || index >= trajectories[it->second].num_poses) {
+      return int64_t{-1};
     }
+    return first_chunk[it->second] + index / size;
+  };
+  std::vector<int64_t> chunk_of_link(encounters.size());
+  std::vector<int32_t> link_begin(static_cast<size_t>(num_chunks) + 1, 0);
+  for (size_t e = 0; e < encounters.size(); ++e) {
+    const EncounterLink& link = encounters[e];
+    int64_t chunk = chunk_of(link.robot_b, link.trajectory_b, link.index_b);
+    if (chunk < 0) chunk = chunk_of(link.robot_a, link.trajectory_a, link.index_a);
+    chunk_of_link[e] = chunk;
+    if (chunk >= 0) ++link_begin[static_cast<size_t>(chunk) + 1];
+  }
+  for (size_t c = 0; c < static_cast<size_t>(num_chunks); ++c) link_begin[c + 1] += link_begin[c];
+  std::vector<int32_t> link_index(static_cast<size_t>(link_begin.back()));
+  std::vector<int32_t> link_position(link_index.size());
+  std::vector<int32_t> fill(link_begin.begin(), link_begin.end() - 1);
+  int32_t placed = 0;
+  for (size_t e = 0; e < encounters.size(); ++e) {
+    if (chunk_of_link[e] < 0) continue;
+    const auto slot = static_cast<size_t>(fill[static_cast<size_t>(chunk_of_link[e])]++);
+    link_index[slot] = static_cast<int32_t>(e);
+    link_position[slot] = placed++;
   }
   out.header.num_encounters = placed;
 
-  // Every chunk of the map, in the order robot, trajectory, index.
   struct Chunk {
     ChunkId id;
     const Trajectory* trajectory = nullptr;
     int64_t first = 0;
     int64_t end = 0;
+    size_t links = 0;      // [link_begin[links], link_begin[links + 1])
     Sent* sent = nullptr;  // nullptr: new
-    const Links* links = nullptr;
     bool send = false;
     bool read = false;
     double moved = 0.0;
     std::vector<Pose2> poses;  // once read
   };
-  static const Links kNoLinks;
   std::vector<Chunk> chunks;
-  for (const Trajectory& t : trajectories) {
-    for (int64_t first = 0; first < t.num_poses; first += size) {
-      ChunkId id{t.robot, t.trajectory_id, static_cast<int32_t>(first / size)};
-      const auto sent = sent_.find(id);
-      const auto linked = links.find(id);
+  chunks.reserve(static_cast<size_t>(num_chunks));
+  for (size_t t = 0; t < trajectories.size(); ++t) {
+    const Trajectory& trajectory = trajectories[t];
+    for (int64_t first = 0; first < trajectory.num_poses; first += size) {
       Chunk c;
-      c.id = std::move(id);
-      c.trajectory = &t;
+      c.id =
+          ChunkId{trajectory.robot, trajectory.trajectory_id, static_cast<int32_t>(first / size)};
+      c.trajectory = &trajectory;
       c.first = first;
-      c.end = std::min(t.num_poses, first + size);
+      c.end = std::min(trajectory.num_poses, first + size);
+      c.links = static_cast<size_t>(first_chunk[t] + first / size);
+      const auto sent = sent_.find(c.id);
       c.sent = sent == sent_.end() ? nullptr : &sent->second;
-      c.links = linked == links.end() ? &kNoLinks : &linked->second;
       chunks.push_back(std::move(c));
     }
   }
   std::sort(chunks.begin(), chunks.end(),
             [](const Chunk& a, const Chunk& b) { return a.id < b.id; });
+  // Whether the chunk's encounters are those it was last sent with.
+  const auto same_links = [&](const Chunk& c) {
+    const MergedMapChunk& sent = c.sent->chunk;
+    const auto begin = static_cast<size_t>(link_begin[c.links]);
+    const auto count = static_cast<size_t>(link_begin[c.links + 1]) - begin;
+    if (sent.encounters.size() != count || sent.encounter_positions.size() != count) return false;
+    for (size_t i = 0; i < count; ++i) {
+      if (sent.encounter_positions[i] != link_position[begin + i] ||
+          sent.encounters[i] != encounters[static_cast<size_t>(link_index[begin + i])]) {
+        return false;
+      }
+    }
+    return true;
+  };
   const auto read = [&](Chunk* c) {
     c->read = true;
     c->poses.resize(static_cast<size_t>(c->end - c->first));
@@ -136,8 +169,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
   for (Chunk& c : chunks) {
     c.send = full || c.sent == nullptr ||
              c.sent->chunk.local_poses.size() != static_cast<size_t>(c.end - c.first) ||
-             c.sent->chunk.encounters != c.links->links ||
-             c.sent->chunk.encounter_positions != c.links->positions;
+             !same_links(c);
     if (!c.send) rest.push_back(&c);
   }
   // The refresh: the least recently sent first, ties in the chunks' order.
@@ -184,8 +216,11 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     chunk.chunk_index = std::get<2>(c.id);
     chunk.pose_utimes = utimes_of(c);
     chunk.local_poses = std::move(c.poses);
-    chunk.encounters = c.links->links;
-    chunk.encounter_positions = c.links->positions;
+    for (int32_t slot = link_begin[c.links]; slot < link_begin[c.links + 1]; ++slot) {
+      chunk.encounters.push_back(
+          encounters[static_cast<size_t>(link_index[static_cast<size_t>(slot)])]);
+      chunk.encounter_positions.push_back(link_position[static_cast<size_t>(slot)]);
+    }
     out.chunks.push_back(chunk);
     sent_[c.id] = Sent{std::move(chunk), update};
   }

@@ -8,12 +8,12 @@
 // travel in the header, so a merge that moves whole trajectories sends no chunk. A chunk's
 // version is the update it was last sent at; the header names every chunk's version.
 //
-// The cost of an update is bounded by its options, not by the map: a correction moves the
-// whole map (late in a 20-robot run 83 % of the chunks moved past the tolerance at every
-// update), so an update reads the poses of a bounded number of chunks only, the least
-// recently read first, and of those that moved sends a bounded number, the farthest moved
-// first; the others keep their version (a subscriber's map holds them as last sent) and
-// are read again at a later update. Chunks whose keyframes or encounters changed always go
+// Its cost can be bounded by its options, not by the map: a correction moves the whole map
+// (late in a 20-robot run 83 % of the chunks moved past the tolerance at every update), so
+// an update may read the poses of a bounded number of chunks only, the least recently read
+// first, and of those that moved send a bounded number, the farthest moved first; the
+// others keep their version (a subscriber's map holds them as last sent) and are read
+// again at a later update. Chunks whose keyframes or encounters changed always go
 // (the team's new keyframes: their number follows the team, not the map). A share of the
 // chunks, the least recently sent first, goes out again at every update whatever changed
 // (the caller's `refresh`): every chunk within a bounded number of updates, spread over
@@ -37,12 +37,15 @@ struct MapChunkerOptions {
   double tolerance_m = 0.001;
   double tolerance_rad = 1e-4;
   // At most this many chunks per update sent only because a pose moved past the
-  // tolerance, the farthest moved (in tolerances) first (0: no limit). 16 chunks are 4096
-  // poses, ~130 kB.
-  int32_t max_moved_chunks = 16;
+  // tolerance, the farthest moved (in tolerances) first (0: no limit).
+  int32_t max_moved_chunks = 0;
   // At most this many chunks per update whose poses are read to see whether they moved,
   // the least recently read first, besides the chunks sent anyway (0: every chunk).
-  int32_t max_read_chunks = 32;
+  // Both bounds are off by default: with them (32 read, 16 moved) 20 robots' maps were
+  // flat at ~35-40 chunks per map instead of growing to ~85 at 900 s, but a subscriber's
+  // map lagged the server's by a median 14 cm late in the run (max 26 cm), for a saving
+  // within the noise (docs/ARCHITECTURE.md, "flat21").
+  int32_t max_read_chunks = 0;
 };
 
 class MapChunker {
