@@ -7,8 +7,20 @@
 // changed: poses added, a local pose moved past the tolerance, encounters changed. Anchors
 // travel in the header, so a merge that moves whole trajectories sends no chunk. A chunk's
 // version is the update it was last sent at; the header names every chunk's version.
+//
+// Its cost can be bounded by its options, not by the map: a correction moves the whole map
+// (late in a 20-robot run 83 % of the chunks moved past the tolerance at every update), so
+// an update may read the poses of a bounded number of chunks only, the least recently read
+// first, and of those that moved send a bounded number, the farthest moved first; the
+// others keep their version (a subscriber's map holds them as last sent) and are read
+// again at a later update. Chunks whose keyframes or encounters changed always go
+// (the team's new keyframes: their number follows the team, not the map). A share of the
+// chunks, the least recently sent first, goes out again at every update whatever changed
+// (the caller's `refresh`): every chunk within a bounded number of updates, spread over
+// them instead of all at once.
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <tuple>
@@ -24,26 +36,62 @@ struct MapChunkerOptions {
   // sent (the viewer's rounding: 1 mm, 1e-4 rad).
   double tolerance_m = 0.001;
   double tolerance_rad = 1e-4;
+  // At most this many chunks per update sent only because a pose moved past the
+  // tolerance, the farthest moved (in tolerances) first (0: no limit).
+  int32_t max_moved_chunks = 0;
+  // At most this many chunks per update whose poses are read to see whether they moved,
+  // the least recently read first, besides the chunks sent anyway (0: every chunk).
+  // Both bounds are off by default: with them (32 read, 16 moved) 20 robots' maps were
+  // flat at ~35-40 chunks per map instead of growing to ~85 at 900 s, but a subscriber's
+  // map lagged the server's by a median 14 cm late in the run (max 26 cm), for a saving
+  // within the noise (docs/ARCHITECTURE.md, "flat21").
+  int32_t max_read_chunks = 0;
 };
 
 class MapChunker {
  public:
   explicit MapChunker(const MapChunkerOptions& options = {}) : options_(options) {}
 
+  // One trajectory of the map as the bus carries it.
+  struct Trajectory {
+    std::string robot;
+    int64_t trajectory_id = 0;
+    bool anchored = false;
+    Pose2 T_global_local;
+    int64_t num_poses = 0;
+    // The keyframes' times; 0 for those beyond its end.
+    const std::vector<int64_t>* pose_utimes = nullptr;
+    // Writes the poses [first, end) in the trajectory's local frame to out[0, end - first).
+    std::function<void(int64_t first, int64_t end, Pose2* out)> local_poses;
+  };
   struct Split {
     std::vector<MergedMapChunk> chunks;  // to send before the header
     MergedMapHeader header;
   };
-  // The chunks of `map` that changed since the last call (every chunk when `full`, at its
-  // current content), and the header.
-  Split Update(const MergedMap& map, bool full);
+  // The header of the map and the chunks to send, in the order robot, trajectory, index:
+  // every chunk when `full`; otherwise those new or whose keyframes or encounters changed
+  // since last sent, those read (max_read_chunks) whose poses moved past the tolerance
+  // within max_moved_chunks (the farthest first), and ceil(refresh x the chunks) more, the
+  // least recently sent first (refresh in [0, 1]; ties in the chunks' order). Each at its
+  // current content.
+  Split Update(int64_t utime, int64_t update, const std::vector<Trajectory>& trajectories,
+               const std::vector<EncounterLink>& encounters, bool full, double refresh = 0.0);
+  // The same for a map with global poses (each made local by its trajectory's anchor).
+  Split Update(const MergedMap& map, bool full, double refresh = 0.0);
 
  private:
   using ChunkId = std::tuple<std::string, int64_t, int32_t>;  // robot, trajectory, index
-  bool Changed(const MergedMapChunk& sent, const MergedMapChunk& now) const;
+  struct Sent {
+    MergedMapChunk chunk;  // as last sent
+    int64_t read = 0;      // the update its poses were last read at
+  };
+  // How far `now` moved from `sent`, in tolerances: the largest of |dx|, |dy| over
+  // tolerance_m and |dtheta| over tolerance_rad; 0 when none passed its tolerance (+inf for
+  // a move past a tolerance of 0).
+  double Moved(const std::vector<Pose2>& sent, const std::vector<Pose2>& now) const;
 
   MapChunkerOptions options_;
-  std::map<ChunkId, MergedMapChunk> sent_;
+  std::map<ChunkId, Sent> sent_;
 };
 
 }  // namespace anchormap

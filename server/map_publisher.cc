@@ -29,13 +29,57 @@ MergedMap MapPublisher::BuildMergedMap(const Smoother& smoother, const Trajector
   return map;
 }
 
-MapChunker::Split MapPublisher::SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full) {
-  if (!last_map_full_utime_ ||
-      1e-6 * static_cast<double>(now_utime - *last_map_full_utime_) >= options_.map_full_period_s) {
-    full = true;
+double MapPublisher::Refresh(int64_t now_utime, bool* full) {
+  // The time since the last map over map_full_period_s, so that every chunk goes out about
+  // once per period, a few at each map rather than all at once (all of them on the first
+  // map, or with a period of 0).
+  double refresh = 1.0;
+  if (last_map_split_utime_ && options_.map_full_period_s > 0) {
+    refresh =
+        1e-6 * static_cast<double>(now_utime - *last_map_split_utime_) / options_.map_full_period_s;
   }
-  if (full) last_map_full_utime_ = now_utime;
-  return chunker_.Update(map, full);
+  last_map_split_utime_ = now_utime;
+  *full = *full || refresh >= 1.0;
+  return refresh;
+}
+
+MapChunker::Split MapPublisher::SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full) {
+  const double refresh = Refresh(now_utime, &full);
+  return chunker_.Update(map, full, refresh);
+}
+
+MapChunker::Split MapPublisher::SplitMap(const Smoother& smoother, const TrajectoryTable& table,
+                                         const std::vector<EncounterLink>& links, int64_t utime,
+                                         int64_t update, int64_t now_utime, bool full) {
+  // BuildMergedMap's trajectories, their poses in their local frames: the smoother's own
+  // (relative formulation, or not anchored: the frame is the global one), else the global
+  // frame's made local by the anchor.
+  const bool relative = smoother.options().formulation == Formulation::kRelative;
+  std::vector<MapChunker::Trajectory> trajectories;
+  for (const TrajectoryRecord& record : table.records()) {
+    const int poses = smoother.NumPoses(record.solver_id);
+    if (record.num_keyframes() == 0 || poses == 0) continue;
+    MapChunker::Trajectory t;
+    t.robot = record.robot;
+    t.trajectory_id = record.agent_trajectory_id;
+    t.anchored = smoother.IsAnchored(record.solver_id);
+    if (const auto anchor = smoother.Anchor(record.solver_id)) t.T_global_local = *anchor;
+    t.num_poses = poses;
+    t.pose_utimes = &record.utimes;
+    const TrajectoryId id = record.solver_id;
+    const bool frame_is_local = relative || !t.anchored;
+    const Pose2 T_local_global = t.T_global_local.Inverse();
+    t.local_poses = [&smoother, id, frame_is_local, T_local_global](int64_t first, int64_t end,
+                                                                    Pose2* out) {
+      for (int64_t i = first; i < end; ++i) {
+        const Pose2 pose = smoother.FramePose(PoseKey{id, static_cast<int32_t>(i)});
+        out[i - first] = frame_is_local ? pose : Compose(T_local_global, pose);
+      }
+    };
+    trajectories.push_back(std::move(t));
+  }
+  const double refresh = Refresh(now_utime, &full);
+  return chunker_.Update(utime, update, trajectories, links, full, refresh);
 }
 
 AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,

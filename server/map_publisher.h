@@ -28,8 +28,10 @@ struct MapPublisherOptions {
   // Merged map and anchor covariances: after an update, at most this often (0 = after
   // every update).
   double map_period_s = 0.5;
-  // The merged map goes out as a header and the chunks that changed (MapChunker); every
-  // chunk at most this often, for subscribers that joined late or lost a chunk.
+  // The merged map goes out as a header and the chunks that changed (MapChunker, within its
+  // budget of chunks that only moved); every chunk again about this often, for subscribers
+  // that joined late or lost a chunk: a share of the chunks, the least recently sent, at
+  // every map (the time since the last one over this period), not all of them at once.
   double map_full_period_s = 10.0;
   MapChunkerOptions chunks;
   // Occupancy grid: at most this often, when the map changed (0 = never).
@@ -66,6 +68,10 @@ struct MapPublisherOptions {
       return Status::Error("publish.chunks.chunk_poses must be 1..65536");
     if (!(chunks.tolerance_m >= 0) || !(chunks.tolerance_rad >= 0))
       return Status::Error("publish.chunks tolerances must be >= 0");
+    if (chunks.max_moved_chunks < 0)
+      return Status::Error("publish.chunks.max_moved_chunks must be >= 0");
+    if (chunks.max_read_chunks < 0)
+      return Status::Error("publish.chunks.max_read_chunks must be >= 0");
     if (!(grid_period_s >= 0)) return Status::Error("publish.grid_period_s must be >= 0");
     if (!(grid_full_period_s >= 0)) return Status::Error("publish.grid_full_period_s must be >= 0");
     if (!(grid_move_tolerance_cells >= 0))
@@ -89,9 +95,17 @@ class MapPublisher {
   MergedMap BuildMergedMap(const Smoother& smoother, const TrajectoryTable& table,
                            const std::vector<EncounterLink>& links, int64_t utime,
                            int64_t update) const;
-  // `map` as chunks and a header for the bus: the chunks that changed since the last call,
-  // or every chunk when `full` or when map_full_period_s has passed since the last full one.
+  // `map` as chunks and a header for the bus (MapChunker::Update): the chunks that changed
+  // since the last call within the chunker's budget, and the least recently sent ones in
+  // proportion to the time since the last call over map_full_period_s; every chunk when
+  // `full`, on the first call, or when that period has passed since the last call.
   MapChunker::Split SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full = false);
+  // The same for the current estimate, without building the merged map: only the poses of
+  // the chunks the chunker reads are looked up, in the frame the smoother keeps them in
+  // (after a full split a subscriber's map holds GlobalTrajectory's bits).
+  MapChunker::Split SplitMap(const Smoother& smoother, const TrajectoryTable& table,
+                             const std::vector<EncounterLink>& links, int64_t utime, int64_t update,
+                             int64_t now_utime, bool full = false);
   // Non-const smoother: it keeps the covariance solves' scratch. Each anchor's marginal is
   // one sparse solve through the rows below it in R (Smoother::ProjectedCovariance).
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,
@@ -142,7 +156,9 @@ class MapPublisher {
   std::optional<int64_t> last_grid_utime_;
   int64_t last_grid_update_ = 0;
   std::optional<int64_t> last_grid_full_utime_;
-  std::optional<int64_t> last_map_full_utime_;
+  // The share of the chunks SplitMergedMap sends again whatever changed; `*full` when all.
+  double Refresh(int64_t now_utime, bool* full);
+  std::optional<int64_t> last_map_split_utime_;
   MapChunker chunker_;
   KeyframeGrid grid_;
 };

@@ -1,6 +1,9 @@
 #include "server/map_publisher.h"
 
 #include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -96,6 +99,84 @@ TEST_F(MapPublisherTest, MergedMapHoldsEveryTrajectoryLocalUntilAnchoredThenGlob
   }
   ASSERT_EQ(after.encounters.size(), 1u);
   EXPECT_EQ(after.encounters[0].index_b, 1);
+}
+
+// The global poses a subscriber makes of a split (MergedMapAssembler's formula: the
+// header's anchor composed with each chunk's local poses), assuming it holds `held`'s
+// chunks, by trajectory and index.
+std::vector<std::vector<Pose2>> Assembled(
+    const MapChunker::Split& split,
+    const std::map<std::pair<int64_t, int32_t>, MergedMapChunk>& held) {
+  std::vector<std::vector<Pose2>> out;
+  for (const MergedMapHeader::Trajectory& t : split.header.trajectories) {
+    out.emplace_back();
+    for (size_t k = 0; k < t.chunk_versions.size(); ++k) {
+      const MergedMapChunk& chunk = held.at({t.trajectory_id, static_cast<int32_t>(k)});
+      EXPECT_EQ(chunk.version, t.chunk_versions[k]);
+      for (const Pose2& local : chunk.local_poses) {
+        out.back().push_back(Compose(t.T_global_local, local));
+      }
+    }
+  }
+  return out;
+}
+
+TEST_F(MapPublisherTest, SplitFromTheSmootherGivesGlobalTrajectorysBitsOnceFull) {
+  MapPublisherOptions options;
+  options.chunks.chunk_poses = 1;  // a chunk per keyframe
+  options.chunks.max_moved_chunks = 1;
+  options.map_full_period_s = 2.0;
+  MapPublisher publisher(options);
+  std::map<std::pair<int64_t, int32_t>, MergedMapChunk> held;
+  std::map<std::pair<int64_t, int32_t>, int64_t> sent_at;
+  int64_t now = 0;
+  const auto split = [&](int64_t update, bool full) {
+    const MapChunker::Split out =
+        publisher.SplitMap(smoother_, table_, links_, now, update, now, full);
+    for (const MergedMapChunk& c : out.chunks) {
+      held[{c.trajectory_id, c.chunk_index}] = c;
+      sent_at[{c.trajectory_id, c.chunk_index}] = now;
+    }
+    return out;
+  };
+  const MapChunker::Split first = split(1, false);  // the first map: every chunk
+  EXPECT_EQ(first.chunks.size(), 2u * kKeyframes);
+  Encounter();
+  BendA();
+  // Maps every 0.5 s: A's bend (keyframes 1 to 3 moved) goes one chunk per map, the
+  // farthest moved first; besides, 8 x 0.5 / 2 = 2 chunks per map, the least recently
+  // sent: every chunk within the 2 s period.
+  for (int64_t update = 2; update <= 12; ++update) {
+    now += 500'000;
+    const MapChunker::Split out = split(update, false);
+    // Update 2 also sends B's chunk 1, where the encounter ends.
+    EXPECT_LE(out.chunks.size(), (update == 2 ? 2u : 1u) + 2u) << update;
+    if (update == 2) {
+      // The refresh took A's chunks 0 and 1 (all sent at the first map: the chunks' order);
+      // of the moved 2 and 3, the budget took 3, which moved farther.
+      std::vector<std::pair<int64_t, int32_t>> ids;
+      for (const MergedMapChunk& c : out.chunks) ids.emplace_back(c.trajectory_id, c.chunk_index);
+      EXPECT_EQ(ids, (std::vector<std::pair<int64_t, int32_t>>{{7, 0}, {7, 1}, {7, 3}, {8, 1}}));
+    }
+    for (const auto& [chunk, at] : sent_at) EXPECT_LE(now - at, 2'000'000) << update;
+  }
+  // A full map: the subscriber's global poses are GlobalTrajectory's, bit for bit, and the
+  // merged map's (which goes through the global frame and back) up to round-off.
+  now += 500'000;
+  const MapChunker::Split full = split(13, true);
+  EXPECT_EQ(full.chunks.size(), 2u * kKeyframes);
+  const std::vector<std::vector<Pose2>> assembled = Assembled(full, held);
+  const MergedMap merged = publisher.BuildMergedMap(smoother_, table_, links_, now, 13);
+  ASSERT_EQ(assembled.size(), 2u);
+  for (size_t t = 0; t < 2; ++t) {
+    const std::vector<Pose2> global = smoother_.GlobalTrajectory(TrajectoryId(static_cast<int>(t)));
+    ASSERT_EQ(assembled[t].size(), global.size());
+    for (size_t i = 0; i < global.size(); ++i) {
+      EXPECT_EQ(assembled[t][i].vector(), global[i].vector()) << t << " " << i;
+      EXPECT_LT(PoseError(assembled[t][i], merged.trajectories[t].poses[i]).norm(), 1e-12);
+    }
+  }
+  EXPECT_EQ(full.header.num_encounters, 1);
 }
 
 TEST_F(MapPublisherTest, AnchorCovariancesAreTheSmoothersMarginals) {

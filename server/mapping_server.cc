@@ -514,6 +514,11 @@ MergedMap MappingServer::BuildMergedMap() const {
   return publisher_.BuildMergedMap(smoother_, table_, links_, data_utime_, stats_.updates);
 }
 
+MapChunker::Split MappingServer::SplitMergedMap(int64_t now_utime, bool full) {
+  return publisher_.SplitMap(smoother_, table_, links_, data_utime_, stats_.updates, now_utime,
+                             full);
+}
+
 AnchorCovariances MappingServer::BuildAnchorCovariances() {
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }

@@ -26,10 +26,16 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("publish.grid_period_s", "grid-period-s", &s.publish.grid_period_s,
       "occupancy grid tiles at most this often (s; 0 = only at the end of an offline run)");
   add("publish.map_full_period_s", "map-full-period-s", &s.publish.map_full_period_s,
-      "every chunk of the merged map at most this often; the maps between carry the changed "
-      "chunks (s; 0 = every chunk each time)");
+      "every chunk of the merged map again about this often, the least recently sent a few at "
+      "each map; the maps between carry the changed chunks (s; 0 = every chunk each time)");
   add("publish.chunks.chunk_poses", "map-chunk-poses", &s.publish.chunks.chunk_poses,
       "keyframes per chunk of the merged map");
+  add("publish.chunks.max_moved_chunks", "map-max-moved-chunks", &s.publish.chunks.max_moved_chunks,
+      "chunks of the merged map sent per map at most only because their poses moved, the "
+      "farthest moved first; the rest at the next maps (0 = no limit)");
+  add("publish.chunks.max_read_chunks", "map-max-read-chunks", &s.publish.chunks.max_read_chunks,
+      "chunks of the merged map whose poses are read per map at most to see whether they "
+      "moved, the least recently read first, besides those sent anyway (0 = every chunk)");
   add("publish.grid_full_period_s", "grid-full-period-s", &s.publish.grid_full_period_s,
       "every grid tile at most this often; the grids between carry the changed tiles (s; 0 = "
       "every tile each time)");

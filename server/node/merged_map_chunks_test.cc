@@ -1,13 +1,17 @@
 // The merged map on the bus, end to end: MapChunker (server) -> codec -> MergedMapAssembler
 // (every reader). The assembled map must be the server's map (poses within the chunker's
-// tolerance), a map update must send only the chunks that changed, and a lost chunk must
-// leave the previous complete map in place until the full map repairs it.
+// tolerance), a map update must send only the chunks that changed (those that only moved
+// within a budget, the farthest first, every chunk again within a bounded number of
+// updates), and a lost chunk must leave the previous complete map in place until the full
+// map repairs it.
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -192,6 +196,159 @@ TEST(MergedMapChunksTest, ChunksAfterTheirHeaderAndOldSingleMessagesAssembleToo)
   EXPECT_FALSE(old.Accept(channels::kMapChunks, garbage, sizeof(garbage)).ok());
   EXPECT_FALSE(old.Accept(channels::kMapHeader, garbage, sizeof(garbage)).ok());
   EXPECT_EQ(old.map()->update, 1);
+}
+
+// Every pose of `map` moved by a correction: x by `step` times a factor that grows along
+// each trajectory and differs per trajectory (the chunks move by different amounts), all in
+// the global frame.
+void Correct(MergedMap* map, double step) {
+  for (size_t t = 0; t < map->trajectories.size(); ++t) {
+    std::vector<Pose2>& poses = map->trajectories[t].poses;
+    for (size_t i = 0; i < poses.size(); ++i) {
+      const double shift = step * (1.0 + 0.3 * static_cast<double>(t) +
+                                   static_cast<double>(i) / static_cast<double>(poses.size()));
+      poses[i] = Pose2(poses[i].x() + shift, poses[i].y(), poses[i].theta());
+    }
+  }
+}
+
+// The chunk's keyframes in its trajectory: [first, end).
+std::pair<size_t, size_t> Range(const MergedMapChunk& chunk, int32_t chunk_poses) {
+  const size_t first = static_cast<size_t>(chunk.chunk_index) * static_cast<size_t>(chunk_poses);
+  return {first, first + chunk.local_poses.size()};
+}
+
+TEST(MergedMapChunksTest, MovedChunksGoByABudgetFarthestFirstEachAgainWithinTheRefreshBound) {
+  MergedMap map = TestMap();  // 600 + 100 + 5 poses: at 16 poses a chunk, 38 + 7 + 1 chunks
+  MapChunkerOptions options;
+  options.chunk_poses = 16;
+  options.max_moved_chunks = 4;
+  options.max_read_chunks = 0;  // every chunk's poses read at every update
+  MapChunker chunker(options);
+  MergedMapAssembler assembler;
+  const MapChunker::Split first = chunker.Update(map, /*full=*/false, /*refresh=*/0.1);
+  ASSERT_EQ(first.chunks.size(), 46u);  // everything is new
+  ASSERT_TRUE(Deliver(first, &assembler));
+  // Every update: a correction moves every chunk past the tolerance, and R3 gets a keyframe.
+  std::map<std::tuple<std::string, int64_t, int32_t>, int64_t> last_sent;
+  for (const MergedMapChunk& c : first.chunks)
+    last_sent[{c.robot, c.trajectory_id, c.chunk_index}] = 1;
+  int64_t moved_sent = 0;
+  for (int64_t update = 2; update <= 40; ++update) {
+    map.update = update;
+    Correct(&map, 0.003);
+    map.trajectories[2].poses.emplace_back(0.1 * static_cast<double>(update), 0.0, 0.0);
+    map.trajectories[2].pose_utimes.push_back(1000 * update);
+    const MapChunker::Split split = chunker.Update(map, false, 0.1);
+    // R3's chunk (rewritten) + 4 moved + ceil(0.1 x 46) = 5 refreshed, at most.
+    EXPECT_LE(split.chunks.size(), 1u + 4u + 5u) << update;
+    int rewritten = 0;
+    for (const MergedMapChunk& c : split.chunks) {
+      last_sent[{c.robot, c.trajectory_id, c.chunk_index}] = update;
+      if (c.robot == "R3" &&
+          Range(c, options.chunk_poses).second == map.trajectories[2].poses.size()) {
+        ++rewritten;  // the chunk with the new keyframe
+      }
+    }
+    EXPECT_EQ(rewritten, 1);
+    moved_sent += static_cast<int64_t>(split.chunks.size()) - 1;
+    // Each chunk went out within the last 10 updates (1 / refresh).
+    for (const auto& [id, when] : last_sent) EXPECT_GT(when, update - 10) << std::get<0>(id);
+    ASSERT_TRUE(Deliver(split, &assembler)) << update;
+    // The subscriber's map: every chunk at the bits it was last sent with.
+    ASSERT_TRUE(assembler.map());
+    EXPECT_EQ(assembler.map()->update, update);
+  }
+  EXPECT_EQ(moved_sent, 39 * (4 + 5));  // the budget and the refresh were used in full
+  // The farthest moved first: after the correction of one chunk only, that chunk goes.
+  map.update = 41;
+  std::vector<Pose2>& r1 = map.trajectories[0].poses;
+  r1[100] = Pose2(r1[100].x(), r1[100].y() + 0.05, r1[100].theta());
+  const MapChunker::Split split = chunker.Update(map, false, 0.0);
+  bool found = false;
+  for (const MergedMapChunk& c : split.chunks) {
+    const auto [begin, end] = Range(c, options.chunk_poses);
+    found = found || (c.robot == "R1" && begin <= 100 && 100 < end);
+  }
+  EXPECT_TRUE(found);
+  EXPECT_LE(split.chunks.size(), 4u);
+}
+
+TEST(MergedMapChunksTest, AnUpdateReadsTheLeastRecentlyReadChunksWithinItsBound) {
+  MergedMap map = TestMap();  // 38 + 7 + 1 chunks of 16 poses
+  MapChunkerOptions options;
+  options.chunk_poses = 16;
+  options.max_moved_chunks = 0;  // every chunk read and moved goes
+  options.max_read_chunks = 8;
+  MapChunker chunker(options);
+  MergedMapAssembler assembler;
+  ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  // Everything moves at every update: only the chunks read can be seen to, 8 per update,
+  // each chunk once per ceil(46 / 8) = 6 updates.
+  std::map<std::tuple<std::string, int64_t, int32_t>, int> times_sent;
+  for (int64_t update = 2; update <= 13; ++update) {
+    map.update = update;
+    Correct(&map, 0.003);
+    const MapChunker::Split split = chunker.Update(map, false);
+    EXPECT_EQ(split.chunks.size(), 8u) << update;
+    for (const MergedMapChunk& c : split.chunks)
+      ++times_sent[{c.robot, c.trajectory_id, c.chunk_index}];
+    ASSERT_TRUE(Deliver(split, &assembler));
+  }
+  // 12 updates x 8 = 96 reads: every chunk twice, four of them a third time.
+  ASSERT_EQ(times_sent.size(), 46u);
+  for (const auto& [id, times] : times_sent) {
+    EXPECT_GE(times, 2) << std::get<0>(id) << " " << std::get<2>(id);
+    EXPECT_LE(times, 3) << std::get<0>(id) << " " << std::get<2>(id);
+  }
+  // Once the map stops moving, the subscriber's map is the server's within 6 updates; then
+  // the chunks read (all unmoved) are not sent.
+  for (int64_t update = 14; update <= 19; ++update) {
+    map.update = update;
+    ASSERT_TRUE(Deliver(chunker.Update(map, false), &assembler));
+  }
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+  map.update = 20;
+  EXPECT_TRUE(chunker.Update(map, false).chunks.empty());
+}
+
+TEST(MergedMapChunksTest, TheLastFullMapIsTheServersMapAndAFreshChunkersToTheBit) {
+  MergedMap map = TestMap();
+  MapChunkerOptions options;
+  options.chunk_poses = 16;
+  options.max_moved_chunks = 2;
+  MapChunker chunker(options);
+  MergedMapAssembler assembler;
+  ASSERT_TRUE(Deliver(chunker.Update(map, false, 0.05), &assembler));
+  for (int64_t update = 2; update <= 12; ++update) {
+    map.update = update;
+    Correct(&map, 0.01);
+    ASSERT_TRUE(Deliver(chunker.Update(map, false, 0.05), &assembler));
+  }
+  // Between full maps the subscriber's map lags: the budget left most moves behind.
+  EXPECT_GT(MaxDifference(*assembler.map(), map), 0.01);
+  // The run's end: a full map.
+  map.update = 13;
+  Correct(&map, 0.01);
+  ASSERT_TRUE(Deliver(chunker.Update(map, /*full=*/true), &assembler));
+  EXPECT_LT(MaxDifference(*assembler.map(), map), 1e-9);
+  // A subscriber that saw only this map, from a chunker that saw only this map: the same
+  // chunks, the same map, bit for bit.
+  MapChunker fresh(options);
+  const MapChunker::Split once = fresh.Update(map, /*full=*/true);
+  MergedMapAssembler late;
+  ASSERT_TRUE(Deliver(once, &late));
+  const MergedMap& a = *assembler.map();
+  const MergedMap& b = *late.map();
+  ASSERT_EQ(a.trajectories.size(), b.trajectories.size());
+  for (size_t t = 0; t < a.trajectories.size(); ++t) {
+    ASSERT_EQ(a.trajectories[t].poses.size(), b.trajectories[t].poses.size());
+    for (size_t i = 0; i < a.trajectories[t].poses.size(); ++i) {
+      EXPECT_EQ(a.trajectories[t].poses[i].vector(), b.trajectories[t].poses[i].vector());
+    }
+    EXPECT_EQ(a.trajectories[t].T_global_local.vector(), b.trajectories[t].T_global_local.vector());
+  }
+  EXPECT_EQ(a.encounters, b.encounters);
 }
 
 }  // namespace

@@ -309,8 +309,7 @@ void ServerNode::OnEncounter(const Encounter& encounter, const std::string& chan
 }
 
 void ServerNode::PublishMap(int64_t now_utime, bool full) {
-  const MapChunker::Split split =
-      server_->publisher().SplitMergedMap(server_->BuildMergedMap(), now_utime, full);
+  const MapChunker::Split split = server_->SplitMergedMap(now_utime, full);
   for (const MergedMapChunk& chunk : split.chunks) {
     publish_(options_.channels.map_chunks, EncodeMergedMapChunk(chunk));
   }
