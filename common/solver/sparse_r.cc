@@ -140,6 +140,24 @@ __attribute__((target("avx512f"))) void PanelToRowAvx512(const double* const upp
 }
 #endif
 
+// The copies the CPU runs best: the AVX-512 ones where it has them (the same bits).
+void CopyRowToPanel(const RBlockRow& row, const int* union_in_row, int m, double* const upper[3]) {
+#ifdef ANCHORMAP_SPARSE_R_AVX512
+  if (UseAvx512Copies()) return RowToPanelAvx512(row, union_in_row, m, upper);
+#endif
+  RowToPanel(row, union_in_row, m, upper);
+}
+
+void CopyPanelToRow(const double* const upper[3], const int* union_columns, int m,
+                    uintptr_t next_first, uintptr_t next_bytes, RBlockRow* out) {
+#ifdef ANCHORMAP_SPARSE_R_AVX512
+  if (UseAvx512Copies()) {
+    return PanelToRowAvx512(upper, union_columns, m, next_first, next_bytes, out);
+  }
+#endif
+  PanelToRow(upper, union_columns, m, next_first, next_bytes, out);
+}
+
 }  // namespace
 
 std::atomic<bool>& SparseR::VectorCopiesAllowed() {
@@ -408,15 +426,7 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) upper[i][j] = row.diagonal(i, j);
       }
-#ifdef ANCHORMAP_SPARSE_R_AVX512
-      if (UseAvx512Copies()) {
-        RowToPanelAvx512(row, union_in_row_.data(), m, upper);
-      } else {
-        RowToPanel(row, union_in_row_.data(), m, upper);
-      }
-#else
-      RowToPanel(row, union_in_row_.data(), m, upper);
-#endif
+      CopyRowToPanel(row, union_in_row_.data(), m, upper);
       for (int i = 0; i < 3; ++i) upper[i][width - 1] = row.rhs(i);
     }
     // Then each meeting carry's rows, spread over the union's columns.
@@ -505,15 +515,7 @@ bool SparseR::EliminateWithin(std::vector<NewRows> rows, int64_t max_fill, int64
         out->rhs(i) = upper[i][width - 1];
       }
       out->right.resize(m);
-#ifdef ANCHORMAP_SPARSE_R_AVX512
-      if (UseAvx512Copies()) {
-        PanelToRowAvx512(upper, union_columns_.data(), m, next_first, next_bytes, out);
-      } else {
-        PanelToRow(upper, union_columns_.data(), m, next_first, next_bytes, out);
-      }
-#else
-      PanelToRow(upper, union_columns_.data(), m, next_first, next_bytes, out);
-#endif
+      CopyPanelToRow(upper, union_columns_.data(), m, next_first, next_bytes, out);
     }
 
     // The meeting carries continue as one: the triples that still have a block anywhere,
