@@ -43,14 +43,11 @@ double MapPublisher::Refresh(int64_t now_utime, bool* full) {
   return refresh;
 }
 
-MapChunker::Split MapPublisher::SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full) {
-  const double refresh = Refresh(now_utime, &full);
-  return chunker_.Update(map, full, refresh);
-}
-
-MapChunker::Split MapPublisher::SplitMap(const Smoother& smoother, const TrajectoryTable& table,
-                                         const std::vector<EncounterLink>& links, int64_t utime,
-                                         int64_t update, int64_t now_utime, bool full) {
+MapChunker::Split MapPublisher::SplitMergedMap(const Smoother& smoother,
+                                               const TrajectoryTable& table,
+                                               const std::vector<EncounterLink>& links,
+                                               int64_t utime, int64_t update, int64_t now_utime,
+                                               bool full) {
   // BuildMergedMap's trajectories, their poses in their local frames: the smoother's own
   // (relative formulation, or not anchored: the frame is the global one), else the global
   // frame's made local by the anchor.

@@ -95,17 +95,16 @@ class MapPublisher {
   MergedMap BuildMergedMap(const Smoother& smoother, const TrajectoryTable& table,
                            const std::vector<EncounterLink>& links, int64_t utime,
                            int64_t update) const;
-  // `map` as chunks and a header for the bus (MapChunker::Update): the chunks that changed
-  // since the last call within the chunker's budget, and the least recently sent ones in
-  // proportion to the time since the last call over map_full_period_s; every chunk when
-  // `full`, on the first call, or when that period has passed since the last call.
-  MapChunker::Split SplitMergedMap(const MergedMap& map, int64_t now_utime, bool full = false);
-  // The same for the current estimate, without building the merged map: only the poses of
-  // the chunks the chunker reads are looked up, in the frame the smoother keeps them in
-  // (after a full split a subscriber's map holds GlobalTrajectory's bits).
-  MapChunker::Split SplitMap(const Smoother& smoother, const TrajectoryTable& table,
-                             const std::vector<EncounterLink>& links, int64_t utime, int64_t update,
-                             int64_t now_utime, bool full = false);
+  // The current estimate's merged map as chunks and a header for the bus
+  // (MapChunker::Update): the chunks that changed since the last call within the chunker's
+  // budget, and the least recently sent ones in proportion to the time since the last call
+  // over map_full_period_s; every chunk when `full`, on the first call, or when that period
+  // has passed since the last call. The merged map is not built: only the poses of the
+  // chunks the chunker reads are looked up, in the frame the smoother keeps them in (after a
+  // full split a subscriber's map holds GlobalTrajectory's bits).
+  MapChunker::Split SplitMergedMap(const Smoother& smoother, const TrajectoryTable& table,
+                                   const std::vector<EncounterLink>& links, int64_t utime,
+                                   int64_t update, int64_t now_utime, bool full = false);
   // Non-const smoother: it keeps the covariance solves' scratch. Each anchor's marginal is
   // one sparse solve through the rows below it in R (Smoother::ProjectedCovariance).
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,

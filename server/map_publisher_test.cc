@@ -132,7 +132,7 @@ TEST_F(MapPublisherTest, SplitFromTheSmootherGivesGlobalTrajectorysBitsOnceFull)
   int64_t now = 0;
   const auto split = [&](int64_t update, bool full) {
     const MapChunker::Split out =
-        publisher.SplitMap(smoother_, table_, links_, now, update, now, full);
+        publisher.SplitMergedMap(smoother_, table_, links_, now, update, now, full);
     for (const MergedMapChunk& c : out.chunks) {
       held[{c.trajectory_id, c.chunk_index}] = c;
       sent_at[{c.trajectory_id, c.chunk_index}] = now;

@@ -515,8 +515,8 @@ MergedMap MappingServer::BuildMergedMap() const {
 }
 
 MapChunker::Split MappingServer::SplitMergedMap(int64_t now_utime, bool full) {
-  return publisher_.SplitMap(smoother_, table_, links_, data_utime_, stats_.updates, now_utime,
-                             full);
+  return publisher_.SplitMergedMap(smoother_, table_, links_, data_utime_, stats_.updates,
+                                   now_utime, full);
 }
 
 AnchorCovariances MappingServer::BuildAnchorCovariances() {

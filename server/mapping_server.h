@@ -225,7 +225,7 @@ class MappingServer {
   // Outputs from the current estimate, stamped with the newest input time.
   MergedMap BuildMergedMap() const;
   // The merged map as the bus carries it: its header and the chunks due
-  // (MapPublisher::SplitMap; `now_utime` on the publications' clock).
+  // (MapPublisher::SplitMergedMap; `now_utime` on the publications' clock).
   MapChunker::Split SplitMergedMap(int64_t now_utime, bool full);
   AnchorCovariances BuildAnchorCovariances();
   // Every tile of the grid, or only the tiles changed since the last grid (MapPublisher;
