@@ -36,16 +36,20 @@ void GlobalSearchPlanner::ServeGlobalQueue(const GraphView& graph) {
   }
 }
 
+bool GlobalSearchPlanner::IsGlobalTarget(PoseKey key, TrajectoryId id,
+                                         const GraphView& graph) const {
+  if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) return false;
+  const std::vector<Submap>* submaps = submaps_->Find(id);
+  return submaps != nullptr && !submaps->empty();
+}
+
 bool GlobalSearchPlanner::HasGlobalTarget(PoseKey key, const GraphView& graph) const {
   if (options_.max_global_groups_per_keyframe < 1) return false;
   // GlobalTargets' first pass, stopped at the first trajectory it would rank.
-  for (const TrajectoryRecord& other : graph.table.records()) {
-    const TrajectoryId id = other.solver_id;
-    if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
-    const std::vector<Submap>* submaps = submaps_->Find(id);
-    if (submaps != nullptr && !submaps->empty()) return true;
-  }
-  return false;
+  const auto& records = graph.table.records();
+  return std::any_of(records.begin(), records.end(), [&](const TrajectoryRecord& other) {
+    return IsGlobalTarget(key, other.solver_id, graph);
+  });
 }
 
 std::vector<GlobalSearchPlanner::GlobalTarget> GlobalSearchPlanner::GlobalTargets(
@@ -55,9 +59,7 @@ std::vector<GlobalSearchPlanner::GlobalTarget> GlobalSearchPlanner::GlobalTarget
   std::map<TrajectoryFrame, std::pair<int64_t, TrajectoryId>> best;
   for (const TrajectoryRecord& other : graph.table.records()) {
     const TrajectoryId id = other.solver_id;
-    if (id == key.trajectory || InOneFrame(graph.smoother, key.trajectory, id)) continue;
-    const std::vector<Submap>* submaps = submaps_->Find(id);
-    if (submaps == nullptr || submaps->empty()) continue;
+    if (!IsGlobalTarget(key, id, graph)) continue;
     const std::pair<int64_t, TrajectoryId> rank{global_queue_.PairSearches(key.trajectory, id), id};
     const auto [it, inserted] = best.emplace(FrameOf(graph.smoother, id), rank);
     if (!inserted && rank < it->second) it->second = rank;

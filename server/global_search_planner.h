@@ -65,6 +65,9 @@ class GlobalSearchPlanner {
   // Whether GlobalTargets(key) is not empty: some other group holds a trajectory with submaps
   // (and max_global_groups_per_keyframe >= 1), found without ranking them.
   bool HasGlobalTarget(PoseKey key, const GraphView& graph) const;
+  // Whether GlobalTargets ranks trajectory `id` for `key`: in another group than key's, with
+  // submaps.
+  bool IsGlobalTarget(PoseKey key, TrajectoryId id, const GraphView& graph) const;
   // The submaps of `other` one keyframe's global search takes (max_global_per_keyframe).
   size_t GlobalTries(TrajectoryId other) const;
   // Submits the searches of `key` against the target's submaps; returns how many.
