@@ -40,6 +40,14 @@ LinearizedFactor Linearize(const Factor& factor, const Pose2* values);
 // The same with `rotations[k]` = CosSin::Of(values[k].theta()) given, for a caller that
 // linearises many factors at the same values (the same bits).
 LinearizedFactor Linearize(const Factor& factor, const Pose2* values, const CosSin* rotations);
+// The same written packed at `out` (LinearizationCache's entries): S e, then each S J_k
+// column-major, 3 + 9 x keys doubles; the values are those of `values` and `rotations`
+// (by variable) at `vars` (the factor's, in key order), read in place. Returns the keys.
+// The same bits as Linearize: the gradient passes linearise every factor after a step,
+// and a gathered copy of the values and a returned LinearizedFactor (320 bytes) were a
+// third of that cost.
+int LinearizePacked(const Factor& factor, const Pose2* values, const CosSin* rotations,
+                    const int* vars, double* out);
 
 // Squared whitened residual |S e(x)|^2 at `values`.
 double FactorChi2(const Factor& factor, const Pose2* values);

@@ -1,7 +1,6 @@
 #include "common/solver/linearization_cache.h"
 
 #include <algorithm>
-#include <array>
 #include <cstring>
 
 namespace anchormap {
@@ -44,22 +43,12 @@ LinearizedView LinearizationCache::At(int64_t id, const Factor& factor, const in
   bool fresh = valid_[id] != 0;
   for (int j = 0; j < num_vars && fresh; ++j) fresh = !moved_[vars[j]];
   if (!fresh) {
-    std::array<Pose2, kMaxFactorKeys> at;
-    std::array<CosSin, kMaxFactorKeys> rotations;
-    for (int j = 0; j < num_vars; ++j) {
-      at[j] = values_[vars[j]];
-      rotations[j] = rotations_[vars[j]];
-    }
-    const LinearizedFactor lin = Linearize(factor, at.data(), rotations.data());
     if (offset_[id] < 0) {
       offset_[id] = static_cast<int64_t>(store_.size());
-      num_keys_[id] = static_cast<unsigned char>(lin.num_keys);
-      store_.resize(store_.size() + 3 + 9 * lin.num_keys);
+      num_keys_[id] = static_cast<unsigned char>(num_vars);
+      store_.resize(store_.size() + 3 + 9 * num_vars);
     }
-    double* out = store_.data() + offset_[id];
-    std::memcpy(out, lin.whitened_error.data(), 3 * sizeof(double));
-    for (int k = 0; k < lin.num_keys; ++k)
-      std::memcpy(out + 3 + 9 * k, lin.jacobians[k].data(), 9 * sizeof(double));
+    LinearizePacked(factor, values_.data(), rotations_.data(), vars, store_.data() + offset_[id]);
     valid_[id] = 1;
     ++linearized_;
   }
