@@ -39,19 +39,22 @@ void LinearizationCache::BeginPass(const std::vector<Pose2>& values, int64_t num
 }
 
 LinearizedView LinearizationCache::At(int64_t id, const Factor& factor, const int* vars,
-                                      int num_vars) {
+                                      int num_vars, double* terms, double* squared) {
   bool fresh = valid_[id] != 0;
   for (int j = 0; j < num_vars && fresh; ++j) fresh = !moved_[vars[j]];
-  if (!fresh) {
-    if (offset_[id] < 0) {
-      offset_[id] = static_cast<int64_t>(store_.size());
-      num_keys_[id] = static_cast<unsigned char>(num_vars);
-      store_.resize(store_.size() + 3 + 9 * num_vars);
-    }
-    LinearizePacked(factor, values_.data(), rotations_.data(), vars, store_.data() + offset_[id]);
-    valid_[id] = 1;
-    ++linearized_;
+  if (fresh) {
+    PackedGradientTerms(store_.data() + offset_[id], num_keys_[id], terms, squared);
+    return entry(id);
   }
+  if (offset_[id] < 0) {
+    offset_[id] = static_cast<int64_t>(store_.size());
+    num_keys_[id] = static_cast<unsigned char>(num_vars);
+    store_.resize(store_.size() + 3 + 9 * num_vars);
+  }
+  LinearizePacked(factor, values_.data(), rotations_.data(), vars, store_.data() + offset_[id],
+                  terms, squared);
+  valid_[id] = 1;
+  ++linearized_;
   return entry(id);
 }
 
