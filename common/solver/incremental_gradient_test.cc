@@ -206,5 +206,68 @@ TEST(IncrementalGradientTest, MultiplyNormalIsTheCountedFactorsDenseProduct) {
   }
 }
 
+// MultiplyNormal's AVX2 build against the plain one (Eigen's products), bit for bit: a
+// graph with every factor kind's key count (priors, odometry and closures, four-key
+// encounters) whose S is full (so that row 2 of S J_k has no zeros), p's entries of
+// comparable size (so that another order of a row's sums shows), positions shuffled, some
+// factors not counted. Fails when either sum of either product is reassociated.
+TEST(IncrementalGradientTest, EveryBuildOfMultiplyNormalGivesThePlainProductsBits) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Graph graph;
+  const int n = 60;
+  for (int v = 0; v < n; ++v)
+    graph.AddVariable(Pose2(v + 0.3 * u(rng), 5.0 * u(rng), 3.0 * u(rng)));
+  PriorFactor prior;
+  prior.key = PoseKey{TrajectoryId(1), 0};
+  prior.prior = Pose2(0.01, -0.02, 0.03);
+  prior.sqrt_information << 30.0, 0.3, -7.0, 0.5, 2.0, 0.2, -4.0, 9.0, 40.0;
+  graph.AddFactor(prior, {0});
+  for (int v = 1; v < n; ++v) {
+    BetweenFactor f = MakeBetween(v - 1, v, &rng);
+    f.sqrt_information(0, 1) = 3.0 * u(rng);
+    f.sqrt_information(1, 2) = 0.3 * u(rng);
+    // A full S (not triangular): else row 2 of every S J_k has zeros where the sums'
+    // orders differ.
+    f.sqrt_information(2, 0) = 10.0 * u(rng);
+    f.sqrt_information(2, 1) = 10.0 * u(rng);
+    graph.AddFactor(f, {v - 1, v});
+    if (v % 5 == 0) {
+      const int old = static_cast<int>(rng() % v);
+      graph.AddFactor(MakeBetween(old, v, &rng), {old, v});
+    }
+  }
+  for (int k = 0; k < 8; ++k) {
+    EncounterFactor e;
+    e.measured_T_a_b = Pose2(u(rng), u(rng), u(rng));
+    e.sqrt_information << 20.0, 3.0 * u(rng), 0.1, 0.0, 7.0, u(rng), 9.0 * u(rng), 9.0 * u(rng),
+        50.0;
+    const int a = static_cast<int>(rng() % n);
+    graph.AddFactor(e, {a, (a + 7) % n, (a + 19) % n, (a + 37) % n});
+  }
+  for (size_t id = 3; id < graph.counted.size(); id += 7) graph.counted[id] = 0;
+  std::shuffle(graph.position_to_var.begin(), graph.position_to_var.end(), rng);
+  IncrementalGradient gradient;
+  gradient.Pass(graph.values, graph.position_to_var, graph.factors, graph.counted,
+                graph.var_factors);
+  std::vector<Eigen::Vector3d> p(n);
+  for (int round = 0; round < 20; ++round) {
+    // Entries within a few powers of two of each other, so that the products of a row
+    // round differently when summed in another order.
+    for (auto& x : p) {
+      x = Eigen::Vector3d(u(rng) * std::exp2(3.0 * u(rng)), u(rng) * std::exp2(3.0 * u(rng)),
+                          u(rng) * std::exp2(3.0 * u(rng)));
+    }
+    std::vector<Eigen::Vector3d> q_vector(n), q_plain(n);
+    const double pq_vector = gradient.MultiplyNormal(p, &q_vector);
+    IncrementalGradient::VectorProductAllowed() = false;
+    const double pq_plain = gradient.MultiplyNormal(p, &q_plain);
+    IncrementalGradient::VectorProductAllowed() = true;
+    SCOPED_TRACE("round " + std::to_string(round));
+    EXPECT_TRUE(SameBits(pq_vector, pq_plain)) << pq_vector << " vs " << pq_plain;
+    for (int k = 0; k < n; ++k) EXPECT_TRUE(SameBits(q_vector[k], q_plain[k])) << "position " << k;
+  }
+}
+
 }  // namespace
 }  // namespace anchormap
