@@ -3,10 +3,6 @@
 #include <algorithm>
 #include <cstring>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
-
 namespace anchormap {
 namespace {
 
@@ -159,110 +155,22 @@ void IncrementalGradient::SumAt(int var, const std::vector<std::vector<int64_t>>
   g_[position_[var]] = sum;
 }
 
-namespace {
-
-// J^T J p over the counted factors in id order, by Eigen's products: the reference whose
-// bits the vector build reproduces.
-double MultiplyNormalPlain(const LinearizationCache& cache, const char* counted,
-                           int64_t num_factors, const std::array<int, kMaxFactorKeys>* positions,
-                           const Eigen::Vector3d* p, Eigen::Vector3d* q) {
-  double pq = 0.0;
-  for (int64_t id = 0; id < num_factors; ++id) {
-    if (!counted[id]) continue;
-    const LinearizedView lin = cache.entry(id);
-    const std::array<int, kMaxFactorKeys>& at = positions[id];
-    Eigen::Vector3d jp = Eigen::Vector3d::Zero();
-    for (int j = 0; j < lin.num_keys(); ++j) jp.noalias() += lin.jacobian(j) * p[at[j]];
-    pq += jp.squaredNorm();
-    for (int j = 0; j < lin.num_keys(); ++j) q[at[j]].noalias() += lin.jacobian(j).transpose() * jp;
-  }
-  return pq;
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#define ANCHORMAP_NORMAL_AVX2 1
-bool UseAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has && IncrementalGradient::VectorProductAllowed().load(std::memory_order_relaxed);
-}
-
-// The same in registers of four doubles (lanes 0-2; lane 3 stays zero), with the plain
-// build's operations per entry in its order: J_k p_k sums rows 0 and 1 as Eigen's packets
-// do, (c0 p0 + c1 p1) + c2 p2, and row 2 as its scalar reduction does, c0 p0 + (c1 p1 +
-// c2 p2); (J_k^T jp)_c is (J_0c jp0 + J_1c jp1) + J_2c jp2, from J_k's rows (a transpose
-// of its columns in registers). q is updated entry by entry: consecutive factors share
-// variables, and a wider store would hold up the next factor's loads of them.
-__attribute__((target("avx2"))) double MultiplyNormalAvx2(
-    const LinearizationCache& cache, const char* counted, int64_t num_factors,
-    const std::array<int, kMaxFactorKeys>* positions, const double* p, double* q) {
-  const __m256i three = _mm256_setr_epi64x(-1, -1, -1, 0);
-  const __m256d zero = _mm256_setzero_pd();
-  double pq = 0.0;
-  for (int64_t id = 0; id < num_factors; ++id) {
-    if (!counted[id]) continue;
-    const LinearizedView lin = cache.entry(id);
-    const int keys = lin.num_keys();
-    const int* at = positions[id].data();
-    __m256d jp = zero;
-    for (int k = 0; k < keys; ++k) {
-      const double* J = lin.jacobian(k).data();
-      const double* x = p + 3 * static_cast<int64_t>(at[k]);
-      const __m256d a = _mm256_mul_pd(_mm256_maskload_pd(J, three), _mm256_broadcast_sd(x));
-      const __m256d b = _mm256_mul_pd(_mm256_maskload_pd(J + 3, three), _mm256_broadcast_sd(x + 1));
-      const __m256d c = _mm256_mul_pd(_mm256_maskload_pd(J + 6, three), _mm256_broadcast_sd(x + 2));
-      const __m256d rows01 = _mm256_add_pd(_mm256_add_pd(a, b), c);
-      const __m256d row2 = _mm256_add_pd(a, _mm256_add_pd(b, c));
-      jp = _mm256_add_pd(jp, _mm256_blend_pd(rows01, row2, 0x4));
-    }
-    alignas(32) double v[4];
-    _mm256_store_pd(v, jp);
-    pq += (v[0] * v[0] + v[1] * v[1]) + v[2] * v[2];
-    const __m256d jp0 = _mm256_broadcast_sd(v), jp1 = _mm256_broadcast_sd(v + 1);
-    const __m256d jp2 = _mm256_broadcast_sd(v + 2);
-    for (int k = 0; k < keys; ++k) {
-      const double* J = lin.jacobian(k).data();
-      const __m256d c0 = _mm256_maskload_pd(J, three), c1 = _mm256_maskload_pd(J + 3, three);
-      const __m256d c2 = _mm256_maskload_pd(J + 6, three);
-      const __m256d t0 = _mm256_unpacklo_pd(c0, c1), t1 = _mm256_unpackhi_pd(c0, c1);
-      const __m256d t2 = _mm256_unpacklo_pd(c2, zero), t3 = _mm256_unpackhi_pd(c2, zero);
-      const __m256d r0 = _mm256_permute2f128_pd(t0, t2, 0x20);
-      const __m256d r1 = _mm256_permute2f128_pd(t1, t3, 0x20);
-      const __m256d r2 = _mm256_permute2f128_pd(t0, t2, 0x31);
-      const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r0, jp0), _mm256_mul_pd(r1, jp1)),
-                                      _mm256_mul_pd(r2, jp2));
-      const __m128d low = _mm256_castpd256_pd128(t);
-      double* y = q + 3 * static_cast<int64_t>(at[k]);
-      y[0] += _mm_cvtsd_f64(low);
-      y[1] += _mm_cvtsd_f64(_mm_unpackhi_pd(low, low));
-      y[2] += _mm_cvtsd_f64(_mm256_extractf128_pd(t, 1));
-    }
-  }
-  return pq;
-}
-#endif
-
-}  // namespace
-
-std::atomic<bool>& IncrementalGradient::VectorProductAllowed() {
-  static std::atomic<bool> allowed{true};
-  return allowed;
-}
-
 double IncrementalGradient::MultiplyNormal(const std::vector<Eigen::Vector3d>& p,
                                            std::vector<Eigen::Vector3d>* q) const {
   std::fill(q->begin(), q->end(), Eigen::Vector3d::Zero());
+  double pq = 0.0;
   const int64_t num_factors = static_cast<int64_t>(counted_.size());
-#ifdef ANCHORMAP_NORMAL_AVX2
-  if (UseAvx2()) {
-    return MultiplyNormalAvx2(cache_, counted_.data(), num_factors, positions_.data(),
-                              p.data()->data(), q->data()->data());
+  for (int64_t id = 0; id < num_factors; ++id) {
+    if (!counted_[id]) continue;
+    const LinearizedView lin = cache_.entry(id);
+    const std::array<int, kMaxFactorKeys>& at = positions_[id];
+    Eigen::Vector3d jp = Eigen::Vector3d::Zero();
+    for (int j = 0; j < lin.num_keys(); ++j) jp.noalias() += lin.jacobian(j) * p[at[j]];
+    pq += jp.squaredNorm();
+    for (int j = 0; j < lin.num_keys(); ++j)
+      (*q)[at[j]].noalias() += lin.jacobian(j).transpose() * jp;
   }
-#endif
-  return MultiplyNormalPlain(cache_, counted_.data(), num_factors, positions_.data(), p.data(),
-                             q->data());
+  return pq;
 }
 
 void IncrementalGradient::Clear() {

@@ -12,7 +12,6 @@
 // starts with an empty one) continues bit for bit.
 
 #include <array>
-#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -42,8 +41,6 @@ class IncrementalGradient {
   // left it.
   double MultiplyNormal(const std::vector<Eigen::Vector3d>& p,
                         std::vector<Eigen::Vector3d>* q) const;
-  // Tests turn the AVX2 build of MultiplyNormal off to run the plain one (the same bits).
-  static std::atomic<bool>& VectorProductAllowed();
   // Forgets everything: the next pass is a full one.
   void Clear();
 
