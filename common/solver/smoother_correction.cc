@@ -317,8 +317,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     // Residual of J^T J h = -g at h = 0, and its preconditioned norm: the decrease of chi2
     // that R^T R predicts for the whole step.
     for (int k = 0; k < n; ++k) r[k] = -g[k];
-    z = r;
-    double rz = R.SolveTransposedInPlace(&z);
+    double rz = R.SolveTransposed(r, &z);
     const double stop = tolerance * std::max(chi2, 1e-12);
     // At entry the update may be left as it is (correction_skip_factor); once steps are
     // taken they go on to the tolerance or, out of steps, to that budget (batch_policy.h).
@@ -326,7 +325,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     const CorrectionEnd end = EndOfCorrection(options_, rz, stop, outer, cg_iterations);
     if (end != CorrectionEnd::kGoOn) return end == CorrectionEnd::kConverged;
     R.SolveInPlace(&z);
-    p = z;
+    p.swap(z);  // z is written again before it is read
     std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
     while (cg_iterations < options_.correction_cg_iterations) {
       // q = J^T J p, J the factors in R linearised at the estimate (the last pass's).
@@ -339,8 +338,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
         h[k] += alpha * p[k];
         r[k] -= alpha * q[k];
       }
-      z = r;
-      const double rz_next = R.SolveTransposedInPlace(&z);
+      const double rz_next = R.SolveTransposed(r, &z);
       if (rz_next <= stop) break;
       R.SolveInPlace(&z);
       const double beta = rz_next / rz;
