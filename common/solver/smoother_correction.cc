@@ -257,7 +257,16 @@ void Smoother::Impl::ForgetLocalMoves() {
 
 double Smoother::Impl::GradientAtEstimate() {
   estimate_scratch_.resize(vars_.size());
-  for (size_t v = 0; v < vars_.size(); ++v) estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
+  // delta_ is by position, in another order than the variables: its entries are fetched a
+  // few variables ahead (perf: the wait for them was 40 % of this loop's samples).
+  constexpr size_t kAhead = 16;
+  for (size_t v = 0; v < vars_.size(); ++v) {
+    if (v + kAhead < vars_.size()) {
+      const int ahead = vars_[v + kAhead].position;
+      if (ahead >= 0) __builtin_prefetch(delta_.data() + ahead);
+    }
+    estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
+  }
   return gradient_.Pass(estimate_scratch_, position_to_var_, factors_, counted_in_gradient_,
                         var_factors_);
 }
