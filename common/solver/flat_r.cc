@@ -81,13 +81,13 @@ inline __attribute__((always_inline)) void SolveDiagonal(const double* i, double
   xp[2] = i[5] * s2;
 }
 
-// v <- R^-T v with x the work space (4 doubles per entry, 32-byte aligned); returns
-// |R^-T v|^2. Row p's y goes to v as soon as it is known (nothing reads v_p after that).
-// x_q -= R_pq^T y: entry j of x_q less (R_0j y0 + R_1j y1) + R_2j y2, the block's rows as
-// lanes j. Lane 3's y is zero, so x_q's lane 3 stays zero.
-double ForwardSolve(const Arrays& a, double* v, double* x) {
+// v <- R^-T in with x the work space (4 doubles per entry, 32-byte aligned; `in` is read
+// into it first, so it may be v); returns |R^-T in|^2. Row p's y goes to v as soon as it is known
+// (nothing reads v_p after that). x_q -= R_pq^T y: entry j of x_q less (R_0j y0 + R_1j y1) + R_2j
+// y2, the block's rows as lanes j. Lane 3's y is zero, so x_q's lane 3 stays zero.
+double ForwardSolve(const Arrays& a, const double* in, double* v, double* x) {
   for (int p = 0; p < a.n; ++p) {
-    const Lanes entry = {v[3 * p], v[3 * p + 1], v[3 * p + 2], 0.0};
+    const Lanes entry = {in[3 * p], in[3 * p + 1], in[3 * p + 2], 0.0};
     std::memcpy(x + 4 * p, &entry, sizeof(entry));
   }
   double norm2 = 0.0;
@@ -138,11 +138,11 @@ __attribute__((target("avx2"))) inline __m256d WidenAvx2(const float* f) {
   return _mm256_cvtps_pd(_mm_loadu_ps(f));
 }
 
-__attribute__((target("avx2"))) double ForwardSolveAvx2(const Arrays& arrays, double* v,
-                                                        double* x) {
+__attribute__((target("avx2"))) double ForwardSolveAvx2(const Arrays& arrays, const double* in,
+                                                        double* v, double* x) {
   const Arrays a = arrays;  // in registers: the stores through v and x could alias it
   for (int p = 0; p < a.n; ++p) {
-    _mm256_store_pd(x + 4 * p, _mm256_setr_pd(v[3 * p], v[3 * p + 1], v[3 * p + 2], 0.0));
+    _mm256_store_pd(x + 4 * p, _mm256_setr_pd(in[3 * p], in[3 * p + 1], in[3 * p + 2], 0.0));
   }
   double norm2 = 0.0;
   for (int p = 0; p < a.n; ++p) {
@@ -274,14 +274,21 @@ std::atomic<bool>& FlatR::VectorSolvesAllowed() {
 }
 
 double FlatR::SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const {
+  return SolveTransposed(*v, v);
+}
+
+double FlatR::SolveTransposed(const std::vector<Eigen::Vector3d>& v,
+                              std::vector<Eigen::Vector3d>* y) const {
   const Arrays a{size(), inverse_diagonals_.data(), row_start_.data(), columns_.data(),
                  row_major_.data()};
+  y->resize(v.size());
   padded_.resize(a.n + 1);  // never empty: its data() is a valid address
   double* x = padded_.data()->x;
+  const double* in = reinterpret_cast<const double*>(v.data());
 #ifdef ANCHORMAP_FLAT_R_AVX2
-  if (UseAvx2()) return ForwardSolveAvx2(a, Doubles(v), x);
+  if (UseAvx2()) return ForwardSolveAvx2(a, in, Doubles(y), x);
 #endif
-  return ForwardSolve(a, Doubles(v), x);
+  return ForwardSolve(a, in, Doubles(y), x);
 }
 
 void FlatR::SolveInPlace(std::vector<Eigen::Vector3d>* v) const {

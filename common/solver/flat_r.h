@@ -43,6 +43,10 @@ class FlatR {
   int size() const { return static_cast<int>(row_start_.size()) - 1; }
   // v <- R^-T v by block forward substitution; returns |R^-T v|^2.
   double SolveTransposedInPlace(std::vector<Eigen::Vector3d>* v) const;
+  // y <- R^-T v (y resized to v's size; v may be y), without a copy of v first; returns
+  // |R^-T v|^2.
+  double SolveTransposed(const std::vector<Eigen::Vector3d>& v,
+                         std::vector<Eigen::Vector3d>* y) const;
   // v <- R^-1 v by block back-substitution.
   void SolveInPlace(std::vector<Eigen::Vector3d>* v) const;
   // Tests turn the AVX2 solves off to run their portable twins (the same bits).

@@ -218,6 +218,9 @@ TEST(FlatRTest, EveryBuildOfTheSolvesGivesThePlainSolvesBits) {
     PlainSolve(r, &back);
     for (const bool vector_solves : {true, false}) {
       FlatR::VectorSolvesAllowed() = vector_solves;
+      std::vector<Eigen::Vector3d> y;  // out of place: v is left as it was
+      EXPECT_EQ(flat.SolveTransposed(v, &y), plain_norm2);
+      for (int p = 0; p < r.size(); ++p) ASSERT_EQ(y[p], plain[p]) << "position " << p;
       std::vector<Eigen::Vector3d> x = v;
       EXPECT_EQ(flat.SolveTransposedInPlace(&x), plain_norm2);
       for (int p = 0; p < r.size(); ++p) ASSERT_EQ(x[p], plain[p]) << "position " << p;

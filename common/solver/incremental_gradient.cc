@@ -102,10 +102,8 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
         if (!counted_[id] || !extends) {  // else its positions are set
           for (int j = 0; j < f.num_vars; ++j) positions_[id][j] = position_[f.vars[j]];
         }
-        const LinearizedView lin = cache_.At(id, f.factor, f.vars.data(), f.num_vars);
-        for (int j = 0; j < f.num_vars; ++j)
-          Term(id, j).noalias() = lin.jacobian(j).transpose() * lin.whitened_error();
-        squared_[id] = lin.whitened_error().squaredNorm();
+        cache_.At(id, f.factor, f.vars.data(), f.num_vars, terms_.data() + term_offset_[id],
+                  &squared_[id]);
       } else {
         cache_.Skip(id);  // its variables may move unseen before it counts again
       }
@@ -121,7 +119,14 @@ double IncrementalGradient::Pass(const std::vector<Pose2>& values,
         positions_[id][j] = position_[factor_vars_[id][j]];
     }
     if (full && counted_[id]) {
-      for (int j = 0; j < factor_num_vars_[id]; ++j) g_[positions_[id][j]] += Term(id, j);
+      // Entry by entry: the terms may have just been stored so (a wider load would wait).
+      const double* term = terms_.data() + term_offset_[id];
+      for (int j = 0; j < factor_num_vars_[id]; ++j) {
+        double* g = g_[positions_[id][j]].data();
+        g[0] += term[3 * j];
+        g[1] += term[3 * j + 1];
+        g[2] += term[3 * j + 2];
+      }
     }
   }
   if (!full) {

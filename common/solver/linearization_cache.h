@@ -49,8 +49,11 @@ class LinearizationCache {
 
   // Factor `id` over variables `vars` linearised at the pass's values: the cached entry
   // if none of its variables moved and it was computed in the previous pass, else a new one.
-  // The view is valid until the next call of At() (which may grow the store).
-  LinearizedView At(int64_t id, const Factor& factor, const int* vars, int num_vars);
+  // The view is valid until the next call of At() (which may grow the store). Also its
+  // gradient terms J_k^T e (3 doubles per key) at `terms` and |e|^2 at `squared`
+  // (PackedGradientTerms), computed with the entry when it is linearised.
+  LinearizedView At(int64_t id, const Factor& factor, const int* vars, int num_vars, double* terms,
+                    double* squared);
   // Factor `id` is not part of this pass: its entry is dropped (its variables may move
   // unseen before it is back).
   void Skip(int64_t id);

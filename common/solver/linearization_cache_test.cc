@@ -19,6 +19,16 @@ bool SameBits(const LinearizedView& a, const LinearizedFactor& b) {
   return std::memcmp(a.whitened_error().data(), b.whitened_error.data(), 3 * sizeof(double)) == 0;
 }
 
+// The gradient terms as the passes summed them before At gave them: Eigen's products.
+bool SameTermBits(const double* terms, double squared, const LinearizedFactor& b) {
+  for (int j = 0; j < b.num_keys; ++j) {
+    const Eigen::Vector3d term = b.jacobians[j].transpose() * b.whitened_error;
+    if (std::memcmp(terms + 3 * j, term.data(), 3 * sizeof(double)) != 0) return false;
+  }
+  const double norm2 = b.whitened_error.squaredNorm();
+  return std::memcmp(&squared, &norm2, sizeof(double)) == 0;
+}
+
 // A chain of 30 poses with odometry and 10 loop closures; at each of 50 passes a few
 // variables move (in x or in angle; some by one unit in the last place). Every entry equals a fresh
 // linearisation bit for bit, and only factors touching a moved variable are linearised.
@@ -65,9 +75,13 @@ TEST(LinearizationCacheTest, EntriesEqualAFreshLinearisationAndOnlyMovedFactorsA
                          std::memcmp(&at[0], &previous[vars[id][0]], sizeof(Pose2)) != 0 ||
                          std::memcmp(&at[1], &previous[vars[id][1]], sizeof(Pose2)) != 0;
       expected_linearized += moved ? 1 : 0;
-      EXPECT_TRUE(SameBits(cache.At(static_cast<int64_t>(id), factors[id], vars[id].data(), 2),
-                           Linearize(factors[id], at.data())))
+      double terms[6], squared;
+      const LinearizedFactor fresh = Linearize(factors[id], at.data());
+      EXPECT_TRUE(SameBits(
+          cache.At(static_cast<int64_t>(id), factors[id], vars[id].data(), 2, terms, &squared),
+          fresh))
           << "pass " << pass << ", factor " << id;
+      EXPECT_TRUE(SameTermBits(terms, squared, fresh)) << "pass " << pass << ", factor " << id;
     }
     previous = values;
   }
@@ -83,17 +97,20 @@ TEST(LinearizationCacheTest, AFactorSkippedInAPassIsLinearisedAgain) {
   f.from = PoseKey{TrajectoryId(1), 0};
   f.to = PoseKey{TrajectoryId(1), 1};
   f.measured_T_from_to = Pose2(1.0, 0.0, 0.0);
+  f.sqrt_information << 3.0, 0.5, -0.25, 0.0, 2.0, 0.75, 0.0, 0.0, 5.0;
   const std::array<int, 2> vars = {0, 1};
   LinearizationCache cache;
   std::vector<Pose2> values = {Pose2(0, 0, 0), Pose2(1, 0, 0)};
   cache.BeginPass(values, 1);
-  cache.At(0, f, vars.data(), 2);
+  double terms[6], squared;
+  cache.At(0, f, vars.data(), 2, terms, &squared);
   values[1] = Pose2(2, 0, 0);
   cache.BeginPass(values, 1);
   cache.Skip(0);
   const std::array<Pose2, kMaxFactorKeys> at = {values[0], values[1]};
   cache.BeginPass(values, 1);
-  EXPECT_TRUE(SameBits(cache.At(0, f, vars.data(), 2), Linearize(f, at.data())));
+  EXPECT_TRUE(SameBits(cache.At(0, f, vars.data(), 2, terms, &squared), Linearize(f, at.data())));
+  EXPECT_TRUE(SameTermBits(terms, squared, Linearize(f, at.data())));
   EXPECT_EQ(cache.linearized(), 2);
 }
 

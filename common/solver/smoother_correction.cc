@@ -257,7 +257,16 @@ void Smoother::Impl::ForgetLocalMoves() {
 
 double Smoother::Impl::GradientAtEstimate() {
   estimate_scratch_.resize(vars_.size());
-  for (size_t v = 0; v < vars_.size(); ++v) estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
+  // delta_ is by position, in another order than the variables: its entries are fetched a
+  // few variables ahead (perf: the wait for them was 40 % of this loop's samples).
+  constexpr size_t kAhead = 16;
+  for (size_t v = 0; v < vars_.size(); ++v) {
+    if (v + kAhead < vars_.size()) {
+      const int ahead = vars_[v + kAhead].position;
+      if (ahead >= 0) __builtin_prefetch(delta_.data() + ahead);
+    }
+    estimate_scratch_[v] = EstimateOf(static_cast<int>(v));
+  }
   return gradient_.Pass(estimate_scratch_, position_to_var_, factors_, counted_in_gradient_,
                         var_factors_);
 }
@@ -317,8 +326,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     // Residual of J^T J h = -g at h = 0, and its preconditioned norm: the decrease of chi2
     // that R^T R predicts for the whole step.
     for (int k = 0; k < n; ++k) r[k] = -g[k];
-    z = r;
-    double rz = R.SolveTransposedInPlace(&z);
+    double rz = R.SolveTransposed(r, &z);
     const double stop = tolerance * std::max(chi2, 1e-12);
     // At entry the update may be left as it is (correction_skip_factor); once steps are
     // taken they go on to the tolerance or, out of steps, to that budget (batch_policy.h).
@@ -326,7 +334,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
     const CorrectionEnd end = EndOfCorrection(options_, rz, stop, outer, cg_iterations);
     if (end != CorrectionEnd::kGoOn) return end == CorrectionEnd::kConverged;
     R.SolveInPlace(&z);
-    p = z;
+    p.swap(z);  // z is written again before it is read
     std::fill(h.begin(), h.end(), Eigen::Vector3d::Zero());
     while (cg_iterations < options_.correction_cg_iterations) {
       // q = J^T J p, J the factors in R linearised at the estimate (the last pass's).
@@ -339,8 +347,7 @@ bool Smoother::Impl::CorrectByConjugateGradients() {
         h[k] += alpha * p[k];
         r[k] -= alpha * q[k];
       }
-      z = r;
-      const double rz_next = R.SolveTransposedInPlace(&z);
+      const double rz_next = R.SolveTransposed(r, &z);
       if (rz_next <= stop) break;
       R.SolveInPlace(&z);
       const double beta = rz_next / rz;
