@@ -46,5 +46,44 @@ TEST(PointCloudTest, MaxRangeFilterTransformAndRange) {
   EXPECT_EQ(MaxPointRange({}), 0.0);
 }
 
+TEST(PointCloudTest, PointsAreTheMountingPoseOfEachBeamToTheBitAcrossScanGeometries) {
+  // Each point is T_body_sensor.TransformPoint((r cos a, r sin a)) of its beam, bit for bit,
+  // whatever scans were converted before: the beams' directions are kept per scan geometry,
+  // so scans of two geometries in turn, a longer scan after a shorter one and a shorter one
+  // after a longer one must each come out as if converted alone.
+  auto make = [](float rad0, float radstep, size_t n, const Pose2& mount) {
+    LaserScan scan;
+    scan.rad0 = rad0;
+    scan.radstep = radstep;
+    scan.max_range = 30.0f;
+    scan.T_body_sensor = mount;
+    for (size_t i = 0; i < n; ++i) scan.ranges.push_back(1.0f + 0.37f * static_cast<float>(i % 40));
+    return scan;
+  };
+  const LaserScan a = make(-2.0f, 0.0175f, 181, Pose2(0.2, -0.05, 0.01));
+  const LaserScan b = make(-1.5f, 0.0061f, 361, Pose2(-0.1, 0.3, -0.4));
+  const LaserScan a_short = make(-2.0f, 0.0175f, 90, Pose2(0.0, 0.0, 1.0));
+  const LaserScan a_long = make(-2.0f, 0.0175f, 400, Pose2(1.0, 2.0, 3.0));
+  int checked = 0;
+  for (const LaserScan* scan : {&a, &b, &a, &a_short, &a_long, &a_short, &b}) {
+    const PointCloud cloud = ScanToPointCloud(*scan, 12.0);
+    size_t k = 0;
+    for (size_t i = 0; i < scan->ranges.size(); ++i) {
+      const double r = scan->ranges[i];
+      if (r > 12.0) continue;
+      const double angle = scan->Angle(i);
+      const Eigen::Vector2d expected =
+          scan->T_body_sensor.TransformPoint({r * std::cos(angle), r * std::sin(angle)});
+      ASSERT_LT(k, cloud.size());
+      EXPECT_EQ(cloud[k].x(), expected.x()) << i;
+      EXPECT_EQ(cloud[k].y(), expected.y()) << i;
+      ++k;
+      ++checked;
+    }
+    EXPECT_EQ(k, cloud.size());
+  }
+  EXPECT_GT(checked, 1000);
+}
+
 }  // namespace
 }  // namespace anchormap

