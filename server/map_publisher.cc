@@ -86,16 +86,14 @@ AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
   out.utime = utime;
   out.update = update;
   std::vector<Key> anchors;
-  for (const TrajectoryRecord& record : table.records()) {
-    const auto anchor = smoother->Anchor(record.solver_id);
-    // Between updates (solve_period_s) an anchor is published once solved.
-    if (!anchor || !smoother->IsSolved(Key(AnchorKey{record.solver_id}))) continue;
+  for (const TrajectoryId trajectory : PublishedAnchors(*smoother, table)) {
+    const TrajectoryRecord& record = *table.FindBySolverId(trajectory);
     AnchorCovariance a;
     a.robot = record.robot;
     a.trajectory_id = record.agent_trajectory_id;
-    a.T_global_local = *anchor;
+    a.T_global_local = *smoother->Anchor(trajectory);
     out.anchors.push_back(a);
-    anchors.push_back(Key(AnchorKey{record.solver_id}));
+    anchors.push_back(Key(AnchorKey{trajectory}));
   }
   // One sparse solve per anchor (J = I: the marginal itself), which reads R's rows below
   // the anchor. The block recursion (MarginalCovariance) computed every pair of the dense
@@ -106,6 +104,18 @@ AnchorCovariances MapPublisher::BuildAnchorCovariances(Smoother* smoother,
   const std::vector<Eigen::Matrix3d> covariances = smoother->ProjectedMarginals(anchors);
   for (size_t i = 0; i < anchors.size(); ++i) {
     out.anchors[i].covariance = 0.5 * (covariances[i] + covariances[i].transpose());
+  }
+  return out;
+}
+
+std::vector<TrajectoryId> MapPublisher::PublishedAnchors(const Smoother& smoother,
+                                                         const TrajectoryTable& table) const {
+  std::vector<TrajectoryId> out;
+  for (const TrajectoryRecord& record : table.records()) {
+    // Between updates (solve_period_s) an anchor is published once solved.
+    if (smoother.Anchor(record.solver_id) && smoother.IsSolved(Key(AnchorKey{record.solver_id}))) {
+      out.push_back(record.solver_id);
+    }
   }
   return out;
 }

@@ -5,8 +5,9 @@
 // KeyframeGrid kept across publications: at each one only the keyframes whose pose moved
 // by about a cell are traced again, and only the tiles that changed go out, all of them
 // every grid_full_period_s for subscribers that join late). It also decides when each
-// output is due: the map and covariances after an update, at most once per map_period_s;
-// the grid at most once per grid_period_s.
+// output is due: the map after an update, at most once per map_period_s (the covariances
+// with it, at most once per anchor_covariances_period_s: ServerNode::PublishMap); the grid at
+// most once per grid_period_s.
 // "now" is whatever clock the caller runs on (wall time online, data time offline).
 
 #include <cstdint>
@@ -28,6 +29,12 @@ struct MapPublisherOptions {
   // Merged map and anchor covariances: after an update, at most this often (0 = after
   // every update).
   double map_period_s = 0.5;
+  // The anchor covariances go out with a map at most this often (0 = with every map), and
+  // with the first map after the set of anchored trajectories changed, and with every full
+  // map (the end of input, the online republication). Each costs one solve per anchor
+  // through R's bottom rows, which grow with the map: at 20 robots late in a 900 s run,
+  // 3.6 % of the replay's samples when they went with every 0.5 s map (flat21).
+  double anchor_covariances_period_s = 2.0;
   // The merged map goes out as a header and the chunks that changed (MapChunker, within its
   // budget of chunks that only moved); every chunk again about this often, for subscribers
   // that joined late or lost a chunk: a share of the chunks, the least recently sent, at
@@ -64,6 +71,8 @@ struct MapPublisherOptions {
   Status Validate() const {
     if (!(map_period_s >= 0)) return Status::Error("publish.map_period_s must be >= 0");
     if (!(map_full_period_s >= 0)) return Status::Error("publish.map_full_period_s must be >= 0");
+    if (!(anchor_covariances_period_s >= 0))
+      return Status::Error("publish.anchor_covariances_period_s must be >= 0");
     if (chunks.chunk_poses < 1 || chunks.chunk_poses > 65536)
       return Status::Error("publish.chunks.chunk_poses must be 1..65536");
     if (!(chunks.tolerance_m >= 0) || !(chunks.tolerance_rad >= 0))
@@ -109,6 +118,10 @@ class MapPublisher {
   // one sparse solve through the rows below it in R (Smoother::ProjectedCovariance).
   AnchorCovariances BuildAnchorCovariances(Smoother* smoother, const TrajectoryTable& table,
                                            int64_t utime, int64_t update) const;
+  // The trajectories BuildAnchorCovariances would publish now (anchored, the anchor solved),
+  // in the table's order: cheap, no solve.
+  std::vector<TrajectoryId> PublishedAnchors(const Smoother& smoother,
+                                             const TrajectoryTable& table) const;
   // The grid moved toward the current estimate (UpdateGrid; all the way when `complete`),
   // every tile of it. Cost: that of UpdateGrid plus O(tiles x cells).
   std::vector<GridTile> BuildGridTiles(const Smoother& smoother, const TrajectoryTable& table,

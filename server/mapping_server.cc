@@ -523,6 +523,10 @@ AnchorCovariances MappingServer::BuildAnchorCovariances() {
   return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
+std::vector<TrajectoryId> MappingServer::PublishedAnchors() const {
+  return publisher_.PublishedAnchors(smoother_, table_);
+}
+
 std::vector<GridTile> MappingServer::BuildGridTiles(bool complete) {
   return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
 }

@@ -228,6 +228,8 @@ class MappingServer {
   // (MapPublisher::SplitMergedMap; `now_utime` on the publications' clock).
   MapChunker::Split SplitMergedMap(int64_t now_utime, bool full);
   AnchorCovariances BuildAnchorCovariances();
+  // The trajectories whose anchors BuildAnchorCovariances would publish now (no solve).
+  std::vector<TrajectoryId> PublishedAnchors() const;
   // Every tile of the grid, or only the tiles changed since the last grid (MapPublisher;
   // `complete`: every moved keyframe traced again, not only grid_max_moved of them).
   std::vector<GridTile> BuildGridTiles(bool complete = false);

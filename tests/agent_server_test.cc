@@ -167,6 +167,8 @@ class AgentServerTest : public ::testing::Test {
     }
     ServerOptions server_options;
     server_options.server.publish.grid.resolution_m = 0.1;
+    // The covariances with every map: the test follows their traces map by map.
+    server_options.server.publish.anchor_covariances_period_s = 0.0;
     // These tests are about the bus path and direct encounters. With scan matching the
     // online map depends on when the wall-clock ticks admit keyframes (measured: up to 6 cm
     // between online runs); offline determinism with scan matching is tested in

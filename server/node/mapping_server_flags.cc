@@ -22,7 +22,12 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   MappingServerOptions& s = *options;
   const PrefixedAdd add{loader, help_prefix};
   add("publish.map_period_s", "publish-period-s", &s.publish.map_period_s,
-      "merged map + anchor covariances after an update, at most this often (s; 0 = every update)");
+      "merged map after an update, at most this often, with the anchor covariances when due "
+      "(--anchor-covariances-period-s) (s; 0 = every update)");
+  add("publish.anchor_covariances_period_s", "anchor-covariances-period-s",
+      &s.publish.anchor_covariances_period_s,
+      "anchor covariances with a map at most this often, and at once when the anchored "
+      "trajectories changed, with every full map (s; 0 = with every map)");
   add("publish.grid_period_s", "grid-period-s", &s.publish.grid_period_s,
       "occupancy grid tiles at most this often (s; 0 = only at the end of an offline run)");
   add("publish.map_full_period_s", "map-full-period-s", &s.publish.map_full_period_s,

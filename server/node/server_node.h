@@ -122,8 +122,10 @@ class ServerNode {
   // After a restart's replay: the hold and patience clocks count from `now_utime` at the
   // earliest (MappingServer::ResumeClocks), journaled as a kJournalResume event.
   void ResumeClocks(int64_t now_utime);
-  // Publishes what is due at `now_utime` (the caller's clock): the merged map and anchor
-  // covariances after an update (at most once per map period), the grid tiles that changed
+  // Publishes what is due at `now_utime` (the caller's clock): the merged map after an
+  // update (at most once per map period) with the anchor covariances when due (at most once
+  // per publish.anchor_covariances_period_s, at once when the anchored trajectories
+  // changed), the grid tiles that changed
   // at most once per grid period (every tile once per full grid period).
   void PublishDue(int64_t now_utime);
   void PublishStatus();
@@ -148,7 +150,8 @@ class ServerNode {
 
  private:
   // The merged map's changed chunks (every chunk when `full`), its header, the anchor
-  // covariances; `now_utime` on the caller's clock (the full map's period).
+  // covariances when due (always with a full map); `now_utime` on the caller's clock (the
+  // full map's period, the covariances' period).
   void PublishMap(int64_t now_utime, bool full);
   // Every tile (`full`), or the tiles changed since the last grid.
   // `complete`: the grid brought all the way to the estimate (MapPublisher::UpdateGrid).
@@ -182,6 +185,9 @@ class ServerNode {
   int64_t instance_id_ = 0;
   int64_t kernel_drops_ = 0;
   int64_t last_map_utime_ = 0;  // caller's clock of the last map publication (0: none)
+  // The caller's clock of the last anchor covariances and the trajectories they held.
+  std::optional<int64_t> last_covariances_utime_;
+  std::vector<TrajectoryId> covariances_anchors_;
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };

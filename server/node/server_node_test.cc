@@ -89,6 +89,67 @@ TEST_F(ServerNodeTest, DecodedKeyframesAndEncountersReachTheMapThatIsPublished) 
   EXPECT_EQ(status->num_anchored, 2);
 }
 
+// The number of anchors in an anchor covariances message (0 when it does not decode).
+size_t AnchorsIn(const std::vector<uint8_t>& bytes) {
+  const Result<AnchorCovariances> decoded = DecodeAnchorCovariances(bytes.data(), bytes.size());
+  return decoded.ok() ? decoded->anchors.size() : 0;
+}
+
+TEST_F(ServerNodeTest, AnchorCovariancesGoAtTheirOwnPeriodAtOnceForANewAnchorAndWithFullMaps) {
+  // The defaults: a map at most every 0.5 s after an update, the covariances every 2 s.
+  ASSERT_EQ(node_.server().publisher().options().map_period_s, 0.5);
+  ASSERT_EQ(node_.server().publisher().options().anchor_covariances_period_s, 2.0);
+  const auto& maps = published_[channels::kMapHeader];
+  const auto& covariances = published_[channels::kAnchorCovariances];
+  std::vector<int> with_covariances;  // the maps (1-based) that carried covariances
+  for (int32_t seq = 0; seq < 10; ++seq) {
+    Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, seq)));
+    Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, seq)));
+    const size_t before = covariances.size();
+    node_.PublishDue(500'000 * (seq + 1));
+    ASSERT_EQ(maps.size(), static_cast<size_t>(seq + 1));  // every update's map
+    if (covariances.size() > before) with_covariances.push_back(seq + 1);
+  }
+  // The first map, then 2 s apart: at 0.5, 2.5 and 4.5 s (no anchor yet).
+  EXPECT_EQ(with_covariances, (std::vector<int>{1, 5, 9}));
+  EXPECT_EQ(AnchorsIn(covariances.back()), 0u);
+
+  // An encounter anchors both: the next map carries the two anchors, 1 s after the last.
+  Encounter encounter = R1SeesR2();
+  encounter.utime = 10'000'000;  // R1's and R2's keyframes 9
+  Send(channels::kEncounters, EncodeEncounter(encounter));
+  node_.PublishDue(5'500'000);
+  ASSERT_EQ(maps.size(), 11u);
+  ASSERT_EQ(covariances.size(), 4u);
+  EXPECT_EQ(AnchorsIn(covariances.back()), 2u);
+  // The same anchors, 0.5 s later: the map alone.
+  Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R1", 11, 10)));
+  Send(channels::kKeyframes, EncodeKeyframe(MakeKeyframe("R2", 12, 10)));
+  node_.PublishDue(6'000'000);
+  ASSERT_EQ(maps.size(), 12u);
+  EXPECT_EQ(covariances.size(), 4u);
+  // A full map (the end of input) carries them whatever the period.
+  node_.PublishAll();
+  EXPECT_EQ(maps.size(), 13u);
+  ASSERT_EQ(covariances.size(), 5u);
+  EXPECT_EQ(AnchorsIn(covariances.back()), 2u);
+
+  // A period of 0: with every map.
+  ServerOptions every_map;
+  every_map.server.publish.anchor_covariances_period_s = 0.0;
+  std::map<std::string, int> counts;
+  ServerNode node(every_map, [&](const std::string& channel, const std::vector<uint8_t>&) {
+    ++counts[channel];
+  });
+  for (int32_t seq = 0; seq < 4; ++seq) {
+    const std::vector<uint8_t> bytes = EncodeKeyframe(MakeKeyframe("R1", 11, seq));
+    node.OnMessage(channels::kKeyframes, bytes.data(), bytes.size());
+    node.PublishDue(500'000 * (seq + 1));
+  }
+  EXPECT_EQ(counts[channels::kMapHeader], 4);
+  EXPECT_EQ(counts[channels::kAnchorCovariances], 4);
+}
+
 TEST_F(ServerNodeTest, UndecodableBytesAreCountedByReasonOnTheirChannel) {
   const std::vector<uint8_t> garbage = {1, 2, 3};
   EXPECT_TRUE(Send(channels::kKeyframes, garbage));
