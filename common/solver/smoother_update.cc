@@ -274,11 +274,13 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   auto is_keep_last = [&](int var) {
     const Key& key = vars_[var].key;
     if (key.is_anchor()) return true;
+    if (!options_.latest_poses_last) return false;
     auto it = trajectories_.find(key.trajectory);
     return it != trajectories_.end() && it->second.max_index == key.index;
   };
   for (const auto& [t, info] : trajectories_) {
     for (const Key& key : {Key(PoseKey{t, info.max_index}), Key(AnchorKey{t})}) {
+      if (!key.is_anchor() && !options_.latest_poses_last) continue;
       auto it = index_.find(key);
       if (it != index_.end() && vars_[it->second].position >= 0) {
         in_b[vars_[it->second].position] = 1;
@@ -655,7 +657,9 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
     auto [it, inserted] = latest.try_emplace(key.trajectory, key.index, static_cast<int>(d));
     if (!inserted && key.index > it->second.first) it->second = {key.index, static_cast<int>(d)};
   }
-  for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
+  if (options_.latest_poses_last) {
+    for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
+  }
   Result<std::vector<int>> ordering =
       ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
   if (!ordering.ok()) return fail(ordering.status());
