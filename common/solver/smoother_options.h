@@ -126,8 +126,9 @@ struct SmootherOptions {
   // pose last, with the anchors, so that the next odometry rows enter R at its end. The
   // price is a dense clique of all of them at R's root in every ordering: with a hundred
   // trajectories it held a third of a fill batch step's factorisation (docs/ARCHITECTURE.md,
-  // fill22). false: only the anchors are kept last; a new pose's first odometry row after
-  // an ordering then walks its predecessor's path up R once.
+  // fill22). false: only the anchors and the newest poses of trajectories without an anchor
+  // (a lone trajectory adds no clique) are kept last; an anchored trajectory's first new
+  // odometry row after an ordering then walks its predecessor's path up R once.
   bool latest_poses_last = true;
 
   // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
