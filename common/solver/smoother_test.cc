@@ -370,12 +370,9 @@ TEST(SmootherTest, CorrectionOutOfStepsWithinTheSkipBudgetIsNoStall) {
   // against 8 at factor 1, whose budget is the tolerance itself (every correction left
   // above it by its one step stalls, the old rule); 37 against 38 updates skipped, so the
   // skip budget's other use does not make the difference. Measured worst excess over the
-  // optimum 1.1e-3 (factor 1) and 2.1e-3 (factor 3). These are counts on the orderings
-  // that keep the newest pose last (the server's orderings since fill22 do not: the same
-  // graph then ends 3.01e-3 above its optimum at factor 3, 0.5 % past its budget).
+  // optimum 1.1e-3 (factor 1) and 2.1e-3 (factor 3).
   auto run = [](double factor, double* worst_excess) {
     SmootherOptions options = ServerModeWithCorrectionOptions();
-    options.latest_poses_last = true;
     options.correction_tolerance = 1e-3;
     options.correction_iterations = 1;
     options.correction_skip_factor = factor;
