@@ -195,6 +195,7 @@ void Add(Fnv1a* h, const SmootherOptions& s) {
   h->I(s.max_batch_iterations);
   if (s.convergence_decrease != 0) h->F(s.convergence_decrease);    // only when set, as above
   if (s.correction_local_hops != 0) h->I(s.correction_local_hops);  // the same
+  if (!s.latest_poses_last) h->B(s.latest_poses_last);  // the same: when not the library's
   h->F(s.dogleg_initial_radius);
   h->F(s.gauge_prior_sigma);
 }

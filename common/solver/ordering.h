@@ -1,9 +1,10 @@
 #pragma once
 // Fill-reducing variable ordering for a batch step: CCOLAMD (SuiteSparse) on the block
 // structure, one column per variable (pose or anchor), one row per factor. Variables
-// flagged `keep_last` (each trajectory's latest pose and every anchor) are constrained
-// to the end, so new measurements touch only the bottom right of R and anchor
-// covariances come from R's last blocks (docs/METHOD.md section 5).
+// flagged `keep_last` (every anchor, and each trajectory's latest pose with
+// SmootherOptions::latest_poses_last) are constrained to the end, so anchor covariances
+// come from R's last blocks (docs/METHOD.md section 5) and new measurements on them touch
+// only the bottom right of R.
 
 #include <vector>
 

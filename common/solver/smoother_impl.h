@@ -120,6 +120,12 @@ class Smoother::Impl {
     auto it = trajectories_.find(t);
     return it != trajectories_.end() && it->second.anchored;
   }
+  // Orderings keep trajectory t's newest pose last (with the anchors): always with
+  // latest_poses_last, else only while t has no anchor (a lone trajectory adds no clique
+  // at R's root, and its next odometry row then enters at R's end).
+  bool KeepsLatestPoseLast(TrajectoryId t) const {
+    return options_.latest_poses_last || !IsAnchored(t);
+  }
   Pose2 GlobalPose(PoseKey key) const {
     const Pose2 local = Estimate(key);
     if (options_.formulation != Formulation::kRelative || !IsAnchored(key.trajectory)) return local;

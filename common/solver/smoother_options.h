@@ -122,6 +122,14 @@ struct SmootherOptions {
   // three partial steps). Off: a batch step iterated to convergence (iSAM's way; the
   // thesis' iteration counts assume it). Other formulations always merge by batch steps.
   bool partial_merges = false;
+  // Orderings (batch steps, and partial steps' local ones) put each trajectory's newest
+  // pose last, with the anchors, so that the next odometry rows enter R at its end. The
+  // price is a dense clique of all of them at R's root in every ordering: with a hundred
+  // trajectories it held a third of a fill batch step's factorisation (docs/ARCHITECTURE.md,
+  // fill22). false: only the anchors and the newest poses of trajectories without an anchor
+  // (a lone trajectory adds no clique) are kept last; an anchored trajectory's first new
+  // odometry row after an ordering then walks its predecessor's path up R once.
+  bool latest_poses_last = true;
 
   // Periodic batch steps (on the clock or on fill) relinearise once, as iSAM does; with
   // this set they iterate to convergence like merge steps and BatchOptimize() (the

@@ -8,6 +8,7 @@
 
 #include "common/solver/ordering.h"
 #include "tests/testing/dense_oracle.h"
+#include "tests/testing/graph_replay.h"
 #include "tests/testing/random_graph.h"
 
 namespace anchormap {
@@ -710,6 +711,50 @@ TEST(SmootherTest, RelinearizeThresholdKeepsEveryUpdateAtTheOptimum) {
   EXPECT_LT(worst_error[1], 0.02);
   EXPECT_LT(worst_covariance[1], 0.02);
   EXPECT_GT(worst_error[0], worst_error[1]);
+}
+
+// Many trajectories that meet, replayed update by update in the server's configuration,
+// with and without each trajectory's newest pose kept last in the orderings. Kept last,
+// the newest poses and the anchors form a dense clique at R's root in every ordering;
+// without it R after a fresh ordering is smaller. Both are the same least-squares problem:
+// every update ends within the server's tolerance of the dense optimum, and a final batch
+// step reaches the same optimum.
+TEST(SmootherTest, LatestPosesNotKeptLastShrinkRAndReachTheSameOptimum) {
+  testing::RandomGraphOptions g;
+  g.poses = 240;
+  g.loop_closures = 120;
+  g.seed = 21;
+  const PoseGraph graph = testing::RandomGraph(g);
+  const GraphReplay replay(graph, 12);
+  ASSERT_TRUE(replay.status().ok());
+  ASSERT_GT(replay.num_encounters(), 0);
+  int64_t nonzeros[2] = {0, 0};
+  double chi2[2] = {0, 0};
+  for (int last = 0; last < 2; ++last) {
+    SmootherOptions options = ServerModeWithCorrectionOptions();
+    options.latest_poses_last = last == 1;
+    Smoother smoother(options);
+    double worst = 0.0;
+    for (int k = 0; k < replay.num_steps(); ++k) {
+      ASSERT_TRUE(replay.AddStep(k, &smoother).ok());
+      ASSERT_TRUE(smoother.Update().status.ok()) << k;
+      if (k % 10 != 9) continue;
+      const DenseOracle oracle(smoother.ActiveFactors());
+      const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-10, 50));
+      worst = std::max(worst, (smoother.Chi2() - optimum) / optimum);
+    }
+    EXPECT_LE(worst, 1e-3) << last;
+    ASSERT_TRUE(smoother.BatchOptimize(1e-9).status.ok());
+    nonzeros[last] = smoother.stats().nnz_r;
+    chi2[last] = smoother.Chi2();
+    const DenseOracle oracle(smoother.ActiveFactors());
+    const double optimum = oracle.Chi2(oracle.Solve(CurrentValues(smoother), 1e-12, 50));
+    EXPECT_NEAR(chi2[last], optimum, 1e-9 * optimum) << last;
+  }
+  std::printf("nnz(R) after the final batch step: %lld newest poses free, %lld kept last\n",
+              static_cast<long long>(nonzeros[0]), static_cast<long long>(nonzeros[1]));
+  EXPECT_LT(nonzeros[0], nonzeros[1]);
+  EXPECT_NEAR(chi2[0], chi2[1], 1e-9 * chi2[1]);
 }
 
 // A stalled correction whose drift covers most of the map (a long chain's loop closure

@@ -261,9 +261,9 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
   };
   auto usable = [&](int64_t f) { return factors_[f].active && factor_lin_[f].in_r; };
   // 2. Affected: S, every variable that shares a factor with S (those factors are
-  // relinearised), each trajectory's latest pose and the anchors (kept at the end for
-  // the next Givens updates), then every ancestor in the elimination tree, so that no
-  // row of B references a row outside it.
+  // relinearised), the anchors and the latest poses kept last (KeepsLatestPoseLast; at the
+  // end for the next Givens updates), then every ancestor in the elimination tree, so that no row
+  // of B references a row outside it.
   for (int p : drifted_positions) {
     in_b[p] = 1;
     for (int64_t f : var_factors_[position_to_var_[p]]) {
@@ -275,10 +275,12 @@ bool Smoother::Impl::PartialRelinearization(const std::vector<int>& forced, bool
     const Key& key = vars_[var].key;
     if (key.is_anchor()) return true;
     auto it = trajectories_.find(key.trajectory);
-    return it != trajectories_.end() && it->second.max_index == key.index;
+    return it != trajectories_.end() && it->second.max_index == key.index &&
+           KeepsLatestPoseLast(key.trajectory);
   };
   for (const auto& [t, info] : trajectories_) {
     for (const Key& key : {Key(PoseKey{t, info.max_index}), Key(AnchorKey{t})}) {
+      if (!key.is_anchor() && !KeepsLatestPoseLast(t)) continue;
       auto it = index_.find(key);
       if (it != index_.end() && vars_[it->second].position >= 0) {
         in_b[vars_[it->second].position] = 1;
@@ -631,7 +633,7 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   std::vector<char> grounded(vars_.size(), 0);
   const std::vector<int64_t> included = GroundPendingFactors(&grounded);
 
-  // Ordering over the grounded variables; anchors and each trajectory's latest pose last.
+  // Ordering over the grounded variables; anchors (and each trajectory's latest pose) last.
   std::vector<int> dense(vars_.size(), -1), dense_to_var;
   for (size_t v = 0; v < vars_.size(); ++v) {
     if (grounded[v]) {
@@ -655,7 +657,9 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
     auto [it, inserted] = latest.try_emplace(key.trajectory, key.index, static_cast<int>(d));
     if (!inserted && key.index > it->second.first) it->second = {key.index, static_cast<int>(d)};
   }
-  for (const auto& [t, entry] : latest) keep_last[entry.second] = true;
+  for (const auto& [t, entry] : latest) {
+    if (KeepsLatestPoseLast(t)) keep_last[entry.second] = true;
+  }
   Result<std::vector<int>> ordering =
       ComputeOrdering(static_cast<int>(dense_to_var.size()), factor_vars, keep_last);
   if (!ordering.ok()) return fail(ordering.status());

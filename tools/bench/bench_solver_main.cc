@@ -123,6 +123,7 @@ Flags ParseFlags(int argc, char** argv) {
       flags.smoother.partial_merges = server.partial_merges;
       flags.smoother.batch_when_fill_grows = server.batch_when_fill_grows;
       flags.smoother.relinearize_skip = server.relinearize_skip;
+      flags.smoother.latest_poses_last = server.latest_poses_last;
     } else if (arg == "--partial-merges") {
       const std::string text = value();
       if (text != "true" && text != "false") Fail("--partial-merges must be true or false");
