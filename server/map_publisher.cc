@@ -254,6 +254,19 @@ bool MapPublisher::MapDue(int64_t now_utime, int64_t update) const {
          1e-6 * static_cast<double>(now_utime - *last_map_utime_) >= options_.map_period_s;
 }
 
+bool MapPublisher::AnchorCovariancesDue(int64_t now_utime, const std::vector<TrajectoryId>& anchors,
+                                        bool full) const {
+  return full || !last_covariances_utime_ || anchors != last_covariances_anchors_ ||
+         1e-6 * static_cast<double>(now_utime - *last_covariances_utime_) >=
+             options_.anchor_covariances_period_s;
+}
+
+void MapPublisher::MarkAnchorCovariancesPublished(int64_t now_utime,
+                                                  std::vector<TrajectoryId> anchors) {
+  last_covariances_utime_ = now_utime;
+  last_covariances_anchors_ = std::move(anchors);
+}
+
 void MapPublisher::MarkMapPublished(int64_t now_utime, int64_t update) {
   last_map_utime_ = now_utime;
   last_map_update_ = update;

@@ -6,8 +6,8 @@
 // by about a cell are traced again, and only the tiles that changed go out, all of them
 // every grid_full_period_s for subscribers that join late). It also decides when each
 // output is due: the map after an update, at most once per map_period_s (the covariances
-// with it, at most once per anchor_covariances_period_s: ServerNode::PublishMap); the grid at
-// most once per grid_period_s.
+// with it, at most once per anchor_covariances_period_s); the grid at most once per
+// grid_period_s.
 // "now" is whatever clock the caller runs on (wall time online, data time offline).
 
 #include <cstdint>
@@ -160,6 +160,12 @@ class MapPublisher {
   // Whether the next grid publication should carry every tile (grid_full_period_s).
   bool GridFullDue(int64_t now_utime) const;
   void MarkGridFullPublished(int64_t now_utime) { last_grid_full_utime_ = now_utime; }
+  // Whether a map publication now carries the anchor covariances: always with a `full` map,
+  // at once when the published anchors differ from the last ones sent, else at most once
+  // per anchor_covariances_period_s (`anchors`: PublishedAnchors).
+  bool AnchorCovariancesDue(int64_t now_utime, const std::vector<TrajectoryId>& anchors,
+                            bool full) const;
+  void MarkAnchorCovariancesPublished(int64_t now_utime, std::vector<TrajectoryId> anchors);
 
  private:
   MapPublisherOptions options_;
@@ -168,6 +174,8 @@ class MapPublisher {
   std::optional<int64_t> last_grid_utime_;
   int64_t last_grid_update_ = 0;
   std::optional<int64_t> last_grid_full_utime_;
+  std::optional<int64_t> last_covariances_utime_;
+  std::vector<TrajectoryId> last_covariances_anchors_;  // the trajectories they held
   // The share of the chunks SplitMergedMap sends again whatever changed; `*full` when all.
   double Refresh(int64_t now_utime, bool* full);
   std::optional<int64_t> last_map_split_utime_;

@@ -316,14 +316,12 @@ void ServerNode::PublishMap(int64_t now_utime, bool full) {
   publish_(options_.channels.map_header, EncodeMergedMapHeader(split.header));
   // The covariances at their own period (each is a solve through R's bottom rows), at once
   // when the anchored set changed, and with every full map.
+  MapPublisher& publisher = server_->publisher();
   std::vector<TrajectoryId> anchors = server_->PublishedAnchors();
-  const double period_s = server_->publisher().options().anchor_covariances_period_s;
-  if (full || !last_covariances_utime_ || anchors != covariances_anchors_ ||
-      static_cast<double>(now_utime - *last_covariances_utime_) >= 1e6 * period_s) {
+  if (publisher.AnchorCovariancesDue(now_utime, anchors, full)) {
     publish_(options_.channels.anchor_covariances,
              EncodeAnchorCovariances(server_->BuildAnchorCovariances()));
-    last_covariances_utime_ = now_utime;
-    covariances_anchors_ = std::move(anchors);
+    publisher.MarkAnchorCovariancesPublished(now_utime, std::move(anchors));
   }
   ++published_maps_;
 }

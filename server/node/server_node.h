@@ -185,9 +185,6 @@ class ServerNode {
   int64_t instance_id_ = 0;
   int64_t kernel_drops_ = 0;
   int64_t last_map_utime_ = 0;  // caller's clock of the last map publication (0: none)
-  // The caller's clock of the last anchor covariances and the trajectories they held.
-  std::optional<int64_t> last_covariances_utime_;
-  std::vector<TrajectoryId> covariances_anchors_;
   int64_t published_maps_ = 0;
   int64_t published_grids_ = 0;
 };
