@@ -60,22 +60,26 @@ class ServerFixture {
     });
   }
   int port() const { return port_; }
-  // The server counts a refused frame right after it has sent the close frame, which the
-  // client may read first: wait (a bounded number of round trips) for the count.
-  // TCP acknowledges a little after a write completes: wait (bounded) for the count.
-  int64_t WireBytesAbove(int64_t floor) {
-    int64_t n = 0;
-    for (int i = 0; i < 1000 && (n = Stats().wire_bytes) <= floor; ++i) {
+  // The server's counts as soon as `done` holds of them, or after a bounded wait (5 s) as
+  // they are then. A count changes on the server's thread after what it counts is visible
+  // to the client: a write's bytes when its completion handler runs (the client may have
+  // read them first), a refused frame right after its close frame, the wire bytes when TCP
+  // acknowledges a little after a write completes.
+  template <typename Done>
+  WebServerStats StatsWhen(Done done) {
+    WebServerStats stats = Stats();
+    for (int i = 0; i < 5000 && !done(stats); ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      stats = Stats();
     }
-    return n;
+    return stats;
+  }
+  int64_t WireBytesAbove(int64_t floor) {
+    return StatsWhen([floor](const WebServerStats& s) { return s.wire_bytes > floor; }).wire_bytes;
   }
   int64_t FramesRefused(int64_t expected) {
-    int64_t n = 0;
-    for (int i = 0; i < 1000 && (n = Stats().frames_refused) < expected; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    return n;
+    return StatsWhen([expected](const WebServerStats& s) { return s.frames_refused >= expected; })
+        .frames_refused;
   }
 
  private:
@@ -172,7 +176,8 @@ TEST(WebServerTest, AClientGetsTheFullStateThenTheBroadcastsAndALateOneTheFullSt
   server.Broadcast("delta-2");
   EXPECT_EQ(first.Read(), "delta-2");
   EXPECT_EQ(late.Read(), "delta-2");
-  const WebServerStats stats = server.Stats();
+  const WebServerStats stats =
+      server.StatsWhen([](const WebServerStats& s) { return s.messages_sent >= 5; });
   EXPECT_EQ(stats.clients, 2);
   EXPECT_EQ(stats.messages_sent, 5);
   EXPECT_EQ(stats.bytes_sent, 6 + 7 + 6 + 7 + 7);
@@ -187,7 +192,9 @@ TEST(WebServerTest, MessagesAreCompressedForAClientThatOffersDeflate) {
   for (int i = 0; i < 200000; ++i) tile += (i % 997 < 900) ? 'A' : static_cast<char>('a' + i % 26);
   server.Broadcast(tile);
   EXPECT_EQ(client.Read(), tile);
-  EXPECT_EQ(server.Stats().bytes_sent, 6 + 200000);
+  EXPECT_EQ(server.StatsWhen([](const WebServerStats& s) { return s.bytes_sent >= 6 + 200000; })
+                .bytes_sent,
+            6 + 200000);
   const int64_t compressed = server.WireBytesAbove(6 + 200);  // the upgrade + the frames
   EXPECT_GT(compressed, 6 + 200);
   EXPECT_LT(compressed, 200000 / 4) << "not compressed";
@@ -277,7 +284,10 @@ TEST(WebServerTest, ASlowClientsQueueStaysBoundedAndItResyncsWithAFullState) {
   EXPECT_EQ(fulls, stats.resyncs);
   EXPECT_EQ(deltas, expected_deltas);
   EXPECT_LT(deltas, kMessages);
-  EXPECT_EQ(server.Stats().messages_sent, 1 + fulls + deltas);
+  const int64_t sent = 1 + fulls + deltas;
+  EXPECT_EQ(server.StatsWhen([sent](const WebServerStats& s) { return s.messages_sent >= sent; })
+                .messages_sent,
+            sent);
 }
 
 }  // namespace
