@@ -291,13 +291,8 @@ GridTile KeyframeGrid::Export(uint64_t key, const Tile& tile, int64_t utime, int
 }
 
 int8_t KeyframeGrid::CellOccupancy(int32_t hits, int32_t misses) const {
-  // Most observed cells sit at a clamp bound (free space seen often, walls): the same values
-  // as Occupancy's without the exponential.
-  if (hits == 0 && misses == 0) return -1;
-  const double sum = hits * options_.log_odds_hit + misses * options_.log_odds_miss;
-  if (sum <= options_.log_odds_min) return OccupancyFromLogOdds(options_.log_odds_min);
-  if (sum >= options_.log_odds_max) return OccupancyFromLogOdds(options_.log_odds_max);
-  return OccupancyFromLogOdds(sum);
+  const auto log_odds = LogOdds(hits, misses);
+  return log_odds ? OccupancyFromLogOdds(*log_odds) : int8_t{-1};
 }
 
 template <typename Count>
