@@ -26,6 +26,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -47,6 +48,7 @@ namespace {
 struct Keyframe {
   int64_t utime = 0;
   int trajectory = 0;
+  int index = 0;          // in its trajectory
   bool anchored = false;  // the estimate is global (else in its trajectory's local frame)
   bool has_estimate = false;
   bool has_truth = false;
@@ -54,8 +56,12 @@ struct Keyframe {
   Pose2 truth;
 };
 
-struct Link {  // two trajectories share a frame from `utime` on
-  int64_t utime = 0;
+struct Link {         // an encounter or loop closure between keyframes a and b (sorted positions)
+  int64_t utime = 0;  // its later keyframe's
+  int trajectory_a = 0;
+  int index_a = 0;
+  int trajectory_b = 0;
+  int index_b = 0;
   int a = 0;
   int b = 0;
 };
@@ -64,7 +70,8 @@ struct Inputs {
   std::vector<std::string> trajectory_names;
   std::vector<Keyframe> keyframes;  // sorted by time
   std::vector<Link> links;          // sorted by time
-  double max_truth_gap_s = 0.0;     // largest |keyframe time - nearest truth time|
+  int64_t links_between_trajectories = 0;
+  double max_truth_gap_s = 0.0;  // largest |keyframe time - nearest truth time|
 };
 
 Status ReadMap(const std::string& path, MergedMap* map) {
@@ -111,6 +118,7 @@ Status LoadInputs(const std::string& map_path, const std::string& truth_path, In
         Keyframe k;
         k.utime = t.pose_utimes[i];
         k.trajectory = n;
+        k.index = static_cast<int>(i);
         k.anchored = t.anchored;
         k.has_estimate = true;
         k.estimate = t.poses[i];
@@ -126,17 +134,23 @@ Status LoadInputs(const std::string& map_path, const std::string& truth_path, In
     for (const EncounterLink& link : map.encounters) {
       const auto a = number.find({link.robot_a, link.trajectory_a});
       const auto b = number.find({link.robot_b, link.trajectory_b});
-      if (a == number.end() || b == number.end() || a->second == b->second) continue;
+      if (a == number.end() || b == number.end()) continue;
       const MergedTrajectory& ta = map.trajectories[static_cast<size_t>(a->second)];
       const MergedTrajectory& tb = map.trajectories[static_cast<size_t>(b->second)];
-      if (!ta.anchored || !tb.anchored || link.index_a < 0 || link.index_b < 0 ||
-          static_cast<size_t>(link.index_a) >= ta.pose_utimes.size() ||
+      if ((a->second != b->second && (!ta.anchored || !tb.anchored)) || link.index_a < 0 ||
+          link.index_b < 0 || static_cast<size_t>(link.index_a) >= ta.pose_utimes.size() ||
           static_cast<size_t>(link.index_b) >= tb.pose_utimes.size()) {
         continue;
       }
-      inputs->links.push_back({std::max(ta.pose_utimes[static_cast<size_t>(link.index_a)],
-                                        tb.pose_utimes[static_cast<size_t>(link.index_b)]),
-                               a->second, b->second});
+      Link l;
+      l.utime = std::max(ta.pose_utimes[static_cast<size_t>(link.index_a)],
+                         tb.pose_utimes[static_cast<size_t>(link.index_b)]);
+      l.trajectory_a = a->second;
+      l.index_a = link.index_a;
+      l.trajectory_b = b->second;
+      l.index_b = link.index_b;
+      inputs->links.push_back(l);
+      if (a->second != b->second) ++inputs->links_between_trajectories;
     }
   } else {
     // The agents' keyframe rule on the truth (the agents apply it to odometry).
@@ -150,6 +164,7 @@ Status LoadInputs(const std::string& map_path, const std::string& truth_path, In
         Keyframe k;
         k.utime = p.utime;
         k.trajectory = n;
+        k.index = static_cast<int>(inputs->keyframes.size());  // unique; no links here
         k.has_truth = true;
         k.truth = p.pose;
         inputs->keyframes.push_back(k);
@@ -160,6 +175,14 @@ Status LoadInputs(const std::string& map_path, const std::string& truth_path, In
                    [](const Keyframe& a, const Keyframe& b) { return a.utime < b.utime; });
   std::stable_sort(inputs->links.begin(), inputs->links.end(),
                    [](const Link& a, const Link& b) { return a.utime < b.utime; });
+  std::map<std::pair<int, int>, int> position;  // (trajectory, index) -> sorted position
+  for (size_t i = 0; i < inputs->keyframes.size(); ++i) {
+    position[{inputs->keyframes[i].trajectory, inputs->keyframes[i].index}] = static_cast<int>(i);
+  }
+  for (Link& l : inputs->links) {
+    l.a = position.at({l.trajectory_a, l.index_a});
+    l.b = position.at({l.trajectory_b, l.index_b});
+  }
   return inputs->keyframes.empty() ? Status::Error("no keyframes") : Status::Ok();
 }
 
@@ -170,6 +193,11 @@ const char* ScopeName(Scope s) {
 
 struct RunResult {
   std::vector<int> nodes_by_slice;  // cumulative
+  // Distinct pairs of nodes joined by a factor (odometry between a trajectory's successive
+  // keyframes' nodes, the links), cumulative: R's structure when the factors between the
+  // same two nodes are combined into one.
+  std::vector<int64_t> pairs_by_slice;
+  std::vector<int64_t> odometry_pairs_by_slice;  // those of odometry factors alone
   int64_t folds = 0;
   int64_t wrong_folds = 0;  // estimate only, with truth: true positions > 2 radius apart
   double max_fold_truth_distance_m = 0.0;
@@ -187,6 +215,14 @@ RunResult Run(const Inputs& inputs, bool use_truth, Scope scope, const AreaNodeR
               const sim::World* world, int64_t start_utime, int64_t slice_utime, int slices) {
   RunResult result;
   result.nodes_by_slice.assign(static_cast<size_t>(slices), 0);
+  result.pairs_by_slice.assign(static_cast<size_t>(slices), 0);
+  result.odometry_pairs_by_slice.assign(static_cast<size_t>(slices), 0);
+  std::vector<int> node_of(inputs.keyframes.size(), -1);
+  std::vector<int> last_node(inputs.trajectory_names.size(), -1);
+  std::set<std::pair<int, int>> pairs, odometry_pairs;
+  const auto join = [](int a, int b, std::set<std::pair<int, int>>* to) {
+    if (a != b) to->insert({std::min(a, b), std::max(a, b)});
+  };
   AreaNodeSelector selector(rule);
   std::vector<int> parent(inputs.trajectory_names.size());
   std::iota(parent.begin(), parent.end(), 0);
@@ -194,10 +230,13 @@ RunResult Run(const Inputs& inputs, bool use_truth, Scope scope, const AreaNodeR
   const std::vector<Keyframe>& keyframes = inputs.keyframes;
   for (size_t i = 0; i < keyframes.size(); ++i) {
     const Keyframe& k = keyframes[i];
-    for (; next_link < inputs.links.size() && inputs.links[next_link].utime <= k.utime;
+    // The links whose keyframes are all in (a link's time is its later keyframe's).
+    for (; next_link < inputs.links.size() && inputs.links[next_link].utime < k.utime;
          ++next_link) {
-      parent[static_cast<size_t>(FindRoot(&parent, inputs.links[next_link].a))] =
-          FindRoot(&parent, inputs.links[next_link].b);
+      const Link& l = inputs.links[next_link];
+      parent[static_cast<size_t>(FindRoot(&parent, l.trajectory_a))] =
+          FindRoot(&parent, l.trajectory_b);
+      join(node_of[static_cast<size_t>(l.a)], node_of[static_cast<size_t>(l.b)], &pairs);
     }
     const Pose2& pose = use_truth ? k.truth : k.estimate;
     // An estimate in a local frame (never anchored) shares it with its own trajectory only.
@@ -217,6 +256,13 @@ RunResult Run(const Inputs& inputs, bool use_truth, Scope scope, const AreaNodeR
       return true;
     };
     const int folded = selector.Add(static_cast<int>(i), pose, eligible);
+    node_of[i] = folded >= 0 ? folded : selector.num_nodes() - 1;
+    int& last = last_node[static_cast<size_t>(k.trajectory)];
+    if (last >= 0) {
+      join(last, node_of[i], &pairs);
+      join(last, node_of[i], &odometry_pairs);
+    }
+    last = node_of[i];
     if (folded >= 0) {
       ++result.folds;
       const Keyframe& n = keyframes[static_cast<size_t>(selector.node(folded).keyframe)];
@@ -228,11 +274,25 @@ RunResult Run(const Inputs& inputs, bool use_truth, Scope scope, const AreaNodeR
     }
     const int64_t slice = std::min<int64_t>((k.utime - start_utime) / slice_utime, slices - 1);
     result.nodes_by_slice[static_cast<size_t>(slice)] = selector.num_nodes();
+    result.pairs_by_slice[static_cast<size_t>(slice)] = static_cast<int64_t>(pairs.size());
+    result.odometry_pairs_by_slice[static_cast<size_t>(slice)] =
+        static_cast<int64_t>(odometry_pairs.size());
   }
+  for (; next_link < inputs.links.size(); ++next_link) {
+    join(node_of[static_cast<size_t>(inputs.links[next_link].a)],
+         node_of[static_cast<size_t>(inputs.links[next_link].b)], &pairs);
+  }
+  result.pairs_by_slice[static_cast<size_t>(slices - 1)] = static_cast<int64_t>(pairs.size());
   for (int s = 1; s < slices; ++s) {  // slices without keyframes keep the count before them
     result.nodes_by_slice[static_cast<size_t>(s)] =
         std::max(result.nodes_by_slice[static_cast<size_t>(s)],
                  result.nodes_by_slice[static_cast<size_t>(s - 1)]);
+    result.pairs_by_slice[static_cast<size_t>(s)] =
+        std::max(result.pairs_by_slice[static_cast<size_t>(s)],
+                 result.pairs_by_slice[static_cast<size_t>(s - 1)]);
+    result.odometry_pairs_by_slice[static_cast<size_t>(s)] =
+        std::max(result.odometry_pairs_by_slice[static_cast<size_t>(s)],
+                 result.odometry_pairs_by_slice[static_cast<size_t>(s - 1)]);
   }
   return result;
 }
@@ -296,9 +356,24 @@ int Main(int argc, char** argv) {
   }
   std::partial_sum(keyframes_by_slice.begin(), keyframes_by_slice.end(),
                    keyframes_by_slice.begin());
+  // The full graph's factors so far: odometry between successive keyframes, the links.
+  std::vector<int64_t> factors_by_slice(static_cast<size_t>(slices), 0);
+  std::vector<bool> started(inputs.trajectory_names.size(), false);
+  for (const Keyframe& k : inputs.keyframes) {
+    if (started[static_cast<size_t>(k.trajectory)]) {
+      ++factors_by_slice[static_cast<size_t>((k.utime - start_utime) / slice_utime)];
+    }
+    started[static_cast<size_t>(k.trajectory)] = true;
+  }
+  for (const Link& l : inputs.links) {
+    ++factors_by_slice[static_cast<size_t>((l.utime - start_utime) / slice_utime)];
+  }
+  std::partial_sum(factors_by_slice.begin(), factors_by_slice.end(), factors_by_slice.begin());
   std::printf(
-      "%zu trajectories, %zu keyframes, %zu links between trajectories, %d slices of %.0f s%s",
-      inputs.trajectory_names.size(), inputs.keyframes.size(), inputs.links.size(), slices, slice_s,
+      "%zu trajectories, %zu keyframes, %zu links (%lld between trajectories), %d slices of "
+      "%.0f s%s",
+      inputs.trajectory_names.size(), inputs.keyframes.size(), inputs.links.size(),
+      static_cast<long long>(inputs.links_between_trajectories), slices, slice_s,
       world_robots > 0 ? ", line of sight in the office world" : "");
   if (!map_path.empty() && !truth_path.empty()) {
     std::printf(", truth at most %.3f s from a keyframe", inputs.max_truth_gap_s);
@@ -314,34 +389,41 @@ int Main(int argc, char** argv) {
         results.push_back(
             Run(inputs, use_truth, scope, rule, world, start_utime, slice_utime, slices));
       }
-      std::printf("\nsource %s, scope %s: nodes so far (+ added in the slice)\n%8s %10s",
-                  use_truth ? "truth" : "estimate", ScopeName(scope), "end_s", "keyframes");
+      std::printf(
+          "\nsource %s, scope %s: nodes so far (+ added in the slice), node pairs with a factor "
+          "(with an odometry factor)\n"
+          "%8s %10s %10s",
+          use_truth ? "truth" : "estimate", ScopeName(scope), "end_s", "keyframes", "factors");
       for (const AreaNodeRule& rule : rules) {
         char name[64];
         std::snprintf(name, sizeof(name), "%gm/%gdeg", rule.radius_m,
                       rule.angle_rad * 180.0 / M_PI);
-        std::printf(" %18s", name);
+        std::printf(" %32s", name);
       }
       std::printf("\n");
       for (int s = 0; s < slices; ++s) {
-        std::printf("%8.0f %10d", (s + 1) * slice_s, keyframes_by_slice[static_cast<size_t>(s)]);
+        std::printf("%8.0f %10d %10lld", (s + 1) * slice_s,
+                    keyframes_by_slice[static_cast<size_t>(s)],
+                    static_cast<long long>(factors_by_slice[static_cast<size_t>(s)]));
         for (const RunResult& r : results) {
           const int now = r.nodes_by_slice[static_cast<size_t>(s)];
           const int before = s > 0 ? r.nodes_by_slice[static_cast<size_t>(s - 1)] : 0;
           char cell[64];
-          std::snprintf(cell, sizeof(cell), "%d (+%d)", now, now - before);
-          std::printf(" %18s", cell);
+          std::snprintf(cell, sizeof(cell), "%d (+%d) %lld (%lld)", now, now - before,
+                        static_cast<long long>(r.pairs_by_slice[static_cast<size_t>(s)]),
+                        static_cast<long long>(r.odometry_pairs_by_slice[static_cast<size_t>(s)]));
+          std::printf(" %32s", cell);
         }
         std::printf("\n");
       }
       if (!use_truth && !truth_path.empty()) {
-        std::printf("%19s", "wrong folds");
+        std::printf("%30s", "wrong folds");
         for (const RunResult& r : results) {
           char cell[64];
           std::snprintf(cell, sizeof(cell), "%lld/%lld max %.1fm",
                         static_cast<long long>(r.wrong_folds), static_cast<long long>(r.folds),
                         r.max_fold_truth_distance_m);
-          std::printf(" %18s", cell);
+          std::printf(" %32s", cell);
         }
         std::printf("\n");
       }
