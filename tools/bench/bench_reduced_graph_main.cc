@@ -37,6 +37,7 @@
 #include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
 #include "common/bus/merged_map_assembler.h"
+#include "tools/bench/area_graph_replay.h"
 #include "tools/bench/area_node_selector.h"
 #include "tools/eval/eval_inputs.h"
 #include "tools/sim/sim_options.h"
@@ -297,12 +298,75 @@ RunResult Run(const Inputs& inputs, bool use_truth, Scope scope, const AreaNodeR
   return result;
 }
 
+// --solve: the full or reduced graph through the smoother (area_graph_replay.h); prints per
+// slice the updates' CPU (sum, p99, max) and the smoother's variables, factors and nnz(R).
+int Solve(const std::string& map_path, const std::string& truth_path, const std::string& solve,
+          const std::string& rules_text, double slice_s, double until_s) {
+  AreaReplayOptions options;
+  options.reduced = solve == "reduced";
+  options.until_s = until_s;
+  double radius_m = 0.0, angle_deg = 0.0;
+  if ((solve != "full" && !options.reduced) || map_path.empty() || truth_path.empty() ||
+      std::sscanf(rules_text.c_str(), "%lf:%lf", &radius_m, &angle_deg) != 2 || !(radius_m > 0) ||
+      !(angle_deg > 0)) {
+    std::fprintf(stderr, "--solve full|reduced needs --map, --truth and a rule\n");
+    return 1;
+  }
+  options.rule = {radius_m, angle_deg * M_PI / 180.0};
+  Inputs inputs;
+  if (Status s = LoadInputs(map_path, truth_path, &inputs); !s.ok()) {
+    std::fprintf(stderr, "%s\n", s.message().c_str());
+    return 1;
+  }
+  std::vector<AreaReplayKeyframe> keyframes;
+  for (const Keyframe& k : inputs.keyframes) {
+    if (!k.has_truth) {
+      std::fprintf(stderr, "a keyframe without truth\n");
+      return 1;
+    }
+    keyframes.push_back({k.utime, k.trajectory, k.truth});
+  }
+  std::vector<AreaReplayLink> links;
+  for (const Link& l : inputs.links) links.push_back({l.utime, l.a, l.b});
+  std::vector<AreaReplayUpdate> updates;
+  if (Status s = ReplayAreaGraph(keyframes, links, static_cast<int>(inputs.trajectory_names.size()),
+                                 options, &updates);
+      !s.ok()) {
+    std::fprintf(stderr, "replay: %s\n", s.message().c_str());
+    return 1;
+  }
+  std::printf("%s graph (%s), %zu updates\n%8s %8s %10s %10s %10s %10s %10s %10s\n", solve.c_str(),
+              rules_text.c_str(), updates.size(), "end_s", "updates", "cpu_s", "p99_ms", "max_ms",
+              "variables", "factors", "nnz_r");
+  for (size_t begin = 0; begin < updates.size();) {
+    const int slice = static_cast<int>(updates[begin].data_s / slice_s - 1e-9);
+    size_t end = begin;
+    std::vector<double> cpu;
+    while (end < updates.size() &&
+           static_cast<int>(updates[end].data_s / slice_s - 1e-9) == slice) {
+      cpu.push_back(updates[end++].cpu_s);
+    }
+    std::sort(cpu.begin(), cpu.end());
+    const double sum = std::accumulate(cpu.begin(), cpu.end(), 0.0);
+    const size_t p99 = std::min(cpu.size() - 1, static_cast<size_t>(0.99 * cpu.size()));
+    const AreaReplayUpdate& last = updates[end - 1];
+    std::printf("%8.0f %8zu %10.2f %10.1f %10.1f %10lld %10lld %10lld\n", (slice + 1) * slice_s,
+                cpu.size(), sum, 1e3 * cpu[p99], 1e3 * cpu.back(),
+                static_cast<long long>(last.variables), static_cast<long long>(last.factors),
+                static_cast<long long>(last.nnz_r));
+    begin = end;
+  }
+  return 0;
+}
+
 int Main(int argc, char** argv) {
   namespace po = boost::program_options;
   std::string map_path, truth_path, rules_text = "0.5:20,1:30";
   double slice_s = 150.0;
   int world_robots = 0;
   uint64_t world_seed = 1;
+  std::string solve;
+  double until_s = 1e18;
   po::options_description desc("anchormap-bench-reduced-graph");
   desc.add_options()("help", "this help")("map", po::value(&map_path),
                                           "a server output (anchormap-replay --output)")(
@@ -312,7 +376,11 @@ int Main(int argc, char** argv) {
       "world-seed", po::value(&world_seed)->default_value(world_seed), "that simulation's seed")(
       "rules", po::value(&rules_text)->default_value(rules_text),
       "radius_m:angle_deg, comma separated")("slice-s", po::value(&slice_s)->default_value(slice_s),
-                                             "seconds of data time per slice");
+                                             "seconds of data time per slice")(
+      "solve", po::value(&solve),
+      "full|reduced: replay the graph into the server's smoother instead (--map and --truth; "
+      "the first rule)")("until-s", po::value(&until_s)->default_value(until_s),
+                         "with --solve: data seconds to replay");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
@@ -320,6 +388,7 @@ int Main(int argc, char** argv) {
     std::printf("%s", "see the comment at the top of bench_reduced_graph_main.cc\n");
     return vm.count("help") ? 0 : 1;
   }
+  if (!solve.empty()) return Solve(map_path, truth_path, solve, rules_text, slice_s, until_s);
   std::vector<AreaNodeRule> rules;
   std::stringstream rules_stream(rules_text);
   for (std::string item; std::getline(rules_stream, item, ',');) {
