@@ -15,9 +15,16 @@
 // sim's --seed) the office world is rebuilt and a fold also needs a line of sight between the
 // true positions (a proxy of the scan overlap the server would check by matching). For the
 // estimate, folds whose true positions lie more than twice the radius apart count as wrong.
-// Prints one table per source and scope: per slice, the keyframes so far and per rule the
-// nodes so far (and those added in the slice). Single-threaded; reading a 20 x 1800 map
-// output (4 GB) takes a few minutes.
+// Prints one table per source and scope: per slice, the keyframes so far, the full graph's
+// factors so far (odometry and links), and per rule the nodes so far (+ those added in the
+// slice) and the distinct node pairs joined by a factor (in brackets: by odometry alone).
+//
+// --solve full|reduced (with --map and --truth; the first --rules entry, --until-s): instead,
+// replays the graph into the server's smoother (tools/bench/area_graph_replay.h: a pose per
+// keyframe, or per node of the rule with the group scope and no world; synthetic
+// measurements from the truth) and prints per slice the updates' CPU (sum, p99, max) and
+// the smoother's variables, factors and nnz(R).
+// Single-threaded; reading a 20 x 1800 map output (4 GB) takes about two minutes.
 
 #include <algorithm>
 #include <cmath>
