@@ -96,7 +96,7 @@ Status ReplayAreaGraph(const std::vector<AreaReplayKeyframe>& keyframes,
     if (!result.status.ok()) return result.status;
     const SmootherStats& stats = smoother.stats();
     updates->push_back({1e-6 * static_cast<double>(utime - start), cpu_s, stats.variables,
-                        stats.factors, stats.nnz_r});
+                        stats.factors, stats.nnz_r, result.batch_step});
     return Status::Ok();
   };
   const auto add_links_before = [&](int64_t utime) -> Status {

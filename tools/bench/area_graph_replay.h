@@ -43,6 +43,7 @@ struct AreaReplayUpdate {
   int64_t variables = 0;
   int64_t factors = 0;
   int64_t nnz_r = 0;
+  bool batch_step = false;  // the update relinearised and reordered everything
 };
 
 // Keyframes sorted by time; links sorted by time, each at or after its keyframes'.

@@ -342,25 +342,31 @@ int Solve(const std::string& map_path, const std::string& truth_path, const std:
     std::fprintf(stderr, "replay: %s\n", s.message().c_str());
     return 1;
   }
-  std::printf("%s graph (%s), %zu updates\n%8s %8s %10s %10s %10s %10s %10s %10s\n", solve.c_str(),
-              rules_text.c_str(), updates.size(), "end_s", "updates", "cpu_s", "p99_ms", "max_ms",
-              "variables", "factors", "nnz_r");
+  std::printf("%s graph (%s), %zu updates\n%8s %8s %10s %10s %10s %8s %10s %10s %10s %10s\n",
+              solve.c_str(), rules_text.c_str(), updates.size(), "end_s", "updates", "cpu_s",
+              "p99_ms", "max_ms", "batches", "batch_s", "variables", "factors", "nnz_r");
   for (size_t begin = 0; begin < updates.size();) {
     const int slice = static_cast<int>(updates[begin].data_s / slice_s - 1e-9);
     size_t end = begin;
     std::vector<double> cpu;
+    int batches = 0;
+    double batch_s = 0.0;
     while (end < updates.size() &&
            static_cast<int>(updates[end].data_s / slice_s - 1e-9) == slice) {
+      if (updates[end].batch_step) {
+        ++batches;
+        batch_s += updates[end].cpu_s;
+      }
       cpu.push_back(updates[end++].cpu_s);
     }
     std::sort(cpu.begin(), cpu.end());
     const double sum = std::accumulate(cpu.begin(), cpu.end(), 0.0);
     const size_t p99 = std::min(cpu.size() - 1, static_cast<size_t>(0.99 * cpu.size()));
     const AreaReplayUpdate& last = updates[end - 1];
-    std::printf("%8.0f %8zu %10.2f %10.1f %10.1f %10lld %10lld %10lld\n", (slice + 1) * slice_s,
-                cpu.size(), sum, 1e3 * cpu[p99], 1e3 * cpu.back(),
-                static_cast<long long>(last.variables), static_cast<long long>(last.factors),
-                static_cast<long long>(last.nnz_r));
+    std::printf("%8.0f %8zu %10.2f %10.1f %10.1f %8d %10.2f %10lld %10lld %10lld\n",
+                (slice + 1) * slice_s, cpu.size(), sum, 1e3 * cpu[p99], 1e3 * cpu.back(), batches,
+                batch_s, static_cast<long long>(last.variables),
+                static_cast<long long>(last.factors), static_cast<long long>(last.nnz_r));
     begin = end;
   }
   return 0;
