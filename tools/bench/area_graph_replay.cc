@@ -2,6 +2,7 @@
 
 #include <time.h>
 
+#include <cmath>
 #include <numeric>
 #include <random>
 
@@ -58,7 +59,8 @@ struct Placement {
 
 Status ReplayAreaGraph(const std::vector<AreaReplayKeyframe>& keyframes,
                        const std::vector<AreaReplayLink>& links, int trajectories,
-                       const AreaReplayOptions& options, std::vector<AreaReplayUpdate>* updates) {
+                       const AreaReplayOptions& options, std::vector<AreaReplayUpdate>* updates,
+                       AreaReplayAccuracy* accuracy) {
   updates->clear();
   if (keyframes.empty()) return Status::Ok();
   Smoother smoother(ServerModeWithCorrectionOptions());
@@ -118,10 +120,12 @@ Status ReplayAreaGraph(const std::vector<AreaReplayKeyframe>& keyframes,
   };
 
   int64_t last_utime = start;
+  size_t replayed = 0;
   for (size_t i = 0; i < keyframes.size(); ++i) {
     const AreaReplayKeyframe& k = keyframes[i];
     if (1e-6 * static_cast<double>(k.utime - start) > options.until_s) break;
     last_utime = k.utime;
+    replayed = i + 1;
     for (; k.utime >= next_update; next_update += period) {
       if (Status s = add_links_before(next_update); !s.ok()) return s;
       if (Status s = update(next_update); !s.ok()) return s;
@@ -177,7 +181,21 @@ Status ReplayAreaGraph(const std::vector<AreaReplayKeyframe>& keyframes,
     }
   }
   if (Status s = add_links_before(last_utime + 1); !s.ok()) return s;
-  return update(next_update);
+  if (Status s = update(next_update); !s.ok()) return s;
+  if (accuracy == nullptr || replayed == 0) return Status::Ok();
+  const auto rmse = [&] {
+    double sum = 0.0;
+    for (size_t i = 0; i < replayed; ++i) {
+      const Pose2 estimate =
+          Compose(smoother.GlobalPose(placement[i].node), placement[i].T_node_keyframe);
+      sum += (estimate.translation() - keyframes[i].truth.translation()).squaredNorm();
+    }
+    return std::sqrt(sum / static_cast<double>(replayed));
+  };
+  accuracy->after_updates_m = rmse();
+  if (Status s = smoother.BatchOptimize().status; !s.ok()) return s;
+  accuracy->after_batch_m = rmse();
+  return Status::Ok();
 }
 
 }  // namespace anchormap

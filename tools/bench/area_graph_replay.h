@@ -46,9 +46,20 @@ struct AreaReplayUpdate {
   bool batch_step = false;  // the update relinearised and reordered everything
 };
 
+struct AreaReplayAccuracy {
+  // The RMS distance between each replayed keyframe's estimate (its node's global pose
+  // composed with its offset) and its truth, after the last update and after a final
+  // BatchOptimize() (as the server runs at the end of input). The frames are the truth's
+  // (each trajectory's first pose is placed at its truth), so no alignment.
+  double after_updates_m = 0.0;
+  double after_batch_m = 0.0;
+};
+
 // Keyframes sorted by time; links sorted by time, each at or after its keyframes'.
+// `accuracy` may be null (no final batch step then).
 Status ReplayAreaGraph(const std::vector<AreaReplayKeyframe>& keyframes,
                        const std::vector<AreaReplayLink>& links, int trajectories,
-                       const AreaReplayOptions& options, std::vector<AreaReplayUpdate>* updates);
+                       const AreaReplayOptions& options, std::vector<AreaReplayUpdate>* updates,
+                       AreaReplayAccuracy* accuracy = nullptr);
 
 }  // namespace anchormap

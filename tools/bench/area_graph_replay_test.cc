@@ -34,9 +34,15 @@ TEST(AreaGraphReplayTest,
   AreaReplayOptions options;
   options.rule = {1.0, 30.0 * M_PI / 180.0};
   std::vector<AreaReplayUpdate> full, reduced;
-  ASSERT_TRUE(ReplayAreaGraph(keyframes, links, 2, options, &full).ok());
+  AreaReplayAccuracy full_accuracy, reduced_accuracy;
+  ASSERT_TRUE(ReplayAreaGraph(keyframes, links, 2, options, &full, &full_accuracy).ok());
   options.reduced = true;
-  ASSERT_TRUE(ReplayAreaGraph(keyframes, links, 2, options, &reduced).ok());
+  ASSERT_TRUE(ReplayAreaGraph(keyframes, links, 2, options, &reduced, &reduced_accuracy).ok());
+  // The full graph has no loop closure here (one encounter), so five laps of odometry drift
+  // (0.41 m); each fold is a match to a node of the first lap, a loop closed (0.019 m).
+  EXPECT_GT(full_accuracy.after_batch_m, 0.2);
+  EXPECT_LT(reduced_accuracy.after_batch_m, 0.05);
+  EXPECT_LT(reduced_accuracy.after_updates_m, 0.05);
   ASSERT_EQ(full.size(), reduced.size());
   ASSERT_GE(full.size(), 300u);  // an update per 0.5 s of 160 s
   // Full: a pose per keyframe (320) and two anchors.
