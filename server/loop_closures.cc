@@ -484,10 +484,11 @@ void LoopClosures::OfferWide(const Hypothesis& hypothesis, const GraphView& grap
                                                    options_.max_distance_m)) {
         continue;
       }
-      const std::optional<PredictedRelativePose> candidates =
-          PredictRelativePose(graph.covariances, it->candidate, hypothesis.candidate);
-      const std::optional<PredictedRelativePose> keys =
-          PredictRelativePose(graph.covariances, it->key, hypothesis.key);
+      // Both solves at once: they share R's wide bottom rows.
+      const std::vector<std::optional<PredictedRelativePose>> predicted = PredictRelativePoses(
+          graph.covariances, {{it->candidate, hypothesis.candidate}, {it->key, hypothesis.key}});
+      const std::optional<PredictedRelativePose>& candidates = predicted[0];
+      const std::optional<PredictedRelativePose>& keys = predicted[1];
       if (!candidates || !keys) continue;
       const double query_path_m = EstimatedPath(graph.smoother, hypothesis.key.trajectory,
                                                 it->key.index, hypothesis.key.index);
@@ -545,6 +546,7 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
   // The gate below examines only the nearest max_examined: when that many lie in the disc,
   // the slack would only add farther ones, never examined, and its covariance is not needed.
   const size_t max_examined = static_cast<size_t>(4 * options_.max_candidates);
+  const size_t max_chosen = static_cast<size_t>(options_.max_candidates);
   const double radius = within_disc >= max_examined
                             ? options_.max_distance_m
                             : options_.max_distance_m + PrefilterSlack(smoother, key);
@@ -555,16 +557,37 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
 
   // The joint-covariance gate, nearest first; candidates apart by more than a submap.
   std::vector<std::pair<int, PredictedRelativePose>> chosen;
-  for (size_t n = 0; n < near.size() && n < max_examined; ++n) {
+  const auto takes = [&](size_t n) {
     const int j = near[n].second;
     if (Saturated(*record, PoseKey{key.trajectory, j}, key)) {
       ++saturated_;
-      continue;
+      return false;
     }
-    const bool overlaps_chosen = std::any_of(chosen.begin(), chosen.end(), [&](const auto& c) {
+    return std::none_of(chosen.begin(), chosen.end(), [&](const auto& c) {
       return std::abs(c.first - j) <= options_.submap_half_width;
     });
-    if (overlaps_chosen) continue;
+  };
+  // A candidate predicted inside the disc passes the gate whatever its covariance (the
+  // distance from the disc is 0): the nearest ones usually are, and their covariances,
+  // needed for the match, are solved together (the solves' cost is reading R's wide
+  // bottom rows, which they share). The first one outside the disc ends this part.
+  size_t n = 0;
+  std::vector<std::pair<PoseKey, PoseKey>> inside;
+  for (; n < near.size() && n < max_examined && chosen.size() < max_chosen; ++n) {
+    if (!takes(n)) continue;
+    const PoseKey candidate{key.trajectory, near[n].second};
+    const std::optional<RelativePoseQuery> query = RelativePoseQueryOf(*smoother, candidate, key);
+    if (!query) continue;
+    if (query->T_a_b.translation().norm() > options_.max_distance_m) break;
+    chosen.emplace_back(candidate.index, PredictedRelativePose{});
+    inside.emplace_back(candidate, key);
+  }
+  const std::vector<std::optional<PredictedRelativePose>> predicted_inside =
+      PredictRelativePoses(smoother, inside);
+  for (size_t c = 0; c < inside.size(); ++c) chosen[c].second = *predicted_inside[c];
+  for (; n < near.size() && n < max_examined && chosen.size() < max_chosen; ++n) {
+    if (!takes(n)) continue;
+    const int j = near[n].second;
     const std::optional<PredictedRelativePose> predicted =
         PredictRelativePose(smoother, PoseKey{key.trajectory, j}, key);
     if (!predicted) continue;
@@ -574,7 +597,6 @@ void LoopClosures::ExamineKeyframe(PoseKey key, const GraphView& graph) {
       continue;
     }
     chosen.emplace_back(j, *predicted);
-    if (static_cast<int>(chosen.size()) >= options_.max_candidates) break;
   }
 
   // The jobs own what they read: the query's points, the submap (immutable once built).
