@@ -33,43 +33,68 @@ std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, Pos
   return PredictRelativePose(smoother, a, b, nullptr);
 }
 
-std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b,
-                                                         const EnoughCovariance& enough) {
-  if (!InOneFrame(*smoother, a.trajectory, b.trajectory)) return std::nullopt;
+std::optional<RelativePoseQuery> RelativePoseQueryOf(const Smoother& smoother, PoseKey a,
+                                                     PoseKey b) {
+  if (!InOneFrame(smoother, a.trajectory, b.trajectory)) return std::nullopt;
   // Only from a solved graph: a covariance read across a pending merge or anchor would
   // describe the graph before it (MappingServer solves before its sources see one).
-  if (!smoother->IsSolved(a) || !smoother->IsSolved(b)) return std::nullopt;
-  PredictedRelativePose out;
-  std::vector<Key> keys;
-  std::vector<Eigen::Matrix3d> jacobians;
+  if (!smoother.IsSolved(a) || !smoother.IsSolved(b)) return std::nullopt;
+  RelativePoseQuery out;
   if (a.trajectory == b.trajectory) {
     Eigen::Matrix3d J_a, J_b;
-    out.T_a_b = Between(smoother->FramePose(a), smoother->FramePose(b), &J_a, &J_b);
-    keys = {a, b};
-    jacobians = {J_a, J_b};
+    out.T_a_b = Between(smoother.FramePose(a), smoother.FramePose(b), &J_a, &J_b);
+    out.covariance = {{a, b}, {J_a, J_b}};
   } else {
     const AnchorKey anchor_a{a.trajectory}, anchor_b{b.trajectory};
-    if (!smoother->IsSolved(anchor_a) || !smoother->IsSolved(anchor_b)) {
+    if (!smoother.IsSolved(anchor_a) || !smoother.IsSolved(anchor_b)) {
       return std::nullopt;
     }
     Eigen::Matrix3d dga_dA, dga_dx, dgb_dA, dgb_dx, dh_dga, dh_dgb;
     const Pose2 global_a =
-        Compose(smoother->Value(anchor_a), smoother->FramePose(a), &dga_dA, &dga_dx);
+        Compose(smoother.Value(anchor_a), smoother.FramePose(a), &dga_dA, &dga_dx);
     const Pose2 global_b =
-        Compose(smoother->Value(anchor_b), smoother->FramePose(b), &dgb_dA, &dgb_dx);
+        Compose(smoother.Value(anchor_b), smoother.FramePose(b), &dgb_dA, &dgb_dx);
     out.T_a_b = Between(global_a, global_b, &dh_dga, &dh_dgb);
-    keys = {a, b, anchor_a, anchor_b};
-    jacobians = {dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA};
+    out.covariance = {{a, b, anchor_a, anchor_b},
+                      {dh_dga * dga_dx, dh_dgb * dgb_dx, dh_dga * dga_dA, dh_dgb * dgb_dA}};
   }
+  return out;
+}
+
+std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b,
+                                                         const EnoughCovariance& enough) {
+  const std::optional<RelativePoseQuery> query = RelativePoseQueryOf(*smoother, a, b);
+  if (!query) return std::nullopt;
+  PredictedRelativePose out;
+  out.T_a_b = query->T_a_b;
   if (!enough) {
-    out.covariance = smoother->ProjectedCovariance(keys, jacobians);
+    out.covariance =
+        smoother->ProjectedCovariance(query->covariance.keys, query->covariance.jacobians);
   } else {
     const Pose2 T_a_b = out.T_a_b;
     out.partial = !smoother->ProjectedCovarianceUntil(
-        keys, jacobians,
+        query->covariance.keys, query->covariance.jacobians,
         [&enough, &T_a_b](const Eigen::Matrix3d& so_far) { return enough(T_a_b, so_far); },
         &out.covariance);
   }
+  return out;
+}
+
+std::vector<std::optional<PredictedRelativePose>> PredictRelativePoses(
+    Smoother* smoother, const std::vector<std::pair<PoseKey, PoseKey>>& pairs) {
+  std::vector<std::optional<PredictedRelativePose>> out(pairs.size());
+  std::vector<Smoother::CovarianceQuery> queries;
+  std::vector<size_t> asked;  // the pairs with a query, in queries' order
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    std::optional<RelativePoseQuery> query =
+        RelativePoseQueryOf(*smoother, pairs[i].first, pairs[i].second);
+    if (!query) continue;
+    out[i] = PredictedRelativePose{query->T_a_b};
+    queries.push_back(std::move(query->covariance));
+    asked.push_back(i);
+  }
+  const std::vector<Eigen::Matrix3d> covariances = smoother->ProjectedCovariances(queries);
+  for (size_t g = 0; g < asked.size(); ++g) out[asked[g]]->covariance = covariances[g];
   return out;
 }
 

@@ -31,6 +31,22 @@ struct PredictedRelativePose {
 // different trajectories) or a variable is not solved yet.
 std::optional<PredictedRelativePose> PredictRelativePose(Smoother* smoother, PoseKey a, PoseKey b);
 
+// What PredictRelativePose computes before the covariance's solve: T_a_b, and the
+// variables and Jacobians of T_a_b whose J Sigma J^T is its covariance (nullopt as there).
+// A test that T_a_b alone decides needs no solve.
+struct RelativePoseQuery {
+  Pose2 T_a_b;
+  Smoother::CovarianceQuery covariance;
+};
+std::optional<RelativePoseQuery> RelativePoseQueryOf(const Smoother& smoother, PoseKey a,
+                                                     PoseKey b);
+
+// PredictRelativePose for several pairs, their covariances solved side by side
+// (Smoother::ProjectedCovariances, R's rows read once for all): each the bits of
+// PredictRelativePose(smoother, a, b).
+std::vector<std::optional<PredictedRelativePose>> PredictRelativePoses(
+    Smoother* smoother, const std::vector<std::pair<PoseKey, PoseKey>>& pairs);
+
 // The same, the covariance's solve stopped once `enough(T_a_b, covariance so far)` holds
 // (Smoother::ProjectedCovarianceUntil; asked before the solve too): then `partial` is set
 // and the covariance is a lower bound of the exact one in the positive semidefinite order,

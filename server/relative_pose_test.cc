@@ -4,6 +4,8 @@
 #include <cmath>
 #include <optional>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -162,11 +164,25 @@ TEST(PredictRelativePoseTest, CovarianceEqualsTheJointCovarianceProjectedAfterEv
                       .ok());
     }
     ASSERT_TRUE(smoother.Update().status.ok());
+    // Every pair at once first (side by side): each the single prediction's bits below.
+    std::vector<std::pair<PoseKey, PoseKey>> pairs;
+    for (int r = 0; r < kRobots; ++r) {
+      for (int s = 0; s < kRobots; ++s)
+        pairs.push_back({{TrajectoryId(r), i / 3}, {TrajectoryId(s), i}});
+    }
+    const std::vector<std::optional<PredictedRelativePose>> together =
+        PredictRelativePoses(&smoother, pairs);
+    ASSERT_EQ(together.size(), pairs.size());
     for (int r = 0; r < kRobots; ++r) {
       for (int s = 0; s < kRobots; ++s) {
         const PoseKey a{TrajectoryId(r), i / 3}, b{TrajectoryId(s), i};
         const std::optional<PredictedRelativePose> predicted = PredictRelativePose(&smoother, a, b);
+        const std::optional<PredictedRelativePose>& side_by_side = together[r * kRobots + s];
+        ASSERT_EQ(side_by_side.has_value(), predicted.has_value());
         if (!predicted) continue;
+        EXPECT_EQ(side_by_side->covariance, predicted->covariance);
+        EXPECT_EQ(side_by_side->T_a_b.x(), predicted->T_a_b.x());
+        EXPECT_EQ(side_by_side->T_a_b.theta(), predicted->T_a_b.theta());
         Eigen::Matrix3d expected;
         if (r == s) {
           Eigen::Matrix3d J_a, J_b;

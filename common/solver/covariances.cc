@@ -123,14 +123,14 @@ const Eigen::Matrix3d* CovarianceProjection::Remembered(
     const std::vector<Eigen::Matrix3d>& jacobians) const {
   const auto [first, last] = memo_index_.equal_range(hash);
   for (auto it = first; it != last; ++it) {
-    const Query& query = memo_[it->second];
+    const Query& query = memo_[it->second].query;
     if (query.positions != positions) continue;
     bool same = true;
     for (size_t s = 0; s < jacobians.size() && same; ++s) {
       // Bit for bit (memcmp): the memo must give what the solve gives for these bits.
       same = std::memcmp(query.jacobians[s].data(), jacobians[s].data(), 9 * sizeof(double)) == 0;
     }
-    if (same) return &query.result;
+    if (same) return &memo_[it->second].result;
   }
   return nullptr;
 }
@@ -175,7 +175,7 @@ bool CovarianceProjection::ComputeUntil(const SparseR& r, const std::vector<int>
   }
   ++computed_;
   memo_index_.emplace(hash, memo_.size());
-  memo_.push_back({positions, jacobians, *result});
+  memo_.push_back({{positions, jacobians}, *result});
   return true;
 }
 
@@ -238,18 +238,30 @@ bool CovarianceProjection::Solve(const SparseR& r, const std::vector<int>& posit
   return true;
 }
 
-std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
-                                                             const std::vector<int>& positions) {
-  const int n = r.size();
-  const size_t k = positions.size();
-  for (int p : positions) {
-    if (p < 0 || p >= n) throw std::out_of_range("CovarianceProjection: position outside R");
+std::vector<Eigen::Matrix3d> CovarianceProjection::ComputeSideBySide(
+    const SparseR& r, const std::vector<Query>& queries) {
+  std::vector<Eigen::Matrix3d> results(queries.size());
+  std::vector<uint64_t> hashes(queries.size());
+  std::vector<size_t> solved;  // the queries not remembered, solved below
+  for (size_t g = 0; g < queries.size(); ++g) {
+    Prepare(r, queries[g].positions, queries[g].jacobians);
+    hashes[g] = HashOf(queries[g].positions, queries[g].jacobians);
+    if (const Eigen::Matrix3d* known =
+            Remembered(hashes[g], queries[g].positions, queries[g].jacobians)) {
+      ++memo_hits_;
+      results[g] = *known;
+    } else {
+      solved.push_back(g);
+    }
   }
+  const size_t k = solved.size();
+  if (k == 0) return results;
+  const int n = r.size();
   if (static_cast<int>(slot_.size()) < n) slot_.resize(n, -1);
   slot_pending_.clear();
   slot_queued_.clear();
   std::vector<int> used;  // positions given a slot, in the order they got it
-  // A row's slot, made (and the row queued) the first time a position's solve reaches it.
+  // A row's slot, made (and the row queued) the first time a query's solve reaches it.
   const auto slot_of = [&](int p) {
     if (slot_[p] < 0) {
       slot_[p] = static_cast<int>(used.size());
@@ -261,13 +273,16 @@ std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
     return static_cast<size_t>(slot_[p]);
   };
   for (size_t g = 0; g < k; ++g) {
-    const size_t s = slot_of(positions[g]);
-    slot_pending_[s * k + g] += Eigen::Matrix3d::Identity();  // J^T, J = I: Compute's bits
-    slot_queued_[s * k + g] = 1;
+    const Query& query = queries[solved[g]];
+    for (size_t s = 0; s < query.positions.size(); ++s) {
+      const size_t slot = slot_of(query.positions[s]);
+      slot_pending_[slot * k + g] += query.jacobians[s].transpose();  // as Solve adds J^T
+      slot_queued_[slot * k + g] = 1;
+    }
   }
-  // Each position's solve is Compute's: the same rows in the same (ascending) order, the
-  // same operations on its own blocks; they only share the walk.
-  std::vector<Eigen::Matrix3d> results(k, Eigen::Matrix3d::Zero());
+  // Each query's solve is Solve's: the same rows in the same (ascending) order, the same
+  // operations on its own blocks; they only share the walk.
+  std::vector<Eigen::Matrix3d> sums(k, Eigen::Matrix3d::Zero());
   std::vector<Eigen::Matrix3d> y(k);
   std::vector<size_t> active;
   while (!queue_.empty()) {
@@ -281,7 +296,7 @@ std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
       active.push_back(g);
       y[g] =
           row.diagonal.transpose().triangularView<Eigen::Lower>().solve(slot_pending_[s * k + g]);
-      results[g].noalias() += y[g].transpose() * y[g];
+      sums[g].noalias() += y[g].transpose() * y[g];
     }
     for (const auto& [q, block] : row.right) {
       const size_t sq = slot_of(q);
@@ -292,8 +307,25 @@ std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
     }
   }
   for (int p : used) slot_[p] = -1;
-  for (Eigen::Matrix3d& result : results) result = 0.5 * (result + result.transpose());
+  for (size_t g = 0; g < k; ++g) {
+    const size_t asked = solved[g];
+    results[asked] = 0.5 * (sums[g] + sums[g].transpose());  // as Solve
+    ++computed_;
+    // A query asked twice in one call is solved twice and remembered once.
+    if (Remembered(hashes[asked], queries[asked].positions, queries[asked].jacobians) == nullptr) {
+      memo_index_.emplace(hashes[asked], memo_.size());
+      memo_.push_back({queries[asked], results[asked]});
+    }
+  }
   return results;
+}
+
+std::vector<Eigen::Matrix3d> CovarianceProjection::Marginals(const SparseR& r,
+                                                             const std::vector<int>& positions) {
+  std::vector<Query> queries;
+  queries.reserve(positions.size());
+  for (int p : positions) queries.push_back({{p}, {Eigen::Matrix3d::Identity()}});
+  return ComputeSideBySide(r, queries);
 }
 
 }  // namespace anchormap

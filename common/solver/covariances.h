@@ -114,11 +114,24 @@ class CovarianceProjection {
   bool ComputeUntil(const SparseR& r, const std::vector<int>& positions,
                     const std::vector<Eigen::Matrix3d>& jacobians, const Enough& enough,
                     Eigen::Matrix3d* result);
+  // One query of ComputeSideBySide: J = [J_1 ... J_k] on `positions`, as Compute takes them.
+  struct Query {
+    std::vector<int> positions;
+    std::vector<Eigen::Matrix3d> jacobians;
+  };
+  // Each query's J Sigma J^T, the bits Compute gives for it (and its memo: queries already
+  // remembered are answered from it, the others remembered), in one walk: the queries'
+  // forward substitutions run side by side over the union of their ancestors' rows, each
+  // reading a row of R once for all of them. The solve is bound by reading R's wide bottom
+  // rows (the block loads miss the cache), so queries known together, e.g. a keyframe's
+  // loop-closure candidates whose gate is decided without their covariance, cost little
+  // more than one.
+  std::vector<Eigen::Matrix3d> ComputeSideBySide(const SparseR& r,
+                                                 const std::vector<Query>& queries);
   // Each position's marginal covariance (J = I), the bits Compute(r, {p}, {I}) gives for
-  // each, in one walk: the positions' forward substitutions run side by side over the union
-  // of their ancestors' rows, each reading a row of R once for all of them. The anchors'
-  // covariances, published twice per second of data, have long paths that share most rows
-  // (late in a 20-robot run, 44k blocks each: a quarter of the projections' work).
+  // each, side by side (ComputeSideBySide). The anchors' covariances, published twice per
+  // second of data, have long paths that share most rows (late in a 20-robot run, 44k
+  // blocks each: a quarter of the projections' work).
   std::vector<Eigen::Matrix3d> Marginals(const SparseR& r, const std::vector<int>& positions);
   // Queries answered from the memo, and those computed.
   int64_t memo_hits() const { return memo_hits_; }
@@ -134,11 +147,10 @@ class CovarianceProjection {
   // Checks the arguments and makes the memo that of r's current revision.
   void Prepare(const SparseR& r, const std::vector<int>& positions,
                const std::vector<Eigen::Matrix3d>& jacobians);
-  // The memo's key: the query's positions and Jacobians, compared in full (the hash only
-  // finds the candidates).
-  struct Query {
-    std::vector<int> positions;
-    std::vector<Eigen::Matrix3d> jacobians;
+  // The memo's entry: the query's positions and Jacobians, compared in full (the hash only
+  // finds the candidates), and its result.
+  struct Remembrance {
+    Query query;
     Eigen::Matrix3d result;
   };
   static uint64_t HashOf(const std::vector<int>& positions,
@@ -155,12 +167,12 @@ class CovarianceProjection {
   std::pair<uint64_t, uint64_t> memo_r_{0, 0};
   bool memo_valid_ = false;
   std::unordered_multimap<uint64_t, size_t> memo_index_;
-  std::vector<Query> memo_;
+  std::vector<Remembrance> memo_;
   int64_t memo_hits_ = 0;
   int64_t computed_ = 0;
   int64_t stopped_early_ = 0;
-  // Marginals' work space: by position its slot (-1: none) and by slot the positions'
-  // pending blocks (one per position asked) and which of them are queued.
+  // ComputeSideBySide's work space: by position its slot (-1: none) and by slot the
+  // queries' pending blocks (one per query solved) and which of them are queued.
   std::vector<int> slot_;
   std::vector<Eigen::Matrix3d> slot_pending_;
   std::vector<char> slot_queued_;

@@ -257,6 +257,55 @@ TEST(CovarianceProjectionTest, MarginalsSideBySideHaveEachSolvesBits) {
                        alone.Compute(*r, {7}, {Eigen::Matrix3d::Identity()})));
 }
 
+// Queries solved side by side have each query's own solve's bits (repeated positions and
+// a query asked twice in one call included); they are remembered (Compute then answers
+// from the memo, the same bits), remembered ones are not solved again, and the work space
+// is left clean for the next call.
+TEST(CovarianceProjectionTest, QueriesSideBySideHaveEachSolvesBits) {
+  const int n = 70;
+  const auto [r, sigma] = MakeChainWithLoopClosures(n, 30, 29);
+  const std::vector<Query> random = RandomQueries(n, 24, 31);
+  std::vector<CovarianceProjection::Query> queries;
+  for (const Query& q : random) queries.push_back({q.positions, q.jacobians});
+  queries.push_back(queries[3]);  // asked twice in one call
+  CovarianceProjection projected;
+  const std::vector<Eigen::Matrix3d> together = projected.ComputeSideBySide(*r, queries);
+  ASSERT_EQ(together.size(), queries.size());
+  EXPECT_EQ(projected.computed(), 25);
+  for (size_t g = 0; g < queries.size(); ++g) {
+    CovarianceProjection alone;
+    EXPECT_TRUE(
+        SameBits(together[g], alone.Compute(*r, queries[g].positions, queries[g].jacobians)));
+    EXPECT_TRUE(
+        SameBits(together[g], projected.Compute(*r, queries[g].positions, queries[g].jacobians)));
+  }
+  EXPECT_EQ(projected.memo_hits(), 25);
+  EXPECT_EQ(projected.computed(), 25);
+  // Half remembered, half new: only the new ones are solved, each with its own bits.
+  const std::vector<Query> more = RandomQueries(n, 8, 37);
+  std::vector<CovarianceProjection::Query> mixed;
+  for (size_t g = 0; g < more.size(); ++g) {
+    mixed.push_back(queries[g]);
+    mixed.push_back({more[g].positions, more[g].jacobians});
+  }
+  const std::vector<Eigen::Matrix3d> again = projected.ComputeSideBySide(*r, mixed);
+  EXPECT_EQ(projected.computed(), 25 + 8);
+  for (size_t g = 0; g < mixed.size(); ++g) {
+    CovarianceProjection alone;
+    EXPECT_TRUE(SameBits(again[g], alone.Compute(*r, mixed[g].positions, mixed[g].jacobians)));
+  }
+  EXPECT_TRUE(projected.ComputeSideBySide(*r, {}).empty());
+  EXPECT_THROW(projected.ComputeSideBySide(
+                   *r, {{{2, n}, {Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity()}}}),
+               std::out_of_range);
+  EXPECT_THROW(projected.ComputeSideBySide(*r, {{{2}, {}}}), std::invalid_argument);
+  CovarianceProjection alone;
+  EXPECT_TRUE(
+      SameBits(projected.ComputeSideBySide(
+                   *r, {{{7, 60}, {queries[1].jacobians[0], queries[2].jacobians[1]}}})[0],
+               alone.Compute(*r, {7, 60}, {queries[1].jacobians[0], queries[2].jacobians[1]})));
+}
+
 // ComputeUntil: a test that passes under the zero matrix stops before any row; one that
 // never passes gives Compute's bits (and fills the memo); one that passes on the way stops
 // with a partial sum that is a lower bound of the result in the positive semidefinite order

@@ -301,6 +301,10 @@ bool Smoother::ProjectedCovarianceUntil(const std::vector<Key>& keys,
 std::vector<Eigen::Matrix3d> Smoother::ProjectedMarginals(const std::vector<Key>& keys) {
   return impl_->ProjectedMarginals(keys);
 }
+std::vector<Eigen::Matrix3d> Smoother::ProjectedCovariances(
+    const std::vector<CovarianceQuery>& queries) {
+  return impl_->ProjectedCovariances(queries);
+}
 double Smoother::Chi2() const { return impl_->Chi2(); }
 Pose2 Smoother::Value(const Key& key) const { return impl_->Estimate(key); }
 bool Smoother::HasVariable(const Key& key) const { return impl_->Has(key); }

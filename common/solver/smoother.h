@@ -180,6 +180,13 @@ class Smoother {
   // Each key's marginal covariance by the same solve (ProjectedCovariance(key, I)'s bits),
   // the keys' solves run side by side, reading each row of R once for all of them.
   std::vector<Eigen::Matrix3d> ProjectedMarginals(const std::vector<Key>& keys);
+  // Several ProjectedCovariance queries, each with its bits (and its memo), their solves
+  // run side by side (CovarianceProjection::ComputeSideBySide): R's rows read once for all.
+  struct CovarianceQuery {
+    std::vector<Key> keys;
+    std::vector<Eigen::Matrix3d> jacobians;
+  };
+  std::vector<Eigen::Matrix3d> ProjectedCovariances(const std::vector<CovarianceQuery>& queries);
 
   // The current estimate of any variable (pose: local frame; anchor: T_global_local).
   Pose2 Value(const Key& key) const;

@@ -144,6 +144,15 @@ class Smoother::Impl {
   std::vector<Eigen::Matrix3d> ProjectedMarginals(const std::vector<Key>& keys) {
     return projected_.Marginals(*r_, SolvedPositions(keys));
   }
+  std::vector<Eigen::Matrix3d> ProjectedCovariances(
+      const std::vector<Smoother::CovarianceQuery>& queries) {
+    std::vector<CovarianceProjection::Query> solves;
+    solves.reserve(queries.size());
+    for (const Smoother::CovarianceQuery& query : queries) {
+      solves.push_back({SolvedPositions(query.keys), query.jacobians});
+    }
+    return projected_.ComputeSideBySide(*r_, solves);
+  }
   // Positions in R of solved variables; std::invalid_argument for any other.
   std::vector<int> SolvedPositions(const std::vector<Key>& keys) const;
   double Chi2() const;
