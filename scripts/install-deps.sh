@@ -9,6 +9,7 @@ PACKAGES=(
   liblcm-dev liblcm-bin liblcm-java default-jdk-headless   # bus, lcm-gen, lcm-logplayer, lcm-spy jar
   libeigen3-dev                                             # dense 3x3 blocks and small solves
   libsuitesparse-dev                                        # COLAMD ordering, CHOLMOD factorisation
+  libopenblas-serial-dev                                    # single-threaded BLAS for CHOLMOD's supernodal batch steps
   libboost-dev libboost-program-options-dev                 # Asio event loop, option parsing; Beast (viewer)
   nlohmann-json3-dev                                        # the viewer's JSON messages (Boost 1.74 has no Boost.JSON)
   chromium                                                  # headless browser for the viewer's browser test

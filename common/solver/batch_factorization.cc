@@ -7,23 +7,144 @@
 
 namespace anchormap {
 
+namespace {
+
+// Scalar column j of CHOLMOD's factor, simplicial (L D L^T or L L^T) or supernodal (L L^T),
+// as R's row j: visit(i, R_ji) for each stored entry, the diagonal first. Columns are
+// visited in increasing order (the supernode is found by walking forward).
+class ColumnReader {
+ public:
+  explicit ColumnReader(const cholmod_factor* L)
+      : L_(L),
+        p_(static_cast<const int*>(L->p)),
+        i_(static_cast<const int*>(L->is_super ? L->s : L->i)),
+        nz_(static_cast<const int*>(L->nz)),
+        x_(static_cast<const double*>(L->x)),
+        super_(static_cast<const int*>(L->super)),
+        pi_(static_cast<const int*>(L->pi)),
+        px_(static_cast<const int*>(L->px)) {}
+
+  // D_j (L D L^T) or L_jj (L L^T).
+  double Pivot(int j) {
+    if (!L_->is_super) return x_[p_[j]];
+    while (super_[s_ + 1] <= j) ++s_;
+    const int local = j - super_[s_];
+    return x_[px_[s_] + static_cast<size_t>(local) * (pi_[s_ + 1] - pi_[s_]) + local];
+  }
+
+  template <typename Visit>
+  void ForEach(int j, Visit&& visit) {
+    if (L_->is_super) {
+      while (super_[s_ + 1] <= j) ++s_;
+      const int rows = pi_[s_ + 1] - pi_[s_];
+      const int local = j - super_[s_];
+      const int* index = i_ + pi_[s_];
+      const double* value = x_ + px_[s_] + static_cast<size_t>(local) * rows;
+      for (int e = local; e < rows; ++e) visit(index[e], value[e]);
+      return;
+    }
+    const int first = p_[j];
+    const int last = first + nz_[j];
+    // L D L^T: R_jj = sqrt(D_j), R_ji = sqrt(D_j) L_ij; L L^T: R_ji = L_ij.
+    const double scale = L_->is_ll ? 1.0 : std::sqrt(x_[first]);
+    visit(i_[first], L_->is_ll ? x_[first] : scale);
+    for (int e = first + 1; e < last; ++e) visit(i_[e], scale * x_[e]);
+  }
+
+ private:
+  const cholmod_factor* L_;
+  const int* p_;
+  const int* i_;
+  const int* nz_;
+  const double* x_;
+  const int* super_;
+  const int* pi_;
+  const int* px_;
+  size_t s_ = 0;
+};
+
+// R's block rows from L. Simplicial: the off-diagonal blocks are the pattern of scalar
+// column 3p below its diagonal block (the pattern comes in 3x3 blocks). Supernodal: relaxed
+// supernodes also store rows that are structurally zero (exactly 0 after the factorisation:
+// every update to them is a product with a structural zero); blocks whose entries are all
+// zero are dropped, and the count left must be column 3p's structural count (`ColCount`),
+// else false (a structurally non-zero block that is numerically zero: the caller factors
+// again simplicially). `slot` is n entries of -1 (restored).
+bool ReadRows(const cholmod_factor* L, int n, bool drop_zero_blocks, std::vector<int>* slot_in,
+              std::vector<RBlockRow>* rows) {
+  std::vector<int>& slot = *slot_in;
+  const auto* colcount = static_cast<const int*>(L->ColCount);
+  ColumnReader column(L);
+  rows->assign(n, RBlockRow());
+  std::vector<int> columns;
+  for (int p = 0; p < n; ++p) {
+    RBlockRow& row = (*rows)[p];
+    columns.clear();
+    column.ForEach(3 * p, [&](int i, double) {
+      const int q = i / 3;
+      if (q != p && slot[q] < 0) {
+        slot[q] = 0;
+        columns.push_back(q);
+      }
+    });
+    std::sort(columns.begin(), columns.end());
+    row.right.resize(columns.size());
+    for (size_t k = 0; k < columns.size(); ++k) {
+      slot[columns[k]] = static_cast<int>(k);
+      row.right[k].first = columns[k];
+      row.right[k].second.setZero();
+    }
+    for (int rj = 0; rj < 3; ++rj) {
+      column.ForEach(3 * p + rj, [&](int i, double value) {
+        const int q = i / 3;
+        if (q == p) {
+          row.diagonal(rj, i % 3) = value;
+          return;
+        }
+        if (slot[q] < 0) {  // not in column 3p's pattern (not expected): add it, sort later
+          slot[q] = static_cast<int>(row.right.size());
+          row.right.emplace_back(q, Eigen::Matrix3d::Zero());
+        }
+        row.right[slot[q]].second(rj, i % 3) = value;
+      });
+    }
+    const bool sorted = row.right.size() == columns.size();
+    for (const auto& [q, block] : row.right) slot[q] = -1;
+    if (!sorted) {
+      std::sort(row.right.begin(), row.right.end(),
+                [](const auto& x, const auto& y) { return x.first < y.first; });
+    }
+    if (drop_zero_blocks) {
+      row.right.erase(std::remove_if(row.right.begin(), row.right.end(),
+                                     [](const auto& entry) { return entry.second.isZero(0.0); }),
+                      row.right.end());
+      if (3 * row.right.size() + 3 != static_cast<size_t>(colcount[3 * p])) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 // RAII around cholmod_common: CHOLMOD's workspace lives as long as the smoother.
 struct BatchFactorization::Cholmod {
   cholmod_common common;
-  Cholmod() {
+  explicit Cholmod(double supernodal_switch) {
     cholmod_start(&common);
     common.nmethods = 1;
     common.method[0].ordering = CHOLMOD_NATURAL;  // we order with CCOLAMD ourselves
     common.postorder = 0;
-    common.supernodal = CHOLMOD_SIMPLICIAL;
-    common.final_asis = 1;  // keep L D L^T: Factor() reads R = sqrt(D) L^T from it
+    common.supernodal = CHOLMOD_AUTO;
+    common.supernodal_switch = supernodal_switch;
+    common.final_asis = 1;  // keep the factor as computed: Factor() reads R from either form
     common.print = 0;
     common.error_handler = nullptr;
   }
   ~Cholmod() { cholmod_finish(&common); }
 };
 
-BatchFactorization::BatchFactorization() : cholmod_(std::make_unique<Cholmod>()) {}
+BatchFactorization::BatchFactorization(double supernodal_switch)
+    : cholmod_(std::make_unique<Cholmod>(supernodal_switch)) {}
 BatchFactorization::~BatchFactorization() = default;
 
 bool BatchFactorization::Factor(int n, const std::vector<PositionedFactor>& factors,
@@ -125,23 +246,41 @@ bool BatchFactorization::FactorBlocks(int n, const std::vector<int>& start,
   }
   Ap[dim] = static_cast<int>(k);
 
-  // CHOLMOD's simplicial factorisation is L D L^T (unit-diagonal L, D first in each column);
-  // R = sqrt(D) L^T is read from it directly, without CHOLMOD converting it to L L^T.
+  // CHOLMOD chooses by the analysis' flops per non-zero of L (`supernodal_switch`):
+  // simplicial L D L^T below it, R = sqrt(D) L^T read directly without converting to L L^T;
+  // supernodal L L^T (dense BLAS kernels on the fronts) above it, R = L^T read from the
+  // supernodes.
   cholmod_factor* L = cholmod_analyze(A, c);
-  bool ok = L != nullptr && cholmod_factorize(A, L, c) && c->status == CHOLMOD_OK && !L->is_super;
+  bool ok =
+      L != nullptr && cholmod_factorize(A, L, c) && c->status == CHOLMOD_OK && L->minor == dim;
   size_t failed_column = L ? L->minor : 0;
   if (ok) {
-    const auto* Lp = static_cast<const int*>(L->p);
-    const auto* Lx = static_cast<const double*>(L->x);
+    ColumnReader column(L);
     for (size_t j = 0; j < dim && ok; ++j) {
       // LDL': D(j) > 0 and finite; LL': L(j,j) > 0. Either way the first entry of column j.
-      const double pivot = Lx[Lp[j]];
+      const double pivot = column.Pivot(static_cast<int>(j));
       if (!(pivot > 0.0) || !std::isfinite(pivot)) {
         ok = false;
         failed_column = j;
       }
     }
   }
+  if (ok && L->is_super) {
+    ok = ReadRows(L, n, true, &slot, rows);
+    if (ok) ++supernodal_factorizations_;
+  }
+  if (!ok && L != nullptr && L->is_super && failed_column == dim) {
+    // A supernodal factor whose non-zero blocks do not match its structure (not expected):
+    // factor again simplicially, whose pattern is the structure itself.
+    cholmod_free_factor(&L, c);
+    const int supernodal = c->supernodal;
+    c->supernodal = CHOLMOD_SIMPLICIAL;
+    L = cholmod_analyze(A, c);
+    c->supernodal = supernodal;
+    ok = L != nullptr && cholmod_factorize(A, L, c) && c->status == CHOLMOD_OK && L->minor == dim;
+    failed_column = L ? L->minor : 0;
+  }
+  if (ok && !L->is_super) ok = ReadRows(L, n, false, &slot, rows);
   if (!ok) {
     if (error) {
       *error = "batch factorisation failed (CHOLMOD status " + std::to_string(c->status) +
@@ -152,60 +291,6 @@ bool BatchFactorization::FactorBlocks(int n, const std::vector<int>& start,
     cholmod_free_factor(&L, c);
     cholmod_free_sparse(&A, c);
     return false;
-  }
-
-  // R row j (scalar) = column j of L^T: scale sqrt(D_j) for LDL' (unit diagonal implied).
-  rows->assign(n, RBlockRow());
-  const auto* Lp = static_cast<const int*>(L->p);
-  const auto* Li = static_cast<const int*>(L->i);
-  const auto* Lx = static_cast<const double*>(L->x);
-  const auto* Lnz = static_cast<const int*>(L->nz);
-  const bool is_ll = L->is_ll;
-  std::vector<int> columns;
-  for (int p = 0; p < n; ++p) {
-    RBlockRow& row = (*rows)[p];
-    // The blocks right of the diagonal: the pattern of scalar column 3p below its own
-    // block (the pattern comes in 3x3 blocks), sorted as block columns.
-    columns.clear();
-    for (int e = Lp[3 * p] + 1; e < Lp[3 * p] + Lnz[3 * p]; ++e) {
-      const int q = Li[e] / 3;
-      if (q != p && slot[q] < 0) {
-        slot[q] = 0;
-        columns.push_back(q);
-      }
-    }
-    std::sort(columns.begin(), columns.end());
-    row.right.resize(columns.size());
-    for (size_t k = 0; k < columns.size(); ++k) {
-      slot[columns[k]] = static_cast<int>(k);
-      row.right[k].first = columns[k];
-      row.right[k].second.setZero();
-    }
-    for (int rj = 0; rj < 3; ++rj) {
-      const int j = 3 * p + rj;
-      const double scale = is_ll ? 1.0 : std::sqrt(Lx[Lp[j]]);
-      row.diagonal(rj, rj) = is_ll ? Lx[Lp[j]] : scale;
-      for (int e = Lp[j] + 1; e < Lp[j] + Lnz[j]; ++e) {
-        const int i = Li[e];
-        const int q = i / 3;
-        const double value = scale * Lx[e];
-        if (q == p) {
-          row.diagonal(rj, i % 3) = value;
-          continue;
-        }
-        if (slot[q] < 0) {  // not in column 3p's pattern (not expected): add it, sort later
-          slot[q] = static_cast<int>(row.right.size());
-          row.right.emplace_back(q, Eigen::Matrix3d::Zero());
-        }
-        row.right[slot[q]].second(rj, i % 3) = value;
-      }
-    }
-    const bool sorted = row.right.size() == columns.size();
-    for (const auto& [q, block] : row.right) slot[q] = -1;
-    if (!sorted) {
-      std::sort(row.right.begin(), row.right.end(),
-                [](const auto& x, const auto& y) { return x.first < y.first; });
-    }
   }
   cholmod_free_factor(&L, c);
   cholmod_free_sparse(&A, c);

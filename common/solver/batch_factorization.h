@@ -1,8 +1,11 @@
 #pragma once
 // A batch step's factorisation: forms the normal equations A^T A, A^T b of all
-// linearised factors in a given variable order, factors them with CHOLMOD (simplicial
-// L D L^T, no further permutation) and returns R = sqrt(D) L^T and d with R^T d = A^T b, so that
-// the incremental updates continue from it exactly as from a QR factorisation of A.
+// linearised factors in a given variable order, factors them with CHOLMOD (no further
+// permutation) and returns R and d with R^T R = A^T A, R^T d = A^T b, so that the
+// incremental updates continue from it exactly as from a QR factorisation of A.
+// Small or sparse systems are factored simplicially (L D L^T, R = sqrt(D) L^T); those with
+// many flops per non-zero of L (a large dense root: late multi-robot maps) supernodally
+// (L L^T, R = L^T), on the single-threaded OpenBLAS the build links (see CMakeLists.txt).
 
 #include <memory>
 #include <string>
@@ -22,7 +25,12 @@ struct PositionedFactor {
 
 class BatchFactorization {
  public:
-  BatchFactorization();
+  // CHOLMOD factors supernodally when its analysis counts at least `supernodal_switch`
+  // flops per non-zero of L. The default is where supernodal on OpenBLAS overtakes
+  // simplicial (measured on the normal equations of 20-robot and city10000 batch steps:
+  // docs/ARCHITECTURE.md, blas23); 0 makes every factorisation supernodal.
+  static constexpr double kSupernodalSwitch = 200.0;
+  explicit BatchFactorization(double supernodal_switch = kSupernodalSwitch);
   ~BatchFactorization();
   BatchFactorization(const BatchFactorization&) = delete;
   BatchFactorization& operator=(const BatchFactorization&) = delete;
@@ -42,9 +50,13 @@ class BatchFactorization {
                     std::vector<Eigen::Vector3d> gradient, std::vector<RBlockRow>* rows,
                     std::string* error);
 
+  // How many factorisations so far were supernodal.
+  int supernodal_factorizations() const { return supernodal_factorizations_; }
+
  private:
   struct Cholmod;
   std::unique_ptr<Cholmod> cholmod_;
+  int supernodal_factorizations_ = 0;
 };
 
 }  // namespace anchormap

@@ -1,6 +1,10 @@
 #include "common/solver/batch_factorization.h"
 
+#include <dlfcn.h>
+
+#include <algorithm>
 #include <random>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
@@ -87,6 +91,65 @@ TEST(BatchFactorizationTest, UnconstrainedVariableIsAnErrorNamingItsBlock) {
   EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
   EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
       << error;
+}
+
+TEST(BatchFactorizationTest, UnconstrainedVariableIsAnErrorWhenSupernodalToo) {
+  std::mt19937 rng(9);
+  const int n = 4;
+  RandomSystem s = MakeSystem(n, 0, &rng);
+  s.jacobians[2][0].col(2).setZero();
+  BatchFactorization batch(/*supernodal_switch=*/0.0);
+  std::vector<RBlockRow> rows;
+  std::string error;
+  EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
+  EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
+      << error;
+}
+
+// Supernodal L L^T and simplicial L D L^T give the same R up to round-off, block pattern
+// included: the relaxed supernodes' stored zeros are not blocks of R.
+TEST(BatchFactorizationTest, SupernodalGivesTheSimplicialPatternAndValues) {
+  std::mt19937 rng(17);
+  const int n = 300;
+  RandomSystem s = MakeSystem(n, 420, &rng);
+  BatchFactorization supernodal(/*supernodal_switch=*/0.0);
+  BatchFactorization simplicial(/*supernodal_switch=*/1e30);
+  std::vector<RBlockRow> super_rows, simple_rows;
+  std::string error;
+  ASSERT_TRUE(supernodal.Factor(n, s.factors, &super_rows, &error)) << error;
+  ASSERT_TRUE(simplicial.Factor(n, s.factors, &simple_rows, &error)) << error;
+  EXPECT_EQ(supernodal.supernodal_factorizations(), 1);
+  EXPECT_EQ(simplicial.supernodal_factorizations(), 0);
+  size_t blocks = 0;
+  double worst = 0.0;
+  for (int p = 0; p < n; ++p) {
+    const RBlockRow& a = super_rows[p];
+    const RBlockRow& b = simple_rows[p];
+    ASSERT_EQ(a.right.size(), b.right.size()) << "block row " << p;
+    blocks += a.right.size();
+    worst = std::max(worst, (a.diagonal - b.diagonal).cwiseAbs().maxCoeff());
+    worst = std::max(worst, (a.rhs - b.rhs).cwiseAbs().maxCoeff());
+    for (size_t k = 0; k < a.right.size(); ++k) {
+      ASSERT_EQ(a.right[k].first, b.right[k].first) << "block row " << p;
+      worst = std::max(worst, (a.right[k].second - b.right[k].second).cwiseAbs().maxCoeff());
+    }
+  }
+  EXPECT_GT(blocks, static_cast<size_t>(2 * n));  // fill: not a trivially sparse R
+  EXPECT_LE(worst, 1e-9);
+}
+
+// The build links the single-threaded OpenBLAS ahead of the machine's libblas.so.3: its
+// dgemm_ is the one CHOLMOD's supernodal factorisation calls.
+TEST(BatchFactorizationTest, BlasIsTheBuildsSingleThreadedOpenBlas) {
+  using GetParallel = int (*)();
+  auto* get_parallel = reinterpret_cast<GetParallel>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
+  ASSERT_NE(get_parallel, nullptr);
+  EXPECT_EQ(get_parallel(), 0);  // 0: sequential build
+  Dl_info info;
+  void* dgemm = dlsym(RTLD_DEFAULT, "dgemm_");
+  ASSERT_NE(dgemm, nullptr);
+  ASSERT_NE(dladdr(dgemm, &info), 0);
+  EXPECT_NE(std::string(info.dli_fname).find("openblas"), std::string::npos) << info.dli_fname;
 }
 
 }  // namespace
