@@ -112,6 +112,12 @@ struct SmootherOptions {
   // reference values are in the snapshot state (SmootherState, format 11).
   int correction_local_hops = 0;
   static constexpr size_t kLocalCorrectionMaxVariables = 400;
+  // A local attempt only when the factors new since the last correction see at most this
+  // many variables: a large team's update spans many trajectories (100 robots: median 150
+  // such variables, 9 of 252 corrected updates at most 50), and its correction moves whole
+  // trajectories, so the local bound mostly fails there and the update pays both; at 20
+  // robots 96 % of the corrected updates have at most 50 (docs/ARCHITECTURE.md, corr23).
+  static constexpr size_t kLocalCorrectionMaxSeedVariables = 50;
 
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
