@@ -243,11 +243,70 @@ int64_t CorrectionSteps(const SmootherOptions& options) {
 TEST(PerUpdateOracleTest, ServerModeWithLocalCorrection) {
   // Updates corrected near their new factors only, the whole map only when the bound on
   // what is left exceeds the skip budget: every update still within the tolerance.
-  SmootherOptions options = ServerModeWithCorrectionOptions();
-  options.correction_local_hops = 4;
+  const SmootherOptions options = ServerModeWithCorrectionOptions();
+  ASSERT_EQ(options.correction_local_hops, 4);
   RunPerUpdateOracle(options, kServerChi2);
   // The local corrections ran instead of part of the global ones.
-  EXPECT_LT(CorrectionSteps(options), CorrectionSteps(ServerModeWithCorrectionOptions()));
+  SmootherOptions whole_map_only = options;
+  whole_map_only.correction_local_hops = 0;
+  EXPECT_LT(CorrectionSteps(options), CorrectionSteps(whole_map_only));
+}
+
+// Replays `graph` cut into `robots` pieces (one pose of each per update) with the local
+// correction on and off; returns the updates after which the two estimates differed in
+// any bit, and the conjugate-gradient steps of each.
+struct LocalAgainstWholeMap {
+  int updates = 0;
+  int differing_updates = 0;
+  int64_t local_steps = 0, whole_map_steps = 0;
+};
+LocalAgainstWholeMap CompareLocalCorrection(const PoseGraph& graph, int robots) {
+  const GraphReplay replay(graph, robots);
+  EXPECT_TRUE(replay.status().ok());
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 4;
+  Smoother local(options);
+  options.correction_local_hops = 0;
+  Smoother whole_map(options);
+  LocalAgainstWholeMap out;
+  for (int k = 0; k < replay.num_steps(); ++k) {
+    EXPECT_TRUE(replay.AddStep(k, &local).ok());
+    EXPECT_TRUE(replay.AddStep(k, &whole_map).ok());
+    EXPECT_TRUE(local.Update().status.ok());
+    EXPECT_TRUE(whole_map.Update().status.ok());
+    ++out.updates;
+    bool differ = false;
+    for (int64_t id = 0; id < replay.num_poses(); ++id) {
+      const PoseKey key = replay.KeyOf(id);
+      if (!local.HasPose(key)) continue;
+      const Pose2 a = local.Value(key), b = whole_map.Value(key);
+      differ = differ || a.vector() != b.vector();
+    }
+    out.differing_updates += differ ? 1 : 0;
+  }
+  out.local_steps = local.stats().correction_steps;
+  out.whole_map_steps = whole_map.stats().correction_steps;
+  return out;
+}
+
+TEST(PerUpdateOracleTest, LocalCorrectionLeavesLargeUpdatesToTheWholeMap) {
+  // kLocalCorrectionMaxSeedVariables: an update whose new factors see more than 50
+  // variables (here 60 robots, a new pose of each per update) is corrected over the whole
+  // map only, the same bits as without the local correction; with 6 robots it runs.
+  testing::RandomGraphOptions graph_options;
+  graph_options.poses = 1200;
+  graph_options.loop_closures = 300;
+  graph_options.seed = 21;
+  const PoseGraph graph = testing::RandomGraph(graph_options);
+  ASSERT_EQ(SmootherOptions::kLocalCorrectionMaxSeedVariables, 50u);
+  const LocalAgainstWholeMap large = CompareLocalCorrection(graph, 60);
+  EXPECT_EQ(large.updates, 20);
+  EXPECT_EQ(large.differing_updates, 0);
+  EXPECT_EQ(large.local_steps, large.whole_map_steps);
+  const LocalAgainstWholeMap small = CompareLocalCorrection(graph, 6);
+  EXPECT_EQ(small.updates, 200);
+  EXPECT_GT(small.differing_updates, 0);
+  EXPECT_LT(small.local_steps, small.whole_map_steps);
 }
 
 // --- Broken odometry chains -------------------------------------------------------------

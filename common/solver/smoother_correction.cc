@@ -120,9 +120,9 @@ bool Smoother::Impl::CorrectLocally(double budget) {
     const FactorRecord& f = factors_[id];
     for (int j = 0; j < f.num_vars; ++j) add(f.vars[j]);
   }
-  // Many new variables at once (a large team's update): the region would hold little
-  // more than them, and the bound would mostly fail (the update pays both).
-  if (region.size() > SmootherOptions::kLocalCorrectionMaxVariables / 4) {
+  // Many new variables at once (a large team's update): its correction moves whole
+  // trajectories, and the bound would mostly fail (the update pays both).
+  if (region.size() > SmootherOptions::kLocalCorrectionMaxSeedVariables) {
     for (int var : region) local_index_[var] = -1;
     return false;
   }

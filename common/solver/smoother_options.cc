@@ -24,6 +24,9 @@ SmootherOptions ServerModeWithCorrectionOptions() {
   options.correction_iterations = 5;
   options.relinearize_when_correction_stalls = true;
   options.correction_cg_iterations = 50;
+  // Near the new factors first where an update is small (kLocalCorrectionMaxSeedVariables):
+  // docs/ARCHITECTURE.md, corr23.
+  options.correction_local_hops = 4;
   return options;
 }
 

@@ -112,6 +112,12 @@ struct SmootherOptions {
   // reference values are in the snapshot state (SmootherState, format 11).
   int correction_local_hops = 0;
   static constexpr size_t kLocalCorrectionMaxVariables = 400;
+  // A local attempt only when the factors new since the last correction see at most this
+  // many variables: a large team's update spans many trajectories (100 robots: median 150
+  // such variables, 9 of 252 corrected updates at most 50), and its correction moves whole
+  // trajectories, so the local bound mostly fails there and the update pays both; at 20
+  // robots 96 % of the corrected updates have at most 50 (docs/ARCHITECTURE.md, corr23).
+  static constexpr size_t kLocalCorrectionMaxSeedVariables = 50;
 
   // Relative formulation: two anchored groups that join are merged by a partial step
   // instead of a batch step. The absorbed group's gauge prior leaves R and its anchors
@@ -192,9 +198,10 @@ struct SmootherOptions {
 SmootherOptions ServerModeOptions();
 // The mapping server's solver: ServerModeOptions() with the estimate corrected after each
 // update by conjugate gradients (R^T R preconditions; tolerance 1e-4 x chi2, at most 5 outer
-// steps and 50 CG iterations, partial steps only when the correction stalls).
+// steps and 50 CG iterations, partial steps only when the correction stalls), small
+// updates corrected near their new factors first (4 hops).
 // anchormap-bench-solver's equivalent: --server-mode --correct 1e-4 --correct-iterations 5
-// --relinearize-on-stall --correct-cg 50.
+// --relinearize-on-stall --correct-cg 50 --correct-local 4.
 SmootherOptions ServerModeWithCorrectionOptions();
 
 const char* ToString(Formulation formulation);

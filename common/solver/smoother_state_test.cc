@@ -221,8 +221,10 @@ TEST(SmootherStateTest, AnImportedStateContinuesExactlyAsTheExportingSmoother) {
 
 TEST(SmootherStateTest, AnImportedStateContinuesExactlyWithTheConjugateGradientCorrection) {
   // The estimate is then theta + delta + correction with the correction carried across
-  // updates: it must be in the state too.
+  // updates: it must be in the state too. (The whole map's path only: the local
+  // correction has tests of its own below.)
   SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 0;
   int with_local_moves = 0;
   ExpectImportedStatesContinueExactly(options, &with_local_moves);
   EXPECT_EQ(with_local_moves, 0);
@@ -272,7 +274,8 @@ void ExpectEveryUpdateContinuesFromTheStateBeforeIt(
 // smoother restored from the state just before it (whose first pass linearises every
 // factor) makes the same update to the bit.
 TEST(SmootherStateTest, EveryCorrectedUpdateIsWhatAFullGradientPassGives) {
-  const SmootherOptions options = ServerModeWithCorrectionOptions();
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 0;  // every correction over the whole map
   Smoother live(options);
   int with_uncorrected = 0;  // states after a skipped correction: its factors' bound held
   ExpectEveryUpdateContinuesFromTheStateBeforeIt(

@@ -339,6 +339,7 @@ TEST(SmootherTest, SkipFactorLeavesMoreUpdatesUncorrectedAndEachWithinItsBudget)
   // its budget of the dense optimum of its factors (measured worst 7.7e-3 and 2.5e-2).
   auto run = [](double factor, double* worst_excess) {
     SmootherOptions options = ServerModeWithCorrectionOptions();
+    options.correction_local_hops = 0;  // the whole map's correction only
     options.correction_tolerance = 1e-2;
     options.correction_skip_factor = factor;
     Smoother smoother(options);
@@ -373,6 +374,7 @@ TEST(SmootherTest, CorrectionOutOfStepsWithinTheSkipBudgetIsNoStall) {
   // optimum 1.1e-3 (factor 1) and 2.1e-3 (factor 3).
   auto run = [](double factor, double* worst_excess) {
     SmootherOptions options = ServerModeWithCorrectionOptions();
+    options.correction_local_hops = 0;  // the whole map's correction only
     options.correction_tolerance = 1e-3;
     options.correction_iterations = 1;
     options.correction_skip_factor = factor;
@@ -405,6 +407,7 @@ TEST(SmootherTest, NewPosesOfOneUpdateArePlacedTheSameWhateverOrderTheyWereAdded
   // determines it, relative to its neighbours' estimates: a pose added before its
   // predecessor (so ordered before it in R) must still see the predecessor placed first.
   SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 0;  // the whole map's correction only
   Smoother ascending(options), descending(options);
   const TrajectoryId t(0);
   AddRandomTrajectory(&ascending, t, 30, 5, true);
