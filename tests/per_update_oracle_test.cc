@@ -243,8 +243,8 @@ int64_t CorrectionSteps(const SmootherOptions& options) {
 TEST(PerUpdateOracleTest, ServerModeWithLocalCorrection) {
   // Updates corrected near their new factors only, the whole map only when the bound on
   // what is left exceeds the skip budget: every update still within the tolerance.
-  const SmootherOptions options = ServerModeWithCorrectionOptions();
-  ASSERT_EQ(options.correction_local_hops, 4);
+  SmootherOptions options = ServerModeWithCorrectionOptions();
+  options.correction_local_hops = 4;  // opt-in (corr23)
   RunPerUpdateOracle(options, kServerChi2);
   // The local corrections ran instead of part of the global ones.
   SmootherOptions whole_map_only = options;

@@ -198,10 +198,9 @@ struct SmootherOptions {
 SmootherOptions ServerModeOptions();
 // The mapping server's solver: ServerModeOptions() with the estimate corrected after each
 // update by conjugate gradients (R^T R preconditions; tolerance 1e-4 x chi2, at most 5 outer
-// steps and 50 CG iterations, partial steps only when the correction stalls), small
-// updates corrected near their new factors first (4 hops).
+// steps and 50 CG iterations, partial steps only when the correction stalls).
 // anchormap-bench-solver's equivalent: --server-mode --correct 1e-4 --correct-iterations 5
-// --relinearize-on-stall --correct-cg 50 --correct-local 4.
+// --relinearize-on-stall --correct-cg 50.
 SmootherOptions ServerModeWithCorrectionOptions();
 
 const char* ToString(Formulation formulation);
