@@ -79,31 +79,22 @@ TEST(BatchFactorizationTest, SquareRootInformationOfTheNormalEquations) {
   EXPECT_LE((delta - expected).cwiseAbs().maxCoeff(), 1e-9);
 }
 
+// Simplicial (the default switch, on a system this small) and supernodal (switch 0) alike.
 TEST(BatchFactorizationTest, UnconstrainedVariableIsAnErrorNamingItsBlock) {
-  std::mt19937 rng(9);
-  const int n = 4;
-  RandomSystem s = MakeSystem(n, 0, &rng);
-  // Block 2's only factor leaves its heading unconstrained (third Jacobian column zero).
-  s.jacobians[2][0].col(2).setZero();
-  BatchFactorization batch;
-  std::vector<RBlockRow> rows;
-  std::string error;
-  EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
-  EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
-      << error;
-}
-
-TEST(BatchFactorizationTest, UnconstrainedVariableIsAnErrorWhenSupernodalToo) {
-  std::mt19937 rng(9);
-  const int n = 4;
-  RandomSystem s = MakeSystem(n, 0, &rng);
-  s.jacobians[2][0].col(2).setZero();
-  BatchFactorization batch(/*supernodal_switch=*/0.0);
-  std::vector<RBlockRow> rows;
-  std::string error;
-  EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
-  EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
-      << error;
+  for (const double supernodal_switch : {BatchFactorization::kSupernodalSwitch, 0.0}) {
+    SCOPED_TRACE(supernodal_switch);
+    std::mt19937 rng(9);
+    const int n = 4;
+    RandomSystem s = MakeSystem(n, 0, &rng);
+    // Block 2's only factor leaves its heading unconstrained (third Jacobian column zero).
+    s.jacobians[2][0].col(2).setZero();
+    BatchFactorization batch(supernodal_switch);
+    std::vector<RBlockRow> rows;
+    std::string error;
+    EXPECT_FALSE(batch.Factor(n, s.factors, &rows, &error));
+    EXPECT_NE(error.find("not positive definite at scalar column 8 (block 2)"), std::string::npos)
+        << error;
+  }
 }
 
 // Supernodal L L^T and simplicial L D L^T give the same R up to round-off, block pattern
