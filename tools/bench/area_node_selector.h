@@ -43,7 +43,11 @@ class AreaNodeSelector {
   const Node& node(int i) const { return nodes_[static_cast<size_t>(i)]; }
 
  private:
-  int64_t CellKey(int64_t cx, int64_t cy) const { return (cx << 32) ^ (cy & 0xffffffffll); }
+  int64_t CellKey(int64_t cx, int64_t cy) const {
+    // Unsigned shift: negative cells are valid (a left shift of a negative int64_t is UB).
+    return static_cast<int64_t>((static_cast<uint64_t>(cx) << 32) ^
+                                static_cast<uint64_t>(static_cast<uint32_t>(cy)));
+  }
 
   AreaNodeRule rule_;
   std::vector<Node> nodes_;
