@@ -333,7 +333,7 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
     // trajectory the raw pose is off by that correction, and iSAM would linearise the new
     // rows there until the next batch step (measured: anchor covariances 10-35 % low).
     const Pose2 initial = a.previous && smoother_.HasPose(*a.previous)
-                              ? Compose(smoother_.LocalPose(*a.previous), a.T_previous_this)
+                              ? Compose(smoother_.FramePose(*a.previous), a.T_previous_this)
                               : a.T_local_pose;
     Status status = smoother_.AddPose(a.key, initial);
     if (status.ok())

@@ -152,7 +152,7 @@ TEST_F(MappingServerTest, AnchorsAppearExactlyAtFirstEncounters) {
         ASSERT_EQ(t.poses.size(), static_cast<size_t>(record->num_keyframes()));
         for (size_t i = 0; i < t.poses.size(); ++i) {
           const Pose2 local =
-              server.smoother().LocalPose(PoseKey{record->solver_id, static_cast<int32_t>(i)});
+              server.smoother().FramePose(PoseKey{record->solver_id, static_cast<int32_t>(i)});
           EXPECT_EQ(PoseError(t.poses[i], local).norm(), 0.0) << t.robot << " pose " << i;
         }
       }

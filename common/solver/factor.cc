@@ -6,23 +6,27 @@ namespace {
 template <typename>
 [[maybe_unused]] inline constexpr bool kAlwaysFalse = false;
 
-// Raw error and (optional) Jacobians for any factor type; `rotations` (optional) holds
-// the values' CosSin.
-Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J,
-                         const CosSin* rotations = nullptr) {
+// Raw error and (optional) Jacobians of any factor type, with the k-th key's value `value(k)`
+// and its CosSin `rotation(k)`: one dispatch for the callers that hold the values in key
+// order and for the packed path that gathers them by variable index. Sets `num_keys`.
+template <typename Value, typename Rotation>
+Eigen::Vector3d EvaluateWith(const Factor& factor, const Value& value, const Rotation& rotation,
+                             Eigen::Matrix3d* J, int* num_keys) {
   return std::visit(
       [&](const auto& f) -> Eigen::Vector3d {
         using T = std::decay_t<decltype(f)>;
         if constexpr (std::is_same_v<T, PriorFactor>) {
-          return f.Error(v[0], J);
+          *num_keys = 1;
+          return f.Error(value(0), J);
         } else if constexpr (std::is_same_v<T, BetweenFactor>) {
-          // Between computes CosSin::Of itself when not given: the same bits either way.
-          return f.Error(v[0], rotations ? rotations[0] : CosSin::Of(v[0].theta()), v[1],
-                         J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+          *num_keys = 2;
+          return f.Error(value(0), rotation(0), value(1), J ? &J[0] : nullptr, J ? &J[1] : nullptr);
         } else if constexpr (std::is_same_v<T, GlobalEncounterFactor>) {
-          return f.Error(v[0], v[1], J ? &J[0] : nullptr, J ? &J[1] : nullptr);
+          *num_keys = 2;
+          return f.Error(value(0), value(1), J ? &J[0] : nullptr, J ? &J[1] : nullptr);
         } else if constexpr (std::is_same_v<T, EncounterFactor>) {
-          return f.Error(v[0], v[1], v[2], v[3], J);
+          *num_keys = 4;
+          return f.Error(value(0), value(1), value(2), value(3), J);
         } else {
           static_assert(kAlwaysFalse<T>, "unhandled factor type");
         }
@@ -30,24 +34,14 @@ Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* 
       factor);
 }
 
-// The number of keys of a factor, without building the key list (Linearize runs for every
-// factor in every correction step).
-int NumKeys(const Factor& factor) {
-  return std::visit(
-      [](const auto& f) -> int {
-        using T = std::decay_t<decltype(f)>;
-        if constexpr (std::is_same_v<T, PriorFactor>) {
-          return 1;
-        } else if constexpr (std::is_same_v<T, BetweenFactor> ||
-                             std::is_same_v<T, GlobalEncounterFactor>) {
-          return 2;
-        } else if constexpr (std::is_same_v<T, EncounterFactor>) {
-          return 4;
-        } else {
-          static_assert(kAlwaysFalse<T>, "unhandled factor type");
-        }
-      },
-      factor);
+// EvaluateWith over values in key order; `rotations` (optional) holds their CosSin (Between
+// computes CosSin::Of itself when not given: the same bits either way).
+Eigen::Vector3d Evaluate(const Factor& factor, const Pose2* v, Eigen::Matrix3d* J,
+                         const CosSin* rotations, int* num_keys) {
+  return EvaluateWith(
+      factor, [v](int k) -> const Pose2& { return v[k]; },
+      [v, rotations](int k) { return rotations ? rotations[k] : CosSin::Of(v[k].theta()); }, J,
+      num_keys);
 }
 
 const Eigen::Matrix3d& SqrtInformation(const Factor& factor) {
@@ -114,8 +108,7 @@ void PackedGradientTerms(const double* entry, int num_keys, double* terms, doubl
 LinearizedFactor Linearize(const Factor& factor, const Pose2* values, const CosSin* rotations) {
   LinearizedFactor out;
   std::array<Eigen::Matrix3d, kMaxFactorKeys> J;
-  const Eigen::Vector3d error = Evaluate(factor, values, J.data(), rotations);
-  out.num_keys = NumKeys(factor);
+  const Eigen::Vector3d error = Evaluate(factor, values, J.data(), rotations, &out.num_keys);
   static_assert(sizeof(out.jacobians) == kMaxFactorKeys * 9 * sizeof(double),
                 "the Jacobians are contiguous");
   Whiten(SqrtInformation(factor), J.data(), out.num_keys, error, out.whitened_error.data(),
@@ -126,36 +119,19 @@ LinearizedFactor Linearize(const Factor& factor, const Pose2* values, const CosS
 int LinearizePacked(const Factor& factor, const Pose2* values, const CosSin* rotations,
                     const int* vars, double* out, double* terms, double* squared) {
   std::array<Eigen::Matrix3d, kMaxFactorKeys> J;
-  const int num_keys = std::visit(
-      [&](const auto& f) -> int {
-        using T = std::decay_t<decltype(f)>;
-        Eigen::Vector3d error;
-        int keys = 0;
-        if constexpr (std::is_same_v<T, PriorFactor>) {
-          error = f.Error(values[vars[0]], &J[0]);
-          keys = 1;
-        } else if constexpr (std::is_same_v<T, BetweenFactor>) {
-          error = f.Error(values[vars[0]], rotations[vars[0]], values[vars[1]], &J[0], &J[1]);
-          keys = 2;
-        } else if constexpr (std::is_same_v<T, GlobalEncounterFactor>) {
-          error = f.Error(values[vars[0]], values[vars[1]], &J[0], &J[1]);
-          keys = 2;
-        } else if constexpr (std::is_same_v<T, EncounterFactor>) {
-          error =
-              f.Error(values[vars[0]], values[vars[1]], values[vars[2]], values[vars[3]], J.data());
-          keys = 4;
-        } else {
-          static_assert(kAlwaysFalse<T>, "unhandled factor type");
-        }
-        Whiten(f.sqrt_information, J.data(), keys, error, out, out + 3, terms, squared);
-        return keys;
-      },
-      factor);
+  int num_keys = 0;
+  const Eigen::Vector3d error = EvaluateWith(
+      factor, [values, vars](int k) -> const Pose2& { return values[vars[k]]; },
+      [rotations, vars](int k) -> const CosSin& { return rotations[vars[k]]; }, J.data(),
+      &num_keys);
+  Whiten(SqrtInformation(factor), J.data(), num_keys, error, out, out + 3, terms, squared);
   return num_keys;
 }
 
 double FactorChi2(const Factor& factor, const Pose2* values) {
-  return (SqrtInformation(factor) * Evaluate(factor, values, nullptr)).squaredNorm();
+  int num_keys = 0;
+  return (SqrtInformation(factor) * Evaluate(factor, values, nullptr, nullptr, &num_keys))
+      .squaredNorm();
 }
 
 }  // namespace anchormap

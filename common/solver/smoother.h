@@ -132,9 +132,6 @@ class Smoother {
   // The pose in the frame the smoother keeps it in: its trajectory's local frame in the
   // relative formulation, the shared frame of its group in the global formulations.
   Pose2 FramePose(PoseKey key) const;
-  // The old name of FramePose (it is a local-frame pose only in the relative formulation);
-  // kept until server/ moves to FramePose.
-  Pose2 LocalPose(PoseKey key) const { return FramePose(key); }
   // The pose in the global frame: Anchor (+) FramePose once anchored; FramePose before.
   Pose2 GlobalPose(PoseKey key) const;
   bool IsAnchored(TrajectoryId trajectory) const;

@@ -56,7 +56,7 @@ int main() {
   std::printf("1. odometry only\n");
   Check(!smoother.IsAnchored(robot_1) && !smoother.IsAnchored(robot_2),
         "no anchors before an encounter");
-  const Pose2 robot2_local_3 = smoother.LocalPose({robot_2, 3});
+  const Pose2 robot2_local_3 = smoother.FramePose({robot_2, 3});
 
   // Robot 1 at its pose 2 (world (2, 0)) sees robot 2 at its pose 1 (world (4, 4), north).
   const Pose2 world_T_r1_2(2.0, 0.0, 0.0);
@@ -67,7 +67,7 @@ int main() {
   std::printf("2. first encounter R1[2] -> R2[1]\n");
   Print("anchor of robot 1", *smoother.Anchor(robot_1));
   Print("anchor of robot 2", *smoother.Anchor(robot_2));
-  Check(anchormap::PoseError(smoother.LocalPose({robot_2, 3}), robot2_local_3).norm() < 1e-12,
+  Check(anchormap::PoseError(smoother.FramePose({robot_2, 3}), robot2_local_3).norm() < 1e-12,
         "robot 2's local poses did not move");
   Check(anchormap::PoseError(*smoother.Anchor(robot_2), world_T_robot2_start).norm() < 1e-9,
         "robot 2's anchor is its start pose in the world (robot 1's frame)");
