@@ -1,9 +1,10 @@
 // anchormap-replay: runs one anchormap-agent per robot and anchormap-server in ONE process
-// over an in-memory LCM bus (memq://), fed from a raw-sensor LCM log (anchormap-sim,
-// anchormap-import-carmen), and writes the server's outputs to another log. The same code
-// paths as the daemons (AgentNode, ServerNode, the codec), deterministic and as fast as
-// the CPU allows: for demos, evaluation runs, and the multi-process test's fallback where
-// network namespaces are unavailable. Times are data times (the input log's utimes).
+// over an in-process bus (InProcessBus: memq://'s delivery order without its pipe), fed from a
+// raw-sensor LCM log (anchormap-sim, anchormap-import-carmen), and writes the server's outputs
+// to another log. The same code paths as the daemons (AgentNode, ServerNode, the codec),
+// deterministic and as fast as the CPU allows: for demos, evaluation runs, and the multi-process
+// test's fallback where network namespaces are unavailable. Times are data times (the input log's
+// utimes).
 
 #include <fstream>
 #include <iostream>
@@ -18,12 +19,12 @@
 #include "agent/node/agent_node.h"
 #include "common/bus/channels.h"
 #include "common/bus/lcm_log.h"
-#include "common/bus/lcm_loop.h"
 #include "common/util/log.h"
 #include "common/util/options_loader.h"
 #include "common/util/retain_freed_memory.h"
 #include "server/node/mapping_server_flags.h"
 #include "server/node/server_node.h"
+#include "tools/replay/in_process_bus.h"
 
 namespace anchormap {
 namespace {
@@ -125,9 +126,7 @@ int Run(const ReplayOptions& options) {
   LcmLogWriter writer;
   if (Status s = reader.Open(options.input); !s.ok()) return LogError(s.message()), 1;
   if (Status s = writer.Open(options.output); !s.ok()) return LogError(s.message()), 1;
-  Result<std::unique_ptr<LcmLoop>> created = LcmLoop::Create("memq://");
-  if (!created.ok()) return LogError(created.status().message()), 1;
-  std::unique_ptr<LcmLoop> loop = std::move(*created);
+  InProcessBus bus;
   LcmLogWriter inputs_writer;
   if (!options.inputs_output.empty()) {
     if (Status s = inputs_writer.Open(options.inputs_output); !s.ok()) {
@@ -137,8 +136,8 @@ int Run(const ReplayOptions& options) {
   int64_t event_utime = 0;  // the input log's time of the event being replayed
   int64_t inputs_write_failures = 0;
 
-  auto publish = [&loop](const std::string& channel, const std::vector<uint8_t>& bytes) {
-    (void)loop->Publish(channel, bytes);
+  auto publish = [&bus](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    bus.Publish(channel, bytes);
   };
   std::vector<std::unique_ptr<AgentNode>> agents;
   int64_t trajectory_id = 1;
@@ -146,7 +145,7 @@ int Run(const ReplayOptions& options) {
     AgentNodeOptions agent_options;
     agent_options.agent.robot = robot;
     agent_options.agent.trajectory_id = trajectory_id++;  // deterministic ids
-    agent_options.reliable = false;  // memq:// loses nothing; no acknowledgements here
+    agent_options.reliable = false;  // the in-process bus loses nothing; no acknowledgements
     agent_options.agent.max_range_m = options.max_range_m;
     agent_options.agent.keyframer.max_distance_m = options.keyframe_distance_m;
     agent_options.agent.keyframer.max_angle_rad = options.keyframe_angle_rad;
@@ -155,7 +154,7 @@ int Run(const ReplayOptions& options) {
     agents.push_back(std::make_unique<AgentNode>(agent_options, publish));
     AgentNode* agent = agents.back().get();
     for (const std::string& channel : agent->InputChannels()) {
-      (void)loop->Subscribe(channel, [agent](const std::string& c, const uint8_t* d, size_t n) {
+      bus.Subscribe(channel, [agent](const std::string& c, const uint8_t* d, size_t n) {
         agent->OnMessage(c, d, n);
       });
     }
@@ -169,7 +168,7 @@ int Run(const ReplayOptions& options) {
   server_pointer = &server;
   for (const std::string& channel :
        {options.server.channels.keyframes, options.server.channels.encounters}) {
-    (void)loop->Subscribe(channel, [&](const std::string& c, const uint8_t* d, size_t n) {
+    bus.Subscribe(channel, [&](const std::string& c, const uint8_t* d, size_t n) {
       if (!options.inputs_output.empty() && !inputs_writer.WriteRaw(c, event_utime, d, n).ok()) {
         ++inputs_write_failures;
       }
@@ -188,8 +187,8 @@ int Run(const ReplayOptions& options) {
   while (auto event = reader.Next()) {
     ++events;
     event_utime = event->utime;
-    if (!loop->Publish(event->channel, event->data).ok()) continue;
-    loop->HandlePending();
+    bus.Publish(event->channel, std::move(event->data));
+    bus.HandlePending();
     if (!options.update_times.empty() && events % kUpdateTimesEveryEvents == 0) {
       (void)update_times.Append(server.server().update_times());  // checked at the end
     }
@@ -221,7 +220,7 @@ int Run(const ReplayOptions& options) {
 int Main(int argc, char** argv) {
   ReplayOptions options;
   OptionsLoader loader("anchormap-replay", "--log SIM.lcmlog --output OUT.lcmlog [--robots R1,R2]",
-                       "Agents and server in one process over memq://, fed from a raw-sensor log.");
+                       "Agents and server in one process over an in-process bus, fed from a raw-sensor log.");
   loader.Add("log", "log", &options.input, "raw-sensor LCM log to replay", true);
   loader.Add("output", "output", &options.output, "LCM log for the server's outputs", true);
   loader.Add("robots", "robots", &options.robots,
