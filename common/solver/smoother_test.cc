@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -167,6 +171,94 @@ TEST(SmootherTest, IncrementalMatchesDenseSolveAfterFinalBatch) {
             << key.ToString();
       }
       EXPECT_NEAR(smoother.Chi2(), oracle.Chi2(optimum), 1e-6 * oracle.Chi2(optimum));
+    }
+  }
+}
+
+// Seeded call sequences of the server's configuration in which some poses come with no
+// odometry edge, tied only by an encounter (they wait while that encounter cannot determine
+// them), with group merges and the batch steps they bring. A batch step can leave out of R a
+// variable that was in it (after a merge its factors no longer ground it); it must wait
+// again and enter R once determined. Before the fix it stayed grounded with no position and
+// the next Givens update indexed R at -1 (heap corruption; found by rpg24's 100-robot replay
+// with --reduced-graph, reproduced here). At the end every pose is tied to its predecessor
+// and every trajectory joined: the estimate is at the dense optimum.
+TEST(SmootherTest, VariablesABatchStepLeavesOutOfRWaitAgainAndReachTheOptimum) {
+  for (int seed = 0; seed < 40; ++seed) {  // seed 25 met the bug
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::mt19937 rng(static_cast<unsigned>(seed));
+    auto uniform = [&](double a, double b) {
+      return std::uniform_real_distribution<double>(a, b)(rng);
+    };
+    auto pick = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
+    Smoother smoother(ServerModeWithCorrectionOptions());
+    const int num_trajectories = 3 + pick(5);
+    std::vector<std::vector<Pose2>> truth(static_cast<size_t>(num_trajectories));
+    std::vector<Pose2> origin;
+    for (int t = 0; t < num_trajectories; ++t) {
+      origin.emplace_back(uniform(-20, 20), uniform(-20, 20), uniform(-3, 3));
+    }
+    std::vector<std::pair<int, int32_t>> untied;  // poses added without their odometry edge
+    auto key = [](int t, int i) { return PoseKey{TrajectoryId(t + 1), static_cast<int32_t>(i)}; };
+    auto add_pose = [&](int t, bool tied) {
+      std::vector<Pose2>& poses = truth[static_cast<size_t>(t)];
+      const int i = static_cast<int>(poses.size());
+      poses.push_back(i == 0 ? Pose2()
+                             : Compose(poses.back(), Pose2(uniform(0.2, 1.0), uniform(-0.1, 0.1),
+                                                           uniform(-0.3, 0.3))));
+      ASSERT_TRUE(smoother.AddPose(key(t, i), poses.back()).ok());
+      if (i == 0) return;
+      if (!tied) {
+        untied.emplace_back(t, i);
+        return;
+      }
+      ASSERT_TRUE(
+          smoother
+              .AddBetween(key(t, i - 1), key(t, i), Between(poses[i - 1], poses[i]), kCovariance)
+              .ok());
+    };
+    auto encounter = [&](int a, int ia, int b, int ib) {
+      const Pose2 global_a = Compose(origin[a], truth[a][ia]);
+      const Pose2 global_b = Compose(origin[b], truth[b][ib]);
+      ASSERT_TRUE(
+          smoother.AddEncounter(key(a, ia), key(b, ib), Between(global_a, global_b), kCovariance)
+              .ok());
+    };
+    auto newest = [&](int t) { return static_cast<int>(truth[t].size()) - 1; };
+    for (int t = 0; t < num_trajectories; ++t) add_pose(t, true);
+    const int steps = 30 + pick(60);
+    for (int k = 0; k < steps; ++k) {
+      const int op = pick(10);
+      const int t = pick(num_trajectories);
+      const int u = (t + 1 + pick(num_trajectories - 1)) % num_trajectories;  // != t
+      if (op < 5) {
+        add_pose(t, true);
+      } else if (op < 7) {
+        add_pose(t, false);
+        encounter(u, pick(newest(u) + 1), t, newest(t));
+      } else {
+        encounter(t, pick(newest(t) + 1), u, pick(newest(u) + 1));
+      }
+      if (pick(3) == 0) smoother.Update();  // waiting variables: status not ok, by design
+    }
+    // Everything determined: the odometry edges left out, and a chain of encounters.
+    for (const auto& [t, i] : untied) {
+      ASSERT_TRUE(smoother
+                      .AddBetween(key(t, i - 1), key(t, i), Between(truth[t][i - 1], truth[t][i]),
+                                  kCovariance)
+                      .ok());
+    }
+    for (int t = 1; t < num_trajectories; ++t) encounter(t - 1, 0, t, 0);
+    const UpdateResult last = smoother.Update();
+    ASSERT_TRUE(last.status.ok()) << last.status.message();
+    for (int t = 0; t < num_trajectories; ++t) {
+      for (int i = 0; i <= newest(t); ++i) ASSERT_TRUE(smoother.HasCovariance(key(t, i)));
+    }
+    ASSERT_TRUE(smoother.BatchOptimize().status.ok());
+    const DenseOracle oracle(smoother.ActiveFactors());
+    const Values optimum = oracle.Solve(CurrentValues(smoother));
+    for (const auto& [k, value] : optimum) {
+      EXPECT_LT(PoseError(smoother.Value(k), value).cwiseAbs().maxCoeff(), 1e-6) << k.ToString();
     }
   }
 }

@@ -673,6 +673,14 @@ void Smoother::Impl::BatchStep(bool converge, double tolerance, UpdateResult* re
   }
   delta_.assign(position_to_var_.size(), Eigen::Vector3d::Zero());
   TakeOutOfPending(included);
+  // Every variable this step left out of R waits again, those that were in R before
+  // included (their factors no longer ground them, e.g. after a merge): the Givens update
+  // that grounds one gives it a position. Left out of pending_vars_, it would be grounded
+  // with no position and its factor's rows would index R at -1.
+  pending_vars_.clear();
+  for (size_t v = 0; v < vars_.size(); ++v) {
+    if (vars_[v].position < 0) pending_vars_.push_back(static_cast<int>(v));
+  }
 
   const int max_iterations = converge ? options_.max_batch_iterations : 1;
   if (options_.method == NonlinearMethod::kDogLeg) {
