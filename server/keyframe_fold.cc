@@ -45,9 +45,9 @@ Status ReducedGraphOptions::Validate() const {
 
 KeyframeFolder::KeyframeFolder(const ReducedGraphOptions& options) : options_(options) {}
 
-void KeyframeFolder::AddNode(PoseKey node, const Smoother& smoother) {
+void KeyframeFolder::AddNode(PoseKey node, PoseKey keyframe, const Smoother& smoother) {
   const int32_t item = static_cast<int32_t>(nodes_.size());
-  nodes_.push_back(node);
+  nodes_.push_back({node, keyframe});
   if (indexed_at_update_ >= 0) {
     index_.try_emplace(FrameOf(smoother, node.trajectory), kIndexCellM)
         .first->second.Add(item, smoother.GlobalPose(node).translation());
@@ -59,18 +59,19 @@ void KeyframeFolder::RefreshIndex(const Smoother& smoother) {
   indexed_at_update_ = smoother.stats().updates;
   index_.clear();
   for (size_t i = 0; i < nodes_.size(); ++i) {
-    index_.try_emplace(FrameOf(smoother, nodes_[i].trajectory), kIndexCellM)
-        .first->second.Add(static_cast<int32_t>(i), smoother.GlobalPose(nodes_[i]).translation());
+    const PoseKey node = nodes_[i].node;
+    index_.try_emplace(FrameOf(smoother, node.trajectory), kIndexCellM)
+        .first->second.Add(static_cast<int32_t>(i), smoother.GlobalPose(node).translation());
   }
 }
 
 std::shared_ptr<const ScanReference> KeyframeFolder::NodeReference(const TrajectoryTable& table,
-                                                                   PoseKey node) {
-  const std::pair<int64_t, int32_t> id{node.trajectory.value(), node.index};
+                                                                   PoseKey keyframe) {
+  const std::pair<int64_t, int32_t> id{keyframe.trajectory.value(), keyframe.index};
   if (const auto it = references_.find(id); it != references_.end()) return it->second;
-  const TrajectoryRecord* record = table.FindBySolverId(node.trajectory);
-  if (record == nullptr || node.index >= record->num_keyframes()) return nullptr;
-  PointCloud points = KeyframePoints(*record, node.index, options_.max_range_m);
+  const TrajectoryRecord* record = table.FindBySolverId(keyframe.trajectory);
+  if (record == nullptr || keyframe.index >= record->num_keyframes()) return nullptr;
+  PointCloud points = KeyframePoints(*record, keyframe.index, options_.max_range_m);
   if (points.empty()) return nullptr;
   auto reference = std::make_shared<const ScanReference>(std::vector<PointCloud>{std::move(points)},
                                                          options_.reference);
@@ -102,7 +103,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   double best_distance = 0.0;
   for (const int32_t item :
        frame->second.Near(predicted.translation(), options_.radius_m + kIndexSlackM)) {
-    const PoseKey node = nodes_[static_cast<size_t>(item)];
+    const PoseKey node = nodes_[static_cast<size_t>(item)].node;
     if (FrameOf(*smoother, node.trajectory) != frame->first) continue;
     const Pose2 at = smoother->GlobalPose(node);
     const double distance = (at.translation() - predicted.translation()).norm();
@@ -119,14 +120,15 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
     ++stats_.no_candidate;
     return std::nullopt;
   }
-  const PoseKey node = nodes_[static_cast<size_t>(best)];
+  const PoseKey node = nodes_[static_cast<size_t>(best)].node;
+  const PoseKey node_keyframe = nodes_[static_cast<size_t>(best)].keyframe;
   // The prediction of T_node_key and its covariance: the estimate's T_node_previous (joint
   // covariance from R) composed with the agent's constraint.
-  // (The predecessor itself as the node: T_node_previous is the identity, known exactly.)
+  // (The predecessor's own node: T_node_previous is the identity, known exactly.)
   const std::optional<PredictedRelativePose> node_previous =
-      node == previous ? std::optional<PredictedRelativePose>(
-                             PredictedRelativePose{Pose2(), Eigen::Matrix3d::Zero(), false})
-                       : PredictRelativePose(smoother, node, previous);
+      node_keyframe == previous ? std::optional<PredictedRelativePose>(PredictedRelativePose{
+                                      Pose2(), Eigen::Matrix3d::Zero(), false})
+                                : PredictRelativePose(smoother, node, previous);
   if (!node_previous) {
     ++stats_.unsolved;
     return std::nullopt;
@@ -137,7 +139,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
       J_relative * node_previous->covariance * J_relative.transpose() +
       J_step * T_previous_key_covariance * J_step.transpose();
   const TrajectoryRecord* record = table.FindBySolverId(key.trajectory);
-  const std::shared_ptr<const ScanReference> reference = NodeReference(table, node);
+  const std::shared_ptr<const ScanReference> reference = NodeReference(table, node_keyframe);
   if (record == nullptr || reference == nullptr) {
     ++stats_.no_scan;
     return std::nullopt;

@@ -76,8 +76,9 @@ class KeyframeFolder {
  public:
   explicit KeyframeFolder(const ReducedGraphOptions& options);
 
-  // A keyframe became a node (a pose variable of the smoother).
-  void AddNode(PoseKey node, const Smoother& smoother);
+  // A keyframe became a node (a pose variable of the smoother: its own key, or a node
+  // borrowed from another trajectory, kBorrowedNodeIndexBase); its scan is the node's.
+  void AddNode(PoseKey node, PoseKey keyframe, const Smoother& smoother);
   // Where keyframe `key` (admitted, its record in `table`) folds, predicted at
   // `previous` (+) T_previous_key; nullopt: it becomes a node.
   std::optional<KeyframeFold> Decide(PoseKey key, PoseKey previous, const Pose2& T_previous_key,
@@ -91,10 +92,15 @@ class KeyframeFolder {
  private:
   // The nodes' positions by frame, rebuilt once the estimate moved (a solver update).
   void RefreshIndex(const Smoother& smoother);
-  std::shared_ptr<const ScanReference> NodeReference(const TrajectoryTable& table, PoseKey node);
+  std::shared_ptr<const ScanReference> NodeReference(const TrajectoryTable& table,
+                                                     PoseKey keyframe);
 
   ReducedGraphOptions options_;
-  std::vector<PoseKey> nodes_;
+  struct Node {
+    PoseKey node;
+    PoseKey keyframe;  // whose scan verifies a fold onto it
+  };
+  std::vector<Node> nodes_;
   std::map<TrajectoryFrame, PositionIndex> index_;
   int64_t indexed_at_update_ = -1;
   std::map<std::pair<int64_t, int32_t>, std::shared_ptr<const ScanReference>> references_;

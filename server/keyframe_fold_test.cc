@@ -46,7 +46,7 @@ class KeyframeFoldTest : public ::testing::Test {
              .ok()) {
       return false;
     }
-    folder_.AddNode(a.key, smoother_);
+    folder_.AddNode(a.key, a.key, smoother_);
     return smoother_.Update().status.ok();
   }
 

@@ -345,13 +345,31 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
             ? folder_->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
                               table_, &smoother_)
             : std::nullopt;
-    Status status =
-        fold ? smoother_.AddAlias(a.key, fold->node, fold->T_node_keyframe, fold->covariance)
-             : smoother_.AddPose(a.key, initial);
-    if (status.ok() && !fold) {
-      graph_edits_.push_back(
-          {GraphEdit::Kind::kPose, a.key, a.key, initial, Eigen::Matrix3d::Identity()});
-      if (folder_) folder_->AddNode(a.key, smoother_);
+    // A node after a predecessor folded onto another trajectory's node is borrowed from that
+    // trajectory (a pose of it, tied by a between factor: pose_aliases.h says why).
+    const PoseAlias* previous_alias =
+        folder_ && a.previous ? smoother_.FindAlias(*a.previous) : nullptr;
+    const bool borrowed =
+        !fold && previous_alias != nullptr && previous_alias->node.trajectory != a.key.trajectory;
+    const PoseKey node =
+        borrowed ? smoother_.NextBorrowedNode(previous_alias->node.trajectory) : a.key;
+    const Pose2 node_initial = borrowed
+                                   ? Compose(smoother_.FramePose(previous_alias->node),
+                                             Compose(previous_alias->T_node_key, a.T_previous_this))
+                                   : initial;
+    Status status = Status::Ok();
+    if (fold) {
+      status = smoother_.AddAlias(a.key, fold->node, fold->T_node_keyframe, fold->covariance);
+    } else {
+      status = smoother_.AddPose(node, node_initial);
+      if (status.ok()) {
+        graph_edits_.push_back(
+            {GraphEdit::Kind::kPose, node, node, node_initial, Eigen::Matrix3d::Identity()});
+        if (folder_) folder_->AddNode(node, a.key, smoother_);
+      }
+      if (status.ok() && borrowed) {
+        status = smoother_.AddAlias(a.key, node, Pose2(), Eigen::Matrix3d::Zero());
+      }
     }
     if (status.ok() && a.previous) {
       status =

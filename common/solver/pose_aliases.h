@@ -7,6 +7,7 @@
 // as node (+) offset, and maps a measurement on an alias onto the node (MapToNodes), so its
 // callers keep naming keyframes.
 
+#include <cstdint>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -18,10 +19,20 @@
 
 namespace anchormap {
 
+// A node made for a keyframe of another trajectory (whose predecessor folded onto a node of
+// this one) is a pose of this trajectory, tied to it by a between factor, so that it is
+// determined as every pose is (the smoother grounds a new variable through a factor whose
+// other variables are known; through an encounter alone it may wait forever once groups
+// merge: the 100-robot replay met that). Its index comes from here on: it names no keyframe
+// of this trajectory.
+constexpr int32_t kBorrowedNodeIndexBase = 1 << 30;
+
 struct PoseAlias {
   PoseKey node;      // a pose variable, never an alias
   Pose2 T_node_key;  // the aliased key's pose in the node's frame
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // of T_node_key
+  // Of T_node_key; zero for a keyframe whose node is the variable made for it (a borrowed
+  // node: the identity offset, exactly).
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
 };
 
 class PoseAliases {

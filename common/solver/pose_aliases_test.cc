@@ -177,5 +177,31 @@ TEST_F(SmootherAliasTest, AcrossTrajectoriesOnlyInOneAnchoredGroup) {
   ASSERT_TRUE(smoother.Update().status.ok());
 }
 
+TEST_F(SmootherAliasTest, ANodeAfterAFoldOntoAnotherTrajectoryIsBorrowedFromIt) {
+  ASSERT_TRUE(smoother.AddPose({kR2, 0}, Pose2()).ok());
+  ASSERT_TRUE(smoother.AddEncounter({kR1, 0}, {kR2, 0}, Pose2(0, 5, 0), odometry).ok());
+  ASSERT_TRUE(smoother.Update().status.ok());
+  // R2's key 1 folds onto R1's pose 1; key 2, 1 m further, is a node: a pose of R1 (tied to
+  // R1's pose 1 by a between factor), key 2 its alias at the identity.
+  ASSERT_TRUE(smoother.AddAlias({kR2, 1}, {kR1, 1}, Pose2(0.1, 0, 0), match).ok());
+  const PoseKey node = smoother.NextBorrowedNode(kR1);
+  EXPECT_EQ(node, (PoseKey{kR1, kBorrowedNodeIndexBase}));
+  ASSERT_TRUE(smoother.AddPose(node, Pose2(2.1, 0, 0)).ok());
+  ASSERT_TRUE(smoother.AddAlias({kR2, 2}, node, Pose2(), Eigen::Matrix3d::Zero()).ok());
+  const int64_t factors = smoother.stats().factors;
+  ASSERT_TRUE(smoother.AddBetween({kR2, 1}, {kR2, 2}, Pose2(1, 0, 0), odometry).ok());
+  EXPECT_EQ(smoother.stats().factors, factors + 1);
+  const UpdateResult result = smoother.Update();
+  ASSERT_TRUE(result.status.ok()) << result.status.message();
+  EXPECT_TRUE(smoother.HasCovariance(node));
+  EXPECT_NEAR(smoother.FramePose(node).x(), 2.1, 1e-6);
+  ExpectNear(smoother.GlobalPose({kR2, 2}), smoother.GlobalPose(node), 1e-12);
+  // Keys count where they belong: R1 keeps its two keyframes, R2 has three.
+  EXPECT_EQ(smoother.NumPoses(kR1), 2);
+  EXPECT_EQ(smoother.NumPoses(kR2), 3);
+  EXPECT_EQ(smoother.NextBorrowedNode(kR1).index, kBorrowedNodeIndexBase + 1);
+  ASSERT_EQ(smoother.GlobalTrajectory(kR1).size(), 2u);
+}
+
 }  // namespace
 }  // namespace anchormap

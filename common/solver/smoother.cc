@@ -264,7 +264,14 @@ Status Smoother::AddPose(PoseKey key, const Pose2& initial) {
   if (aliases_.Find(key) != nullptr) {
     return Status::Error("pose " + Key(key).ToString() + " exists already (an alias)");
   }
-  return impl_->AddPose(key, initial);
+  Status status = impl_->AddPose(key, initial);
+  if (status.ok() && key.index >= kBorrowedNodeIndexBase) ++borrowed_nodes_[key.trajectory];
+  return status;
+}
+
+PoseKey Smoother::NextBorrowedNode(TrajectoryId t) const {
+  const auto it = borrowed_nodes_.find(t);
+  return {t, kBorrowedNodeIndexBase + (it == borrowed_nodes_.end() ? 0 : it->second)};
 }
 
 Status Smoother::AddAlias(PoseKey key, PoseKey node, const Pose2& T_node_key,
@@ -280,8 +287,10 @@ Status Smoother::AddAlias(PoseKey key, PoseKey node, const Pose2& T_node_key,
     return Status::Error("alias across trajectories that are not anchored in one group");
   }
   if (!T_node_key.IsFinite()) return Status::Error("alias offset is not finite");
-  if (Status problem = CheckSymmetricPositiveDefinite(covariance); !problem.ok()) {
-    return Status::Error("alias covariance rejected: " + problem.message());
+  if (!covariance.isZero(0.0)) {  // zero: a borrowed node's keyframe
+    if (Status problem = CheckSymmetricPositiveDefinite(covariance); !problem.ok()) {
+      return Status::Error("alias covariance rejected: " + problem.message());
+    }
   }
   aliases_.Add(key, {node, T_node_key, covariance});
   return Status::Ok();
@@ -331,7 +340,12 @@ UpdateResult Smoother::BatchOptimize(double convergence_step) {
 bool Smoother::HasPose(PoseKey key) const {
   return impl_->Has(key) || aliases_.Find(key) != nullptr;
 }
-int Smoother::NumPoses(TrajectoryId t) const { return impl_->NumPoses(t) + aliases_.Count(t); }
+int Smoother::NumPoses(TrajectoryId t) const {
+  if (borrowed_nodes_.empty() && aliases_.empty()) return impl_->NumPoses(t);
+  const auto borrowed = borrowed_nodes_.find(t);
+  return impl_->NumPoses(t) + aliases_.Count(t) -
+         (borrowed == borrowed_nodes_.end() ? 0 : borrowed->second);
+}
 std::vector<TrajectoryId> Smoother::Trajectories() const { return impl_->trajectory_order(); }
 
 Pose2 Smoother::FramePose(PoseKey key) const {

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -124,6 +125,9 @@ class Smoother {
   // encounter otherwise, nothing when both keys fold onto one node).
   Status AddAlias(PoseKey key, PoseKey node, const Pose2& T_node_key,
                   const Eigen::Matrix3d& covariance);
+  // The key of the next node borrowed from trajectory t (kBorrowedNodeIndexBase): AddPose it,
+  // then AddAlias the keyframe onto it with the identity and a zero covariance.
+  PoseKey NextBorrowedNode(TrajectoryId t) const;
   // nullptr when `key` is no alias.
   const PoseAlias* FindAlias(PoseKey key) const { return aliases_.Find(key); }
   int64_t NumAliases() const { return static_cast<int64_t>(aliases_.size()); }
@@ -144,7 +148,7 @@ class Smoother {
   // and a covariance is asked only of variables that are solved (HasCovariance).
   // A pose variable or an alias (AddAlias).
   bool HasPose(PoseKey key) const;
-  // The trajectory's keys, variables and aliases.
+  // The trajectory's keys, variables and aliases (borrowed nodes are no keys of it).
   int NumPoses(TrajectoryId trajectory) const;
   std::vector<TrajectoryId> Trajectories() const;  // in order of creation
   // The pose in the frame the smoother keeps it in: its trajectory's local frame in the
@@ -250,6 +254,7 @@ class Smoother {
 
   std::unique_ptr<Impl> impl_;
   PoseAliases aliases_;
+  std::unordered_map<TrajectoryId, int32_t> borrowed_nodes_;  // per trajectory
   int64_t measurements_inside_nodes_ = 0;
 };
 
