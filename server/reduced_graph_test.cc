@@ -143,5 +143,18 @@ TEST(ReducedGraphTest, ThreeRobotsLappingOnePlaceStopAddingVariables) {
       << "ATE full " << full.ate_m << " m, reduced " << reduced.ate_m << " m";
 }
 
+TEST(ReducedGraphTest, WithTheOptionTheServerNeitherSnapshotsNorDefersUpdates) {
+  MappingServerOptions options;
+  EXPECT_TRUE(MappingServer(options).CanSnapshot());
+  EXPECT_TRUE(MappingServer(options).CanDeferUpdates());
+  options.reduced_graph.enabled = true;
+  MappingServer server(options);
+  EXPECT_FALSE(server.CanSnapshot());      // the aliases are not in the snapshot format
+  EXPECT_FALSE(server.CanDeferUpdates());  // the fold reads the estimate
+  EXPECT_FALSE(server.BeginDeferredUpdates());
+  ASSERT_NE(server.folder(), nullptr);
+  EXPECT_NE(server.StatusLine().find("reduced graph: nodes 0"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace anchormap
