@@ -56,6 +56,9 @@ MappingServer::MappingServer(const MappingServerOptions& options)
     sources_.push_back(
         std::make_unique<ScanEncounters>(options.scan, pool_.get(), options.match_schedule));
   }
+  if (options.reduced_graph.enabled) {
+    folder_ = std::make_unique<KeyframeFolder>(options.reduced_graph);
+  }
 }
 
 MappingServer::~MappingServer() = default;
@@ -335,10 +338,39 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
     const Pose2 initial = a.previous && smoother_.HasPose(*a.previous)
                               ? Compose(smoother_.FramePose(*a.previous), a.T_previous_this)
                               : a.T_local_pose;
-    Status status = smoother_.AddPose(a.key, initial);
-    if (status.ok())
-      graph_edits_.push_back(
-          {GraphEdit::Kind::kPose, a.key, a.key, initial, Eigen::Matrix3d::Identity()});
+    // The reduced graph: a keyframe in a mapped place folds onto a node (no variable; its
+    // odometry below then joins the nodes, or nothing when it stays on one node).
+    const std::optional<KeyframeFold> fold =
+        folder_ && a.previous && smoother_.HasPose(*a.previous)
+            ? folder_->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
+                              table_, &smoother_)
+            : std::nullopt;
+    // A node after a predecessor folded onto another trajectory's node is borrowed from that
+    // trajectory (a pose of it, tied by a between factor: pose_aliases.h says why).
+    const PoseAlias* previous_alias =
+        folder_ && a.previous ? smoother_.FindAlias(*a.previous) : nullptr;
+    const bool borrowed =
+        !fold && previous_alias != nullptr && previous_alias->node.trajectory != a.key.trajectory;
+    const PoseKey node =
+        borrowed ? smoother_.NextBorrowedNode(previous_alias->node.trajectory) : a.key;
+    const Pose2 node_initial = borrowed
+                                   ? Compose(smoother_.FramePose(previous_alias->node),
+                                             Compose(previous_alias->T_node_key, a.T_previous_this))
+                                   : initial;
+    Status status = Status::Ok();
+    if (fold) {
+      status = smoother_.AddAlias(a.key, fold->node, fold->T_node_keyframe, fold->covariance);
+    } else {
+      status = smoother_.AddPose(node, node_initial);
+      if (status.ok()) {
+        graph_edits_.push_back(
+            {GraphEdit::Kind::kPose, node, node, node_initial, Eigen::Matrix3d::Identity()});
+        if (folder_) folder_->AddNode(node, a.key, smoother_);
+      }
+      if (status.ok() && borrowed) {
+        status = smoother_.AddAlias(a.key, node, Pose2(), Eigen::Matrix3d::Zero());
+      }
+    }
     if (status.ok() && a.previous) {
       status =
           smoother_.AddBetween(*a.previous, a.key, a.T_previous_this, a.T_previous_this_covariance);
@@ -454,11 +486,14 @@ void MappingServer::ResumeClocks(int64_t now_utime) {
 }
 
 bool MappingServer::CanDeferUpdates() const {
+  if (folder_) return false;  // the fold reads the estimate
   return std::none_of(sources_.begin(), sources_.end(),
                       [](const auto& source) { return source->ReadsEstimate(); });
 }
 
 bool MappingServer::CanSnapshot() const {
+  // The fold table (the smoother's aliases) is not in the snapshot format yet.
+  if (folder_) return false;
   if (deferring_ || dynamic_cast<const DirectEncounters*>(sources_.front().get()) == nullptr) {
     return false;
   }
@@ -581,6 +616,7 @@ std::string MappingServer::StatusLine() const {
     const std::string stats = source->StatsLine();
     if (!stats.empty()) line += "; " + stats;
   }
+  if (folder_) line += "; " + folder_->StatsLine();
   return line;
 }
 

@@ -31,6 +31,7 @@
 #include "server/delivery.h"
 #include "server/direct_encounters.h"
 #include "server/encounter_source.h"
+#include "server/keyframe_fold.h"
 #include "server/loop_closures.h"
 #include "server/map_publisher.h"
 #include "server/match_pool.h"
@@ -90,6 +91,11 @@ struct MappingServerOptions {
   // tests and library users); the daemons' default is DaemonDefaults'.
   double solve_period_s = 0.0;
   MatchSchedule match_schedule{0.0};
+  // The reduced pose graph (server/keyframe_fold.h): a keyframe in an already mapped place
+  // folds onto an existing node instead of becoming a variable. Off by default. With it on
+  // the server takes no snapshots (the fold table is not in the snapshot format yet) and
+  // never defers updates (the fold reads the estimate).
+  ReducedGraphOptions reduced_graph;
   MapPublisherOptions publish;
   DeliveryOptions delivery;
 
@@ -101,6 +107,7 @@ struct MappingServerOptions {
     if (Status e = direct.Validate(); !e.ok()) return e;
     if (Status e = loop.Validate(); !e.ok()) return e;
     if (Status e = scan.Validate(); !e.ok()) return e;
+    if (Status e = reduced_graph.Validate(); !e.ok()) return e;
     if (match_workers < 0 || match_workers > 64) return Status::Error("match_workers: 0 to 64");
     if (!(match_schedule.lag_s >= 0)) return Status::Error("match lag must be >= 0");
     if (!(solve_period_s >= 0 && solve_period_s <= 3600)) {
@@ -259,6 +266,8 @@ class MappingServer {
   // The scan-matching sources' workers; their results are journaled and reused on a
   // restart through it (MatchPool::SetRecorder, Preload).
   MatchPool& match_pool() { return *pool_; }
+  // The reduced graph's folds (null when the option is off).
+  const KeyframeFolder* folder() const { return folder_.get(); }
   // The encounter sources, the direct-encounter one first (tests look at their state).
   std::vector<const EncounterSource*> sources() const;
   int num_anchored() const;
@@ -311,6 +320,7 @@ class MappingServer {
   MapPublisher publisher_;
   std::unique_ptr<MatchPool> pool_;  // before the sources: it outlives their jobs
   std::vector<std::unique_ptr<EncounterSource>> sources_;
+  std::unique_ptr<KeyframeFolder> folder_;  // reduced_graph.enabled
   std::vector<EncounterLink> links_;
   std::vector<GraphEdit> graph_edits_;  // every successful smoother Add*, in order
   TrajectoryTies ties_;                 // the kEncounter edits' keyframes

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -18,6 +19,7 @@
 #include "common/geometry/pose2.h"
 #include "common/solver/factor.h"
 #include "common/solver/keys.h"
+#include "common/solver/pose_aliases.h"
 #include "common/solver/smoother_options.h"
 #include "common/solver/sparse_r.h"
 #include "common/util/status.h"
@@ -114,6 +116,24 @@ class Smoother {
   Status AddEncounter(PoseKey a, PoseKey b, const Pose2& measured_T_a_b,
                       const Eigen::Matrix3d& covariance);
 
+  // The reduced pose graph's fold (pose_aliases.h): `key` (new, of an existing trajectory)
+  // gets no variable; it is `node` (a pose variable, of its trajectory or, once both are
+  // anchored in one group, of another) composed with T_node_key. Pose and covariance queries
+  // on it answer node (+) offset (the offset's own covariance left out: it enters the
+  // measurements mapped through it); AddBetween / AddEncounter on it add the measurement
+  // between the nodes (MapToNodes: a between factor when they share a trajectory, an
+  // encounter otherwise, nothing when both keys fold onto one node).
+  Status AddAlias(PoseKey key, PoseKey node, const Pose2& T_node_key,
+                  const Eigen::Matrix3d& covariance);
+  // The key of the next node borrowed from trajectory t (kBorrowedNodeIndexBase): AddPose it,
+  // then AddAlias the keyframe onto it with the identity and a zero covariance.
+  PoseKey NextBorrowedNode(TrajectoryId t) const;
+  // nullptr when `key` is no alias.
+  const PoseAlias* FindAlias(PoseKey key) const { return aliases_.Find(key); }
+  int64_t NumAliases() const { return static_cast<int64_t>(aliases_.size()); }
+  // Measurements between two keys folded onto one node (added as nothing).
+  int64_t measurements_inside_nodes() const { return measurements_inside_nodes_; }
+
   // Folds everything added since the last call into the solution. All or nothing: when a
   // batch step fails (result.status), the estimate and the pending measurements are as
   // they were before the call, and the next Update() tries again.
@@ -126,7 +146,9 @@ class Smoother {
   // Preconditions, checked (std::invalid_argument, a caller's bug): the pose/variable/
   // trajectory passed to FramePose, GlobalPose and Value exists (HasPose, HasVariable),
   // and a covariance is asked only of variables that are solved (HasCovariance).
+  // A pose variable or an alias (AddAlias).
   bool HasPose(PoseKey key) const;
+  // The trajectory's keys, variables and aliases (borrowed nodes are no keys of it).
   int NumPoses(TrajectoryId trajectory) const;
   std::vector<TrajectoryId> Trajectories() const;  // in order of creation
   // The pose in the frame the smoother keeps it in: its trajectory's local frame in the
@@ -185,8 +207,10 @@ class Smoother {
   };
   std::vector<Eigen::Matrix3d> ProjectedCovariances(const std::vector<CovarianceQuery>& queries);
 
-  // The current estimate of any variable (pose: local frame; anchor: T_global_local).
+  // The current estimate of any variable (pose: local frame; anchor: T_global_local) or
+  // alias (its FramePose).
   Pose2 Value(const Key& key) const;
+  // True for variables only (an alias is none).
   bool HasVariable(const Key& key) const;
   // Every active factor (gauge priors included), for exports, journals and test oracles.
   std::vector<Factor> ActiveFactors() const;
@@ -220,7 +244,18 @@ class Smoother {
 
  private:
   class Impl;
+  // The variables and Jacobians a key's FramePose depends on: itself, or an alias's node
+  // (and the two anchors when the node is another trajectory's).
+  std::vector<std::pair<Key, Eigen::Matrix3d>> Terms(const Key& key) const;
+  // A query on keys that may be aliases as the same query on variables (each once).
+  CovarianceQuery OnVariables(const std::vector<Key>& keys,
+                              const std::vector<Eigen::Matrix3d>& jacobians) const;
+  bool AnyAlias(const std::vector<Key>& keys) const;
+
   std::unique_ptr<Impl> impl_;
+  PoseAliases aliases_;
+  std::unordered_map<TrajectoryId, int32_t> borrowed_nodes_;  // per trajectory
+  int64_t measurements_inside_nodes_ = 0;
 };
 
 }  // namespace anchormap

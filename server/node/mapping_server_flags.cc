@@ -165,6 +165,15 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("scan.submap_cache_mb", "scan-submap-cache-mb", &s.scan.submap_cache.budget_mb,
       "scan encounters: memory kept for built submaps, least recently used dropped beyond "
       "(MB, estimated)");
+  add("reduced_graph.enabled", "reduced-graph", &s.reduced_graph.enabled,
+      "reduced pose graph: a keyframe in an already mapped place folds onto an existing node "
+      "(verified by a scan match) instead of becoming a new variable, so the graph grows with "
+      "the area, not with time; no snapshots then");
+  add("reduced_graph.radius_m", "reduced-graph-radius-m", &s.reduced_graph.radius_m,
+      "reduced graph: a node is a fold candidate when the keyframe's predicted position is this "
+      "close (m, (0, 10])");
+  add("reduced_graph.angle_deg", "reduced-graph-angle-deg", &s.reduced_graph.angle_deg,
+      "reduced graph: ... and its predicted heading this close (degrees, (0, 180])");
   add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
       "cells per tile side");

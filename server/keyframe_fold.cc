@@ -1,0 +1,186 @@
+#include "server/keyframe_fold.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "common/geometry/angle.h"
+#include "server/encounter_candidate.h"
+#include "server/keyframe_submap.h"
+
+namespace anchormap {
+
+namespace {
+
+// Positions move between index refreshes by at most what one update moves them; candidates
+// are asked within the radius plus this, then measured exactly.
+constexpr double kIndexSlackM = 0.5;
+constexpr double kIndexCellM = 2.0;
+
+}  // namespace
+
+Status ReducedGraphOptions::Validate() const {
+  if (!(radius_m > 0 && radius_m <= 10)) {
+    return Status::Error("reduced_graph.radius_m (--reduced-graph-radius-m) must be in (0, 10]");
+  }
+  if (!(angle_deg > 0 && angle_deg <= 180)) {
+    return Status::Error("reduced_graph.angle_deg (--reduced-graph-angle-deg) must be in (0, 180]");
+  }
+  if (!(min_score >= 0 && min_score < 1) || !(min_overlap >= 0 && min_overlap <= 1)) {
+    return Status::Error("reduced_graph: min score in [0, 1), min overlap in [0, 1]");
+  }
+  if (!(gate_chi2 > 0)) return Status::Error("reduced_graph.gate_chi2 must be > 0");
+  if (!(max_range_m > 0)) return Status::Error("reduced_graph.max_range_m must be > 0");
+  if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0)) {
+    return Status::Error("reduced_graph covariance floors must be >= 0");
+  }
+  if (!(min_window_m > 0) || !(max_window_m >= min_window_m) || !(min_window_rad > 0) ||
+      !(max_window_rad >= min_window_rad)) {
+    return Status::Error("reduced_graph window: 0 < min <= max");
+  }
+  if (reference_cache < 1) return Status::Error("reduced_graph.reference_cache must be >= 1");
+  if (Status s = reference.Validate(); !s.ok()) return s;
+  return match.Validate();
+}
+
+KeyframeFolder::KeyframeFolder(const ReducedGraphOptions& options) : options_(options) {}
+
+void KeyframeFolder::AddNode(PoseKey node, PoseKey keyframe, const Smoother& smoother) {
+  const int32_t item = static_cast<int32_t>(nodes_.size());
+  nodes_.push_back({node, keyframe});
+  if (indexed_at_update_ >= 0) {
+    index_.try_emplace(FrameOf(smoother, node.trajectory), kIndexCellM)
+        .first->second.Add(item, smoother.GlobalPose(node).translation());
+  }
+}
+
+void KeyframeFolder::RefreshIndex(const Smoother& smoother) {
+  if (indexed_at_update_ == smoother.stats().updates) return;
+  indexed_at_update_ = smoother.stats().updates;
+  index_.clear();
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    const PoseKey node = nodes_[i].node;
+    index_.try_emplace(FrameOf(smoother, node.trajectory), kIndexCellM)
+        .first->second.Add(static_cast<int32_t>(i), smoother.GlobalPose(node).translation());
+  }
+}
+
+std::shared_ptr<const ScanReference> KeyframeFolder::NodeReference(const TrajectoryTable& table,
+                                                                   PoseKey keyframe) {
+  const std::pair<int64_t, int32_t> id{keyframe.trajectory.value(), keyframe.index};
+  if (const auto it = references_.find(id); it != references_.end()) return it->second;
+  const TrajectoryRecord* record = table.FindBySolverId(keyframe.trajectory);
+  if (record == nullptr || keyframe.index >= record->num_keyframes()) return nullptr;
+  PointCloud points = KeyframePoints(*record, keyframe.index, options_.max_range_m);
+  if (points.empty()) return nullptr;
+  auto reference = std::make_shared<const ScanReference>(std::vector<PointCloud>{std::move(points)},
+                                                         options_.reference);
+  if (reference_order_.size() >= static_cast<size_t>(options_.reference_cache)) {
+    references_.erase(reference_order_.front());
+    reference_order_.erase(reference_order_.begin());
+  }
+  references_.emplace(id, reference);
+  reference_order_.push_back(id);
+  return reference;
+}
+
+std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous,
+                                                   const Pose2& T_previous_key,
+                                                   const Eigen::Matrix3d& T_previous_key_covariance,
+                                                   const TrajectoryTable& table,
+                                                   Smoother* smoother) {
+  ++stats_.examined;
+  RefreshIndex(*smoother);
+  const Pose2 predicted = Compose(smoother->GlobalPose(previous), T_previous_key);
+  const auto frame = index_.find(FrameOf(*smoother, key.trajectory));
+  if (frame == index_.end()) {
+    ++stats_.no_candidate;
+    return std::nullopt;
+  }
+  // The nearest node within the radius and angle (ties: the older node).
+  const double max_angle = options_.angle_deg * kPi / 180.0;
+  int32_t best = -1;
+  double best_distance = 0.0;
+  for (const int32_t item :
+       frame->second.Near(predicted.translation(), options_.radius_m + kIndexSlackM)) {
+    const PoseKey node = nodes_[static_cast<size_t>(item)].node;
+    if (FrameOf(*smoother, node.trajectory) != frame->first) continue;
+    const Pose2 at = smoother->GlobalPose(node);
+    const double distance = (at.translation() - predicted.translation()).norm();
+    if (distance > options_.radius_m ||
+        std::abs(WrapAngle(at.theta() - predicted.theta())) > max_angle) {
+      continue;
+    }
+    if (best < 0 || distance < best_distance || (distance == best_distance && item < best)) {
+      best = item;
+      best_distance = distance;
+    }
+  }
+  if (best < 0) {
+    ++stats_.no_candidate;
+    return std::nullopt;
+  }
+  const PoseKey node = nodes_[static_cast<size_t>(best)].node;
+  const PoseKey node_keyframe = nodes_[static_cast<size_t>(best)].keyframe;
+  // The prediction of T_node_key and its covariance: the estimate's T_node_previous (joint
+  // covariance from R) composed with the agent's constraint.
+  // (The predecessor's own node: T_node_previous is the identity, known exactly.)
+  const std::optional<PredictedRelativePose> node_previous =
+      node_keyframe == previous ? std::optional<PredictedRelativePose>(PredictedRelativePose{
+                                      Pose2(), Eigen::Matrix3d::Zero(), false})
+                                : PredictRelativePose(smoother, node, previous);
+  if (!node_previous) {
+    ++stats_.unsolved;
+    return std::nullopt;
+  }
+  Eigen::Matrix3d J_relative, J_step;
+  const Pose2 guess = Compose(node_previous->T_a_b, T_previous_key, &J_relative, &J_step);
+  const Eigen::Matrix3d predicted_covariance =
+      J_relative * node_previous->covariance * J_relative.transpose() +
+      J_step * T_previous_key_covariance * J_step.transpose();
+  const TrajectoryRecord* record = table.FindBySolverId(key.trajectory);
+  const std::shared_ptr<const ScanReference> reference = NodeReference(table, node_keyframe);
+  if (record == nullptr || reference == nullptr) {
+    ++stats_.no_scan;
+    return std::nullopt;
+  }
+  const PointCloud query = KeyframePoints(*record, key.index, options_.max_range_m);
+  if (query.empty()) {
+    ++stats_.no_scan;
+    return std::nullopt;
+  }
+  LocalMatchOptions window;
+  window.match = options_.match;
+  window.match.covariance_min_score = options_.min_score;
+  window.match.covariance_min_overlap = options_.min_overlap;
+  window.match.min_score = LatticeBarFor(options_.min_score, window.match.min_score);
+  window.linear_window_m =
+      std::clamp(3.0 * LargestSigma(predicted_covariance.topLeftCorner<2, 2>()),
+                 options_.min_window_m, options_.max_window_m);
+  window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, predicted_covariance(2, 2))),
+                                         options_.min_window_rad, options_.max_window_rad);
+  const std::optional<MatchResult> match = MatchLocal(*reference, query, guess, window);
+  if (!match || match->score < options_.min_score || match->overlap < options_.min_overlap) {
+    ++stats_.weak_match;
+    return std::nullopt;
+  }
+  const Eigen::Matrix3d covariance =
+      WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
+  if (Mahalanobis2(guess, match->pose, predicted_covariance + covariance) > options_.gate_chi2) {
+    ++stats_.gate_rejected;
+    return std::nullopt;
+  }
+  ++stats_.folded;
+  return KeyframeFold{node, match->pose, covariance};
+}
+
+std::string KeyframeFolder::StatsLine() const {
+  return "reduced graph: nodes " + std::to_string(nodes_.size()) + " folded " +
+         std::to_string(stats_.folded) + " of " + std::to_string(stats_.examined) +
+         " (no candidate " + std::to_string(stats_.no_candidate) + ", unsolved " +
+         std::to_string(stats_.unsolved) + ", no scan " + std::to_string(stats_.no_scan) +
+         ", weak " + std::to_string(stats_.weak_match) + ", gate " +
+         std::to_string(stats_.gate_rejected) + ")";
+}
+
+}  // namespace anchormap

@@ -1,0 +1,113 @@
+#pragma once
+// The reduced pose graph's fold (docs/ARCHITECTURE.md, "Bounding the graph by area"): a
+// keyframe released in an already mapped place becomes an alias of an existing node (a
+// keyframe that got a pose variable) instead of a new variable, so that the graph grows with
+// the area, not with time. At a keyframe's release (canonical order: a replay folds the same
+// way) its pose is predicted from its predecessor's estimate and the agent's constraint; the
+// candidates are the nodes of its frame (its anchored group, or its own trajectory while
+// unanchored) within a radius and angle of the prediction; the nearest is verified by one
+// local match of the keyframe's scan against the node's, gated as loop closures gate theirs
+// (score, overlap, chi-square against the prediction's covariance). Pass: the keyframe folds
+// with the match as its offset. Fail or no candidate: it becomes a node, as without the option.
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
+#include "common/scan_matching/correlative_matcher.h"
+#include "common/scan_matching/scan_reference.h"
+#include "common/solver/keys.h"
+#include "common/solver/smoother.h"
+#include "common/util/status.h"
+#include "server/position_index.h"
+#include "server/relative_pose.h"
+#include "server/trajectory_table.h"
+
+namespace anchormap {
+
+struct ReducedGraphOptions {
+  bool enabled = false;
+  // A node is a candidate when the predicted pose lies this close (position, heading).
+  double radius_m = 1.0;
+  double angle_deg = 30.0;
+  // The verifying match's bars and gate: the loop closures' defaults (LoopClosureOptions).
+  double min_score = 0.5;
+  double min_overlap = 0.7;
+  double gate_chi2 = 11.34;  // 3 dof, 99 %
+  double max_range_m = 15.0;
+  double floor_sigma_m = 0.02;
+  double floor_sigma_rad = 0.005;
+  double min_window_m = 0.4;
+  double max_window_m = 2.0;
+  double min_window_rad = 0.2;
+  double max_window_rad = 0.6;
+  // Node references kept built (a revisited place matches against the same node again).
+  // A single scan's reference is several MB: 256 doubled a 100-robot replay's memory
+  // (0.85 -> 1.7 GB); 32 kept it at 0.86 GB with the same output.
+  int reference_cache = 32;
+  ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
+  MatchOptions match;
+
+  Status Validate() const;
+};
+
+// Where a keyframe folds: T_node_keyframe measured by the match, its covariance (floored).
+struct KeyframeFold {
+  PoseKey node;
+  Pose2 T_node_keyframe;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+};
+
+struct KeyframeFoldStats {
+  int64_t examined = 0;      // keyframes with a predecessor
+  int64_t no_candidate = 0;  // no node within the radius and angle
+  int64_t unsolved = 0;      // no covariance to gate with yet (new variables not in R)
+  int64_t no_scan = 0;       // the keyframe's or the node's scan is empty
+  int64_t weak_match = 0;    // no match, or under the score or overlap bar
+  int64_t gate_rejected = 0;
+  int64_t folded = 0;
+};
+
+class KeyframeFolder {
+ public:
+  explicit KeyframeFolder(const ReducedGraphOptions& options);
+
+  // A keyframe became a node (a pose variable of the smoother: its own key, or a node
+  // borrowed from another trajectory, kBorrowedNodeIndexBase); its scan is the node's.
+  void AddNode(PoseKey node, PoseKey keyframe, const Smoother& smoother);
+  // Where keyframe `key` (admitted, its record in `table`) folds, predicted at
+  // `previous` (+) T_previous_key; nullopt: it becomes a node.
+  std::optional<KeyframeFold> Decide(PoseKey key, PoseKey previous, const Pose2& T_previous_key,
+                                     const Eigen::Matrix3d& T_previous_key_covariance,
+                                     const TrajectoryTable& table, Smoother* smoother);
+
+  const KeyframeFoldStats& stats() const { return stats_; }
+  size_t num_nodes() const { return nodes_.size(); }
+  std::string StatsLine() const;
+
+ private:
+  // The nodes' positions by frame, rebuilt once the estimate moved (a solver update).
+  void RefreshIndex(const Smoother& smoother);
+  std::shared_ptr<const ScanReference> NodeReference(const TrajectoryTable& table,
+                                                     PoseKey keyframe);
+
+  ReducedGraphOptions options_;
+  struct Node {
+    PoseKey node;
+    PoseKey keyframe;  // whose scan verifies a fold onto it
+  };
+  std::vector<Node> nodes_;
+  std::map<TrajectoryFrame, PositionIndex> index_;
+  int64_t indexed_at_update_ = -1;
+  std::map<std::pair<int64_t, int32_t>, std::shared_ptr<const ScanReference>> references_;
+  std::vector<std::pair<int64_t, int32_t>> reference_order_;  // oldest first
+  KeyframeFoldStats stats_;
+};
+
+}  // namespace anchormap

@@ -1,0 +1,144 @@
+#include "server/keyframe_fold.h"
+
+#include <cmath>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "tests/scan_testing/scan_scenarios.h"
+
+namespace anchormap {
+namespace {
+
+using testing::DriveKeyframes;
+using testing::LoopWorld;
+using testing::OdometryNoise;
+
+constexpr double kPiOver3 = 1.0471975511965976;
+
+// A trajectory table and smoother fed as MappingServer feeds them: every keyframe a node
+// unless asked to Try a fold.
+class KeyframeFoldTest : public ::testing::Test {
+ protected:
+  // R1 drives 5 m east along LoopWorld's south corridor (y = 2), a keyframe every 0.5 m:
+  // eleven nodes at x = 2.5, 3.0, ..., 7.5.
+  void SetUp() override {
+    for (int i = 0; i <= 10; ++i) path_.push_back(Pose2(2.5 + 0.5 * i, 2.0, 0.0));
+    for (const Keyframe& k : Drive(path_, "R1", 1)) ASSERT_TRUE(AddNode(k));
+  }
+
+  std::vector<Keyframe> Drive(const std::vector<Pose2>& path, const std::string& robot,
+                              int64_t id) const {
+    return DriveKeyframes(world_, path, robot, id, 1'000'000, OdometryNoise{0.005, 0.002}, 7);
+  }
+
+  bool AddNode(const Keyframe& keyframe) {
+    std::vector<AdmittedKeyframe> admitted;
+    if (!table_.Offer(keyframe, &admitted).ok() || admitted.size() != 1) return false;
+    const AdmittedKeyframe& a = admitted.front();
+    const Pose2 initial =
+        a.previous ? Compose(smoother_.FramePose(*a.previous), a.T_previous_this) : a.T_local_pose;
+    if (!smoother_.AddPose(a.key, initial).ok()) return false;
+    if (a.previous &&
+        !smoother_.AddBetween(*a.previous, a.key, a.T_previous_this, a.T_previous_this_covariance)
+             .ok()) {
+      return false;
+    }
+    folder_.AddNode(a.key, a.key, smoother_);
+    return smoother_.Update().status.ok();
+  }
+
+  // Offers `keyframe` and asks where it folds.
+  std::optional<KeyframeFold> Try(const Keyframe& keyframe) {
+    std::vector<AdmittedKeyframe> admitted;
+    EXPECT_TRUE(table_.Offer(keyframe, &admitted).ok());
+    EXPECT_EQ(admitted.size(), 1u);
+    const AdmittedKeyframe& a = admitted.front();
+    return folder_.Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
+                          table_, &smoother_);
+  }
+
+  // R1's keyframe 11: the agent says it drove from keyframe 10 to `truth` (its scan is taken
+  // at `scan_at`, the truth unless given).
+  Keyframe Revisit(const Pose2& truth, const std::optional<Pose2>& scan_at = std::nullopt) {
+    std::vector<Pose2> path = path_;
+    path.push_back(truth);
+    Keyframe k = Drive(path, "R1", 1).back();
+    if (scan_at) k.scan = Drive({*scan_at}, "elsewhere", 9).front().scan;
+    return k;
+  }
+
+  const testing::SyntheticWorld world_ = LoopWorld();
+  std::vector<Pose2> path_;
+  TrajectoryTable table_;
+  Smoother smoother_;
+  ReducedGraphOptions options_;
+  KeyframeFolder folder_{options_};
+};
+
+TEST_F(KeyframeFoldTest, AKeyframeNearANodeFoldsWithTheMatchAsItsOffset) {
+  // Back at x = 4.2, 0.2 m east of node 3 (x = 4.0), 5 degrees to the left.
+  const std::optional<KeyframeFold> fold = Try(Revisit(Pose2(4.2, 2.0, 0.087)));
+  ASSERT_TRUE(fold.has_value());
+  EXPECT_EQ(fold->node, (PoseKey{TrajectoryId(0), 3}));
+  // The offset is the match: the true one within a few centimetres.
+  EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
+  EXPECT_NEAR(fold->T_node_keyframe.y(), 0.0, 0.03);
+  EXPECT_NEAR(fold->T_node_keyframe.theta(), 0.087, 0.01);
+  // Its covariance: the matcher's with the floors (2 cm, 0.005 rad) added.
+  EXPECT_GE(fold->covariance(0, 0), 0.02 * 0.02);
+  EXPECT_GE(fold->covariance(2, 2), 0.005 * 0.005);
+  EXPECT_EQ(folder_.stats().folded, 1);
+  EXPECT_EQ(folder_.num_nodes(), 11u);
+}
+
+TEST_F(KeyframeFoldTest, AKeyframeFartherThanTheRadiusFromEveryNodeIsANode) {
+  // 1.5 m past the last node.
+  EXPECT_FALSE(Try(Revisit(Pose2(9.0, 2.0, 0.0))).has_value());
+  EXPECT_EQ(folder_.stats().no_candidate, 1);
+}
+
+TEST_F(KeyframeFoldTest, AKeyframeTurnedMoreThanTheAngleIsANode) {
+  // On node 3's place, turned by 60 degrees (the angle is 30).
+  EXPECT_FALSE(Try(Revisit(Pose2(4.0, 2.0, kPiOver3))).has_value());
+  EXPECT_EQ(folder_.stats().no_candidate, 1);
+}
+
+TEST_F(KeyframeFoldTest, AKeyframeOfAnotherFrameNeverFoldsOntoItsNodes) {
+  // R2, unanchored, starts at the identity of its own frame, which puts its keyframe 1 at
+  // (1.7, 0) there; R1's node 3 is at (1.5, 0) in R1's frame, but the frames differ.
+  const std::vector<Keyframe> r2 = Drive({Pose2(2.5, 2.0, 0.0), Pose2(4.2, 2.0, 0.0)}, "R2", 2);
+  ASSERT_TRUE(AddNode(r2[0]));
+  std::vector<AdmittedKeyframe> admitted;
+  ASSERT_TRUE(table_.Offer(r2[1], &admitted).ok());
+  ASSERT_EQ(admitted.size(), 1u);
+  const AdmittedKeyframe& a = admitted.front();
+  // R2's own node 0 is 1.7 m away: no candidate, though R1's node 3 is 0.2 m away in numbers.
+  EXPECT_FALSE(folder_
+                   .Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
+                           table_, &smoother_)
+                   .has_value());
+  EXPECT_EQ(folder_.stats().no_candidate, 1);
+}
+
+TEST_F(KeyframeFoldTest, AKeyframeWhoseScanDoesNotMatchTheNodeIsANode) {
+  // Odometry puts it at x = 4.2, but its scan was taken in the north corridor.
+  EXPECT_FALSE(Try(Revisit(Pose2(4.2, 2.0, 0.0), Pose2(12.0, 12.0, 0.0))).has_value());
+  EXPECT_EQ(folder_.stats().weak_match + folder_.stats().gate_rejected, 1);
+  EXPECT_EQ(folder_.stats().folded, 0);
+}
+
+TEST(ReducedGraphOptionsTest, BadRadiusAndAngleAreRefusedByName) {
+  ReducedGraphOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.radius_m = 0.0;
+  EXPECT_NE(options.Validate().message().find("--reduced-graph-radius-m"), std::string::npos);
+  options = ReducedGraphOptions{};
+  options.angle_deg = 200.0;
+  EXPECT_NE(options.Validate().message().find("--reduced-graph-angle-deg"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace anchormap
