@@ -219,8 +219,9 @@ int Run(const ReplayOptions& options) {
 
 int Main(int argc, char** argv) {
   ReplayOptions options;
-  OptionsLoader loader("anchormap-replay", "--log SIM.lcmlog --output OUT.lcmlog [--robots R1,R2]",
-                       "Agents and server in one process over an in-process bus, fed from a raw-sensor log.");
+  OptionsLoader loader(
+      "anchormap-replay", "--log SIM.lcmlog --output OUT.lcmlog [--robots R1,R2]",
+      "Agents and server in one process over an in-process bus, fed from a raw-sensor log.");
   loader.Add("log", "log", &options.input, "raw-sensor LCM log to replay", true);
   loader.Add("output", "output", &options.output, "LCM log for the server's outputs", true);
   loader.Add("robots", "robots", &options.robots,
