@@ -305,14 +305,7 @@ Status Smoother::AddBetween(PoseKey from, PoseKey to, const Pose2& z, const Eige
     return Status::Error("between factor joins two trajectories: use AddEncounter");
   }
   if (from == to) return Status::Error("between factor from a pose to itself");
-  const NodeMeasurement m = MapToNodes(from, alias_from, to, alias_to, z, cov);
-  if (m.inside_one_node()) {
-    ++measurements_inside_nodes_;
-    return Status::Ok();
-  }
-  return m.a.trajectory == m.b.trajectory
-             ? impl_->AddBetween(m.a, m.b, m.measured_T_a_b, m.covariance)
-             : impl_->AddEncounter(m.a, m.b, m.measured_T_a_b, m.covariance);
+  return AddBetweenNodes(MapToNodes(from, alias_from, to, alias_to, z, cov));
 }
 
 Status Smoother::AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen::Matrix3d& cov) {
@@ -323,7 +316,10 @@ Status Smoother::AddEncounter(PoseKey a, PoseKey b, const Pose2& z, const Eigen:
   if (a.trajectory == b.trajectory) {
     return Status::Error("encounter within one trajectory: use AddBetween (a loop closure)");
   }
-  const NodeMeasurement m = MapToNodes(a, alias_a, b, alias_b, z, cov);
+  return AddBetweenNodes(MapToNodes(a, alias_a, b, alias_b, z, cov));
+}
+
+Status Smoother::AddBetweenNodes(const NodeMeasurement& m) {
   if (m.inside_one_node()) {
     ++measurements_inside_nodes_;
     return Status::Ok();

@@ -251,6 +251,9 @@ class Smoother {
   CovarianceQuery OnVariables(const std::vector<Key>& keys,
                               const std::vector<Eigen::Matrix3d>& jacobians) const;
   bool AnyAlias(const std::vector<Key>& keys) const;
+  // A measurement mapped onto the nodes (MapToNodes): nothing inside one node, else a
+  // between factor within a trajectory or an encounter across two.
+  Status AddBetweenNodes(const NodeMeasurement& m);
 
   std::unique_ptr<Impl> impl_;
   PoseAliases aliases_;
