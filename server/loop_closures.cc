@@ -146,8 +146,15 @@ void LoopClosures::ChargeWideBySize(const LatticeSearchStats& search) {
   budget_.Spend(beyond);
 }
 
-void LoopClosures::OnKeyframeAdded(PoseKey key, const GraphView& /*graph*/,
+void LoopClosures::OnKeyframeAdded(PoseKey key, const GraphView& graph,
                                    EncounterSourceOutput* /*out*/) {
+  // A keyframe folded onto a node (the reduced graph) was matched against that node's scan
+  // already, and its odometry joins the nodes: that is its loop closure. Searching from it
+  // too would cost a search per keyframe forever in a mapped place for ties the graph has.
+  if (graph.smoother.IsFolded(key)) {
+    ++folded_;
+    return;
+  }
   waiting_.push_back(key);
   while (static_cast<int>(waiting_.size()) > options_.max_waiting) waiting_.pop_front();
 }

@@ -255,8 +255,8 @@ class LoopClosures : public EncounterSource {
   std::string StatsLine() const override {
     return stats_.Summary(name()) + " wide " + std::to_string(wide_searches_) + " ambiguous " +
            std::to_string(ambiguous_) + " saturated " + std::to_string(saturated_) +
-           " over_budget " + std::to_string(budget_.skipped()) + " " +
-           references_.stats().Summary(name());
+           " over_budget " + std::to_string(budget_.skipped()) + " folded " +
+           std::to_string(folded_) + " " + references_.stats().Summary(name());
   }
   const CandidateStats& stats() const { return stats_; }
   int64_t wide_searches() const { return wide_searches_; }  // of stats().candidates
@@ -349,6 +349,7 @@ class LoopClosures : public EncounterSource {
   // wide one can name the same pair, and one place seen once must count once.
   std::map<TrajectoryId, std::set<std::pair<int32_t, int32_t>>> entered_;
   CandidateStats stats_;
+  int64_t folded_ = 0;  // keyframes not searched from: folded onto a node (reduced graph)
   int64_t wide_searches_ = 0;
   SubmapCache references_;
   int64_t ambiguous_ = 0;

@@ -23,9 +23,9 @@ std::string ScanEncounters::StatsLine() const {
          std::to_string(global_.queue().searches()) + " global_replaced " +
          std::to_string(global_.queue().dropped()) + " near_saturated " +
          std::to_string(near_.saturated()) + " near_capped " + std::to_string(near_.capped()) +
-         " near_over_budget " + std::to_string(near_.budget().skipped()) + " look_backs " +
-         std::to_string(look_back_.look_backs()) + " " +
-         submaps_.references().stats().Summary(name());
+         " near_over_budget " + std::to_string(near_.budget().skipped()) + " near_folded " +
+         std::to_string(near_folded_) + " look_backs " + std::to_string(look_back_.look_backs()) +
+         " " + submaps_.references().stats().Summary(name());
 }
 
 void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSourceOutput* out) {
@@ -54,9 +54,17 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
   look_back_.LookBackOnGroupChange(frames, waiting_, now_utime_, graph);
   std::deque<PoseKey> still_waiting;
   std::vector<BudgetRequest> ready;
+  std::vector<PoseKey> folded;
   for (const PoseKey key : waiting_) {
     if (!graph.covariances->HasCovariance(key)) {
       still_waiting.push_back(key);
+      continue;
+    }
+    // A keyframe folded onto a node (the reduced graph) is tied where it is by the fold's
+    // match: the node's own near searches and the folds of the group's other trajectories
+    // onto it tie the place. Only its global search (a group the fold cannot join) is left.
+    if (graph.smoother.IsFolded(key)) {
+      folded.push_back(key);
       continue;
     }
     ready.push_back({key, near_.budget().bounded() ? DrivenTo(key, graph) : 0.0});
@@ -73,6 +81,8 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
       });
   // Over the near budget: their global searches still wait for theirs.
   for (const PoseKey key : skipped) ExamineKeyframe(key, graph, /*near=*/false);
+  for (const PoseKey key : folded) ExamineKeyframe(key, graph, /*near=*/false);
+  near_folded_ += static_cast<int64_t>(folded.size());
   global_.ServeGlobalQueue(graph);  // tokens accrued since the last keyframe
   UseMatches(/*all=*/false, graph, out);
 }

@@ -179,6 +179,7 @@ class ScanEncounters : public EncounterSource {
   GlobalSearchPlanner global_;
   LookBackPlanner look_back_;
   int64_t now_utime_ = 0;
+  int64_t near_folded_ = 0;  // keyframes not near-searched from: folded (reduced graph)
 };
 
 }  // namespace anchormap

@@ -203,5 +203,49 @@ TEST_F(SmootherAliasTest, ANodeAfterAFoldOntoAnotherTrajectoryIsBorrowedFromIt) 
   ASSERT_EQ(smoother.GlobalTrajectory(kR1).size(), 2u);
 }
 
+TEST(PoseAliasesTest, FindsEveryAliasWhateverItsIndexAndKeepsPointersValid) {
+  PoseAliases aliases;
+  EXPECT_EQ(aliases.Find({kR1, 1}), nullptr);
+  const auto alias_at = [](double x) {
+    PoseAlias alias;
+    alias.node = {kR1, 0};
+    alias.T_node_key = Pose2(x, 0.0, 0.0);
+    return alias;
+  };
+  // Keyframe indices in sequence (the array), with gaps (not aliases), one far beyond the
+  // array (the map), one negative (an API caller's numbering) and one of another trajectory.
+  aliases.Add({kR1, 1}, alias_at(1.0));
+  const PoseAlias* first = aliases.Find({kR1, 1});
+  ASSERT_NE(first, nullptr);
+  for (int32_t i = 3; i < 3000; i += 2) aliases.Add({kR1, i}, alias_at(i));
+  aliases.Add({kR1, 1 << 30}, alias_at(-1.0));
+  aliases.Add({kR1, -5}, alias_at(-5.0));
+  aliases.Add({kR2, 7}, alias_at(7.0));
+  EXPECT_EQ(aliases.Find({kR1, 1}), first);  // still valid after 1500 more
+  EXPECT_EQ(aliases.size(), 1503u);
+  EXPECT_EQ(aliases.Count(kR1), 1502);
+  EXPECT_EQ(aliases.Count(kR2), 1);
+  for (int32_t i = 1; i < 3000; i += 2) {
+    ASSERT_NE(aliases.Find({kR1, i}), nullptr) << i;
+    EXPECT_EQ(aliases.Find({kR1, i})->T_node_key.x(), i);
+    EXPECT_EQ(aliases.Find({kR1, i + 1}), nullptr) << i + 1;
+  }
+  EXPECT_EQ(aliases.Find({kR1, 1 << 30})->T_node_key.x(), -1.0);
+  EXPECT_EQ(aliases.Find({kR1, -5})->T_node_key.x(), -5.0);
+  EXPECT_EQ(aliases.Find({kR1, 3001}), nullptr);
+  EXPECT_EQ(aliases.Find({kR2, 7})->T_node_key.x(), 7.0);
+  EXPECT_EQ(aliases.Find({kR2, 1}), nullptr);
+  EXPECT_EQ(aliases.Find({TrajectoryId(9), 1}), nullptr);
+}
+
+TEST(PoseAliasesTest, FoldedUnlessTheNodeWasBorrowedForTheKeyframe) {
+  PoseAlias fold;
+  fold.covariance = Diagonal(0.05, 0.01);
+  EXPECT_TRUE(fold.folded());
+  PoseAlias borrowed;
+  borrowed.covariance.setZero();
+  EXPECT_FALSE(borrowed.folded());
+}
+
 }  // namespace
 }  // namespace anchormap

@@ -130,6 +130,11 @@ class Smoother {
   PoseKey NextBorrowedNode(TrajectoryId t) const;
   // nullptr when `key` is no alias.
   const PoseAlias* FindAlias(PoseKey key) const { return aliases_.Find(key); }
+  // True when `key` folded onto a node made for another keyframe (PoseAlias::folded).
+  bool IsFolded(PoseKey key) const {
+    const PoseAlias* alias = aliases_.Find(key);
+    return alias != nullptr && alias->folded();
+  }
   int64_t NumAliases() const { return static_cast<int64_t>(aliases_.size()); }
   // Measurements between two keys folded onto one node (added as nothing).
   int64_t measurements_inside_nodes() const { return measurements_inside_nodes_; }
