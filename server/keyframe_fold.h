@@ -106,7 +106,7 @@ class KeyframeFolder {
   std::map<TrajectoryFrame, PositionIndex> index_;
   int64_t indexed_at_update_ = -1;
   std::map<std::pair<int64_t, int32_t>, std::shared_ptr<const ScanReference>> references_;
-  std::vector<std::pair<int64_t, int32_t>> reference_order_;  // oldest first
+  std::vector<std::pair<int64_t, int32_t>> reference_order_;  // least recently used first
   KeyframeFoldStats stats_;
 };
 
