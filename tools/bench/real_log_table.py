@@ -15,6 +15,7 @@ CPU time), and the server's loop closure and scan encounter counts from its fina
 Runs one replay at a time under `nice` (the machine is shared). Example:
   tools/bench/real_log_table.py --bin build/bin --data ../shared/data/benchmark --work /tmp/t
   tools/bench/real_log_table.py --logs aces --configs 1,2,2s   # a subset
+  tools/bench/real_log_table.py --replay-option=--reduced-graph=true   # not the defaults
 Writes WORK/table.md (markdown) and WORK/table.json; prints the table as it goes.
 """
 
@@ -133,7 +134,7 @@ def one(args, log, config):
     if code != 0:
         return {"name": name, "error": "import failed"}
     replay = ["nice", "-n", str(args.nice), os.path.join(args.bin, "anchormap-replay"), "--log",
-              base + ".in", "--output", base + ".out"]
+              base + ".in", "--output", base + ".out"] + args.replay_option
     code, cpu, wall = run(replay, base + ".replay.txt")
     if code != 0:
         return {"name": name, "error": "replay failed"}
@@ -212,6 +213,9 @@ def main():
     parser.add_argument("--configs", default="1,2,2s,3,3s",
                         help="robots, with s for --simultaneous")
     parser.add_argument("--nice", type=int, default=5)
+    parser.add_argument("--replay-option", action="append", default=[], metavar="OPTION",
+                        help="an option for anchormap-replay beyond the defaults, e.g. "
+                        "--replay-option=--reduced-graph=true (repeatable)")
     parser.add_argument("--keep-logs", action="store_true",
                         help="keep the imported and replayed LCM logs (large)")
     args = parser.parse_args()
