@@ -30,6 +30,9 @@ Status ReducedGraphOptions::Validate() const {
     return Status::Error("reduced_graph: min score in [0, 1), min overlap in [0, 1]");
   }
   if (!(gate_chi2 > 0)) return Status::Error("reduced_graph.gate_chi2 must be > 0");
+  if (!(max_sigma_m > 0) || !(max_sigma_rad > 0)) {
+    return Status::Error("reduced_graph.max_sigma_m and max_sigma_rad must be > 0");
+  }
   if (!(max_range_m > 0)) return Status::Error("reduced_graph.max_range_m must be > 0");
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0)) {
     return Status::Error("reduced_graph covariance floors must be >= 0");
@@ -176,6 +179,11 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
     ++stats_.weak_match;
     return std::nullopt;
   }
+  if (LargestSigma(match->covariance.topLeftCorner<2, 2>()) > options_.max_sigma_m ||
+      std::sqrt(std::max(0.0, match->covariance(2, 2))) > options_.max_sigma_rad) {
+    ++stats_.degenerate;
+    return std::nullopt;
+  }
   const Eigen::Matrix3d covariance =
       WithCovarianceFloor(match->covariance, options_.floor_sigma_m, options_.floor_sigma_rad);
   if (Mahalanobis2(guess, match->pose, predicted_covariance + covariance) > options_.gate_chi2) {
@@ -192,7 +200,8 @@ std::string KeyframeFolder::StatsLine() const {
          " (no candidate " + std::to_string(stats_.no_candidate) + ", unsolved " +
          std::to_string(stats_.unsolved) + ", no scan " + std::to_string(stats_.no_scan) +
          ", weak " + std::to_string(stats_.weak_match) + ", gate " +
-         std::to_string(stats_.gate_rejected) + ")";
+         std::to_string(stats_.gate_rejected) + ", degenerate " +
+         std::to_string(stats_.degenerate) + ")";
 }
 
 }  // namespace anchormap

@@ -130,6 +130,20 @@ TEST_F(KeyframeFoldTest, AKeyframeWhoseScanDoesNotMatchTheNodeIsANode) {
   EXPECT_EQ(folder_.stats().folded, 0);
 }
 
+TEST_F(KeyframeFoldTest, AMatchLessLocalisedThanTheBarsFoldsNothing) {
+  // The place that folds in the first test, with bars below its match's own spread: the
+  // keyframe becomes a node (on Intel's corridors such matches slid up to 1.7 m along them).
+  ReducedGraphOptions strict;
+  strict.max_sigma_m = 1e-4;
+  folder_ = KeyframeFolder(strict);
+  for (int32_t i = 0; i <= 10; ++i) {
+    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+  }
+  EXPECT_FALSE(Try(Revisit(Pose2(4.2, 2.0, 0.087))).has_value());
+  EXPECT_EQ(folder_.stats().degenerate, 1) << folder_.StatsLine();
+  EXPECT_EQ(folder_.stats().gate_rejected + folder_.stats().weak_match, 0);
+}
+
 TEST(ReducedGraphOptionsTest, BadRadiusAndAngleAreRefusedByName) {
   ReducedGraphOptions options;
   EXPECT_TRUE(options.Validate().ok());
