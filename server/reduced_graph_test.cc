@@ -283,6 +283,15 @@ TEST_F(ReducedGraphSnapshotTest, ARestoredServerFoldsAsTheUninterruptedOne) {
   EXPECT_GT(borrowed, 0);
   EXPECT_GT(pending_at_cuts, 0);
 
+  // The last snapshot's size against the full graph's at the same inputs (recorded, for the
+  // docs: 1,120,294 against 1,405,687 bytes at 03017c1 + snap25).
+  MappingServer full(TeamOptions(false));
+  for (size_t i = 0; i < cuts.back(); ++i) Feed(&full, inputs[i]);
+  const Result<std::vector<uint8_t>> full_bytes = SnapshotCodec::Encode(full, {});
+  ASSERT_TRUE(full_bytes.ok());
+  RecordProperty("snapshot_bytes_reduced", static_cast<int>(snapshots.back().size()));
+  RecordProperty("snapshot_bytes_full", static_cast<int>(full_bytes->size()));
+
   for (size_t c = 0; c < cuts.size(); ++c) {
     SCOPED_TRACE("snapshot after input " + std::to_string(cuts[c]) + " of " + std::to_string(n));
     MappingServer restored(options);
