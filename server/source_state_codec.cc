@@ -488,6 +488,20 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
   if (snapshot_version >= 12) s->near_folded = r->I64();
 }
 
+namespace {
+
+// Every fold counter, in declaration order: a new field must be added here (the size check).
+static_assert(sizeof(KeyframeFoldStats) == 7 * 8, "KeyframeFoldStats changed: update the codec");
+template <typename Stats, typename OnCount>
+void ForEachFoldCount(Stats& s, OnCount on_count) {
+  for (auto* v : {&s.examined, &s.no_candidate, &s.unsolved, &s.no_scan, &s.weak_match,
+                  &s.gate_rejected, &s.folded}) {
+    on_count(v);
+  }
+}
+
+}  // namespace
+
 void PutKeyframeFolderState(ByteWriter* w, const KeyframeFolderState& s) {
   w->Size(s.nodes.size());
   for (const KeyframeFolderState::Node& n : s.nodes) {
@@ -506,11 +520,8 @@ void PutKeyframeFolderState(ByteWriter* w, const KeyframeFolderState& s) {
     }
   }
   w->I64(s.indexed_at_update);
-  const KeyframeFoldStats& st = s.stats;
-  for (int64_t v : {st.examined, st.no_candidate, st.unsolved, st.no_scan, st.weak_match,
-                    st.gate_rejected, st.folded}) {
-    w->I64(v);
-  }
+  KeyframeFoldStats stats = s.stats;
+  ForEachFoldCount(stats, [w](int64_t* v) { w->I64(*v); });
 }
 
 void GetKeyframeFolderState(ByteReader* r, KeyframeFolderState* s) {
@@ -534,11 +545,8 @@ void GetKeyframeFolderState(ByteReader* r, KeyframeFolderState* s) {
     s->index.emplace_back(frame, std::move(entries));
   }
   s->indexed_at_update = r->I64();
-  KeyframeFoldStats& st = s->stats;
-  for (int64_t* v : {&st.examined, &st.no_candidate, &st.unsolved, &st.no_scan, &st.weak_match,
-                     &st.gate_rejected, &st.folded}) {
-    *v = r->I64();
-  }
+  s->stats = KeyframeFoldStats{};
+  ForEachFoldCount(s->stats, [r](int64_t* v) { *v = r->I64(); });
 }
 
 }  // namespace anchormap
