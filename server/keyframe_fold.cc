@@ -6,6 +6,7 @@
 
 #include "common/geometry/angle.h"
 #include "server/encounter_candidate.h"
+#include "server/keyframe_fold_state.h"
 #include "server/keyframe_submap.h"
 
 namespace anchormap {
@@ -202,6 +203,30 @@ std::string KeyframeFolder::StatsLine() const {
          ", weak " + std::to_string(stats_.weak_match) + ", gate " +
          std::to_string(stats_.gate_rejected) + ", degenerate " +
          std::to_string(stats_.degenerate) + ")";
+}
+
+KeyframeFolderState KeyframeFolder::ExportState() const {
+  KeyframeFolderState s;
+  for (const Node& n : nodes_) s.nodes.push_back({n.node, n.keyframe});
+  for (const auto& [frame, index] : index_) s.index.emplace_back(frame, index.Entries());
+  s.indexed_at_update = indexed_at_update_;
+  s.stats = stats_;
+  return s;
+}
+
+void KeyframeFolder::ImportState(const KeyframeFolderState& s) {
+  nodes_.clear();
+  for (const KeyframeFolderState::Node& n : s.nodes) nodes_.push_back({n.node, n.keyframe});
+  // Added again in Entries order: each cell holds its items in the same order.
+  index_.clear();
+  for (const auto& [frame, entries] : s.index) {
+    PositionIndex& index = index_.try_emplace(frame, kIndexCellM).first->second;
+    for (const auto& [item, position] : entries) index.Add(item, position);
+  }
+  indexed_at_update_ = s.indexed_at_update;
+  references_.clear();
+  reference_order_.clear();
+  stats_ = s.stats;
 }
 
 }  // namespace anchormap

@@ -82,6 +82,8 @@ struct KeyframeFoldStats {
   int64_t folded = 0;
 };
 
+struct KeyframeFolderState;  // keyframe_fold_state.h
+
 class KeyframeFolder {
  public:
   explicit KeyframeFolder(const ReducedGraphOptions& options);
@@ -98,6 +100,11 @@ class KeyframeFolder {
   const KeyframeFoldStats& stats() const { return stats_; }
   size_t num_nodes() const { return nodes_.size(); }
   std::string StatsLine() const;
+
+  // Snapshots (keyframe_fold_state.h). ImportState replaces everything but the options and
+  // leaves the reference cache empty (rebuilt on demand).
+  KeyframeFolderState ExportState() const;
+  void ImportState(const KeyframeFolderState& state);
 
  private:
   // The nodes' positions by frame, rebuilt once the estimate moved (a solver update).

@@ -40,6 +40,7 @@ LoopClosureState LoopClosures::ExportState() const {
   s.wide_searches = wide_searches_;
   s.ambiguous = ambiguous_;
   s.budget = budget_.ExportState();
+  s.folded = folded_;
   return s;
 }
 
@@ -77,6 +78,7 @@ void LoopClosures::ImportState(const LoopClosureState& s) {
   wide_searches_ = s.wide_searches;
   ambiguous_ = s.ambiguous;
   if (s.budget) budget_.ImportState(*s.budget);
+  folded_ = s.folded;
 }
 
 }  // namespace anchormap

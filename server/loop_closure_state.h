@@ -66,6 +66,8 @@ struct LoopClosureState {
   // The matching budget (none in snapshots before version 9: the restored source keeps a
   // fresh one).
   std::optional<MatchBudget::State> budget;
+  // Keyframes not searched from: folded (the reduced graph; 0 in snapshots before version 12).
+  int64_t folded = 0;
 };
 
 }  // namespace anchormap

@@ -360,6 +360,10 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
     Status status = Status::Ok();
     if (fold) {
       status = smoother_.AddAlias(a.key, fold->node, fold->T_node_keyframe, fold->covariance);
+      if (status.ok()) {
+        graph_edits_.push_back(
+            {GraphEdit::Kind::kAlias, a.key, fold->node, fold->T_node_keyframe, fold->covariance});
+      }
     } else {
       status = smoother_.AddPose(node, node_initial);
       if (status.ok()) {
@@ -369,6 +373,10 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
       }
       if (status.ok() && borrowed) {
         status = smoother_.AddAlias(a.key, node, Pose2(), Eigen::Matrix3d::Zero());
+        if (status.ok()) {
+          graph_edits_.push_back(
+              {GraphEdit::Kind::kAlias, a.key, node, Pose2(), Eigen::Matrix3d::Zero()});
+        }
       }
     }
     if (status.ok() && a.previous) {
@@ -486,14 +494,14 @@ void MappingServer::ResumeClocks(int64_t now_utime) {
 }
 
 bool MappingServer::CanDeferUpdates() const {
-  if (folder_) return false;  // the fold reads the estimate
+  // The reduced graph's fold reads the estimate (the prediction, the candidates, the gate's
+  // covariance): a deferred replay would fold otherwise than the live run did.
+  if (folder_) return false;
   return std::none_of(sources_.begin(), sources_.end(),
                       [](const auto& source) { return source->ReadsEstimate(); });
 }
 
 bool MappingServer::CanSnapshot() const {
-  // The fold table (the smoother's aliases) is not in the snapshot format yet.
-  if (folder_) return false;
   if (deferring_ || dynamic_cast<const DirectEncounters*>(sources_.front().get()) == nullptr) {
     return false;
   }

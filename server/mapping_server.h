@@ -93,8 +93,8 @@ struct MappingServerOptions {
   MatchSchedule match_schedule{0.0};
   // The reduced pose graph (server/keyframe_fold.h): a keyframe in an already mapped place
   // folds onto an existing node instead of becoming a variable. Off by default. With it on
-  // the server takes no snapshots (the fold table is not in the snapshot format yet) and
-  // never defers updates (the fold reads the estimate).
+  // the server never defers updates (the fold reads the estimate); its snapshots hold the
+  // aliases (graph edits) and the folder's node table and index (server/snapshot_codec.h).
   ReducedGraphOptions reduced_graph;
   MapPublisherOptions publish;
   DeliveryOptions delivery;
@@ -136,12 +136,15 @@ struct MappingServerStats {
 // One call that changed the smoother's graph. MappingServer keeps them in order, so that a
 // snapshot (server/snapshot_codec.h) can rebuild the same variables and factors (gauge
 // priors, anchors and group merges follow from the order) without the solver's internals.
+// The reduced graph's aliases are edits too (kAlias: key a, node b, the offset T_node_key as
+// `measured`, its covariance): a measurement on an alias is mapped onto the nodes when it is
+// added, so the aliases must be back, in their order, before the measurements that name them.
 struct GraphEdit {
-  enum class Kind : uint8_t { kPose, kBetween, kEncounter };
+  enum class Kind : uint8_t { kPose, kBetween, kEncounter, kAlias };
   Kind kind = Kind::kPose;
-  PoseKey a;  // kPose: the new pose
-  PoseKey b;
-  Pose2 measured;  // kPose: the initial guess
+  PoseKey a;       // kPose: the new pose; kAlias: the aliased keyframe
+  PoseKey b;       // kAlias: its node
+  Pose2 measured;  // kPose: the initial guess; kAlias: T_node_key
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
 };
 
@@ -224,8 +227,9 @@ class MappingServer {
   void ResumeClocks(int64_t now_utime);
 
   // Periodic snapshots (server/snapshot_codec.h): the state of the server's own sources
-  // (direct encounters, loop closures, scan encounters) is serialised, so a server with an
-  // added source (AddEncounterSource) cannot be snapshot; nor while deferring.
+  // (direct encounters, loop closures, scan encounters) and of the reduced graph's folder is
+  // serialised, so a server with an added source (AddEncounterSource) cannot be snapshot;
+  // nor while deferring.
   bool CanSnapshot() const;
   const std::vector<GraphEdit>& graph_edits() const { return graph_edits_; }
 

@@ -16,6 +16,7 @@ ScanEncounterState ScanEncounters::ExportState() const {
   s.now_utime = now_utime_;
   near_.ExportState(&s);
   s.stats = stats_;
+  s.near_folded = near_folded_;
   return s;
 }
 
@@ -28,6 +29,7 @@ void ScanEncounters::ImportState(const ScanEncounterState& s) {
   now_utime_ = s.now_utime;
   stats_ = s.stats;
   near_.ImportState(s);
+  near_folded_ = s.near_folded;
   look_back_.Forget();
 }
 

@@ -86,6 +86,9 @@ struct ScanEncounterState {
   // The near searches' matching budget (none in snapshots before version 9: the restored
   // source keeps a fresh one).
   std::optional<MatchBudget::State> near_budget;
+  // Keyframes not near-searched from: folded (the reduced graph; 0 in snapshots before
+  // version 12).
+  int64_t near_folded = 0;
 };
 
 }  // namespace anchormap

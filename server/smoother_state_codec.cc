@@ -140,6 +140,10 @@ void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherSt
   w->I64(s.nonzeros_after_batch);
   SmootherStats stats = s.stats;
   ForEachCount(stats, [w](int64_t* v) { w->I64(*v); });
+  if (snapshot_version >= 12) {
+    w->I64(s.aliases);
+    w->I64(s.measurements_inside_nodes);
+  }
 }
 
 void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* s) {
@@ -206,6 +210,12 @@ void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* s
   s->nonzeros_after_batch = r->I64();
   s->stats = SmootherStats{};
   ForEachCount(s->stats, [r](int64_t* v) { *v = r->I64(); });
+  s->aliases = 0;  // before version 12 no server folded keyframes
+  s->measurements_inside_nodes = 0;
+  if (snapshot_version >= 12) {
+    s->aliases = r->I64();
+    s->measurements_inside_nodes = r->I64();
+  }
 }
 
 }  // namespace anchormap

@@ -18,7 +18,9 @@ namespace anchormap {
 // none, and written in an older format the bound is infinite if there are any. A version-10
 // snapshot of a server that ran the then opt-in local correction lacks them: restored, its
 // first skip test may leave out the moved factors' terms (the next whole-map correction
-// clears them).
+// clears them). Version 12 adds the reduced graph's counts (aliases, measurements inside one
+// node; Smoother::ImportState checks them against the graph's); older ones read as 0, as no
+// server that folded keyframes wrote them.
 void PutSmootherState(ByteWriter* w, uint32_t snapshot_version, const SmootherState& state);
 // A failed read latches in `r` (the caller checks r->failed()).
 void GetSmootherState(ByteReader* r, uint32_t snapshot_version, SmootherState* state);

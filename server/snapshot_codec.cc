@@ -56,6 +56,8 @@ void Get(Reader* r, LaserScan* s) {
 constexpr uint32_t kRelayCountsVersion = 3;
 // Version 4 adds the solve period's state.
 constexpr uint32_t kSolvePeriodVersion = 4;
+// Version 12 adds the reduced graph: alias graph edits and the folder's state.
+constexpr uint32_t kReducedGraphVersion = 12;
 
 void Put(Writer* w, const Keyframe& k, uint32_t version) {
   w->String(k.robot);
@@ -268,6 +270,12 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
                          "snapshots need the server's own sources (direct encounters, loop "
                          "closures, scan encounters; no added one) and no deferral in progress");
   }
+  if (s.folder_ && version < kReducedGraphVersion) {
+    return Status::Error(ErrorCode::kInvalidArgument,
+                         "snapshot version " + std::to_string(version) +
+                             " cannot hold the reduced graph (version " +
+                             std::to_string(kReducedGraphVersion) + " on)");
+  }
   Writer w;
   w.bytes().assign(kMagic, kMagic + sizeof(kMagic));
   w.Raw<uint32_t>(version);
@@ -325,7 +333,8 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
     w.I32(l.index_b);
     w.U8(static_cast<uint8_t>(l.kind));
   }
-  // The smoother's graph: its edits in order (a pose with the initial guess it was given).
+  // The smoother's graph: its edits in order (a pose with the initial guess it was given; the
+  // reduced graph's aliases, version 12 on).
   w.Size(s.graph_edits_.size());
   for (const GraphEdit& e : s.graph_edits_) {
     w.U8(static_cast<uint8_t>(e.kind));
@@ -353,6 +362,11 @@ Result<std::vector<uint8_t>> SnapshotAccess::Encode(const MappingServer& s,
       w.U8(static_cast<uint8_t>(SourceKind::kScanEncounters));
       PutScanEncounterState(&w, version, scan.ExportState());
     }
+  }
+  // Version 12: the reduced graph's folder, if the server has one (its aliases are edits).
+  if (version >= kReducedGraphVersion) {
+    w.Bool(s.folder_ != nullptr);
+    if (s.folder_) PutKeyframeFolderState(&w, s.folder_->ExportState());
   }
 
   std::vector<uint8_t>& bytes = w.bytes();
@@ -383,6 +397,12 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
                          version1 ? "this server has a scan-matching source: a version-1 "
                                     "snapshot holds none"
                                   : "this server has a source a snapshot cannot hold");
+  }
+  // A version-1 snapshot is restored by deferred updates, which the fold does not allow.
+  if (version1 && s->folder_) {
+    return Status::Error(ErrorCode::kInvalidArgument,
+                         "this server folds keyframes (reduced graph): a version-1 snapshot "
+                         "restores by deferring updates, which the fold cannot");
   }
   Reader r(payload->data, payload->size);
   Get(&r, &node->position);
@@ -457,7 +477,10 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
   for (size_t i = 0, n = r.Count(); i < n && !r.failed(); ++i) {
     GraphEdit e;
     const uint8_t kind = r.U8();
-    if (kind > static_cast<uint8_t>(GraphEdit::Kind::kEncounter)) return Corrupt("graph edit");
+    const GraphEdit::Kind last = payload->version >= kReducedGraphVersion
+                                     ? GraphEdit::Kind::kAlias
+                                     : GraphEdit::Kind::kEncounter;
+    if (kind > static_cast<uint8_t>(last)) return Corrupt("graph edit");
     e.kind = static_cast<GraphEdit::Kind>(kind);
     Get(&r, &e.a);
     Get(&r, &e.b);
@@ -475,6 +498,9 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
       case GraphEdit::Kind::kEncounter:
         added = s->smoother_.AddEncounter(e.a, e.b, e.measured, e.covariance);
         if (added.ok()) s->ties_.Add(e.a, e.b);
+        break;
+      case GraphEdit::Kind::kAlias:
+        added = s->smoother_.AddAlias(e.a, e.b, e.measured, e.covariance);
         break;
     }
     if (!added.ok()) return Corrupt("graph edit " + std::to_string(i) + ": " + added.message());
@@ -509,6 +535,25 @@ Status SnapshotAccess::Decode(const uint8_t* data, size_t size, MappingServer* s
       } else {
         return Corrupt("source " + std::to_string(i) + " is not the server's");
       }
+    }
+  }
+  // The reduced graph's folder. A snapshot without one (older, or of a server without the
+  // option) into a server with it: every pose is a node verified by its own keyframe's scan,
+  // as if the option had been on with that graph (no alias, no borrowed node: the edits hold
+  // none), the index built at the first fold. The other way round is refused: the aliases
+  // would stay, but no keyframe would fold or borrow a node after them.
+  if (s->folder_) s->folder_ = std::make_unique<KeyframeFolder>(s->options_.reduced_graph);
+  const bool has_folder = payload->version >= kReducedGraphVersion && r.Bool();
+  if (has_folder && !s->folder_) {
+    return Corrupt("the snapshot's server folds keyframes (reduced graph), this one does not");
+  }
+  if (has_folder) {
+    KeyframeFolderState folder;
+    GetKeyframeFolderState(&r, &folder);
+    s->folder_->ImportState(folder);
+  } else if (s->folder_) {
+    for (const GraphEdit& e : s->graph_edits_) {
+      if (e.kind == GraphEdit::Kind::kPose) s->folder_->AddNode(e.a, e.a, s->smoother_);
     }
   }
   if (r.failed()) return Corrupt("payload ends early");

@@ -16,13 +16,19 @@
 // and factors, the step policy's counters), the match pool's job numbering, and the
 // scan-matching sources' state (server/loop_closure_state.h, scan_encounter_state.h: waiting
 // keyframes, submap drawings, kept hypotheses and candidates, cooldowns, budgets, counters,
-// and the matches in flight with their results, waited for when the snapshot is taken). So a
+// and the matches in flight with their results, waited for when the snapshot is taken).
+// Since version 12 also the reduced graph (server/keyframe_fold.h): the aliases among the
+// graph edits (so the measurements on them map onto the same nodes again, and the borrowed
+// nodes' numbering and the count of measurements inside one node follow), and the folder's
+// node table, position index (as it stands, not rebuilt) and counters. So a
 // restored server, scan sources on, continues exactly as the uninterrupted one: the same
 // estimate and covariances, hence the same candidates, gates and graph edits (tested to the
 // bit: snapshot_codec_test.cc, tests/crash_test.sh mode scan). Not held: the map publisher's
 // state (the next map and grid go out whole, as after any restart), the submap references
 // (rebuilt from their drawings when needed), memoised covariances, the update timings and
-// the match pool's counters (this process's), and the once-per-kind log memories.
+// the match pool's counters (this process's), the once-per-kind log memories, and the
+// folder's cache of node scan references (rebuilt from the keyframes' scans: the same
+// references, so the same folds).
 //
 // A version-1 snapshot (direct-encounter source alone) held no smoother state: it is
 // restored by one batch step from the live initial guesses, after the journal's tail (the
@@ -66,7 +72,13 @@ namespace anchormap {
 // own maps' conflict (what guides a global search); older ones read as not measured.
 // Version 11 adds the smoother's local corrections' moves since its last gradient pass
 // (correction_local_hops); older ones read as none (server/smoother_state_codec.h).
-inline constexpr uint32_t kSnapshotVersion = 11;
+// Version 12 adds the reduced graph (MappingServerOptions::reduced_graph): the aliases as graph
+// edits (GraphEdit::Kind::kAlias, in their order among the others), the smoother's counts of
+// aliases and of measurements inside one node (checked on import), the folder's node table,
+// position index and counters (keyframe_fold_state.h), and the sources' counts of folded
+// keyframes; older ones read as holding no alias (every pose a node of a restored server with
+// the option, verified by its own scan) and the counts as 0.
+inline constexpr uint32_t kSnapshotVersion = 12;
 inline constexpr uint32_t kOldestSnapshotVersion = 1;
 
 // The journal prefix a snapshot covers: its first `events` events, the last of which had

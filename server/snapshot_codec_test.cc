@@ -586,6 +586,18 @@ TEST_F(SnapshotRefusalTest, ASnapshotOfOtherSourcesIsRefused) {
   const Status old = SnapshotCodec::Decode(v1.data(), v1.size(), &other, &node);
   EXPECT_EQ(old.code(), ErrorCode::kInvalidArgument);
   EXPECT_TRUE(SnapshotCodec::Decode(v1.data(), v1.size(), &direct, &node).ok());
+  // Nor into a server with the reduced graph: a version-1 snapshot restores by deferring
+  // updates, which the fold does not allow (later versions load: reduced_graph_test.cc).
+  MappingServerOptions reduced = Options();
+  reduced.reduced_graph.enabled = true;
+  MappingServer folding(reduced);
+  const Status deferred = SnapshotCodec::Decode(v1.data(), v1.size(), &folding, &node);
+  EXPECT_EQ(deferred.code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(deferred.message().find("reduced graph"), std::string::npos) << deferred.message();
+  MappingServer folding_v12(reduced);
+  EXPECT_TRUE(SnapshotCodec::Decode(bytes_.data(), bytes_.size(), &folding_v12, &node).ok());
+  EXPECT_EQ(folding_v12.folder()->num_nodes(),
+            static_cast<size_t>(server_at_snapshot_.table().num_keyframes()));
 }
 
 }  // namespace

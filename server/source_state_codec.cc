@@ -230,6 +230,7 @@ void PutLoopClosureState(ByteWriter* w, uint32_t snapshot_version, const LoopClo
   w->I64(s.wide_searches);
   w->I64(s.ambiguous);
   PutBudget(w, snapshot_version, s.budget);
+  if (snapshot_version >= 12) w->I64(s.folded);
 }
 
 void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* s) {
@@ -292,6 +293,7 @@ void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureSt
   s->wide_searches = r->I64();
   s->ambiguous = r->I64();
   GetBudget(r, snapshot_version, &s->budget);
+  s->folded = snapshot_version >= 12 ? r->I64() : 0;
 }
 
 void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanEncounterState& s) {
@@ -377,6 +379,7 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version, const ScanE
   w->Size(s.near_joined.size());
   for (const auto& pair : s.near_joined) Put(w, pair);
   PutBudget(w, snapshot_version, s.near_budget);
+  if (snapshot_version >= 12) w->I64(s.near_folded);
 }
 
 void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* s) {
@@ -465,6 +468,7 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
   Get(r, &s->stats);
   s->near_held.clear();
   s->near_budget.reset();
+  s->near_folded = 0;
   if (snapshot_version < 5) return;
   for (size_t i = 0, n = r->Count(); i < n && !r->failed(); ++i) {
     Pair pair{TrajectoryId(0), TrajectoryId(0)};
@@ -481,6 +485,68 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
     s->near_joined.insert(pair);
   }
   GetBudget(r, snapshot_version, &s->near_budget);
+  if (snapshot_version >= 12) s->near_folded = r->I64();
+}
+
+namespace {
+
+// Every fold counter, in declaration order: a new field must be added here (the size check).
+static_assert(sizeof(KeyframeFoldStats) == 7 * 8, "KeyframeFoldStats changed: update the codec");
+template <typename Stats, typename OnCount>
+void ForEachFoldCount(Stats& s, OnCount on_count) {
+  for (auto* v : {&s.examined, &s.no_candidate, &s.unsolved, &s.no_scan, &s.weak_match,
+                  &s.gate_rejected, &s.folded}) {
+    on_count(v);
+  }
+}
+
+}  // namespace
+
+void PutKeyframeFolderState(ByteWriter* w, const KeyframeFolderState& s) {
+  w->Size(s.nodes.size());
+  for (const KeyframeFolderState::Node& n : s.nodes) {
+    Put(w, n.node);
+    Put(w, n.keyframe);
+  }
+  w->Size(s.index.size());
+  for (const auto& [frame, entries] : s.index) {
+    w->Bool(frame.first);
+    Put(w, frame.second);
+    w->Size(entries.size());
+    for (const auto& [item, position] : entries) {
+      w->I32(item);
+      w->F64(position.x());
+      w->F64(position.y());
+    }
+  }
+  w->I64(s.indexed_at_update);
+  KeyframeFoldStats stats = s.stats;
+  ForEachFoldCount(stats, [w](int64_t* v) { w->I64(*v); });
+}
+
+void GetKeyframeFolderState(ByteReader* r, KeyframeFolderState* s) {
+  s->nodes.resize(r->Count(2 * (sizeof(int64_t) + sizeof(int32_t))));
+  for (KeyframeFolderState::Node& n : s->nodes) {
+    Get(r, &n.node);
+    Get(r, &n.keyframe);
+  }
+  s->index.clear();
+  for (size_t i = 0, n = r->Count(1 + sizeof(int64_t) + 8); i < n && !r->failed(); ++i) {
+    TrajectoryFrame frame{false, TrajectoryId(0)};
+    frame.first = r->Bool();
+    Get(r, &frame.second);
+    std::vector<std::pair<int32_t, Eigen::Vector2d>> entries(
+        r->Count(sizeof(int32_t) + 2 * sizeof(double)));
+    for (auto& [item, position] : entries) {
+      item = r->I32();
+      const double x = r->F64();
+      position = Eigen::Vector2d(x, r->F64());
+    }
+    s->index.emplace_back(frame, std::move(entries));
+  }
+  s->indexed_at_update = r->I64();
+  s->stats = KeyframeFoldStats{};
+  ForEachFoldCount(s->stats, [r](int64_t* v) { *v = r->I64(); });
 }
 
 }  // namespace anchormap

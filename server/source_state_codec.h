@@ -1,11 +1,13 @@
 #pragma once
-// The scan-matching sources' state (loop_closure_state.h, scan_encounter_state.h) in a
-// snapshot: every double bit for bit, in the server's byte codec (server/byte_codec.h); a
-// match result as its journal record (server/recorded_match_codec.h) holds it.
+// The scan-matching sources' state (loop_closure_state.h, scan_encounter_state.h) and the
+// reduced graph's folder state (keyframe_fold_state.h) in a snapshot: every double bit for bit, in
+// the server's byte codec (server/byte_codec.h); a match result as its journal record
+// (server/recorded_match_codec.h) holds it.
 
 #include <cstdint>
 
 #include "server/byte_codec.h"
+#include "server/keyframe_fold_state.h"
 #include "server/loop_closure_state.h"
 #include "server/scan_encounter_state.h"
 
@@ -20,5 +22,8 @@ void PutScanEncounterState(ByteWriter* w, uint32_t snapshot_version,
 // the snapshot's format `snapshot_version` wrote it.
 void GetLoopClosureState(ByteReader* r, uint32_t snapshot_version, LoopClosureState* state);
 void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncounterState* state);
+// The folder's state (snapshot version 12 on; older snapshots hold none).
+void PutKeyframeFolderState(ByteWriter* w, const KeyframeFolderState& state);
+void GetKeyframeFolderState(ByteReader* r, KeyframeFolderState* state);
 
 }  // namespace anchormap

@@ -30,12 +30,16 @@
 # whole journal is replayed), none was journaled for another
 # match or under other options, both sources accepted something, and the final map is the
 # uninterrupted one's as above.
+# Mode `reduced` (ctest crash_reduced_test): the reduced pose graph on (`--reduced-graph`, the
+# reference too; no scan source), seed 4's 40 s, lives of 2-3.5 s from when the server is up:
+# the snapshots hold the aliases and the folder (format 12); asserted: the last server folded
+# keyframes, a restart used a snapshot, and the final map is the uninterrupted one's.
 # Without network namespaces: exit 77 (ctest SKIP_RETURN_CODE) with a message.
 #
-# usage: crash_test.sh BUILD_DIR [snapshots|scan]   (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
+# usage: crash_test.sh BUILD_DIR [snapshots|scan|reduced]   (ANCHORMAP_KEEP_TEST_DIR=1 keeps the files)
 set -uo pipefail
 
-BUILD=${1:?usage: crash_test.sh BUILD_DIR [snapshots|scan]}
+BUILD=${1:?usage: crash_test.sh BUILD_DIR [snapshots|scan|reduced]}
 MODE=${2:-snapshots}
 DURATION_S=60
 SPEED=2
@@ -59,7 +63,18 @@ case $MODE in
     SIM_SEED=4
     LIFE_MIN_MS=2000
     LIFE_SPAN_MS=1500 ;;
-  *) echo "crash_test: mode $MODE is not snapshots or scan" >&2; exit 2 ;;
+  reduced)
+    # The reduced pose graph (--reduced-graph, snapshot format 12: the aliases and the folder
+    # are in the snapshots): no scan source, seed 4's revisits (the keyframes fold), lives
+    # counted from when the server is up (a restart's journal replay runs every update: the
+    # fold reads the estimate).
+    SOURCES="--loop-closures false --scan-encounters false --reduced-graph true"
+    SNAPSHOTS="--snapshot-every-s 1 --snapshot-every-events 100"
+    DURATION_S=40
+    SIM_SEED=4
+    LIFE_MIN_MS=2000
+    LIFE_SPAN_MS=1500 ;;
+  *) echo "crash_test: mode $MODE is not snapshots, scan or reduced" >&2; exit 2 ;;
 esac
 BIN=$BUILD/bin
 SKIP=77
@@ -124,7 +139,7 @@ inside_namespace() {
     local life_ms=$((LIFE_MIN_MS + RANDOM % LIFE_SPAN_MS)) down_ms=$((RANDOM % 700))
     # Scan mode: a life starts when the server is up (its replay may run matches its
     # predecessor never ran; killed before it is up it would publish no instance id).
-    if [ "$MODE" = scan ]; then wait_until_listening "$work" $run || return 1; fi
+    if [ "$MODE" != snapshots ]; then wait_until_listening "$work" $run || return 1; fi
     sleep "$(milliseconds_as_seconds $life_ms)"
     kill -KILL "$server"
     wait "$server" 2>/dev/null
@@ -201,7 +216,15 @@ main() {
     [ "${loop_accepted:-0}" -ge 1 ] && [ "${scan_accepted:-0}" -ge 1 ] ||
       { log "FAIL: a scan source accepted nothing"; exit 1; }
   fi
+  if [ "$MODE" = reduced ]; then
+    # Keyframes folded (else the test would prove nothing about the reduced graph).
+    local folded
+    folded=$(grep -h 'final:' "$work/server_$KILLS.log" | tail -1 | sed -n 's/.*reduced graph: nodes [0-9]* folded \([0-9]*\) of.*/\1/p')
+    log "the last server folded ${folded:-0} keyframes"
+    [ "${folded:-0}" -ge 1 ] || { log "FAIL: no keyframe folded"; exit 1; }
+  fi
   check_snapshots "$work" || exit 1
+  log "snapshots: $(ls -l "$work"/journal/snapshot-*.bin 2>/dev/null | awk '{ printf "%s %s B; ", $9, $5 }' | sed "s|$work/journal/||g")"
   log "journal: $(stat -c %s "$work/journal/journal.lcmlog") bytes"
 
   # shellcheck disable=SC2086

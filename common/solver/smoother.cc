@@ -486,8 +486,25 @@ std::vector<Factor> Smoother::ActiveFactors() const { return impl_->ActiveFactor
 Smoother::LinearSystem Smoother::LinearSystemForTesting() const {
   return impl_->LinearSystemForTesting();
 }
-SmootherState Smoother::ExportState() const { return impl_->ExportState(); }
-Status Smoother::ImportState(SmootherState state) { return impl_->ImportState(std::move(state)); }
+SmootherState Smoother::ExportState() const {
+  SmootherState state = impl_->ExportState();
+  state.aliases = NumAliases();
+  state.measurements_inside_nodes = measurements_inside_nodes_;
+  return state;
+}
+
+Status Smoother::ImportState(SmootherState state) {
+  if (state.aliases != NumAliases() ||
+      state.measurements_inside_nodes != measurements_inside_nodes_) {
+    return Status::Error(ErrorCode::kInvalidArgument,
+                         "smoother state refused: other aliases (" + std::to_string(state.aliases) +
+                             " aliases, " + std::to_string(state.measurements_inside_nodes) +
+                             " measurements inside nodes; this graph " +
+                             std::to_string(NumAliases()) + ", " +
+                             std::to_string(measurements_inside_nodes_) + ")");
+  }
+  return impl_->ImportState(std::move(state));
+}
 const SmootherStats& Smoother::stats() const { return impl_->stats(); }
 CorrectionWork Smoother::correction_work() const { return impl_->correction_work(); }
 std::vector<Pose2> Smoother::GlobalTrajectory(TrajectoryId t) const {

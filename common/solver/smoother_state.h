@@ -66,6 +66,11 @@ struct SmootherState {
   int updates_since_drift_check = 0;
   int64_t nonzeros_after_batch = 0;
   SmootherStats stats;
+  // The reduced graph's aliases follow from the Add* calls (AddAlias, AddPose of borrowed
+  // nodes, measurements inside one node) as the variables do; their counts are here to be
+  // checked against the graph's own.
+  int64_t aliases = 0;
+  int64_t measurements_inside_nodes = 0;
 };
 
 }  // namespace anchormap

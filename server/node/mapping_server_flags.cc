@@ -168,7 +168,7 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
   add("reduced_graph.enabled", "reduced-graph", &s.reduced_graph.enabled,
       "reduced pose graph: a keyframe in an already mapped place folds onto an existing node "
       "(verified by a scan match) instead of becoming a new variable, so the graph grows with "
-      "the area, not with time; no snapshots then");
+      "the area, not with time (its folds are in the snapshots; updates never deferred)");
   add("reduced_graph.radius_m", "reduced-graph-radius-m", &s.reduced_graph.radius_m,
       "reduced graph: a node is a fold candidate when the keyframe's predicted position is this "
       "close (m, (0, 10])");

@@ -109,7 +109,9 @@ Result<std::unique_ptr<ServerJournal>> ServerJournal::OpenAndReplay(const std::s
          << "the last " << 1e3 * replay.batch_step.seconds << " ms";
   } else {
     line << "every solver update run"
-         << (defer_updates ? " (a scan-matching source reads the estimate)" : "");
+         << (defer_updates ? " (a scan-matching source or the reduced graph's fold reads the "
+                             "estimate)"
+                           : "");
   }
   if (replay.matches_journaled > 0 || replay.matches_run > 0) {
     line << "; scan matches: " << replay.matches_reused << " reused from the journal, "
