@@ -491,11 +491,11 @@ void GetScanEncounterState(ByteReader* r, uint32_t snapshot_version, ScanEncount
 namespace {
 
 // Every fold counter, in declaration order: a new field must be added here (the size check).
-static_assert(sizeof(KeyframeFoldStats) == 7 * 8, "KeyframeFoldStats changed: update the codec");
+static_assert(sizeof(KeyframeFoldStats) == 8 * 8, "KeyframeFoldStats changed: update the codec");
 template <typename Stats, typename OnCount>
 void ForEachFoldCount(Stats& s, OnCount on_count) {
   for (auto* v : {&s.examined, &s.no_candidate, &s.unsolved, &s.no_scan, &s.weak_match,
-                  &s.gate_rejected, &s.folded}) {
+                  &s.gate_rejected, &s.degenerate, &s.folded}) {
     on_count(v);
   }
 }
