@@ -18,6 +18,11 @@ double LargestSigma(const Eigen::Matrix2d& covariance) {
   return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
 }
 
+bool Localised(const Eigen::Matrix3d& covariance, double max_sigma_m, double max_sigma_rad) {
+  return LargestSigma(covariance.topLeftCorner<2, 2>()) <= max_sigma_m &&
+         std::sqrt(std::max(0.0, covariance(2, 2))) <= max_sigma_rad;
+}
+
 EncounterCandidate Reversed(const EncounterCandidate& c) {
   EncounterCandidate r = c;
   std::swap(r.a, r.b);

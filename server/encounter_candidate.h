@@ -34,6 +34,10 @@ struct EncounterCandidate {
 // The largest standard deviation of a 2 x 2 covariance (its largest eigenvalue's root).
 double LargestSigma(const Eigen::Matrix2d& covariance);
 
+// A match localised in every direction: no position sigma above max_sigma_m, the heading's
+// not above max_sigma_rad (a corridor's match, free along it, is not).
+bool Localised(const Eigen::Matrix3d& covariance, double max_sigma_m, double max_sigma_rad);
+
 // The same candidate seen from the other side: a measured in the frame of b.
 EncounterCandidate Reversed(const EncounterCandidate& c);
 

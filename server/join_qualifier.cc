@@ -120,9 +120,8 @@ void JoinQualifier::Offer(const EncounterCandidate& offered, const GraphView& gr
 }
 
 bool JoinQualifier::Localised(const EncounterCandidate& candidate) const {
-  return LargestSigma(candidate.covariance.topLeftCorner<2, 2>()) <=
-             options_.first_join_max_sigma_m &&
-         std::sqrt(std::max(0.0, candidate.covariance(2, 2))) <= options_.first_join_max_sigma_rad;
+  return anchormap::Localised(candidate.covariance, options_.first_join_max_sigma_m,
+                              options_.first_join_max_sigma_rad);
 }
 
 bool JoinQualifier::Consistent(const EncounterCandidate& c1, const EncounterCandidate& c2,

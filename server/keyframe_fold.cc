@@ -180,8 +180,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
     ++stats_.weak_match;
     return std::nullopt;
   }
-  if (LargestSigma(match->covariance.topLeftCorner<2, 2>()) > options_.max_sigma_m ||
-      std::sqrt(std::max(0.0, match->covariance(2, 2))) > options_.max_sigma_rad) {
+  if (!Localised(match->covariance, options_.max_sigma_m, options_.max_sigma_rad)) {
     ++stats_.degenerate;
     return std::nullopt;
   }
