@@ -25,7 +25,8 @@ constexpr double kIndexCellM = 2.0;
 // covariance would make the fold look like a borrowed node's identity: PoseAlias::folded).
 std::optional<KeyframeFold> FusedFold(PoseKey node, const Pose2& predicted,
                                       const Eigen::Matrix3d& predicted_covariance,
-                                      const Pose2& matched, const Eigen::Matrix3d& match_covariance) {
+                                      const Pose2& matched,
+                                      const Eigen::Matrix3d& match_covariance) {
   const auto positive = [](const Eigen::Matrix3d& m) {
     const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (m + m.transpose()));
     return ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.vectorD().minCoeff() > 0.0;
@@ -39,10 +40,10 @@ std::optional<KeyframeFold> FusedFold(PoseKey node, const Pose2& predicted,
   Eigen::Matrix3d covariance = match_covariance - gain * match_covariance;
   covariance = 0.5 * (covariance + covariance.transpose());
   if (!positive(covariance)) return std::nullopt;
-  return KeyframeFold{node,
-                      Pose2(matched.x() + step.x(), matched.y() + step.y(),
-                            WrapAngle(matched.theta() + step.z())),
-                      covariance};
+  return KeyframeFold{
+      node,
+      Pose2(matched.x() + step.x(), matched.y() + step.y(), WrapAngle(matched.theta() + step.z())),
+      covariance};
 }
 
 }  // namespace
@@ -165,8 +166,8 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   // covariance (the identity, exactly, for the node's own keyframe): no solve through R,
   // which cost 7 % of a 100-robot replay with the option when every fold asked R.
   const PoseAlias* previous_alias = smoother->FindAlias(previous);
-  const bool chained = node_keyframe == previous ||
-                       (previous_alias != nullptr && previous_alias->node == node);
+  const bool chained =
+      node_keyframe == previous || (previous_alias != nullptr && previous_alias->node == node);
   const std::optional<PredictedRelativePose> node_previous =
       node_keyframe == previous ? std::optional<PredictedRelativePose>(PredictedRelativePose{
                                       Pose2(), Eigen::Matrix3d::Zero(), false})

@@ -204,7 +204,8 @@ struct ScanEncounterOptions {
   // this long (data time) after its own time, as a new node waits for the solver's next update:
   // its global search then sees the keyframes that followed it, as without the fold (on ACES
   // split in two, a true candidate's own maps were measured one view short, 1871 points against
-  // the bar's 2000, and were not map-verified). MappingServer sets it to its solve_period_s with the reduced graph.
+  // the bar's 2000, and were not map-verified). MappingServer sets it to its solve_period_s with
+  // the reduced graph.
   double folded_wait_s = 0.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 7};
   // The submaps' references built for searches, kept under a memory budget (a submap's
