@@ -224,11 +224,12 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   ++stats_.folded;
   // The prediction is the predecessor's own chain (the node is its keyframe, or the
   // predecessor folded onto it): the agent's constraint then enters no factor (both keys are
-  // the one node), so it is a second measurement of the offset, fused with the match. With the
-  // match's floored covariance alone (doubled in the factors through the fold), a fresh path,
-  // where every other keyframe folds onto its predecessor, lost its odometry's precision: on
-  // ACES split in two, R1[50] -> R1[170]'s heading sigma 0.011 -> 0.047 rad, and a wrong
-  // first join passed the pairwise test (chi-square 21.9 -> 0.64; docs/ARCHITECTURE.md, aces26).
+  // the one node), so it is a second measurement of the offset, fused with the match (the
+  // mean; the covariance stays the prediction's: FusedFold). With the match's floored
+  // covariance alone (doubled in the factors through the fold), a fresh path, where every
+  // other keyframe folds onto its predecessor, lost its odometry's precision: on ACES split in
+  // two, R1[50] -> R1[170]'s heading sigma 0.011 -> 0.047 rad, and a wrong first join passed
+  // the pairwise test (chi-square 21.9 -> 0.64; docs/ARCHITECTURE.md, aces26).
   if (chained) {
     if (std::optional<KeyframeFold> fused =
             FusedFold(node, guess, predicted_covariance, match->pose, covariance)) {
