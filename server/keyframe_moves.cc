@@ -101,6 +101,15 @@ KeyframeMoves::Pass KeyframeMoves::Examine(
   return pass;
 }
 
+void KeyframeMoves::Skip() {
+  for (Node& n : nodes_) {
+    n.examined = false;
+    n.pending_lever = -1.0;
+  }
+  for (const int32_t index : pending_) keyframes_[static_cast<size_t>(index)].pending = false;
+  pending_.clear();
+}
+
 void KeyframeMoves::PlacedNow(int32_t number) {
   const Keyframe& k = keyframes_[static_cast<size_t>(number)];
   Node& n = nodes_[static_cast<size_t>(k.node)];

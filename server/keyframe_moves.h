@@ -70,6 +70,9 @@ class KeyframeMoves {
   // now) except `deferred` (moved ones left for a later pass): those keep their displacement
   // in their node's margin.
   void Settle(const std::vector<Found>& deferred);
+  // No pass this time, though keyframes were placed again at poses not given here (the
+  // pending ones too): every node is examined at the next pass.
+  void Skip();
   // Keyframe `number` placed again at its pose of the last pass (not by Settle: a map
   // chunk sent again with its other keyframes).
   void PlacedNow(int32_t number);

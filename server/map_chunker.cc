@@ -154,55 +154,6 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
   std::vector<KeyframeMoves*> trajectory_moves(trajectories.size(), nullptr);
   std::vector<KeyframeMoves::Pass> passes(trajectories.size());
   if (!by_node) moves_.clear();
-  if (by_node) {
-    for (Chunk& c : chunks) {
-      c.candidate = false;
-      by_trajectory[static_cast<size_t>(c.trajectory - trajectories.data())].push_back(&c);
-    }
-    for (auto it = moves_.begin(); it != moves_.end();) {
-      it = by_name.count({it->first.first, it->first.second}) != 0 ? std::next(it)
-                                                                   : moves_.erase(it);
-    }
-    for (size_t t = 0; t < trajectories.size(); ++t) {
-      const Trajectory& trajectory = trajectories[t];
-      const std::vector<Chunk*>& of_t = by_trajectory[t];
-      auto [it, fresh] = moves_.try_emplace({trajectory.robot, trajectory.trajectory_id}, options_);
-      TrajectoryMoves& tm = it->second;
-      if (trajectory.num_poses < tm.count) {  // a restarted trajectory
-        tm.moves.Clear();
-        tm.count = 0;
-        fresh = true;
-      }
-      const auto sent_pose = [&](int64_t i) -> const Pose2* {
-        const Chunk* c = of_t[static_cast<size_t>(i / size)];
-        if (c->sent == nullptr) return nullptr;
-        const std::vector<Pose2>& poses = c->sent->chunk.local_poses;
-        return i - c->first < static_cast<int64_t>(poses.size())
-                   ? &poses[static_cast<size_t>(i - c->first)]
-                   : nullptr;
-      };
-      for (int64_t i = tm.count; i < trajectory.num_poses; ++i) {
-        const Trajectory::NodeOffset node = trajectory.node_of(i);
-        const double offset_m = node.T_node_key ? node.T_node_key->translation().norm() : 0.0;
-        tm.moves.Add(static_cast<uint64_t>(i), static_cast<uint64_t>(i), node.node, node.T_node_key,
-                     std::max(offset_m / options_.tolerance_m, 1.0 / options_.tolerance_rad),
-                     sent_pose(i) != nullptr);
-      }
-      tm.count = trajectory.num_poses;
-      passes[t] = tm.moves.Examine(trajectory.node_pose,
-                                   [&](uint64_t key, const Pose2& pose) -> std::optional<double> {
-                                     const Pose2* sent = sent_pose(static_cast<int64_t>(key));
-                                     if (sent == nullptr) return std::nullopt;
-                                     return Measure(*sent, pose);
-                                   });
-      // A fresh trajectory's chunks are read (their keyframes' times are checked there).
-      for (Chunk* c : of_t) c->candidate = fresh;
-      for (const KeyframeMoves::Found& f : passes[t].moved) {
-        of_t[static_cast<size_t>(f.key) / static_cast<size_t>(size)]->candidate = true;
-      }
-      trajectory_moves[t] = &tm.moves;
-    }
-  }
   // Whether the chunk's encounters are those it was last sent with.
   const auto same_links = [&](const Chunk& c) {
     const MergedMapChunk& sent = c.sent->chunk;
@@ -253,6 +204,61 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
                    [](const Chunk* a, const Chunk* b) { return a->sent->read < b->sent->read; });
   if (options_.max_read_chunks > 0) {
     rest.resize(std::min(rest.size(), static_cast<size_t>(options_.max_read_chunks)));
+  }
+  if (by_node) {
+    for (Chunk& c : chunks) {
+      c.candidate = false;
+      by_trajectory[static_cast<size_t>(c.trajectory - trajectories.data())].push_back(&c);
+    }
+    for (auto it = moves_.begin(); it != moves_.end();) {
+      it = by_name.count({it->first.first, it->first.second}) != 0 ? std::next(it)
+                                                                   : moves_.erase(it);
+    }
+    for (size_t t = 0; t < trajectories.size(); ++t) {
+      const Trajectory& trajectory = trajectories[t];
+      const std::vector<Chunk*>& of_t = by_trajectory[t];
+      auto [it, fresh] = moves_.try_emplace({trajectory.robot, trajectory.trajectory_id}, options_);
+      TrajectoryMoves& tm = it->second;
+      if (trajectory.num_poses < tm.count) {  // a restarted trajectory
+        tm.moves.Clear();
+        tm.count = 0;
+        fresh = true;
+      }
+      const auto sent_pose = [&](int64_t i) -> const Pose2* {
+        const Chunk* c = of_t[static_cast<size_t>(i / size)];
+        if (c->sent == nullptr) return nullptr;
+        const std::vector<Pose2>& poses = c->sent->chunk.local_poses;
+        return i - c->first < static_cast<int64_t>(poses.size())
+                   ? &poses[static_cast<size_t>(i - c->first)]
+                   : nullptr;
+      };
+      for (int64_t i = tm.count; i < trajectory.num_poses; ++i) {
+        const Trajectory::NodeOffset node = trajectory.node_of(i);
+        const double offset_m = node.T_node_key ? node.T_node_key->translation().norm() : 0.0;
+        tm.moves.Add(static_cast<uint64_t>(i), static_cast<uint64_t>(i), node.node, node.T_node_key,
+                     std::max(offset_m / options_.tolerance_m, 1.0 / options_.tolerance_rad),
+                     sent_pose(i) != nullptr);
+      }
+      tm.count = trajectory.num_poses;
+      trajectory_moves[t] = &tm.moves;
+      if (std::all_of(of_t.begin(), of_t.end(), [](const Chunk* c) { return c->send; })) {
+        // Every chunk goes anyway (a short trajectory's one growing chunk): no pose read
+        // here; its nodes are examined when next asked.
+        tm.moves.Skip();
+        continue;
+      }
+      passes[t] = tm.moves.Examine(trajectory.node_pose,
+                                   [&](uint64_t key, const Pose2& pose) -> std::optional<double> {
+                                     const Pose2* sent = sent_pose(static_cast<int64_t>(key));
+                                     if (sent == nullptr) return std::nullopt;
+                                     return Measure(*sent, pose);
+                                   });
+      // A fresh trajectory's chunks are read (their keyframes' times are checked there).
+      for (Chunk* c : of_t) c->candidate = c->candidate || fresh;
+      for (const KeyframeMoves::Found& f : passes[t].moved) {
+        of_t[static_cast<size_t>(f.key) / static_cast<size_t>(size)]->candidate = true;
+      }
+    }
   }
   std::vector<Chunk*> moved;
   for (Chunk* c : rest) {

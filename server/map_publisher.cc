@@ -253,8 +253,18 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
     }
     held = counts[t];
   }
+  std::unordered_map<int64_t, std::optional<Pose2>> anchors;  // by trajectory
   KeyframeMoves::Pass pass = moves_.Examine(
-      [&smoother](uint64_t node) { return smoother.GlobalPose(NodeKey(node)); },
+      [&smoother, &anchors](uint64_t node) {
+        // Smoother::GlobalPose's bits with each trajectory's anchor looked up once.
+        const PoseKey key = NodeKey(node);
+        auto [it, is_new] = anchors.try_emplace(key.trajectory.value());
+        if (is_new && smoother.options().formulation == Formulation::kRelative) {
+          it->second = smoother.Anchor(key.trajectory);
+        }
+        const Pose2 pose = smoother.FramePose(key);
+        return it->second ? Compose(*it->second, pose) : pose;
+      },
       [this](uint64_t key, const Pose2& pose) { return grid_.Displacement(key, pose); }, complete);
   const auto scan_of = [&](uint64_t order) {
     return &table.records()[order >> 32].scans[order & 0xffffffffu];
