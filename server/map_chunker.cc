@@ -31,6 +31,12 @@ double MapChunker::Moved(const std::vector<Pose2>& sent, const std::vector<Pose2
   return moved;
 }
 
+double MapChunker::Measure(const Pose2& a, const Pose2& b) const {
+  return std::max({std::abs(a.x() - b.x()) / options_.tolerance_m,
+                   std::abs(a.y() - b.y()) / options_.tolerance_m,
+                   std::abs(AngleDifference(a.theta(), b.theta())) / options_.tolerance_rad});
+}
+
 MapChunker::Split MapChunker::Update(const MergedMap& map, bool full, double refresh) {
   std::vector<Trajectory> trajectories;
   trajectories.reserve(map.trajectories.size());
@@ -115,6 +121,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     Sent* sent = nullptr;  // nullptr: new
     bool send = false;
     bool read = false;
+    bool candidate = true;  // may have moved past the tolerances (by node: see below)
     double moved = 0.0;
     std::vector<Pose2> poses;  // once read
   };
@@ -137,6 +144,16 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
   }
   std::sort(chunks.begin(), chunks.end(),
             [](const Chunk& a, const Chunk& b) { return a.id < b.id; });
+  // By node (Trajectory::node_of): only the chunks holding a keyframe whose node may have
+  // moved it past the tolerances are candidates; the others' poses are not read.
+  const bool by_node = options_.max_read_chunks == 0 && options_.tolerance_m > 0 &&
+                       options_.tolerance_rad > 0 && !trajectories.empty() &&
+                       std::all_of(trajectories.begin(), trajectories.end(),
+                                   [](const Trajectory& t) { return t.node_of && t.node_pose; });
+  std::vector<std::vector<Chunk*>> by_trajectory(trajectories.size());  // by chunk index
+  std::vector<KeyframeMoves*> trajectory_moves(trajectories.size(), nullptr);
+  std::vector<KeyframeMoves::Pass> passes(trajectories.size());
+  if (!by_node) moves_.clear();
   // Whether the chunk's encounters are those it was last sent with.
   const auto same_links = [&](const Chunk& c) {
     const MergedMapChunk& sent = c.sent->chunk;
@@ -188,10 +205,66 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
   if (options_.max_read_chunks > 0) {
     rest.resize(std::min(rest.size(), static_cast<size_t>(options_.max_read_chunks)));
   }
+  if (by_node) {
+    for (Chunk& c : chunks) {
+      c.candidate = false;
+      by_trajectory[static_cast<size_t>(c.trajectory - trajectories.data())].push_back(&c);
+    }
+    for (auto it = moves_.begin(); it != moves_.end();) {
+      it = by_name.count({it->first.first, it->first.second}) != 0 ? std::next(it)
+                                                                   : moves_.erase(it);
+    }
+    for (size_t t = 0; t < trajectories.size(); ++t) {
+      const Trajectory& trajectory = trajectories[t];
+      const std::vector<Chunk*>& of_t = by_trajectory[t];
+      auto [it, fresh] = moves_.try_emplace({trajectory.robot, trajectory.trajectory_id}, options_);
+      TrajectoryMoves& tm = it->second;
+      if (trajectory.num_poses < tm.count) {  // a restarted trajectory
+        tm.moves.Clear();
+        tm.count = 0;
+        fresh = true;
+      }
+      const auto sent_pose = [&](int64_t i) -> const Pose2* {
+        const Chunk* c = of_t[static_cast<size_t>(i / size)];
+        if (c->sent == nullptr) return nullptr;
+        const std::vector<Pose2>& poses = c->sent->chunk.local_poses;
+        return i - c->first < static_cast<int64_t>(poses.size())
+                   ? &poses[static_cast<size_t>(i - c->first)]
+                   : nullptr;
+      };
+      for (int64_t i = tm.count; i < trajectory.num_poses; ++i) {
+        const Trajectory::NodeOffset node = trajectory.node_of(i);
+        const double offset_m = node.T_node_key ? node.T_node_key->translation().norm() : 0.0;
+        tm.moves.Add(static_cast<uint64_t>(i), static_cast<uint64_t>(i), node.node, node.T_node_key,
+                     std::max(offset_m / options_.tolerance_m, 1.0 / options_.tolerance_rad),
+                     sent_pose(i) != nullptr);
+      }
+      tm.count = trajectory.num_poses;
+      trajectory_moves[t] = &tm.moves;
+      if (std::all_of(of_t.begin(), of_t.end(), [](const Chunk* c) { return c->send; })) {
+        // Every chunk goes anyway (a short trajectory's one growing chunk): no pose read
+        // here; its nodes are examined when next asked.
+        tm.moves.Skip();
+        continue;
+      }
+      passes[t] = tm.moves.Examine(trajectory.node_pose,
+                                   [&](uint64_t key, const Pose2& pose) -> std::optional<double> {
+                                     const Pose2* sent = sent_pose(static_cast<int64_t>(key));
+                                     if (sent == nullptr) return std::nullopt;
+                                     return Measure(*sent, pose);
+                                   });
+      // A fresh trajectory's chunks are read (their keyframes' times are checked there).
+      for (Chunk* c : of_t) c->candidate = c->candidate || fresh;
+      for (const KeyframeMoves::Found& f : passes[t].moved) {
+        of_t[static_cast<size_t>(f.key) / static_cast<size_t>(size)]->candidate = true;
+      }
+    }
+  }
   std::vector<Chunk*> moved;
   for (Chunk* c : rest) {
-    read(c);
     c->sent->read = update;
+    if (!c->candidate) continue;  // none of its poses moved past the tolerances
+    read(c);
     if (c->sent->chunk.pose_utimes != utimes_of(*c)) {
       c->send = true;
     } else if ((c->moved = Moved(c->sent->chunk.local_poses, c->poses)) > 0.0) {
@@ -204,6 +277,23 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     moved.resize(std::min(moved.size(), static_cast<size_t>(options_.max_moved_chunks)));
   }
   for (Chunk* c : moved) c->send = true;
+  // By node: the poses sent now are where their keyframes are placed; moved ones not sent
+  // (within the tolerances after all, or past the budget) keep their measure.
+  for (size_t t = 0; by_node && t < trajectories.size(); ++t) {
+    std::vector<KeyframeMoves::Found> deferred;
+    for (const KeyframeMoves::Found& f : passes[t].moved) {
+      if (!by_trajectory[t][static_cast<size_t>(f.key) / static_cast<size_t>(size)]->send) {
+        deferred.push_back(f);
+      }
+    }
+    trajectory_moves[t]->Settle(deferred);
+    for (const Chunk* c : by_trajectory[t]) {
+      if (!c->send) continue;
+      for (int64_t i = c->first; i < c->end; ++i) {
+        trajectory_moves[t]->PlacedNow(static_cast<int32_t>(i));
+      }
+    }
+  }
   // The chunks to send, at their current content and this update's version.
   for (Chunk& c : chunks) {
     if (!c.send) continue;

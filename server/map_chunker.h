@@ -22,11 +22,13 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
 
 #include "common/types/map_outputs.h"
+#include "server/keyframe_moves.h"
 
 namespace anchormap {
 
@@ -63,6 +65,18 @@ class MapChunker {
     const std::vector<int64_t>* pose_utimes = nullptr;
     // Writes the poses [first, end) in the trajectory's local frame to out[0, end - first).
     std::function<void(int64_t first, int64_t end, Pose2* out)> local_poses;
+    // Optional, both or neither: keyframe i's local pose is node_of(i).node's (node_pose, in
+    // the same frame) (+) node_of(i).T_node_key (the reduced pose graph's aliases; nullopt:
+    // the keyframe is its own node). With them (and no max_read_chunks), an update reads
+    // only the chunks that hold a keyframe whose node may have moved it past the tolerance
+    // (KeyframeMoves), not every chunk: the same chunks go out. A keyframe's node and
+    // offset, and its time, never change.
+    struct NodeOffset {
+      uint64_t node = 0;
+      std::optional<Pose2> T_node_key;
+    };
+    std::function<NodeOffset(int64_t index)> node_of;
+    std::function<Pose2(uint64_t node)> node_pose;
   };
   struct Split {
     std::vector<MergedMapChunk> chunks;  // to send before the header
@@ -90,8 +104,22 @@ class MapChunker {
   // a move past a tolerance of 0).
   double Moved(const std::vector<Pose2>& sent, const std::vector<Pose2>& now) const;
 
+  // Per trajectory with node_of: its keyframes by node (measured in tolerances: a chunk
+  // moved when a pose's measure passes 1) and how many it holds.
+  struct TrajectoryMoves {
+    explicit TrajectoryMoves(const MapChunkerOptions& options)
+        : moves(kCandidateMeasure, 1.0 / options.tolerance_m) {}
+    KeyframeMoves moves;
+    int64_t count = 0;
+  };
+  // Below 1 by far more than round-off: a pose below it is surely within the tolerances.
+  static constexpr double kCandidateMeasure = 1.0 - 1e-6;
+  // Max over the components of |difference| / tolerance (Moved's measure before its cut).
+  double Measure(const Pose2& sent, const Pose2& now) const;
+
   MapChunkerOptions options_;
   std::map<ChunkId, Sent> sent_;
+  std::map<std::pair<std::string, int64_t>, TrajectoryMoves> moves_;
 };
 
 }  // namespace anchormap

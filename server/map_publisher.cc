@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <map>
 #include <optional>
+#include <unordered_map>
 #include <unordered_set>
+#include <utility>
 
 namespace anchormap {
 
@@ -43,6 +45,19 @@ double MapPublisher::Refresh(int64_t now_utime, bool* full) {
   return refresh;
 }
 
+namespace {
+// A pose variable as a node of KeyframeMoves (trajectory and index, both within 32 bits as
+// the grid's keys), and back.
+uint64_t NodeId(PoseKey key) {
+  return (static_cast<uint64_t>(key.trajectory.value()) << 32) |
+         static_cast<uint64_t>(static_cast<uint32_t>(key.index));
+}
+PoseKey NodeKey(uint64_t id) {
+  return PoseKey{TrajectoryId(static_cast<int64_t>(id >> 32)),
+                 static_cast<int32_t>(id & 0xffffffffu)};
+}
+}  // namespace
+
 MapChunker::Split MapPublisher::SplitMergedMap(const Smoother& smoother,
                                                const TrajectoryTable& table,
                                                const std::vector<EncounterLink>& links,
@@ -72,6 +87,26 @@ MapChunker::Split MapPublisher::SplitMergedMap(const Smoother& smoother,
         const Pose2 pose = smoother.FramePose(PoseKey{id, static_cast<int32_t>(i)});
         out[i - first] = frame_is_local ? pose : Compose(T_local_global, pose);
       }
+    };
+    // Each keyframe as its node (+) its offset (an alias), or its own node; the node's pose
+    // in this frame: FramePose's for an alias of the trajectory's own node, else
+    // Between(anchor, GlobalPose(node)) (an alias of another trajectory's node: FramePose
+    // is Between(anchor, GlobalPose(node) (+) offset)), made local as above.
+    t.node_of = [&smoother, id](int64_t index) {
+      const PoseKey key{id, static_cast<int32_t>(index)};
+      const PoseAlias* alias = smoother.FindAlias(key);
+      MapChunker::Trajectory::NodeOffset node;
+      node.node = NodeId(alias != nullptr ? alias->node : key);
+      if (alias != nullptr) node.T_node_key = alias->T_node_key;
+      return node;
+    };
+    const std::optional<Pose2> anchor = smoother.Anchor(id);
+    t.node_pose = [&smoother, id, relative, anchor, frame_is_local, T_local_global](uint64_t n) {
+      const PoseKey node = NodeKey(n);
+      const Pose2 pose = relative && node.trajectory != id
+                             ? Between(*anchor, smoother.GlobalPose(node))
+                             : smoother.FramePose(node);
+      return frame_is_local ? pose : Compose(T_local_global, pose);
     };
     trajectories.push_back(std::move(t));
   }
@@ -152,81 +187,137 @@ uint64_t GridKey(TrajectoryId trajectory, size_t index) {
 MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
                                                   const TrajectoryTable& table, bool complete) {
   GridChange change;
-  std::unordered_set<uint64_t> current;
-  // Placed keyframes that moved past the tolerance: (displacement, key, scan, pose).
-  struct Moved {
-    double displacement;
-    uint64_t key;
-    const LaserScan* scan;
-    Pose2 pose;
-  };
-  std::vector<Moved> moved;
-  std::vector<KeyframeGrid::Keyframe> inserted;
-  // When complete: the placed keyframes that stay where they were traced (a rebuild's).
-  std::vector<KeyframeGrid::Keyframe> unchanged;
-  for (TrajectoryId id : GridTrajectories(smoother, table)) {
-    const TrajectoryRecord* record = table.FindBySolverId(id);
-    const std::vector<Pose2> poses = smoother.GlobalTrajectory(id);
-    for (size_t i = 0; i < poses.size() && i < record->scans.size(); ++i) {
-      const uint64_t key = GridKey(id, i);
-      current.insert(key);
-      const std::optional<double> displacement = grid_.Displacement(key, poses[i]);
-      if (!displacement) {
-        inserted.push_back({key, &record->scans[i], poses[i]});
-      } else if (*displacement > grid_.move_tolerance_m()) {
-        moved.push_back({*displacement, key, &record->scans[i], poses[i]});
-      } else if (complete) {
-        unchanged.push_back({key, &record->scans[i], grid_.placed().at(key)});
-      }
-    }
+  // The grid's trajectories, each with its place in the table (the keyframes' order) and
+  // how many keyframes it holds (a pose and a scan).
+  const std::vector<TrajectoryId> trajectories = GridTrajectories(smoother, table);
+  std::unordered_map<int64_t, uint64_t> table_index;
+  for (size_t r = 0; r < table.records().size(); ++r) {
+    table_index[table.records()[r].solver_id.value()] = r;
   }
-  change.inserted = static_cast<int64_t>(inserted.size());
-  // Keyframes of trajectories that left the grid's group (the largest group changed), with
-  // their scans (nullptr: none known, the keyframe stays).
+  std::vector<int32_t> counts(trajectories.size(), 0);
+  bool reset = false;
+  for (size_t t = 0; t < trajectories.size(); ++t) {
+    const TrajectoryId id = trajectories[t];
+    const auto scans = static_cast<int64_t>(table.FindBySolverId(id)->scans.size());
+    const auto known = grid_counts_.find(id.value());
+    int32_t count = known != grid_counts_.end() ? known->second : 0;
+    if (count > scans || (count > 0 && !smoother.HasPose(PoseKey{id, count - 1}))) {
+      reset = true;  // a restarted trajectory: counted again below
+      count = 0;
+    }
+    while (count < scans && smoother.HasPose(PoseKey{id, count})) ++count;
+    counts[t] = count;
+  }
+  // A trajectory left the grid's group (the largest group changed): its keyframes go, with
+  // their scans (nullptr: none known, the keyframe stays); the moves are found afresh.
+  // A trajectory that joined only adds keyframes.
+  std::unordered_set<int64_t> current;
+  for (const TrajectoryId id : trajectories) current.insert(id.value());
+  for (const auto& [id, count] : grid_counts_) reset = reset || current.count(id) == 0;
   std::vector<std::pair<uint64_t, const LaserScan*>> gone;
   bool gone_known = true;
-  for (const auto& [key, pose] : grid_.placed()) {
-    if (current.count(key) != 0) continue;
-    const TrajectoryRecord* record =
-        table.FindBySolverId(TrajectoryId(static_cast<int64_t>(key >> 32)));
-    const size_t index = key & 0xffffffffu;
-    const bool known = record != nullptr && index < record->scans.size();
-    gone.push_back({key, known ? &record->scans[index] : nullptr});
-    gone_known = gone_known && known;
+  if (reset) {
+    moves_.Clear();
+    grid_counts_.clear();
+    std::unordered_map<int64_t, int32_t> holds;
+    for (size_t t = 0; t < trajectories.size(); ++t) holds[trajectories[t].value()] = counts[t];
+    for (const auto& [key, pose] : grid_.placed()) {
+      const auto trajectory = static_cast<int64_t>(key >> 32);
+      const size_t index = key & 0xffffffffu;
+      const auto it = holds.find(trajectory);
+      if (it != holds.end() && index < static_cast<size_t>(it->second)) continue;
+      const TrajectoryRecord* record = table.FindBySolverId(TrajectoryId(trajectory));
+      const bool known = record != nullptr && index < record->scans.size();
+      gone.push_back({key, known ? &record->scans[index] : nullptr});
+      gone_known = gone_known && known;
+    }
   }
+  // The keyframes new to the moves: each its node's pose (+) its offset (an alias), or
+  // its own variable; ordered by their trajectory's place in the table, then index.
+  for (size_t t = 0; t < trajectories.size(); ++t) {
+    const TrajectoryId id = trajectories[t];
+    const TrajectoryRecord* record = table.FindBySolverId(id);
+    const uint64_t rank = table_index.at(id.value());
+    int32_t& held = grid_counts_[id.value()];
+    for (int32_t i = held; i < counts[t]; ++i) {
+      const PoseKey key{id, i};
+      const PoseAlias* alias = smoother.FindAlias(key);
+      const PoseKey node = alias != nullptr ? alias->node : key;
+      const uint64_t grid_key = GridKey(id, static_cast<size_t>(i));
+      const std::optional<double> reach = grid_.Reach(grid_key);
+      moves_.Add(grid_key, (rank << 32) | static_cast<uint64_t>(i), NodeId(node),
+                 alias != nullptr ? std::optional<Pose2>(alias->T_node_key) : std::nullopt,
+                 (alias != nullptr ? alias->T_node_key.translation().norm() : 0.0) +
+                     (reach ? *reach : grid_.ReachFromBody(record->scans[static_cast<size_t>(i)])),
+                 reach.has_value());
+    }
+    held = counts[t];
+  }
+  std::unordered_map<int64_t, std::optional<Pose2>> anchors;  // by trajectory
+  KeyframeMoves::Pass pass = moves_.Examine(
+      [&smoother, &anchors](uint64_t node) {
+        // Smoother::GlobalPose's bits with each trajectory's anchor looked up once.
+        const PoseKey key = NodeKey(node);
+        auto [it, is_new] = anchors.try_emplace(key.trajectory.value());
+        if (is_new && smoother.options().formulation == Formulation::kRelative) {
+          it->second = smoother.Anchor(key.trajectory);
+        }
+        const Pose2 pose = smoother.FramePose(key);
+        return it->second ? Compose(*it->second, pose) : pose;
+      },
+      [this](uint64_t key, const Pose2& pose) { return grid_.Displacement(key, pose); }, complete);
+  const auto scan_of = [&](uint64_t order) {
+    return &table.records()[order >> 32].scans[order & 0xffffffffu];
+  };
+  // In the order of the grid's trajectories and their indices, the farthest moved first.
+  const auto by_order = [](const KeyframeMoves::Found& a, const KeyframeMoves::Found& b) {
+    return a.order < b.order;
+  };
+  std::sort(pass.unchanged.begin(), pass.unchanged.end(), by_order);
+  std::sort(pass.moved.begin(), pass.moved.end(),
+            [](const KeyframeMoves::Found& a, const KeyframeMoves::Found& b) {
+              return a.displacement > b.displacement ||
+                     (a.displacement == b.displacement && a.order < b.order);
+            });
+  change.inserted = static_cast<int64_t>(pass.inserted.size());
   // A complete grid where most placed keyframes moved is cheaper made again: one trace per
   // keyframe instead of two per move (the end of a 100-robot run moves nearly all of them).
-  if (complete && gone_known && moved.size() + gone.size() > unchanged.size()) {
-    std::vector<KeyframeGrid::Keyframe> keyframes = std::move(unchanged);
-    for (const Moved& m : moved) keyframes.push_back({m.key, m.scan, m.pose});
-    keyframes.insert(keyframes.end(), inserted.begin(), inserted.end());
+  if (complete && gone_known && pass.moved.size() + gone.size() > pass.unchanged.size()) {
+    std::vector<KeyframeGrid::Keyframe> keyframes;
+    for (const KeyframeMoves::Found& f : pass.unchanged) {
+      keyframes.push_back({f.key, scan_of(f.order), grid_.placed().at(f.key)});
+    }
+    std::sort(pass.moved.begin(), pass.moved.end(), by_order);
+    for (const KeyframeMoves::Found& f : pass.moved) {
+      keyframes.push_back({f.key, scan_of(f.order), f.pose});
+    }
+    for (const KeyframeMoves::Found& f : pass.inserted) {
+      keyframes.push_back({f.key, scan_of(f.order), f.pose});
+    }
     grid_.Rebuild(keyframes);
-    change.moved = static_cast<int64_t>(moved.size());
+    moves_.Settle({});
+    change.moved = static_cast<int64_t>(pass.moved.size());
     change.removed = static_cast<int64_t>(gone.size());
     return change;
   }
-  for (const KeyframeGrid::Keyframe& keyframe : inserted) {
-    grid_.Place(keyframe.key, *keyframe.scan, keyframe.T_map_body);
-  }
-  // The farthest moved first; ties by key (trajectory, index): deterministic.
-  size_t take = moved.size();
+  for (const KeyframeMoves::Found& f : pass.inserted) grid_.Place(f.key, *scan_of(f.order), f.pose);
+  size_t take = pass.moved.size();
   if (!complete && options_.grid_max_moved > 0) {
     const double budget =
         std::min(static_cast<double>(options_.grid_max_moved),
                  options_.grid_min_moved +
                      options_.grid_moved_per_inserted * static_cast<double>(change.inserted));
     take = std::min(take, static_cast<size_t>(budget));
-    std::stable_sort(moved.begin(), moved.end(), [](const Moved& a, const Moved& b) {
-      return a.displacement > b.displacement;
-    });
   }
   for (size_t n = 0; n < take; ++n) {
-    if (grid_.Place(moved[n].key, *moved[n].scan, moved[n].pose) ==
-        KeyframeGrid::Placement::kMoved) {
+    const KeyframeMoves::Found& f = pass.moved[n];
+    if (grid_.Place(f.key, *scan_of(f.order), f.pose) == KeyframeGrid::Placement::kMoved) {
       ++change.moved;
     }
   }
-  change.deferred = static_cast<int64_t>(moved.size() - take);
+  change.deferred = static_cast<int64_t>(pass.moved.size() - take);
+  moves_.Settle(std::vector<KeyframeMoves::Found>(
+      pass.moved.begin() + static_cast<std::ptrdiff_t>(take), pass.moved.end()));
   for (const auto& [key, scan] : gone) {
     if (scan != nullptr && grid_.Remove(key, *scan)) ++change.removed;
   }

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "common/scan/keyframe_grid.h"
@@ -20,6 +21,7 @@
 #include "common/solver/smoother.h"
 #include "common/types/map_outputs.h"
 #include "common/util/status.h"
+#include "server/keyframe_moves.h"
 #include "server/map_chunker.h"
 #include "server/trajectory_table.h"
 
@@ -110,7 +112,8 @@ class MapPublisher {
   // over map_full_period_s; every chunk when `full`, on the first call, or when that period
   // has passed since the last call. The merged map is not built: only the poses of the
   // chunks the chunker reads are looked up, in the frame the smoother keeps them in (after a
-  // full split a subscriber's map holds GlobalTrajectory's bits).
+  // full split a subscriber's map holds GlobalTrajectory's bits). The chunker is given each
+  // keyframe's node and offset, so that it reads only chunks whose nodes moved.
   MapChunker::Split SplitMergedMap(const Smoother& smoother, const TrajectoryTable& table,
                                    const std::vector<EncounterLink>& links, int64_t utime,
                                    int64_t update, int64_t now_utime, bool full = false);
@@ -135,9 +138,11 @@ class MapPublisher {
   // when new, traced again where they moved past the tolerance (unless `complete` at most
   // grid_min_moved + grid_moved_per_inserted x the keyframes traced in, and never more than
   // grid_max_moved: the farthest moved first, then by trajectory and index), traced
-  // out when their trajectory left the grid. Cost: O(keyframes) pose comparisons plus
-  // O(beams x ray length) per traced scan, bounded per call by the new keyframes, not by the
-  // size of the map.
+  // out when their trajectory left the grid. The moved keyframes are found by node
+  // (KeyframeMoves: a keyframe is its node's pose (+) a fixed offset), the same as a scan of
+  // every keyframe would find. Cost: one pose per node plus the keyframes of the nodes that
+  // moved (every keyframe when the grid's trajectories change, or `complete`), plus
+  // O(beams x ray length) per traced scan, bounded per call by the new keyframes.
   struct GridChange {
     int64_t inserted = 0;
     int64_t moved = 0;
@@ -181,6 +186,10 @@ class MapPublisher {
   std::optional<int64_t> last_map_split_utime_;
   MapChunker chunker_;
   KeyframeGrid grid_;
+  // The grid's keyframes by node, to find those that moved (UpdateGrid), and how many
+  // keyframes of each of the grid's trajectories it holds.
+  KeyframeMoves moves_{grid_.move_tolerance_m()};
+  std::unordered_map<int64_t, int32_t> grid_counts_;  // by solver trajectory
 };
 
 }  // namespace anchormap

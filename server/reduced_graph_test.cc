@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -363,6 +365,150 @@ TEST_F(ReducedGraphSnapshotTest, SnapshotsWithoutTheReducedGraphLoadIntoAServerW
   const Result<std::vector<uint8_t>> old = SnapshotCodec::EncodeVersion(*restored[0], {}, 11);
   ASSERT_FALSE(old.ok());
   EXPECT_EQ(old.status().code(), ErrorCode::kInvalidArgument);
+}
+
+// --- The publication by node (MapPublisher: KeyframeMoves in the grid and the chunker) ---
+
+// The grid as MapPublisher::UpdateGrid made it before it went by node (the oracle below): a
+// scan of every keyframe of the grid's trajectories for its displacement, the farthest moved
+// traced again first within the budget, the keyframes of trajectories that left taken out.
+void UpdateGridByScan(const MapPublisher& publisher, const MappingServer& server,
+                      KeyframeGrid* grid) {
+  const MapPublisherOptions& options = publisher.options();
+  const Smoother& smoother = server.smoother();
+  const TrajectoryTable& table = server.table();
+  struct Moved {
+    double displacement;
+    uint64_t key;
+    const LaserScan* scan;
+    Pose2 pose;
+  };
+  std::vector<Moved> moved;
+  std::set<uint64_t> current;
+  int64_t inserted = 0;
+  for (const TrajectoryId id : publisher.GridTrajectories(smoother, table)) {
+    const TrajectoryRecord* record = table.FindBySolverId(id);
+    const std::vector<Pose2> poses = smoother.GlobalTrajectory(id);
+    for (size_t i = 0; i < poses.size() && i < record->scans.size(); ++i) {
+      const uint64_t key = (static_cast<uint64_t>(id.value()) << 32) | i;
+      current.insert(key);
+      const std::optional<double> d = grid->Displacement(key, poses[i]);
+      if (!d) {
+        grid->Place(key, record->scans[i], poses[i]);
+        ++inserted;
+      } else if (*d > grid->move_tolerance_m()) {
+        moved.push_back({*d, key, &record->scans[i], poses[i]});
+      }
+    }
+  }
+  std::stable_sort(moved.begin(), moved.end(),
+                   [](const Moved& a, const Moved& b) { return a.displacement > b.displacement; });
+  const double budget = std::min(
+      static_cast<double>(options.grid_max_moved),
+      options.grid_min_moved + options.grid_moved_per_inserted * static_cast<double>(inserted));
+  for (size_t n = 0; n < moved.size() && n < static_cast<size_t>(budget); ++n) {
+    grid->Place(moved[n].key, *moved[n].scan, moved[n].pose);
+  }
+  std::vector<uint64_t> gone;
+  for (const auto& [key, pose] : grid->placed()) {
+    if (current.count(key) == 0) gone.push_back(key);
+  }
+  for (const uint64_t key : gone) {
+    grid->Remove(key, table.FindBySolverId(TrajectoryId(static_cast<int64_t>(key >> 32)))
+                          ->scans[key & 0xffffffffu]);
+  }
+}
+
+using PublicationByNodeTest = ReducedGraphSnapshotTest;
+
+// The team's laps published as the daemons do (a map every 4 inputs, a grid every 12), with
+// the option (keyframes folded onto nodes, some of other robots) and without it (every
+// keyframe its own node): the grid placed at the same poses, bit for bit, with the same
+// tiles, as one kept by a scan of every keyframe; the same chunks sent, with the same bits,
+// as a chunker that reads every chunk.
+TEST_F(PublicationByNodeTest, SameGridAndChunksAsAScanOfEveryKeyframe) {
+  const std::vector<TeamInput> inputs = TeamInputsUpTo(200);
+  for (const bool reduced : {true, false}) {
+    SCOPED_TRACE(reduced ? "reduced" : "every keyframe a node");
+    MappingServer server(TeamOptions(reduced));
+    ASSERT_EQ(server.smoother().options().formulation, Formulation::kRelative);
+    const MapPublisherOptions& options = server.publisher().options();
+    KeyframeGrid grid_by_scan(options.grid, options.grid_move_tolerance_cells);
+    MapChunker chunker_reading_all(options.chunks);
+    std::optional<int64_t> last_map;
+    for (size_t i = 0; i < inputs.size(); ++i) {
+      Feed(&server, inputs[i]);
+      if (i % 4 != 3) continue;
+      const int64_t now = static_cast<int64_t>(i) * 250'000;
+      const MapChunker::Split split = server.SplitMergedMap(now, /*full=*/false);
+      // The reader of every chunk, with MapPublisher::Refresh's share.
+      double refresh = 1.0;
+      if (last_map)
+        refresh = 1e-6 * static_cast<double>(now - *last_map) / options.map_full_period_s;
+      last_map = now;
+      std::vector<MapChunker::Trajectory> views;
+      for (const TrajectoryRecord& record : server.table().records()) {
+        const Smoother& smoother = server.smoother();
+        const int poses = smoother.NumPoses(record.solver_id);
+        if (record.num_keyframes() == 0 || poses == 0) continue;
+        MapChunker::Trajectory t;
+        t.robot = record.robot;
+        t.trajectory_id = record.agent_trajectory_id;
+        t.anchored = smoother.IsAnchored(record.solver_id);
+        if (const auto anchor = smoother.Anchor(record.solver_id)) t.T_global_local = *anchor;
+        t.num_poses = poses;
+        t.pose_utimes = &record.utimes;
+        const TrajectoryId id = record.solver_id;
+        t.local_poses = [&smoother, id](int64_t first, int64_t end, Pose2* out) {
+          for (int64_t k = first; k < end; ++k) {
+            out[k - first] = smoother.FramePose(PoseKey{id, static_cast<int32_t>(k)});
+          }
+        };
+        views.push_back(std::move(t));
+      }
+      const MapChunker::Split expected =
+          chunker_reading_all.Update(server.update_count(), server.update_count(), views,
+                                     server.encounter_links(), refresh >= 1.0, refresh);
+      ASSERT_EQ(split.chunks.size(), expected.chunks.size()) << "input " << i;
+      for (size_t c = 0; c < expected.chunks.size(); ++c) {
+        const MergedMapChunk& a = split.chunks[c];
+        const MergedMapChunk& b = expected.chunks[c];
+        EXPECT_EQ(a.robot, b.robot);
+        EXPECT_EQ(a.trajectory_id, b.trajectory_id);
+        EXPECT_EQ(a.chunk_index, b.chunk_index);
+        EXPECT_EQ(a.version, b.version);
+        EXPECT_EQ(a.pose_utimes, b.pose_utimes);
+        EXPECT_EQ(a.encounters, b.encounters);
+        ASSERT_EQ(a.local_poses.size(), b.local_poses.size());
+        for (size_t k = 0; k < a.local_poses.size(); ++k) {
+          EXPECT_EQ(a.local_poses[k].x(), b.local_poses[k].x());
+          EXPECT_EQ(a.local_poses[k].y(), b.local_poses[k].y());
+          EXPECT_EQ(a.local_poses[k].theta(), b.local_poses[k].theta());
+        }
+      }
+      ASSERT_EQ(split.header.trajectories.size(), expected.header.trajectories.size());
+      for (size_t t = 0; t < expected.header.trajectories.size(); ++t) {
+        EXPECT_EQ(split.header.trajectories[t].chunk_versions,
+                  expected.header.trajectories[t].chunk_versions);
+      }
+      if (i % 12 != 11) continue;
+      (void)server.BuildChangedGridTiles();
+      UpdateGridByScan(server.publisher(), server, &grid_by_scan);
+      const auto& placed = server.publisher().grid().placed();
+      ASSERT_EQ(placed.size(), grid_by_scan.placed().size()) << "input " << i;
+      for (const auto& [key, pose] : grid_by_scan.placed()) {
+        ASSERT_EQ(placed.count(key), 1u);
+        EXPECT_EQ(placed.at(key).x(), pose.x());
+        EXPECT_EQ(placed.at(key).y(), pose.y());
+        EXPECT_EQ(placed.at(key).theta(), pose.theta());
+      }
+    }
+    EXPECT_EQ(server.smoother().NumAliases() > 0, reduced);
+    const std::vector<GridTile> tiles = server.publisher().grid().Tiles(0, 0);
+    const std::vector<GridTile> expected_tiles = grid_by_scan.Tiles(0, 0);
+    ASSERT_EQ(tiles.size(), expected_tiles.size());
+    for (size_t t = 0; t < tiles.size(); ++t) EXPECT_EQ(tiles[t].cells, expected_tiles[t].cells);
+  }
 }
 
 }  // namespace

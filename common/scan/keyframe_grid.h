@@ -44,6 +44,13 @@ class KeyframeGrid {
   // Place compares with the tolerance); nullopt when it is not placed.
   std::optional<double> Displacement(uint64_t key, const Pose2& T_map_body) const;
   double move_tolerance_m() const { return move_tolerance_m_; }
+  // How far from the body origin the scan's beams reach (m): Displacement's lever.
+  double ReachFromBody(const LaserScan& scan) const;
+  // That of placed keyframe `key`'s scan; nullopt when it is not placed.
+  std::optional<double> Reach(uint64_t key) const {
+    const auto it = reach_m_.find(key);
+    return it == reach_m_.end() ? std::nullopt : std::optional<double>(it->second);
+  }
   // Takes keyframe `key` out (`scan`: the one it was placed with); false when not placed.
   bool Remove(uint64_t key, const LaserScan& scan);
   // The grid made again of exactly `keyframes`, each traced once at its pose (what placing,
@@ -118,8 +125,6 @@ class KeyframeGrid {
   template <typename Count>
   Count* TouchTile(int64_t tile_x, int64_t tile_y);
   std::optional<double> LogOdds(int32_t hits, int32_t misses) const;
-  // How far from the body origin the scan's beams reach (m).
-  double ReachFromBody(const LaserScan& scan) const;
   GridTile Export(uint64_t key, const Tile& tile, int64_t utime, int64_t update) const;
   template <typename Count>
   void ExportCells(const Count* hits, GridTile* tile) const;
