@@ -430,7 +430,10 @@ TEST_F(PublicationByNodeTest, SameGridAndChunksAsAScanOfEveryKeyframe) {
   const std::vector<TeamInput> inputs = TeamInputsUpTo(200);
   for (const bool reduced : {true, false}) {
     SCOPED_TRACE(reduced ? "reduced" : "every keyframe a node");
-    MappingServer server(TeamOptions(reduced));
+    MappingServerOptions server_options = TeamOptions(reduced);
+    // Chunks of 16 keyframes: most are not sent for new keyframes, so their moves decide.
+    server_options.publish.chunks.chunk_poses = 16;
+    MappingServer server(server_options);
     ASSERT_EQ(server.smoother().options().formulation, Formulation::kRelative);
     const MapPublisherOptions& options = server.publisher().options();
     KeyframeGrid grid_by_scan(options.grid, options.grid_move_tolerance_cells);
