@@ -8,37 +8,22 @@
 // was searched before the next keyframe came, so a true candidate's own maps fell short of the
 // map-verified bar (1871 points against 2000).
 
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <string>
-
-#include <sys/wait.h>
 
 #include <gtest/gtest.h>
 
 #include "tests/testing/data_path.h"
 #include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
+#include "tests/testing/tool_run.h"
 
 namespace anchormap {
 namespace {
 
+using ::anchormap::testing::JsonNumber;
+using ::anchormap::testing::RunTool;
 using ::anchormap::testing::ScratchPath;
-
-int RunTool(const std::string& tool, const std::string& arguments, const std::string& output) {
-  const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/" + tool + " " + arguments +
-                              " >" + output + " 2>&1";
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-// The number after "key": in the eval's JSON, from `from` on (NaN when absent).
-double JsonNumber(const std::string& json, const std::string& key, size_t from = 0) {
-  const size_t at = json.find("\"" + key + "\":", from);
-  if (at == std::string::npos) return std::nan("");
-  return std::strtod(json.c_str() + at + key.size() + 3, nullptr);
-}
 
 TEST(AcesReducedGraphTest, TwoRobotsOneAfterTheOtherJoinWithTheReducedGraph) {
 #ifdef ANCHORMAP_SANITIZED

@@ -6,12 +6,8 @@
 // off (mean relation error 3.8 m instead of 0.026 m). The log is cut after 650 s of data:
 // the first join (R1[105]-R2[15]) is qualified at 592 s and held 30 s.
 
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <string>
-
-#include <sys/wait.h>
 
 #include <gtest/gtest.h>
 
@@ -19,27 +15,16 @@
 #include "tests/testing/data_path.h"
 #include "tests/testing/file_contents.h"
 #include "tests/testing/scratch.h"
+#include "tests/testing/tool_run.h"
 
 namespace anchormap {
 namespace {
 
+using ::anchormap::testing::JsonNumber;
+using ::anchormap::testing::RunTool;
 using ::anchormap::testing::ScratchPath;
 
 constexpr double kPrefixS = 650.0;
-
-int RunTool(const std::string& tool, const std::string& arguments, const std::string& output) {
-  const std::string command = std::string(ANCHORMAP_BINARY_DIR) + "/bin/" + tool + " " + arguments +
-                              " >" + output + " 2>&1";
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-// The number after "key": in the eval's JSON, from `from` on (NaN when absent).
-double JsonNumber(const std::string& json, const std::string& key, size_t from = 0) {
-  const size_t at = json.find("\"" + key + "\":", from);
-  if (at == std::string::npos) return std::nan("");
-  return std::strtod(json.c_str() + at + key.size() + 3, nullptr);
-}
 
 // The first `seconds` of data of an LCM log.
 void CopyPrefix(const std::string& in_path, const std::string& out_path, double seconds) {
