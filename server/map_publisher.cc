@@ -46,15 +46,15 @@ double MapPublisher::Refresh(int64_t now_utime, bool* full) {
 }
 
 namespace {
-// A pose variable as a node of KeyframeMoves (trajectory and index, both within 32 bits as
-// the grid's keys), and back.
-uint64_t NodeId(PoseKey key) {
+// A pose key in 64 bits (solver trajectory and index, both within 32 bits): a keyframe's key
+// in the grid and a node's id in KeyframeMoves; and back.
+uint64_t PackedKey(PoseKey key) {
   return (static_cast<uint64_t>(key.trajectory.value()) << 32) |
          static_cast<uint64_t>(static_cast<uint32_t>(key.index));
 }
-PoseKey NodeKey(uint64_t id) {
-  return PoseKey{TrajectoryId(static_cast<int64_t>(id >> 32)),
-                 static_cast<int32_t>(id & 0xffffffffu)};
+PoseKey UnpackedKey(uint64_t packed) {
+  return PoseKey{TrajectoryId(static_cast<int64_t>(packed >> 32)),
+                 static_cast<int32_t>(packed & 0xffffffffu)};
 }
 }  // namespace
 
@@ -96,13 +96,13 @@ MapChunker::Split MapPublisher::SplitMergedMap(const Smoother& smoother,
       const PoseKey key{id, static_cast<int32_t>(index)};
       const PoseAlias* alias = smoother.FindAlias(key);
       MapChunker::Trajectory::NodeOffset node;
-      node.node = NodeId(alias != nullptr ? alias->node : key);
+      node.node = PackedKey(alias != nullptr ? alias->node : key);
       if (alias != nullptr) node.T_node_key = alias->T_node_key;
       return node;
     };
     const std::optional<Pose2> anchor = smoother.Anchor(id);
     t.node_pose = [&smoother, id, relative, anchor, frame_is_local, T_local_global](uint64_t n) {
-      const PoseKey node = NodeKey(n);
+      const PoseKey node = UnpackedKey(n);
       const Pose2 pose = relative && node.trajectory != id
                              ? Between(*anchor, smoother.GlobalPose(node))
                              : smoother.FramePose(node);
@@ -177,13 +177,6 @@ std::vector<TrajectoryId> MapPublisher::GridTrajectories(const Smoother& smoothe
   return members;
 }
 
-namespace {
-// A keyframe's key in the grid: its solver trajectory and index.
-uint64_t GridKey(TrajectoryId trajectory, size_t index) {
-  return (static_cast<uint64_t>(trajectory.value()) << 32) | static_cast<uint64_t>(index);
-}
-}  // namespace
-
 MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
                                                   const TrajectoryTable& table, bool complete) {
   GridChange change;
@@ -222,11 +215,11 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
     std::unordered_map<int64_t, int32_t> holds;
     for (size_t t = 0; t < trajectories.size(); ++t) holds[trajectories[t].value()] = counts[t];
     for (const auto& [key, pose] : grid_.placed()) {
-      const auto trajectory = static_cast<int64_t>(key >> 32);
-      const size_t index = key & 0xffffffffu;
-      const auto it = holds.find(trajectory);
+      const PoseKey placed = UnpackedKey(key);
+      const size_t index = static_cast<size_t>(placed.index);
+      const auto it = holds.find(placed.trajectory.value());
       if (it != holds.end() && index < static_cast<size_t>(it->second)) continue;
-      const TrajectoryRecord* record = table.FindBySolverId(TrajectoryId(trajectory));
+      const TrajectoryRecord* record = table.FindBySolverId(placed.trajectory);
       const bool known = record != nullptr && index < record->scans.size();
       gone.push_back({key, known ? &record->scans[index] : nullptr});
       gone_known = gone_known && known;
@@ -243,9 +236,9 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
       const PoseKey key{id, i};
       const PoseAlias* alias = smoother.FindAlias(key);
       const PoseKey node = alias != nullptr ? alias->node : key;
-      const uint64_t grid_key = GridKey(id, static_cast<size_t>(i));
+      const uint64_t grid_key = PackedKey(key);
       const std::optional<double> reach = grid_.Reach(grid_key);
-      moves_.Add(grid_key, (rank << 32) | static_cast<uint64_t>(i), NodeId(node),
+      moves_.Add(grid_key, (rank << 32) | static_cast<uint64_t>(i), PackedKey(node),
                  alias != nullptr ? std::optional<Pose2>(alias->T_node_key) : std::nullopt,
                  (alias != nullptr ? alias->T_node_key.translation().norm() : 0.0) +
                      (reach ? *reach : grid_.ReachFromBody(record->scans[static_cast<size_t>(i)])),
@@ -257,7 +250,7 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
   KeyframeMoves::Pass pass = moves_.Examine(
       [&smoother, &anchors](uint64_t node) {
         // Smoother::GlobalPose's bits with each trajectory's anchor looked up once.
-        const PoseKey key = NodeKey(node);
+        const PoseKey key = UnpackedKey(node);
         auto [it, is_new] = anchors.try_emplace(key.trajectory.value());
         if (is_new && smoother.options().formulation == Formulation::kRelative) {
           it->second = smoother.Anchor(key.trajectory);
