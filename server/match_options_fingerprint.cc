@@ -14,7 +14,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 544,
+static_assert(sizeof(ScanEncounterOptions) == 552,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 136,
               "new SmootherOptions field: add it to the fingerprint");
@@ -169,6 +169,9 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.floor_sigma_m);
   h->F(o.floor_sigma_rad);
   h->I(o.max_waiting);
+  // Hashed only when set, so that fingerprints recorded before it existed still hold (the
+  // server sets it from its solve period with the reduced graph only).
+  if (o.folded_wait_s != 0) h->F(o.folded_wait_s);
   Add(h, o.reference);
   Add(h, o.match);
 }

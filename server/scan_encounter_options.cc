@@ -71,6 +71,7 @@ Status ScanEncounterOptions::Validate() const {
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
     return Status::Error("scan covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
+  if (!(folded_wait_s >= 0)) return Status::Error("scan.folded_wait_s must be >= 0");
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
   if (Status s = near_budget.Validate("scan.near_budget"); !s.ok()) return s;

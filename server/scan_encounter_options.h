@@ -200,6 +200,13 @@ struct ScanEncounterOptions {
   double floor_sigma_m = 0.02;
   double floor_sigma_rad = 0.005;
   int max_waiting = 200;
+  // A keyframe folded onto a node (the reduced graph) has a solved pose at once; it is examined
+  // this long (data time) after its own time, as a new node waits for the solver's next update:
+  // its global search then sees the keyframes that followed it, as without the fold (on ACES
+  // split in two, a true candidate's own maps were measured one view short, 1871 points against
+  // the bar's 2000, and were not map-verified). MappingServer sets it to its solve_period_s with
+  // the reduced graph.
+  double folded_wait_s = 0.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 7};
   // The submaps' references built for searches, kept under a memory budget (a submap's
   // drawing never changes: a reference built again has the same bits).
