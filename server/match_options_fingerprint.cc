@@ -14,7 +14,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 552,
+static_assert(sizeof(ScanEncounterOptions) == 560,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 136,
               "new SmootherOptions field: add it to the fingerprint");
@@ -136,6 +136,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.join_check_radius_m);
   h->F(o.join_check_range_m);
   h->F(o.join_max_conflict);
+  h->F(o.verify_radius_m);
   h->F(o.verify_max_conflict);
   h->I(o.verify_min_points);
   h->F(o.verify_drift_per_m);
