@@ -200,6 +200,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   window.match = options_.match;
   window.match.covariance_min_score = options_.min_score;
   window.match.covariance_min_overlap = options_.min_overlap;
+  if (options_.laplace_covariance) window.match.covariance_model = MatchCovariance::kLaplace;
   window.match.min_score = LatticeBarFor(options_.min_score, window.match.min_score);
   window.linear_window_m =
       std::clamp(3.0 * LargestSigma(predicted_covariance.topLeftCorner<2, 2>()),

@@ -50,6 +50,10 @@ void Add(Fnv1a* h, const MatchOptions& m) {
   h->F(m.overlap_distance_m);
   h->B(m.refine);
   h->B(m.covariance);
+  // Hashed only when not the default, so that the default's fingerprint (in snapshots) stays.
+  if (m.covariance_model != MatchCovariance::kScoreDistribution) {
+    h->I(static_cast<int64_t>(m.covariance_model));
+  }
 }
 
 void Add(Fnv1a* h, const ScanReferenceOptions& r) {
