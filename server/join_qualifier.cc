@@ -145,7 +145,7 @@ JoinConflict JoinQualifier::OwnMapsConflict(const EncounterCandidate& candidate,
   const TrajectoryRecord* record_b = graph.table.FindBySolverId(candidate.b.trajectory);
   if (record_a == nullptr || record_b == nullptr) return {};
   return MeasureCandidateConflict(*record_a, *record_b, graph.smoother, candidate.a, candidate.b,
-                                  candidate.T_a_b, options_.join_check_radius_m,
+                                  candidate.T_a_b, options_.verify_radius_m,
                                   options_.join_check_range_m, options_.free_space);
 }
 

@@ -92,7 +92,7 @@ class JoinQualifier {
                       const GraphView& graph, double drift_per_m, double drift_rad_per_m,
                       double drift_rad_per_rad = 0.0);
   // The free-space conflict of the candidate's own maps (both sides within
-  // join_check_radius_m of its places, drawn by its match).
+  // verify_radius_m of its places, drawn by its match).
   JoinConflict OwnMapsConflict(const EncounterCandidate& candidate, const GraphView& graph) const;
   // Its own maps agree (verify_max_conflict, verify_min_points).
   bool MapsAgree(const JoinConflict& conflict) const;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include <Eigen/Cholesky>
+
 #include "common/geometry/angle.h"
 #include "server/encounter_candidate.h"
 #include "server/keyframe_fold_state.h"
@@ -17,6 +19,33 @@ namespace {
 // are asked within the radius plus this, then measured exactly.
 constexpr double kIndexSlackM = 0.5;
 constexpr double kIndexCellM = 2.0;
+
+// The information-weighted mean of the predicted and the matched offset (in PoseError's
+// coordinates, the gate's), with the prediction's covariance: the two are not independent (the
+// agent matched the same scan against a local map holding the node's), and the product of
+// both informations made the chains overconfident (ACES split in three: 13 loop closures
+// refused by the gate, R3's start 0.5 m off its revisit, 0.0445 m against 0.0404 with the
+// prediction's covariance). nullopt when a covariance is not positive definite (a zero one
+// would read as a borrowed node's identity: PoseAlias::folded).
+std::optional<KeyframeFold> FusedFold(PoseKey node, const Pose2& predicted,
+                                      const Eigen::Matrix3d& predicted_covariance,
+                                      const Pose2& matched,
+                                      const Eigen::Matrix3d& match_covariance) {
+  const auto positive = [](const Eigen::Matrix3d& m) {
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (m + m.transpose()));
+    return ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.vectorD().minCoeff() > 0.0;
+  };
+  if (!positive(predicted_covariance) || !positive(match_covariance)) return std::nullopt;
+  const Eigen::Matrix3d sum = predicted_covariance + match_covariance;
+  const Eigen::Matrix3d gain =
+      match_covariance * Eigen::LDLT<Eigen::Matrix3d>(0.5 * (sum + sum.transpose()))
+                             .solve(Eigen::Matrix3d::Identity());
+  const Eigen::Vector3d step = gain * PoseError(predicted, matched);
+  return KeyframeFold{
+      node,
+      Pose2(matched.x() + step.x(), matched.y() + step.y(), WrapAngle(matched.theta() + step.z())),
+      0.5 * (predicted_covariance + predicted_covariance.transpose())};
+}
 
 }  // namespace
 
@@ -138,6 +167,8 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   // covariance (the identity, exactly, for the node's own keyframe): no solve through R,
   // which cost 7 % of a 100-robot replay with the option when every fold asked R.
   const PoseAlias* previous_alias = smoother->FindAlias(previous);
+  const bool chained =
+      node_keyframe == previous || (previous_alias != nullptr && previous_alias->node == node);
   const std::optional<PredictedRelativePose> node_previous =
       node_keyframe == previous ? std::optional<PredictedRelativePose>(PredictedRelativePose{
                                       Pose2(), Eigen::Matrix3d::Zero(), false})
@@ -169,6 +200,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   window.match = options_.match;
   window.match.covariance_min_score = options_.min_score;
   window.match.covariance_min_overlap = options_.min_overlap;
+  if (options_.laplace_covariance) window.match.covariance_model = MatchCovariance::kLaplace;
   window.match.min_score = LatticeBarFor(options_.min_score, window.match.min_score);
   window.linear_window_m =
       std::clamp(3.0 * LargestSigma(predicted_covariance.topLeftCorner<2, 2>()),
@@ -191,6 +223,20 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
     return std::nullopt;
   }
   ++stats_.folded;
+  // The prediction is the predecessor's own chain (the node is its keyframe, or the
+  // predecessor folded onto it): the agent's constraint then enters no factor (both keys are
+  // the one node), so it is a second measurement of the offset, fused with the match (the
+  // mean; the covariance stays the prediction's: FusedFold). With the match's floored
+  // covariance alone (doubled in the factors through the fold), a fresh path, where every
+  // other keyframe folds onto its predecessor, lost its odometry's precision: on ACES split in
+  // two, R1[50] -> R1[170]'s heading sigma 0.011 -> 0.047 rad, and a wrong first join passed
+  // the pairwise test (chi-square 21.9 -> 0.64; docs/ARCHITECTURE.md, aces26).
+  if (chained) {
+    if (std::optional<KeyframeFold> fused =
+            FusedFold(node, guess, predicted_covariance, match->pose, covariance)) {
+      return fused;
+    }
+  }
   return KeyframeFold{node, match->pose, covariance};
 }
 

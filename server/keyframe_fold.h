@@ -60,6 +60,11 @@ struct ReducedGraphOptions {
   int reference_cache = 32;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
   MatchOptions match;
+  // The match's covariance by the Laplace approximation (MatchCovariance::kLaplace) instead of
+  // the score distribution's 125 cost evaluations, half of the fold's match (foldcov26,
+  // docs/ARCHITECTURE.md); degenerate directions still get the window prior, so the bar
+  // above still refuses a corridor's sliding match.
+  bool laplace_covariance = true;
 
   Status Validate() const;
 };

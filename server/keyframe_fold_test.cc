@@ -94,6 +94,36 @@ TEST_F(KeyframeFoldTest, AKeyframeNearANodeFoldsWithTheMatchAsItsOffset) {
   EXPECT_EQ(folder_.num_nodes(), 11u);
 }
 
+TEST_F(KeyframeFoldTest, AFoldOntoItsPredecessorKeepsTheAgentsPrecision) {
+  // 0.2 m past node 10, its predecessor: the agent's constraint (odometry noise 5 mm, 0.002 rad)
+  // enters no factor inside one node, so it is fused with the match. With the match alone the
+  // offset had the floors' 2 cm and 0.005 rad, and a fresh path folding every other keyframe
+  // lost its odometry's precision (ACES split in two, docs/ARCHITECTURE.md, aces26).
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(7.7, 2.0, 0.0));
+  std::vector<AdmittedKeyframe> admitted;
+  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
+  ASSERT_EQ(admitted.size(), 1u);
+  const AdmittedKeyframe& a = admitted.front();
+  const std::optional<KeyframeFold> fold = folder_.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  ASSERT_TRUE(fold.has_value());
+  EXPECT_EQ(fold->node, (PoseKey{TrajectoryId(0), 10}));
+  EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
+  EXPECT_NEAR(fold->T_node_keyframe.y(), 0.0, 0.03);
+  EXPECT_NEAR(fold->T_node_keyframe.theta(), 0.0, 0.01);
+  // The agent's own covariance (the prediction's: the node is the predecessor's keyframe), not
+  // the match's with the floors.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(fold->covariance(i, i), a.T_previous_this_covariance(i, i),
+                1e-9 * a.T_previous_this_covariance(i, i))
+        << i;
+    EXPECT_GT(fold->covariance(i, i), 0.0) << i;
+  }
+  EXPECT_LT(fold->covariance(0, 0), 0.02 * 0.02);
+  EXPECT_LT(fold->covariance(2, 2), 0.005 * 0.005);
+}
+
 TEST_F(KeyframeFoldTest, AKeyframeFartherThanTheRadiusFromEveryNodeIsANode) {
   // 1.5 m past the last node.
   EXPECT_FALSE(Try(Revisit(Pose2(9.0, 2.0, 0.0))).has_value());

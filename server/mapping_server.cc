@@ -53,8 +53,10 @@ MappingServer::MappingServer(const MappingServerOptions& options)
         std::make_unique<LoopClosures>(options.loop, pool_.get(), options.match_schedule));
   }
   if (options.scan_encounters) {
-    sources_.push_back(
-        std::make_unique<ScanEncounters>(options.scan, pool_.get(), options.match_schedule));
+    ScanEncounterOptions scan = options.scan;
+    // A folded keyframe waits for its examination as a new node waits for its solve.
+    if (options.reduced_graph.enabled) scan.folded_wait_s = options.solve_period_s;
+    sources_.push_back(std::make_unique<ScanEncounters>(scan, pool_.get(), options.match_schedule));
   }
   if (options.reduced_graph.enabled) {
     folder_ = std::make_unique<KeyframeFolder>(options.reduced_graph);

@@ -14,7 +14,7 @@ static_assert(sizeof(ScanReferenceOptions) == 32,
               "new ScanReferenceOptions field: add it to the fingerprint");
 static_assert(sizeof(LoopClosureOptions) == 448,
               "new LoopClosureOptions field: add it to the fingerprint");
-static_assert(sizeof(ScanEncounterOptions) == 544,
+static_assert(sizeof(ScanEncounterOptions) == 560,
               "new ScanEncounterOptions field: add it to the fingerprint");
 static_assert(sizeof(SmootherOptions) == 136,
               "new SmootherOptions field: add it to the fingerprint");
@@ -50,6 +50,10 @@ void Add(Fnv1a* h, const MatchOptions& m) {
   h->F(m.overlap_distance_m);
   h->B(m.refine);
   h->B(m.covariance);
+  // Hashed only when not the default, so that the default's fingerprint (in snapshots) stays.
+  if (m.covariance_model != MatchCovariance::kScoreDistribution) {
+    h->I(static_cast<int64_t>(m.covariance_model));
+  }
 }
 
 void Add(Fnv1a* h, const ScanReferenceOptions& r) {
@@ -136,6 +140,7 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.join_check_radius_m);
   h->F(o.join_check_range_m);
   h->F(o.join_max_conflict);
+  h->F(o.verify_radius_m);
   h->F(o.verify_max_conflict);
   h->I(o.verify_min_points);
   h->F(o.verify_drift_per_m);
@@ -169,6 +174,9 @@ void Add(Fnv1a* h, const ScanEncounterOptions& o) {
   h->F(o.floor_sigma_m);
   h->F(o.floor_sigma_rad);
   h->I(o.max_waiting);
+  // Hashed only when set, so that fingerprints recorded before it existed still hold (the
+  // server sets it from its solve period with the reduced graph only).
+  if (o.folded_wait_s != 0) h->F(o.folded_wait_s);
   Add(h, o.reference);
   Add(h, o.match);
 }

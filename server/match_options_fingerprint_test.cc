@@ -25,6 +25,8 @@ TEST(MatchOptionsFingerprintTest, ChangesWithTheOptionsThatChangeResults) {
   };
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.match.point_sigma_m = 0.04; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->scan.match.min_score = 0.31; }));
+  EXPECT_TRUE(changed(
+      [](MappingServerOptions* o) { o->loop.match.covariance_model = MatchCovariance::kLaplace; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.reference.num_levels = 4; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_max_window_m = 10.0; }));
   EXPECT_TRUE(changed([](MappingServerOptions* o) { o->loop.wide_weak_min_overlap = 0.7; }));

@@ -29,8 +29,9 @@ Status ScanEncounterOptions::Validate() const {
   if (max_kept < 1) return Status::Error("scan.max_kept must be >= 1");
   if (!(first_join_max_sigma_m > 0) || !(first_join_max_sigma_rad > 0))
     return Status::Error("scan first-join sigmas must be > 0");
-  if (!(join_check_radius_m >= 0) || !(join_check_range_m > 0))
-    return Status::Error("scan.join_check_radius_m must be >= 0 and join_check_range_m > 0");
+  if (!(join_check_radius_m >= 0) || !(join_check_range_m > 0) || !(verify_radius_m >= 0))
+    return Status::Error(
+        "scan.join_check_radius_m and verify_radius_m must be >= 0 and join_check_range_m > 0");
   if (!(join_max_conflict >= 0 && join_max_conflict <= 1))
     return Status::Error("scan.join_max_conflict must be in [0, 1]");
   if (!(verify_max_conflict >= 0 && verify_max_conflict <= 1) || verify_min_points < 0 ||
@@ -71,6 +72,7 @@ Status ScanEncounterOptions::Validate() const {
   if (!(floor_sigma_m >= 0) || !(floor_sigma_rad >= 0))
     return Status::Error("scan covariance floors must be >= 0");
   if (max_waiting < 1) return Status::Error("scan.max_waiting must be >= 1");
+  if (!(folded_wait_s >= 0)) return Status::Error("scan.folded_wait_s must be >= 0");
   if (Status s = reference.Validate(); !s.ok()) return s;
   if (Status s = submap_cache.Validate(); !s.ok()) return s;
   if (Status s = near_budget.Validate("scan.near_budget"); !s.ok()) return s;

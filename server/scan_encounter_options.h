@@ -84,12 +84,19 @@ struct ScanEncounterOptions {
   // off before); its true joins 0.015 and 0.008; the simulator's tests' true joins 0.000-0.001;
   // twin corridors offered as one 0.057. With the best match's pose for the whole set (a
   // variant), the true joins of Intel, FR079 and ACES (2s, 3s) measured 0.001-0.028.
-  double join_check_radius_m = 5.0;
+  // The radius was 5 m (verify_radius_m's): the simulator's offices (100 x 180 s seed 3 with
+  // the reduced graph) turned a robot's first join by 180 degrees through two map-verified
+  // candidates of two pairs, 5 m apart on its path, whose hall looks the same turned round
+  // within 5 m (0.034) but not within 10 (0.086; 20 m: 0.172). The true first joins of the
+  // real logs split in two and three (both modes, 11 joins) measured 0.000-0.025 within 10 m
+  // (0.000-0.025 within 20 m too): docs/ARCHITECTURE.md, aces27.
+  double join_check_radius_m = 10.0;
   double join_check_range_m = 8.0;
   double join_max_conflict = 0.05;
-  // A candidate whose own maps agree (map-verified): drawn by its own match as above, at most
-  // verify_max_conflict of both sides' end points together land in space the other side saw
-  // free, out of at least verify_min_points on each side. Two map-verified candidates
+  // A candidate whose own maps agree (map-verified): drawn by its own match as above with both
+  // trajectories' keyframes within verify_radius_m of its places, at most verify_max_conflict
+  // of both sides' end points together land in space the other side saw free, out of at least
+  // verify_min_points on each side. Two map-verified candidates
   // confirm each other through the pairwise test with each trajectory's estimate between
   // them widened by verify_drift_per_m (x, y) and verify_drift_rad_per_m (heading) per metre
   // its odometry drove between them (the near search's drift rates): the smoother's
@@ -99,6 +106,7 @@ struct ScanEncounterOptions {
   // the 180-degree aliases that agree among themselves fail their own maps (pooled 0.069 and
   // more, the true ones 0.011-0.028; on Intel and FR079 split sequentially, false candidates
   // 0.039-0.047 with fewer than 2000 points on a side, true ones 0.000-0.043).
+  double verify_radius_m = 5.0;
   double verify_max_conflict = 0.045;
   int verify_min_points = 2000;
   double verify_drift_per_m = 0.01;
@@ -200,6 +208,13 @@ struct ScanEncounterOptions {
   double floor_sigma_m = 0.02;
   double floor_sigma_rad = 0.005;
   int max_waiting = 200;
+  // A keyframe folded onto a node (the reduced graph) has a solved pose at once; it is examined
+  // this long (data time) after its own time, as a new node waits for the solver's next update:
+  // its global search then sees the keyframes that followed it, as without the fold (on ACES
+  // split in two, a true candidate's own maps were measured one view short, 1871 points against
+  // the bar's 2000, and were not map-verified). MappingServer sets it to its solve_period_s with
+  // the reduced graph.
+  double folded_wait_s = 0.0;
   ScanReferenceOptions reference{0.05, 0.05, 0.5, 7};
   // The submaps' references built for searches, kept under a memory budget (a submap's
   // drawing never changes: a reference built again has the same bits).

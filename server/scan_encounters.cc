@@ -37,14 +37,22 @@ void ScanEncounters::Poll(int64_t now_utime, const GraphView& graph, EncounterSo
 }
 
 void ScanEncounters::Flush(const GraphView& graph, EncounterSourceOutput* out) {
-  Examine(graph, out);
+  Examine(graph, out, /*at_end=*/true);
   if (graph.covariances != nullptr) UseMatches(/*all=*/true, graph, out);
   qualifier_.JoinQualified(/*flush=*/true, now_utime_, graph, out);
   qualifier_.GiveUpUnlessJoinedBy(out->constraints, graph);
   near_.GiveUpHeld();
 }
 
-void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out) {
+bool ScanEncounters::FoldedTooRecently(PoseKey key, const GraphView& graph) const {
+  if (!(options_.folded_wait_s > 0)) return false;
+  const TrajectoryRecord* record = graph.table.FindBySolverId(key.trajectory);
+  if (record == nullptr || key.index < 0 || key.index >= record->num_keyframes()) return false;
+  const int64_t key_utime = record->utimes[static_cast<size_t>(key.index)];
+  return now_utime_ - key_utime < static_cast<int64_t>(1e6 * options_.folded_wait_s);
+}
+
+void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out, bool at_end) {
   if (graph.covariances == nullptr) return;
   ResolveKept(graph, out);
   submaps_.Build(graph);
@@ -64,6 +72,10 @@ void ScanEncounters::Examine(const GraphView& graph, EncounterSourceOutput* out)
     // match: the node's own near searches and the folds of the group's other trajectories
     // onto it tie the place. Only its global search (a group the fold cannot join) is left.
     if (graph.smoother.IsFolded(key)) {
+      if (!at_end && FoldedTooRecently(key, graph)) {
+        still_waiting.push_back(key);
+        continue;
+      }
       folded.push_back(key);
       continue;
     }

@@ -148,7 +148,10 @@ class ScanEncounters : public EncounterSource {
   Eigen::Matrix3d NearWindowDrift(PoseKey a, PoseKey b, const GraphView& graph);
 
  private:
-  void Examine(const GraphView& graph, EncounterSourceOutput* out);
+  // `at_end`: folded keyframes are examined without waiting for folded_wait_s.
+  void Examine(const GraphView& graph, EncounterSourceOutput* out, bool at_end = false);
+  // A folded keyframe still within folded_wait_s of its own time (data time, now_utime_).
+  bool FoldedTooRecently(PoseKey key, const GraphView& graph) const;
   // `near_too`: its near searches too (else only its global search, which has its own
   // budget). Returns the near searches submitted.
   int ExamineKeyframe(PoseKey key, const GraphView& graph, bool near_too);

@@ -174,9 +174,13 @@ void AddCovariance(const ScanReference& reference, const PointCloud& query,
   }
   // The query's noise through the score distribution, the reference's by propagation.
   const Eigen::Matrix3d hessian = DegeneracyFiltered(refined.hessian, query);
-  result->covariance =
-      ScoreDistributionCovariance(reference.field(), query, result->pose, hessian, covariance) +
-      ReferenceNoiseCovariance(reference_noise, hessian, covariance.point_sigma_m, covariance);
+  const Eigen::Matrix3d query_noise =
+      options.covariance_model == MatchCovariance::kLaplace
+          ? LaplaceCovariance(hessian, covariance)
+          : ScoreDistributionCovariance(reference.field(), query, result->pose, hessian,
+                                        covariance);
+  result->covariance = query_noise + ReferenceNoiseCovariance(reference_noise, hessian,
+                                                              covariance.point_sigma_m, covariance);
 }
 
 std::optional<MatchResult> MatchLocal(const ScanReference& reference, const PointCloud& query,

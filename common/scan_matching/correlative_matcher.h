@@ -25,6 +25,16 @@
 
 namespace anchormap {
 
+// How a match's covariance spreads the query's noise (the reference's is propagated either way).
+enum class MatchCovariance {
+  // The score distribution's moment on 125 samples (ScoreDistributionCovariance): follows a
+  // likelihood that is not Gaussian (a corridor, a truncation edge, a second optimum nearby).
+  kScoreDistribution,
+  // The Laplace approximation at the refined pose (LaplaceCovariance): no cost evaluations,
+  // Gaussian by construction; degenerate directions get the window prior as above.
+  kLaplace,
+};
+
 struct MatchOptions {
   // No match below this lattice score (mean likelihood of the query's points, in [0, 1]).
   double min_score = 0.3;
@@ -37,6 +47,7 @@ struct MatchOptions {
   // False: `covariance` is left at the identity (the score distribution is most of a match's
   // cost); AddCovariance on the result gives it later, identically.
   bool covariance = true;
+  MatchCovariance covariance_model = MatchCovariance::kScoreDistribution;
   // A result below either bar keeps the identity as its covariance: the caller that set them
   // discards such a match unused (a fifth of the servers' matches; the covariance is most of
   // a local match's cost). 0: every result gets its covariance.

@@ -128,6 +128,19 @@ Eigen::Matrix3d ScoreDistributionCovariance(const ReferenceField& field, const P
   return covariance;
 }
 
+Eigen::Matrix3d LaplaceCovariance(const Eigen::Matrix3d& hessian,
+                                  const ScoreCovarianceOptions& options) {
+  const double var = options.point_sigma_m * options.point_sigma_m;
+  const Eigen::Matrix3d information = hessian / var + WindowPrior(options);
+  Eigen::Matrix3d covariance = information.inverse();
+  covariance = 0.5 * (covariance + covariance.transpose());
+  covariance.diagonal() +=
+      Eigen::Vector3d(options.floor_sigma_xy_m * options.floor_sigma_xy_m,
+                      options.floor_sigma_xy_m * options.floor_sigma_xy_m,
+                      options.floor_sigma_theta_rad * options.floor_sigma_theta_rad);
+  return covariance;
+}
+
 ReferenceNoiseTerms ComputeReferenceNoiseTerms(const ReferenceField& field, const PointCloud& query,
                                                const Pose2& pose, double cutoff_m) {
   ReferenceNoiseTerms terms;

@@ -54,6 +54,47 @@ SyntheticWorld TwinCorridorWorld() {
   return world;
 }
 
+SyntheticWorld TurnedHallWorld() {
+  SyntheticWorld world;
+  // The hall: x in [0, 30], y in [0, 8] (its middle (15, 4)); a 2 m door at the west end of
+  // its north wall (x in [1, 3]) and, turned, at the east end of its south wall.
+  world.walls.push_back({{0.0, 0.0}, {0.0, 8.0}});
+  world.walls.push_back({{30.0, 0.0}, {30.0, 8.0}});
+  world.walls.push_back({{0.0, 8.0}, {1.0, 8.0}});
+  world.walls.push_back({{3.0, 8.0}, {30.0, 8.0}});
+  world.walls.push_back({{0.0, 0.0}, {27.0, 0.0}});
+  world.walls.push_back({{29.0, 0.0}, {30.0, 0.0}});
+  // Beyond the north door a room with pillars, x in [-6, 8], y in [8, 18]; beyond the south
+  // door a bare corridor running east (turned, it would run west above the hall).
+  world.walls.push_back({{-6.0, 8.0}, {1.0, 8.0}});
+  world.walls.push_back({{3.0, 8.0}, {8.0, 8.0}});
+  world.walls.push_back({{-6.0, 8.0}, {-6.0, 18.0}});
+  world.walls.push_back({{8.0, 8.0}, {8.0, 18.0}});
+  world.walls.push_back({{-6.0, 18.0}, {8.0, 18.0}});
+  world.AddBox(-3.0, 11.0, -2.2, 11.8);
+  world.AddBox(5.0, 10.5, 5.6, 11.5);
+  world.AddBox(-1.0, 15.0, 0.2, 15.5);
+  world.AddBox(4.0, 15.5, 4.5, 16.5);
+  world.walls.push_back({{27.0, 0.0}, {27.0, -3.0}});
+  world.walls.push_back({{29.0, 0.0}, {40.0, 0.0}});
+  world.walls.push_back({{27.0, -3.0}, {40.0, -3.0}});
+  world.walls.push_back({{40.0, -3.0}, {40.0, 0.0}});
+  // Features in pairs turned about (15, 4): (x, y) -> (30 - x, 8 - y).
+  const auto pair = [&world](double x0, double y0, double x1, double y1) {
+    world.AddBox(x0, y0, x1, y1);
+    world.AddBox(30.0 - x1, 8.0 - y1, 30.0 - x0, 8.0 - y0);
+  };
+  pair(4.0, 0.0, 4.6, 0.6);
+  pair(8.0, 7.4, 8.3, 8.0);
+  pair(11.0, 0.0, 11.8, 0.3);
+  pair(13.5, 7.6, 14.5, 8.0);
+  pair(6.5, 2.0, 6.9, 2.4);
+  pair(18.0, 0.0, 18.6, 0.5);
+  world.min_corner = {-6.0, -3.0};
+  world.max_corner = {40.0, 18.0};
+  return world;
+}
+
 SyntheticWorld PeriodicCorridorWorld() {
   SyntheticWorld world;
   world.AddBox(-10.0, 0.0, 50.0, 13.0);  // outer walls

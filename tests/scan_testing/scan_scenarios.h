@@ -27,6 +27,12 @@ SyntheticWorld TwinCorridorWorld();
 // simulator's offices repeat their rooms. A place there looks like the places 8 m away.
 SyntheticWorld PeriodicCorridorWorld();
 
+// A 30 m x 8 m hall that looks the same turned by 180 degrees about its middle (15, 4) (its
+// features in turned pairs, a door at the west end of the north wall and at the east end of
+// the south wall), as the simulator's offices have such rooms; its surroundings do not: the
+// north door opens into a corridor running north, the south one into a corridor running east.
+SyntheticWorld TurnedHallWorld();
+
 // Poses every `step_m` along the rectangle [lo, hi] driven counter-clockwise from `lo`,
 // heading along the side (turning at corners in one step), for `laps` laps (fractions
 // allowed).
