@@ -111,6 +111,8 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     link_position[slot] = placed++;
   }
   out.header.num_encounters = placed;
+  ++work_.updates;
+  work_.chunks += num_chunks;
 
   struct Chunk {
     ChunkId id;
@@ -253,6 +255,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
                                      if (sent == nullptr) return std::nullopt;
                                      return Measure(*sent, pose);
                                    });
+      work_.nodes_examined += passes[t].nodes_examined;
       // A fresh trajectory's chunks are read (their keyframes' times are checked there).
       for (Chunk* c : of_t) c->candidate = c->candidate || fresh;
       for (const KeyframeMoves::Found& f : passes[t].moved) {
@@ -265,6 +268,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     c->sent->read = update;
     if (!c->candidate) continue;  // none of its poses moved past the tolerances
     read(c);
+    ++work_.read;
     if (c->sent->chunk.pose_utimes != utimes_of(*c)) {
       c->send = true;
     } else if ((c->moved = Moved(c->sent->chunk.local_poses, c->poses)) > 0.0) {
@@ -277,6 +281,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
     moved.resize(std::min(moved.size(), static_cast<size_t>(options_.max_moved_chunks)));
   }
   for (Chunk* c : moved) c->send = true;
+  work_.moved += static_cast<int64_t>(moved.size());
   // By node: the poses sent now are where their keyframes are placed; moved ones not sent
   // (within the tolerances after all, or past the budget) keep their measure.
   for (size_t t = 0; by_node && t < trajectories.size(); ++t) {
@@ -312,6 +317,7 @@ MapChunker::Split MapChunker::Update(int64_t utime, int64_t update,
       chunk.encounter_positions.push_back(link_position[static_cast<size_t>(slot)]);
     }
     out.chunks.push_back(chunk);
+    ++work_.sent;
     sent_[c.id] = Sent{std::move(chunk), update};
   }
   // Chunks that no longer exist (a trajectory lost keyframes: a server restart) are forgotten.
