@@ -174,6 +174,10 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       "close (m, (0, 10])");
   add("reduced_graph.angle_deg", "reduced-graph-angle-deg", &s.reduced_graph.angle_deg,
       "reduced graph: ... and its predicted heading this close (degrees, (0, 180])");
+  add("reduced_graph.reference_cache", "reduced-graph-reference-cache",
+      &s.reduced_graph.reference_cache,
+      "reduced graph: node references kept built, least recently used dropped beyond (a few MB "
+      "each)");
   add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
       "cells per tile side");
