@@ -90,6 +90,8 @@ void KeyframeFolder::AddNode(PoseKey node, PoseKey keyframe, const Smoother& smo
 void KeyframeFolder::RefreshIndex(const Smoother& smoother) {
   if (indexed_at_update_ == smoother.stats().updates) return;
   indexed_at_update_ = smoother.stats().updates;
+  ++work_.index_refreshes;
+  work_.indexed_nodes += static_cast<int64_t>(nodes_.size());
   index_.clear();
   for (size_t i = 0; i < nodes_.size(); ++i) {
     const PoseKey node = nodes_[i].node;
@@ -106,12 +108,15 @@ std::shared_ptr<const ScanReference> KeyframeFolder::NodeReference(const Traject
     // again while others come and go.
     const auto used = std::find(reference_order_.begin(), reference_order_.end(), id);
     std::rotate(used, used + 1, reference_order_.end());
+    ++work_.reference_hits;
     return it->second;
   }
   const TrajectoryRecord* record = table.FindBySolverId(keyframe.trajectory);
   if (record == nullptr || keyframe.index >= record->num_keyframes()) return nullptr;
   PointCloud points = KeyframePoints(*record, keyframe.index, options_.max_range_m);
   if (points.empty()) return nullptr;
+  ++work_.reference_builds;
+  if (!ever_built_.insert(id).second) ++work_.reference_rebuilds;
   auto reference = std::make_shared<const ScanReference>(std::vector<PointCloud>{std::move(points)},
                                                          options_.reference);
   if (reference_order_.size() >= static_cast<size_t>(options_.reference_cache)) {
@@ -142,6 +147,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   double best_distance = 0.0;
   for (const int32_t item :
        frame->second.Near(predicted.translation(), options_.radius_m + kIndexSlackM)) {
+    ++work_.near_nodes;
     const PoseKey node = nodes_[static_cast<size_t>(item)].node;
     if (FrameOf(*smoother, node.trajectory) != frame->first) continue;
     const Pose2 at = smoother->GlobalPose(node);
@@ -150,6 +156,7 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
         std::abs(WrapAngle(at.theta() - predicted.theta())) > max_angle) {
       continue;
     }
+    ++work_.candidates;
     if (best < 0 || distance < best_distance || (distance == best_distance && item < best)) {
       best = item;
       best_distance = distance;
@@ -176,6 +183,10 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
           ? std::optional<PredictedRelativePose>(PredictedRelativePose{
                 previous_alias->T_node_key, previous_alias->covariance, false})
           : PredictRelativePose(smoother, node, previous);
+  if (!(node_keyframe == previous) &&
+      !(previous_alias != nullptr && previous_alias->node == node)) {
+    ++work_.solved_predictions;
+  }
   if (!node_previous) {
     ++stats_.unsolved;
     return std::nullopt;
@@ -207,7 +218,11 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
                  options_.min_window_m, options_.max_window_m);
   window.angular_window_rad = std::clamp(3.0 * std::sqrt(std::max(0.0, predicted_covariance(2, 2))),
                                          options_.min_window_rad, options_.max_window_rad);
+  ++work_.matches;
+  work_.window_mm += std::lround(1e3 * window.linear_window_m);
+  work_.window_mrad += std::lround(1e3 * window.angular_window_rad);
   const std::optional<MatchResult> match = MatchLocal(*reference, query, guess, window);
+  if (match) work_.lattice_scores += match->search.scored_nodes;
   if (!match || match->score < options_.min_score || match->overlap < options_.min_overlap) {
     ++stats_.weak_match;
     return std::nullopt;
@@ -248,6 +263,18 @@ std::string KeyframeFolder::StatsLine() const {
          ", weak " + std::to_string(stats_.weak_match) + ", gate " +
          std::to_string(stats_.gate_rejected) + ", degenerate " +
          std::to_string(stats_.degenerate) + ")";
+}
+
+std::string KeyframeFoldWork::Summary() const {
+  return "fold work: index_refreshes " + std::to_string(index_refreshes) + " indexed_nodes " +
+         std::to_string(indexed_nodes) + " near_nodes " + std::to_string(near_nodes) +
+         " candidates " + std::to_string(candidates) + " solved_predictions " +
+         std::to_string(solved_predictions) + " reference_builds " +
+         std::to_string(reference_builds) + " reference_rebuilds " +
+         std::to_string(reference_rebuilds) + " reference_hits " + std::to_string(reference_hits) +
+         " matches " + std::to_string(matches) + " window_mm " + std::to_string(window_mm) +
+         " window_mrad " + std::to_string(window_mrad) + " lattice_scores " +
+         std::to_string(lattice_scores);
 }
 
 KeyframeFolderState KeyframeFolder::ExportState() const {

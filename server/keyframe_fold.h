@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,26 @@ struct KeyframeFoldStats {
   int64_t folded = 0;
 };
 
+// What the folds cost, counted for the status (not in snapshots: a restored folder starts
+// at 0 with its reference cache empty).
+struct KeyframeFoldWork {
+  int64_t index_refreshes = 0;     // the nodes' positions indexed again (a solver update)
+  int64_t indexed_nodes = 0;       // nodes indexed by those refreshes
+  int64_t near_nodes = 0;          // nodes the index gave within the radius plus its slack
+  int64_t candidates = 0;          // of those, within the radius and angle
+  int64_t solved_predictions = 0;  // T_node_previous solved through R
+  int64_t reference_builds = 0;    // node references built (the cache's misses)
+  int64_t reference_rebuilds = 0;  // of those, of a node built before (evicted since)
+  int64_t reference_hits = 0;
+  int64_t matches = 0;  // verifying matches run
+  // Their search windows (sums: mm and mrad of the half-widths) and lattice work.
+  int64_t window_mm = 0;
+  int64_t window_mrad = 0;
+  int64_t lattice_scores = 0;
+
+  std::string Summary() const;
+};
+
 struct KeyframeFolderState;  // keyframe_fold_state.h
 
 class KeyframeFolder {
@@ -103,6 +124,7 @@ class KeyframeFolder {
                                      const TrajectoryTable& table, Smoother* smoother);
 
   const KeyframeFoldStats& stats() const { return stats_; }
+  const KeyframeFoldWork& work() const { return work_; }
   size_t num_nodes() const { return nodes_.size(); }
   std::string StatsLine() const;
 
@@ -127,7 +149,9 @@ class KeyframeFolder {
   int64_t indexed_at_update_ = -1;
   std::map<std::pair<int64_t, int32_t>, std::shared_ptr<const ScanReference>> references_;
   std::vector<std::pair<int64_t, int32_t>> reference_order_;  // least recently used first
+  std::set<std::pair<int64_t, int32_t>> ever_built_;          // KeyframeFoldWork's count
   KeyframeFoldStats stats_;
+  KeyframeFoldWork work_;
 };
 
 }  // namespace anchormap

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -172,6 +173,45 @@ TEST_F(KeyframeFoldTest, AMatchLessLocalisedThanTheBarsFoldsNothing) {
   EXPECT_FALSE(Try(Revisit(Pose2(4.2, 2.0, 0.087))).has_value());
   EXPECT_EQ(folder_.stats().degenerate, 1) << folder_.StatsLine();
   EXPECT_EQ(folder_.stats().gate_rejected + folder_.stats().weak_match, 0);
+}
+
+// The work counters (the status's "fold work"): a node's reference is built once and then
+// served from the cache; the prediction is solved through R unless the predecessor is the
+// node's keyframe or folded onto the node.
+TEST_F(KeyframeFoldTest, WorkCountsCandidatesReferencesBuiltAndSolvedPredictions) {
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(4.2, 2.0, 0.087));  // keyframe 11: folds onto node 3 (x = 4.0)
+  path.push_back(Pose2(4.1, 2.0, 0.05));   // keyframe 12: again onto node 3
+  const std::vector<Keyframe> keyframes = Drive(path, "R1", 1);
+  const std::optional<KeyframeFold> first = Try(keyframes[11]);
+  ASSERT_TRUE(first.has_value());
+  ASSERT_EQ(first->node, (PoseKey{TrajectoryId(0), 3}));
+  const KeyframeFoldWork& work = folder_.work();
+  // Nodes 2-5 (x = 3.5 ... 5.0) lie within 1 m of x = 4.2 and 30 degrees.
+  EXPECT_EQ(work.candidates, 4);
+  EXPECT_GE(work.near_nodes, work.candidates);
+  EXPECT_EQ(work.matches, 1);
+  EXPECT_EQ(work.reference_builds, 1);
+  EXPECT_EQ(work.reference_hits, 0);
+  EXPECT_EQ(work.solved_predictions, 1);  // node 3 from node 10, through R
+  EXPECT_EQ(work.index_refreshes, 1);
+  EXPECT_EQ(work.indexed_nodes, 11);
+  // Keyframe 11 becomes an alias of node 3, as MappingServer makes it.
+  const PoseKey key11{TrajectoryId(0), 11};
+  ASSERT_TRUE(
+      smoother_.AddAlias(key11, first->node, first->T_node_keyframe, first->covariance).ok());
+  const std::optional<KeyframeFold> second = Try(keyframes[12]);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_EQ(second->node, first->node);
+  EXPECT_EQ(work.matches, 2);
+  EXPECT_EQ(work.reference_builds, 1);
+  EXPECT_EQ(work.reference_hits, 1);
+  EXPECT_EQ(work.reference_rebuilds, 0);
+  EXPECT_EQ(work.solved_predictions, 1);  // the predecessor's own offset: no solve
+  EXPECT_EQ(folder_.stats().folded, 2);
+  EXPECT_NE(work.Summary().find("reference_builds 1 reference_rebuilds 0 reference_hits 1"),
+            std::string::npos)
+      << work.Summary();
 }
 
 TEST(ReducedGraphOptionsTest, BadRadiusAndAngleAreRefusedByName) {

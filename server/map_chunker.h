@@ -93,6 +93,17 @@ class MapChunker {
   // The same for a map with global poses (each made local by its trajectory's anchor).
   Split Update(const MergedMap& map, bool full, double refresh = 0.0);
 
+  // What the updates cost, counted for the status.
+  struct Work {
+    int64_t updates = 0;
+    int64_t chunks = 0;          // in the maps split
+    int64_t read = 0;            // chunks whose poses were read to compare
+    int64_t moved = 0;           // of those, moved past the tolerances
+    int64_t sent = 0;            // chunks sent (new, changed, moved, refreshed)
+    int64_t nodes_examined = 0;  // by node: the nodes' poses read
+  };
+  const Work& work() const { return work_; }
+
  private:
   using ChunkId = std::tuple<std::string, int64_t, int32_t>;  // robot, trajectory, index
   struct Sent {
@@ -120,6 +131,7 @@ class MapChunker {
   MapChunkerOptions options_;
   std::map<ChunkId, Sent> sent_;
   std::map<std::pair<std::string, int64_t>, TrajectoryMoves> moves_;
+  Work work_;
 };
 
 }  // namespace anchormap

@@ -179,6 +179,30 @@ std::vector<TrajectoryId> MapPublisher::GridTrajectories(const Smoother& smoothe
 
 MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
                                                   const TrajectoryTable& table, bool complete) {
+  const GridChange change = MoveGrid(smoother, table, complete);
+  ++grid_work_.updates;
+  grid_work_.inserted += change.inserted;
+  grid_work_.moved += change.moved;
+  grid_work_.deferred += change.deferred;
+  grid_work_.removed += change.removed;
+  return change;
+}
+
+std::string MapPublisher::WorkSummary() const {
+  const GridWork& g = grid_work_;
+  const MapChunker::Work& c = chunker_.work();
+  return "grid work: updates " + std::to_string(g.updates) + " inserted " +
+         std::to_string(g.inserted) + " moved " + std::to_string(g.moved) + " deferred " +
+         std::to_string(g.deferred) + " removed " + std::to_string(g.removed) + " rebuilds " +
+         std::to_string(g.rebuilds) + " nodes_examined " + std::to_string(g.nodes_examined) +
+         " moves_found " + std::to_string(g.moves_found) + "; chunk work: updates " +
+         std::to_string(c.updates) + " chunks " + std::to_string(c.chunks) + " read " +
+         std::to_string(c.read) + " moved " + std::to_string(c.moved) + " sent " +
+         std::to_string(c.sent) + " nodes_examined " + std::to_string(c.nodes_examined);
+}
+
+MapPublisher::GridChange MapPublisher::MoveGrid(const Smoother& smoother,
+                                                const TrajectoryTable& table, bool complete) {
   GridChange change;
   // The grid's trajectories, each with its place in the table (the keyframes' order) and
   // how many keyframes it holds (a pose and a scan).
@@ -259,6 +283,8 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
         return it->second ? Compose(*it->second, pose) : pose;
       },
       [this](uint64_t key, const Pose2& pose) { return grid_.Displacement(key, pose); }, complete);
+  grid_work_.nodes_examined += pass.nodes_examined;
+  grid_work_.moves_found += static_cast<int64_t>(pass.moved.size());
   const auto scan_of = [&](uint64_t order) {
     return &table.records()[order >> 32].scans[order & 0xffffffffu];
   };
@@ -288,6 +314,7 @@ MapPublisher::GridChange MapPublisher::UpdateGrid(const Smoother& smoother,
       keyframes.push_back({f.key, scan_of(f.order), f.pose});
     }
     grid_.Rebuild(keyframes);
+    ++grid_work_.rebuilds;
     moves_.Settle({});
     change.moved = static_cast<int64_t>(pass.moved.size());
     change.removed = static_cast<int64_t>(gone.size());

@@ -152,6 +152,21 @@ class MapPublisher {
   GridChange UpdateGrid(const Smoother& smoother, const TrajectoryTable& table,
                         bool complete = false);
   const KeyframeGrid& grid() const { return grid_; }
+  // What the grid updates and the map splits cost, counted for the status.
+  struct GridWork {
+    int64_t updates = 0;
+    int64_t inserted = 0;
+    int64_t moved = 0;  // traced again
+    int64_t deferred = 0;
+    int64_t removed = 0;
+    int64_t rebuilds = 0;
+    int64_t nodes_examined = 0;  // KeyframeMoves' node poses read
+    int64_t moves_found = 0;     // keyframes past the tolerance (traced again or deferred)
+  };
+  const GridWork& grid_work() const { return grid_work_; }
+  const MapChunker::Work& chunk_work() const { return chunker_.work(); }
+  // Both, one line.
+  std::string WorkSummary() const;
   // The solver trajectories whose keyframes make the grid (see MapPublisherOptions::grid).
   std::vector<TrajectoryId> GridTrajectories(const Smoother& smoother,
                                              const TrajectoryTable& table) const;
@@ -181,6 +196,7 @@ class MapPublisher {
   std::optional<int64_t> last_grid_full_utime_;
   std::optional<int64_t> last_covariances_utime_;
   std::vector<TrajectoryId> last_covariances_anchors_;  // the trajectories they held
+  GridChange MoveGrid(const Smoother& smoother, const TrajectoryTable& table, bool complete);
   // The share of the chunks SplitMergedMap sends again whatever changed; `*full` when all.
   double Refresh(int64_t now_utime, bool* full);
   std::optional<int64_t> last_map_split_utime_;
@@ -190,6 +206,7 @@ class MapPublisher {
   // keyframes of each of the grid's trajectories it holds.
   KeyframeMoves moves_{grid_.move_tolerance_m()};
   std::unordered_map<int64_t, int32_t> grid_counts_;  // by solver trajectory
+  GridWork grid_work_;
 };
 
 }  // namespace anchormap

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <map>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -293,6 +294,36 @@ TEST_F(MapPublisherTest, GridTracesAgainAtMostMaxMovedFarthestFirst) {
                               actual = publisher.BuildGridTiles(smoother_, table_, 3, 3);
   ASSERT_EQ(actual.size(), expected.size());
   for (size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(actual[i].cells, expected[i].cells);
+}
+
+// The work counters (the status's "grid work" and "chunk work") sum what the calls did.
+TEST_F(MapPublisherTest, WorkSumsTheGridChangesAndTheChunksSent) {
+  MapPublisherOptions options;
+  options.grid.resolution_m = 0.1;
+  options.grid_max_moved = 1;
+  options.chunks.chunk_poses = 1;
+  MapPublisher publisher(options);
+  const MapPublisher::GridChange first = publisher.UpdateGrid(smoother_, table_);
+  ASSERT_NO_FATAL_FAILURE(BendA());
+  const MapPublisher::GridChange second = publisher.UpdateGrid(smoother_, table_);
+  const MapPublisher::GridWork& grid = publisher.grid_work();
+  EXPECT_EQ(grid.updates, 2);
+  EXPECT_EQ(grid.inserted, first.inserted + second.inserted);
+  EXPECT_EQ(grid.inserted, kKeyframes);  // A alone
+  EXPECT_EQ(grid.moved, 1);
+  EXPECT_EQ(grid.deferred, 2);
+  EXPECT_EQ(grid.moves_found, 3);  // keyframes 1 to 3
+  EXPECT_EQ(grid.rebuilds, 0);
+  const MapChunker::Split split = publisher.SplitMergedMap(smoother_, table_, links_, 0, 1, 0);
+  const MapChunker::Work& chunks = publisher.chunk_work();
+  EXPECT_EQ(chunks.updates, 1);
+  EXPECT_EQ(chunks.chunks, 2 * kKeyframes);
+  EXPECT_EQ(chunks.sent, static_cast<int64_t>(split.chunks.size()));
+  EXPECT_EQ(chunks.sent, 2 * kKeyframes);  // the first map: every chunk
+  EXPECT_EQ(chunks.read, 0);
+  EXPECT_NE(publisher.WorkSummary().find("grid work: updates 2 inserted 4 moved 1 deferred 2"),
+            std::string::npos)
+      << publisher.WorkSummary();
 }
 
 // A complete grid where more keyframes moved than stayed is made again (one trace per

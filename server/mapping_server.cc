@@ -198,7 +198,9 @@ void MappingServer::ApplyKeyframe(Keyframe keyframe) {
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
   const GraphView graph{table_, smoother_, &smoother_, &ties_};
+  const double cpu_start = ThreadCpuSeconds();
   for (auto& source : sources_) source->Poll(released_utime_, graph, &found);
+  work_cpu_.sources_s += ThreadCpuSeconds() - cpu_start;
   Commit(found, !admitted.empty(), "keyframe");
 }
 
@@ -315,6 +317,7 @@ void MappingServer::Flush() {
 
 void MappingServer::CountUpdate(const UpdateResult& result, double cpu_seconds) {
   ++stats_.updates;
+  work_cpu_.solver_s += cpu_seconds;
   stats_.last_update_ms = 1e3 * result.seconds;
   stats_.total_update_ms += stats_.last_update_ms;
   if (options_.record_update_times) {
@@ -342,11 +345,13 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
                               : a.T_local_pose;
     // The reduced graph: a keyframe in a mapped place folds onto a node (no variable; its
     // odometry below then joins the nodes, or nothing when it stays on one node).
+    const double fold_start = ThreadCpuSeconds();
     const std::optional<KeyframeFold> fold =
         folder_ && a.previous && smoother_.HasPose(*a.previous)
             ? folder_->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
                               table_, &smoother_)
             : std::nullopt;
+    work_cpu_.fold_s += ThreadCpuSeconds() - fold_start;
     // A node after a predecessor folded onto another trajectory's node is borrowed from that
     // trajectory (a pose of it, tied by a between factor: pose_aliases.h says why).
     const PoseAlias* previous_alias =
@@ -395,7 +400,9 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
       continue;
     }
     const GraphView graph{table_, smoother_, &smoother_, &ties_};
+    const double sources_start = ThreadCpuSeconds();
     for (auto& source : sources_) source->OnKeyframeAdded(a.key, graph, found);
+    work_cpu_.sources_s += ThreadCpuSeconds() - sources_start;
   }
 }
 
@@ -560,12 +567,19 @@ MergedMap MappingServer::BuildMergedMap() const {
 }
 
 MapChunker::Split MappingServer::SplitMergedMap(int64_t now_utime, bool full) {
-  return publisher_.SplitMergedMap(smoother_, table_, links_, data_utime_, stats_.updates,
-                                   now_utime, full);
+  const double cpu_start = ThreadCpuSeconds();
+  MapChunker::Split split = publisher_.SplitMergedMap(smoother_, table_, links_, data_utime_,
+                                                      stats_.updates, now_utime, full);
+  work_cpu_.map_s += ThreadCpuSeconds() - cpu_start;
+  return split;
 }
 
 AnchorCovariances MappingServer::BuildAnchorCovariances() {
-  return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
+  const double cpu_start = ThreadCpuSeconds();
+  AnchorCovariances covariances =
+      publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
+  work_cpu_.covariances_s += ThreadCpuSeconds() - cpu_start;
+  return covariances;
 }
 
 std::vector<TrajectoryId> MappingServer::PublishedAnchors() const {
@@ -573,11 +587,19 @@ std::vector<TrajectoryId> MappingServer::PublishedAnchors() const {
 }
 
 std::vector<GridTile> MappingServer::BuildGridTiles(bool complete) {
-  return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
+  const double cpu_start = ThreadCpuSeconds();
+  std::vector<GridTile> tiles =
+      publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
+  work_cpu_.grid_s += ThreadCpuSeconds() - cpu_start;
+  return tiles;
 }
 
 std::vector<GridTile> MappingServer::BuildChangedGridTiles() {
-  return publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
+  const double cpu_start = ThreadCpuSeconds();
+  std::vector<GridTile> tiles =
+      publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
+  work_cpu_.grid_s += ThreadCpuSeconds() - cpu_start;
+  return tiles;
 }
 
 ServerStatus MappingServer::BuildStatus() const {
@@ -596,6 +618,17 @@ ServerStatus MappingServer::BuildStatus() const {
   status.resend_requests = resend_requests_;
   status.rejections = rejects_.NonZero();
   return status;
+}
+
+std::string MappingServer::WorkLine() const {
+  char cpu[160];
+  std::snprintf(cpu, sizeof(cpu),
+                "cpu s: fold %.3f sources %.3f map %.3f covariances %.3f grid %.3f solver %.3f; ",
+                work_cpu_.fold_s, work_cpu_.sources_s, work_cpu_.map_s, work_cpu_.covariances_s,
+                work_cpu_.grid_s, work_cpu_.solver_s);
+  std::string line = std::string(cpu) + publisher_.WorkSummary();
+  if (folder_) line += "; " + folder_->work().Summary();
+  return line;
 }
 
 std::string MappingServer::StatusLine() const {

@@ -249,6 +249,9 @@ class MappingServer {
   // One line: robots, trajectories, anchored, keyframes, encounters, updates, last update
   // time, waiting items, rejections by reason.
   std::string StatusLine() const;
+  // What the publications and the folds cost so far (counters, not in snapshots): grid
+  // updates and retraces, map chunks read and sent, the folds' candidates and references.
+  std::string WorkLine() const;
 
   int64_t update_count() const { return stats_.updates; }
   int64_t data_utime() const { return data_utime_; }
@@ -331,6 +334,16 @@ class MappingServer {
   RejectCounter rejects_;
   OncePerKindLog solver_log_;
   MappingServerStats stats_;
+  // The server thread's CPU seconds by part (WorkLine; not in snapshots).
+  struct WorkCpu {
+    double fold_s = 0.0;
+    double sources_s = 0.0;  // OnKeyframeAdded and Poll after a keyframe
+    double map_s = 0.0;
+    double covariances_s = 0.0;
+    double grid_s = 0.0;
+    double solver_s = 0.0;
+  };
+  WorkCpu work_cpu_;
   std::vector<UpdateTiming> update_times_;
   int64_t data_utime_ = 0;
   int64_t released_utime_ = 0;  // the newest released input's time: the sources' "now"

@@ -178,6 +178,10 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       &s.reduced_graph.laplace_covariance,
       "reduced graph: the fold's match covariance by the Laplace approximation (false: the "
       "score distribution's samples, as the loop closures')");
+  add("reduced_graph.reference_cache", "reduced-graph-reference-cache",
+      &s.reduced_graph.reference_cache,
+      "reduced graph: node references kept built, least recently used dropped beyond (a few MB "
+      "each)");
   add("grid.resolution_m", "grid-resolution-m", &s.publish.grid.resolution_m, "cell size (m)");
   add("grid.tile_size_cells", "grid-tile-size", &s.publish.grid.tile_size_cells,
       "cells per tile side");

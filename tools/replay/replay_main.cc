@@ -15,6 +15,7 @@
 
 #include <sys/resource.h>
 #include <sys/time.h>
+#include <time.h>
 
 #include "agent/node/agent_node.h"
 #include "common/bus/channels.h"
@@ -39,6 +40,8 @@ struct ReplayOptions {
   bool scan_matching = true;
   std::string log_level = "info";
   std::string update_times;  // CSV of every solver update's cost (benchmarks)
+  // The server's status and work lines (info) every this many seconds of data (0: none).
+  double status_period_s = 0.0;
   // The agents' keyframes and encounters, as a logger on the bus would record them (the
   // input of anchormap-server --log and tools/bench's journal replay benchmark).
   std::string inputs_output;
@@ -52,6 +55,14 @@ struct ReplayOptions {
 // server thread's: on a loaded machine the wall time also counts waiting for a core). Written as
 // the replay goes (every few thousand events), so that a long benchmark stopped early still leaves
 // its curve.
+double CpuSeconds(clockid_t clock) {
+  timespec t{};
+  clock_gettime(clock, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+double ProcessCpuSeconds() { return CpuSeconds(CLOCK_PROCESS_CPUTIME_ID); }
+double ThreadCpuSeconds() { return CpuSeconds(CLOCK_THREAD_CPUTIME_ID); }
+
 class UpdateTimesWriter {
  public:
   Status Open(const std::string& path) {
@@ -184,11 +195,22 @@ int Run(const ReplayOptions& options) {
   }
   constexpr int64_t kUpdateTimesEveryEvents = 5000;
   int64_t events = 0;
+  int64_t first_utime = -1, next_status_utime = 0;
   while (auto event = reader.Next()) {
     ++events;
     event_utime = event->utime;
     bus.Publish(event->channel, std::move(event->data));
     bus.HandlePending();
+    if (first_utime < 0) first_utime = event_utime;
+    if (options.status_period_s > 0 && event_utime - first_utime >= next_status_utime) {
+      if (next_status_utime > 0) {
+        LogInfo("status at " + std::to_string(next_status_utime / 1000000) +
+                " s of data: " + server.server().StatusLine() + " | " + server.server().WorkLine() +
+                " | process cpu s " + std::to_string(ProcessCpuSeconds()) + " main thread " +
+                std::to_string(ThreadCpuSeconds()));
+      }
+      next_status_utime += static_cast<int64_t>(1e6 * options.status_period_s);
+    }
     if (!options.update_times.empty() && events % kUpdateTimesEveryEvents == 0) {
       (void)update_times.Append(server.server().update_times());  // checked at the end
     }
@@ -212,6 +234,7 @@ int Run(const ReplayOptions& options) {
   }
   for (const auto& agent : agents) LogInfo(agent->StatusLine());
   LogInfo("server: " + server.server().StatusLine());
+  LogInfo("server work: " + server.server().WorkLine());
   LogInfo("replayed " + std::to_string(events) + " events; wrote " +
           std::to_string(server.published_maps()) + " maps to " + options.output);
   return 0;
@@ -239,6 +262,9 @@ int Main(int argc, char** argv) {
              "tools/bench/scale_figures.sh reads it)");
   loader.Add("inputs_output", "inputs-output", &options.inputs_output,
              "also write the agents' keyframes and encounters to this LCM log (empty: none)");
+  loader.Add("status_period_s", "status-period-s", &options.status_period_s,
+             "log the server's status and work counters every this many seconds of data "
+             "(info; 0: only at the end)");
   const MappingServerFlags server_flags(&loader, &options.server.server, "server: ");
   loader.Add("log_level", "log-level", &options.log_level, "debug, info, warning or error");
   const ParseOutcome outcome = loader.Parse(argc, argv);
