@@ -12,6 +12,39 @@
 # module its own module does not depend on (directly or through its DEPS; a test may also
 # use its TEST_DEPS). So agent/ including common/bus/ fails to build, not only to link.
 
+# anchormap_precompiled_headers(): the two precompiled headers (ANCHORMAP_PCH), made once by
+# the root CMakeLists.txt (its folder's compile options are the global ones):
+# anchormap_pch_library (Eigen's core and the standard headers most files include) for the
+# libraries and programs, anchormap_pch_test (the same and GoogleTest) for the test programs.
+# Parsing them was a quarter to a half of a file's compile CPU (docs/ARCHITECTURE.md, "CI's
+# time"). Clang takes a precompiled header only with the same flags and the same value of
+# each macro: a file with other options opts out (source property SKIP_PRECOMPILE_HEADERS).
+set(ANCHORMAP_PCH_HEADERS <Eigen/Core> <algorithm> <array> <cmath> <cstdint> <cstdio> <cstdlib>
+    <cstring> <filesystem> <fstream> <functional> <limits> <map> <memory> <optional> <random>
+    <set> <sstream> <string> <unordered_map> <utility> <vector>)
+function(anchormap_precompiled_headers)
+  foreach(kind library test)
+    set(stub ${CMAKE_BINARY_DIR}/anchormap_pch_${kind}.cc)
+    if(NOT EXISTS ${stub})
+      file(WRITE ${stub} "// Hosts a precompiled header (cmake/AnchormapHelpers.cmake).\n")
+    endif()
+    add_library(anchormap_pch_${kind} OBJECT ${stub})
+    target_link_libraries(anchormap_pch_${kind} PRIVATE Eigen3::Eigen)
+  endforeach()
+  target_precompile_headers(anchormap_pch_library PRIVATE ${ANCHORMAP_PCH_HEADERS})
+  target_link_libraries(anchormap_pch_test PRIVATE GTest::gtest)
+  anchormap_test_definitions(anchormap_pch_test)
+  target_precompile_headers(anchormap_pch_test PRIVATE <gtest/gtest.h> ${ANCHORMAP_PCH_HEADERS})
+endfunction()
+
+# The definitions every test program compiles with.
+function(anchormap_test_definitions target)
+  target_compile_definitions(${target} PRIVATE
+      ANCHORMAP_DEFAULT_DATA_DIR="${ANCHORMAP_DATA_DIR}"
+      ANCHORMAP_BINARY_DIR="${CMAKE_BINARY_DIR}"
+      ANCHORMAP_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+endfunction()
+
 function(anchormap_module)
   cmake_parse_arguments(ARG "" "NAME;MAIN_PREFIX" "DEPS;TEST_DEPS" ${ARGN})
   file(GLOB all_sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
@@ -39,6 +72,9 @@ function(anchormap_module)
 
   if(lib_sources)
     add_library(${ARG_NAME} STATIC ${lib_sources})
+    if(ANCHORMAP_PCH)
+      target_precompile_headers(${ARG_NAME} REUSE_FROM anchormap_pch_library)
+    endif()
     target_include_directories(${ARG_NAME} PUBLIC ${PROJECT_SOURCE_DIR})
     target_link_libraries(${ARG_NAME} PUBLIC ${ARG_DEPS})
   else()
@@ -52,11 +88,11 @@ function(anchormap_module)
     set(test_target ${ARG_NAME}_${stem})
     add_executable(${test_target} ${src})
     target_link_libraries(${test_target} PRIVATE ${ARG_NAME} ${ARG_TEST_DEPS} GTest::gtest GTest::gtest_main)
-    target_compile_definitions(${test_target} PRIVATE
-        ANCHORMAP_DEFAULT_DATA_DIR="${ANCHORMAP_DATA_DIR}"
-        ANCHORMAP_BINARY_DIR="${CMAKE_BINARY_DIR}"
-        ANCHORMAP_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+    anchormap_test_definitions(${test_target})
     set_target_properties(${test_target} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+    if(ANCHORMAP_PCH)
+      target_precompile_headers(${test_target} REUSE_FROM anchormap_pch_test)
+    endif()
     gtest_discover_tests(${test_target} DISCOVERY_TIMEOUT 120
                          PROPERTIES ENVIRONMENT "ANCHORMAP_BINARY_DIR=${CMAKE_BINARY_DIR}")
   endforeach()
@@ -72,6 +108,9 @@ function(anchormap_module)
     endif()
     add_executable(${exe_name} ${src})
     target_link_libraries(${exe_name} PRIVATE ${ARG_NAME})
+    if(ANCHORMAP_PCH)
+      target_precompile_headers(${exe_name} REUSE_FROM anchormap_pch_library)
+    endif()
   endforeach()
 endfunction()
 

@@ -62,10 +62,10 @@ inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
   # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
+  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
     -f "$work/agents.lcmlog" >"$work/logger_agents.log" 2>&1 &
   local logger_agents=$!
-  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
+  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
     -f "$work/out.lcmlog" >"$work/logger_out.log" 2>&1 &
   local logger_out=$!
   # shellcheck disable=SC2086 # the flags are words

@@ -42,7 +42,7 @@ inside_namespace() {
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
   local pids=() status=0
   # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$URL" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger.log" 2>&1 &
+  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger.log" 2>&1 &
   local logger=$!
   # shellcheck disable=SC2086 # the flags are words
   "$BIN/anchormap-server" --lcm-url "$URL" --status-period-s 2 $SOURCES >"$work/server.log" 2>&1 &

@@ -179,6 +179,14 @@ loggers_quiet_for_half_a_second() {
   [ $quiet -ge 5 ]
 }
 
+# logger_url URL: URL (which has a query: ?ttl=0) for an lcm-logger, with a 4 MiB receive
+# buffer (the kernel caps it at net.core.rmem_max). A server publishes its final map in one
+# burst as it exits, beside ~1 MB of grid tiles that reach every socket on the bus (LCM
+# filters channels in the process); with the kernel's default buffer (208 KiB) a logger
+# starved on a loaded machine lost part of it (crash_test under a load of 8-13: the log's
+# last map 269 of the server's 272 keyframes), and the test compared an older map.
+logger_url() { echo "$1&recv_buf_size=4194304"; }
+
 # The functions a test's namespace body (run by `bash -c`) calls.
-export -f log poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
+export -f log logger_url poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
   udp_bytes_unread lcmlog_sizes wait_for_loggers loggers_quiet_for_half_a_second
