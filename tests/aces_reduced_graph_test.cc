@@ -21,9 +21,11 @@
 namespace anchormap {
 namespace {
 
+using ::anchormap::testing::EvalRelations;
 using ::anchormap::testing::JsonNumber;
 using ::anchormap::testing::RunTool;
 using ::anchormap::testing::ScratchPath;
+using ::anchormap::testing::ServerStatusLine;
 
 TEST(AcesReducedGraphTest, TwoRobotsOneAfterTheOtherJoinWithTheReducedGraph) {
 #ifdef ANCHORMAP_SANITIZED
@@ -40,18 +42,12 @@ TEST(AcesReducedGraphTest, TwoRobotsOneAfterTheOtherJoinWithTheReducedGraph) {
                     "--log " + input + " --output " + output + " --reduced-graph true", text),
             0)
       << ::anchormap::testing::FileContents(text);
-  const std::string replay = ::anchormap::testing::FileContents(text);
-  const size_t summary = replay.find("server: robots");
-  ASSERT_NE(summary, std::string::npos) << replay;
-  const std::string status = replay.substr(summary, replay.find('\n', summary) - summary);
+  const std::string status = ServerStatusLine(::anchormap::testing::FileContents(text));
+  ASSERT_FALSE(status.empty()) << ::anchormap::testing::FileContents(text);
   std::printf("%s\n", status.c_str());
   EXPECT_NE(status.find("anchored 2 "), std::string::npos) << status;
   EXPECT_NE(status.find("reduced graph: nodes"), std::string::npos) << status;
-  ASSERT_EQ(
-      RunTool("anchormap-eval",
-              "--map " + output + " --relations " + relations + " --odometry " + input + " --json",
-              text),
-      0)
+  ASSERT_EQ(EvalRelations(output, relations, input, text), 0)
       << ::anchormap::testing::FileContents(text);
   const std::string json = ::anchormap::testing::FileContents(text);
   std::printf("%s\n", json.c_str());

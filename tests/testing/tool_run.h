@@ -21,6 +21,23 @@ inline int RunTool(const std::string& tool, const std::string& arguments,
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// The server's final status line ("server: robots ...") in a replay's captured output; empty
+// when there is none.
+inline std::string ServerStatusLine(const std::string& replay_output) {
+  const size_t at = replay_output.find("server: robots");
+  if (at == std::string::npos) return "";
+  return replay_output.substr(at, replay_output.find('\n', at) - at);
+}
+
+// anchormap-eval of `map`'s relations error against `relations`, the poses completed by the
+// odometry of the raw log `odometry`, its JSON to `output`; its exit code.
+inline int EvalRelations(const std::string& map, const std::string& relations,
+                         const std::string& odometry, const std::string& output) {
+  return RunTool(
+      "anchormap-eval",
+      "--map " + map + " --relations " + relations + " --odometry " + odometry + " --json", output);
+}
+
 // The number after "key": in the eval's JSON, from `from` on (NaN when absent).
 inline double JsonNumber(const std::string& json, const std::string& key, size_t from = 0) {
   const size_t at = json.find("\"" + key + "\":", from);
