@@ -174,19 +174,15 @@ std::optional<KeyframeFold> KeyframeFolder::Decide(PoseKey key, PoseKey previous
   // covariance (the identity, exactly, for the node's own keyframe): no solve through R,
   // which cost 7 % of a 100-robot replay with the option when every fold asked R.
   const PoseAlias* previous_alias = smoother->FindAlias(previous);
-  const bool chained =
-      node_keyframe == previous || (previous_alias != nullptr && previous_alias->node == node);
+  const bool own_keyframe = node_keyframe == previous;
+  const bool chained = own_keyframe || (previous_alias != nullptr && previous_alias->node == node);
   const std::optional<PredictedRelativePose> node_previous =
-      node_keyframe == previous ? std::optional<PredictedRelativePose>(PredictedRelativePose{
-                                      Pose2(), Eigen::Matrix3d::Zero(), false})
-      : previous_alias != nullptr && previous_alias->node == node
-          ? std::optional<PredictedRelativePose>(PredictedRelativePose{
-                previous_alias->T_node_key, previous_alias->covariance, false})
-          : PredictRelativePose(smoother, node, previous);
-  if (!(node_keyframe == previous) &&
-      !(previous_alias != nullptr && previous_alias->node == node)) {
-    ++work_.solved_predictions;
-  }
+      own_keyframe ? std::optional<PredictedRelativePose>(
+                         PredictedRelativePose{Pose2(), Eigen::Matrix3d::Zero(), false})
+      : chained ? std::optional<PredictedRelativePose>(PredictedRelativePose{
+                      previous_alias->T_node_key, previous_alias->covariance, false})
+                : PredictRelativePose(smoother, node, previous);
+  if (!chained) ++work_.solved_predictions;
   if (!node_previous) {
     ++stats_.unsolved;
     return std::nullopt;
