@@ -22,6 +22,19 @@ double ThreadCpuSeconds() {
   return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
 }
 
+// Adds the thread's CPU time over its scope to `*total` (the work line's parts).
+class ThreadCpuTimer {
+ public:
+  explicit ThreadCpuTimer(double* total) : total_(total), start_(ThreadCpuSeconds()) {}
+  ~ThreadCpuTimer() { *total_ += ThreadCpuSeconds() - start_; }
+  ThreadCpuTimer(const ThreadCpuTimer&) = delete;
+  ThreadCpuTimer& operator=(const ThreadCpuTimer&) = delete;
+
+ private:
+  double* total_;
+  double start_;
+};
+
 // "keyframe R1/123 seq 4 at 1000000" / "encounter R1/123 seq 2 -> R2 at 1000000".
 std::string DescribeInput(const OrderedInput& input) {
   if (input.is_keyframe) {
@@ -198,9 +211,10 @@ void MappingServer::ApplyKeyframe(Keyframe keyframe) {
   EncounterSourceOutput found;
   AddKeyframes(admitted, &found);
   const GraphView graph{table_, smoother_, &smoother_, &ties_};
-  const double cpu_start = ThreadCpuSeconds();
-  for (auto& source : sources_) source->Poll(released_utime_, graph, &found);
-  work_cpu_.sources_s += ThreadCpuSeconds() - cpu_start;
+  {
+    const ThreadCpuTimer timed(&work_cpu_.sources_s);
+    for (auto& source : sources_) source->Poll(released_utime_, graph, &found);
+  }
   Commit(found, !admitted.empty(), "keyframe");
 }
 
@@ -345,13 +359,12 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
                               : a.T_local_pose;
     // The reduced graph: a keyframe in a mapped place folds onto a node (no variable; its
     // odometry below then joins the nodes, or nothing when it stays on one node).
-    const double fold_start = ThreadCpuSeconds();
-    const std::optional<KeyframeFold> fold =
-        folder_ && a.previous && smoother_.HasPose(*a.previous)
-            ? folder_->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
-                              table_, &smoother_)
-            : std::nullopt;
-    work_cpu_.fold_s += ThreadCpuSeconds() - fold_start;
+    std::optional<KeyframeFold> fold;
+    if (folder_ && a.previous && smoother_.HasPose(*a.previous)) {
+      const ThreadCpuTimer timed(&work_cpu_.fold_s);
+      fold = folder_->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
+                             table_, &smoother_);
+    }
     // A node after a predecessor folded onto another trajectory's node is borrowed from that
     // trajectory (a pose of it, tied by a between factor: pose_aliases.h says why).
     const PoseAlias* previous_alias =
@@ -400,9 +413,8 @@ void MappingServer::AddKeyframes(const std::vector<AdmittedKeyframe>& admitted,
       continue;
     }
     const GraphView graph{table_, smoother_, &smoother_, &ties_};
-    const double sources_start = ThreadCpuSeconds();
+    const ThreadCpuTimer timed(&work_cpu_.sources_s);
     for (auto& source : sources_) source->OnKeyframeAdded(a.key, graph, found);
-    work_cpu_.sources_s += ThreadCpuSeconds() - sources_start;
   }
 }
 
@@ -567,19 +579,14 @@ MergedMap MappingServer::BuildMergedMap() const {
 }
 
 MapChunker::Split MappingServer::SplitMergedMap(int64_t now_utime, bool full) {
-  const double cpu_start = ThreadCpuSeconds();
-  MapChunker::Split split = publisher_.SplitMergedMap(smoother_, table_, links_, data_utime_,
-                                                      stats_.updates, now_utime, full);
-  work_cpu_.map_s += ThreadCpuSeconds() - cpu_start;
-  return split;
+  const ThreadCpuTimer timed(&work_cpu_.map_s);
+  return publisher_.SplitMergedMap(smoother_, table_, links_, data_utime_, stats_.updates,
+                                   now_utime, full);
 }
 
 AnchorCovariances MappingServer::BuildAnchorCovariances() {
-  const double cpu_start = ThreadCpuSeconds();
-  AnchorCovariances covariances =
-      publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
-  work_cpu_.covariances_s += ThreadCpuSeconds() - cpu_start;
-  return covariances;
+  const ThreadCpuTimer timed(&work_cpu_.covariances_s);
+  return publisher_.BuildAnchorCovariances(&smoother_, table_, data_utime_, stats_.updates);
 }
 
 std::vector<TrajectoryId> MappingServer::PublishedAnchors() const {
@@ -587,19 +594,13 @@ std::vector<TrajectoryId> MappingServer::PublishedAnchors() const {
 }
 
 std::vector<GridTile> MappingServer::BuildGridTiles(bool complete) {
-  const double cpu_start = ThreadCpuSeconds();
-  std::vector<GridTile> tiles =
-      publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
-  work_cpu_.grid_s += ThreadCpuSeconds() - cpu_start;
-  return tiles;
+  const ThreadCpuTimer timed(&work_cpu_.grid_s);
+  return publisher_.BuildGridTiles(smoother_, table_, data_utime_, stats_.updates, complete);
 }
 
 std::vector<GridTile> MappingServer::BuildChangedGridTiles() {
-  const double cpu_start = ThreadCpuSeconds();
-  std::vector<GridTile> tiles =
-      publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
-  work_cpu_.grid_s += ThreadCpuSeconds() - cpu_start;
-  return tiles;
+  const ThreadCpuTimer timed(&work_cpu_.grid_s);
+  return publisher_.BuildChangedGridTiles(smoother_, table_, data_utime_, stats_.updates);
 }
 
 ServerStatus MappingServer::BuildStatus() const {
