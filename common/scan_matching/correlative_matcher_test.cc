@@ -230,9 +230,18 @@ TEST(CorrelativeMatcherTest, AddCovarianceGivesFinishMatchsCovarianceToTheBit) {
   }
 }
 
-TEST(CorrelativeMatcherTest, CovarianceShowsACorridorsBlindDirection) {
-  // A straight corridor 2 m wide, longer than the laser's 8 m reach: a shift along it is
-  // invisible. The covariance must say so (large along x, small across), and stay SPD.
+// A straight corridor 2 m wide, longer than the laser's 8 m reach, scanned from two poses: a
+// shift along it is invisible. In the first pose's frame it runs along x turned by -0.05 rad.
+struct CorridorScans {
+  Pose2 a{0.0, 0.9, 0.05};
+  Pose2 b{0.25, 1.1, -0.03};
+  PointCloud reference;
+  PointCloud query;
+  Eigen::Vector2d along{std::cos(-0.05), std::sin(-0.05)};
+  Eigen::Vector2d across() const { return {-along.y(), along.x()}; }
+};
+
+CorridorScans ScanBlindCorridor() {
   SyntheticWorld corridor;
   corridor.walls = {{{-60.0, 0.0}, {60.0, 0.0}}, {{-60.0, 2.0}, {60.0, 2.0}}};
   corridor.min_corner = {-60.0, 0.0};
@@ -240,27 +249,36 @@ TEST(CorrelativeMatcherTest, CovarianceShowsACorridorsBlindDirection) {
   SyntheticLaser laser = MountedLaser(360, 2.0 * kPi, 0.01);
   laser.max_range_m = 8.0;
   std::mt19937_64 rng(14);
-  const Pose2 a(0.0, 0.9, 0.05);
-  const Pose2 b(0.25, 1.1, -0.03);
-  const PointCloud reference_points = ScanToPointCloud(SimulateScan(corridor, laser, a, &rng));
-  const PointCloud query = ScanToPointCloud(SimulateScan(corridor, laser, b, &rng));
-  const ScanReference reference({reference_points}, LocalReferenceOptions());
-  const auto match = MatchLocal(reference, query, Between(a, b), LocalMatchOptions{});
+  CorridorScans scans;
+  scans.reference = ScanToPointCloud(SimulateScan(corridor, laser, scans.a, &rng));
+  scans.query = ScanToPointCloud(SimulateScan(corridor, laser, scans.b, &rng));
+  return scans;
+}
+
+// The standard deviation of a match covariance's position along `direction` (a unit vector).
+double SigmaAlong(const Eigen::Matrix3d& covariance, const Eigen::Vector2d& direction) {
+  return std::sqrt(direction.dot(covariance.topLeftCorner<2, 2>() * direction));
+}
+
+TEST(CorrelativeMatcherTest, CovarianceShowsACorridorsBlindDirection) {
+  // A shift along the corridor is invisible. The covariance must say so (large along it,
+  // small across), and stay SPD.
+  const CorridorScans scans = ScanBlindCorridor();
+  const ScanReference reference({scans.reference}, LocalReferenceOptions());
+  const auto match =
+      MatchLocal(reference, scans.query, Between(scans.a, scans.b), LocalMatchOptions{});
   ASSERT_TRUE(match.has_value());
   ASSERT_TRUE(CheckSymmetricPositiveDefinite(match->covariance).ok());
-  // In a's frame the corridor runs along x rotated by -0.05 rad: look along that axis.
-  const Eigen::Vector2d along(std::cos(-0.05), std::sin(-0.05));
-  const Eigen::Vector2d across(-along.y(), along.x());
-  const Eigen::Matrix2d xy = match->covariance.topLeftCorner<2, 2>();
-  const double sd_along = std::sqrt(along.dot(xy * along));
-  const double sd_across = std::sqrt(across.dot(xy * across));
+  const Eigen::Vector2d across = scans.across();
+  const double sd_along = SigmaAlong(match->covariance, scans.along);
+  const double sd_across = SigmaAlong(match->covariance, across);
   std::printf("corridor: sd along %.3f m, across %.4f m, heading %.3f deg\n", sd_along, sd_across,
               std::sqrt(match->covariance(2, 2)) / kDeg);
   EXPECT_GT(sd_along, 0.1);
   EXPECT_LT(sd_across, 0.01);
   EXPECT_GT(sd_along, 20.0 * sd_across);
   // Across the corridor and in heading the match is still accurate.
-  const Eigen::Vector3d error = PoseError(Between(a, b), match->pose);
+  const Eigen::Vector3d error = PoseError(Between(scans.a, scans.b), match->pose);
   EXPECT_LT(std::abs(error.head<2>().dot(across)), 0.01);
   EXPECT_LT(std::abs(error.z()), 0.5 * kDeg);
 }
@@ -307,28 +325,15 @@ TEST(CorrelativeMatcherTest, LaplaceCovarianceGivesACorridorsAxisTheWindowPrior)
   // The corridor above: along it the filtered Hessian holds nothing, so the Laplace covariance
   // there is the window prior's (0.5 m), and a bar on the largest sigma (the fold's 0.1 m)
   // refuses the sliding match as the score distribution's covariance does.
-  SyntheticWorld corridor;
-  corridor.walls = {{{-60.0, 0.0}, {60.0, 0.0}}, {{-60.0, 2.0}, {60.0, 2.0}}};
-  corridor.min_corner = {-60.0, 0.0};
-  corridor.max_corner = {60.0, 2.0};
-  SyntheticLaser laser = MountedLaser(360, 2.0 * kPi, 0.01);
-  laser.max_range_m = 8.0;
-  std::mt19937_64 rng(14);
-  const Pose2 a(0.0, 0.9, 0.05);
-  const Pose2 b(0.25, 1.1, -0.03);
-  const PointCloud reference_points = ScanToPointCloud(SimulateScan(corridor, laser, a, &rng));
-  const PointCloud query = ScanToPointCloud(SimulateScan(corridor, laser, b, &rng));
-  const ScanReference reference({reference_points}, LocalReferenceOptions());
+  const CorridorScans scans = ScanBlindCorridor();
+  const ScanReference reference({scans.reference}, LocalReferenceOptions());
   LocalMatchOptions options;
   options.match.covariance_model = MatchCovariance::kLaplace;
-  const auto match = MatchLocal(reference, query, Between(a, b), options);
+  const auto match = MatchLocal(reference, scans.query, Between(scans.a, scans.b), options);
   ASSERT_TRUE(match.has_value());
   ASSERT_TRUE(CheckSymmetricPositiveDefinite(match->covariance).ok());
-  const Eigen::Vector2d along(std::cos(-0.05), std::sin(-0.05));
-  const Eigen::Vector2d across(-along.y(), along.x());
-  const Eigen::Matrix2d xy = match->covariance.topLeftCorner<2, 2>();
-  const double sd_along = std::sqrt(along.dot(xy * along));
-  const double sd_across = std::sqrt(across.dot(xy * across));
+  const double sd_along = SigmaAlong(match->covariance, scans.along);
+  const double sd_across = SigmaAlong(match->covariance, scans.across());
   std::printf("corridor, Laplace: sd along %.3f m, across %.4f m, heading %.3f deg\n", sd_along,
               sd_across, std::sqrt(match->covariance(2, 2)) / kDeg);
   EXPECT_GT(sd_along, 0.45);  // the window prior's 0.5 m, less what the other axes take
