@@ -4,6 +4,8 @@
 #   (without *_test.cc and *_main.cc), include root = repository root; each foo_test.cc
 #   becomes a GoogleTest executable registered with ctest; each foo_main.cc becomes
 #   build/bin/anchormap-<foo with '_' -> '-'> (override the name with MAIN_PREFIX).
+#   COMPILE_OPTIONS: options of the library's own files (not its tests'), which then do
+#   without the precompiled header (anchormap_precompiled_headers()).
 # A header-only folder (no .cc) gives an INTERFACE library.
 #
 # Layering: every module records its folder, its DEPS and TEST_DEPS. After all folders
@@ -18,7 +20,10 @@
 # libraries and programs, anchormap_pch_test (the same and GoogleTest) for the test programs.
 # Parsing them was a quarter to a half of a file's compile CPU (docs/ARCHITECTURE.md, "CI's
 # time"). Clang takes a precompiled header only with the same flags and the same value of
-# each macro: a file with other options opts out (source property SKIP_PRECOMPILE_HEADERS).
+# each macro, and GCC takes some options from the precompiled header over the command line's
+# (-ffp-contract=off was lost so: the scan matcher's vector paths fused multiply-adds and lost
+# their scalar twins' bits): a file with other options opts out (source property
+# SKIP_PRECOMPILE_HEADERS), and so does a module's library given COMPILE_OPTIONS.
 set(ANCHORMAP_PCH_HEADERS <Eigen/Core> <algorithm> <array> <cmath> <cstdint> <cstdio> <cstdlib>
     <cstring> <filesystem> <fstream> <functional> <limits> <map> <memory> <optional> <random>
     <set> <sstream> <string> <unordered_map> <utility> <vector>)
@@ -46,7 +51,7 @@ function(anchormap_test_definitions target)
 endfunction()
 
 function(anchormap_module)
-  cmake_parse_arguments(ARG "" "NAME;MAIN_PREFIX" "DEPS;TEST_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME;MAIN_PREFIX" "DEPS;TEST_DEPS;COMPILE_OPTIONS" ${ARGN})
   file(GLOB all_sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
   file(GLOB all_headers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
   file(RELATIVE_PATH module_dir ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
@@ -72,7 +77,8 @@ function(anchormap_module)
 
   if(lib_sources)
     add_library(${ARG_NAME} STATIC ${lib_sources})
-    if(ANCHORMAP_PCH)
+    target_compile_options(${ARG_NAME} PRIVATE ${ARG_COMPILE_OPTIONS})
+    if(ANCHORMAP_PCH AND NOT ARG_COMPILE_OPTIONS)
       target_precompile_headers(${ARG_NAME} REUSE_FROM anchormap_pch_library)
     endif()
     target_include_directories(${ARG_NAME} PUBLIC ${PROJECT_SOURCE_DIR})
