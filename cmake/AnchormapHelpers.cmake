@@ -156,6 +156,25 @@ endfunction()
 
 function(anchormap_check_layering)
   get_property(modules GLOBAL PROPERTY ANCHORMAP_MODULES)
+  # A library's own compile options and the shared precompiled header do not mix (GCC takes
+  # some options from the header): give them to anchormap_module(COMPILE_OPTIONS) instead.
+  # Warning options (-W...) change no code and may differ.
+  if(TARGET anchormap_pch_library)
+    get_target_property(pch_options anchormap_pch_library COMPILE_OPTIONS)
+    list(FILTER pch_options EXCLUDE REGEX "^-W")
+    foreach(m ${modules})
+      get_target_property(pch ${m} PRECOMPILE_HEADERS_REUSE_FROM)
+      if(pch)
+        get_target_property(options ${m} COMPILE_OPTIONS)
+        list(FILTER options EXCLUDE REGEX "^-W")
+        if(NOT "${options}" STREQUAL "${pch_options}")
+          message(FATAL_ERROR "${m}: compile options (${options}) other than the precompiled "
+                              "header's (${pch_options}); pass them as "
+                              "anchormap_module(... COMPILE_OPTIONS ...)")
+        endif()
+      endif()
+    endforeach()
+  endif()
   # Module folders, and the generated message headers (anchormap/, bot_core/) and LCM's own
   # (lcm/), which belong to the lcmtypes and lcm targets.
   set(table "set(MODULE_DIRS \"lcmtypes_generated/anchormap;lcmtypes_generated/bot_core;lcm")
