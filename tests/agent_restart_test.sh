@@ -115,6 +115,7 @@ main() {
   export BIN URL ROBOTS DURATION_S SPEED KILL_AT_S PAUSE_AT_S CONVERGENCE TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for f in "$work"/killed_agent_R2.log "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //' | cut -c1-220)"
   done

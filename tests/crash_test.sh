@@ -182,6 +182,7 @@ main() {
     SNAPSHOTS
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for run in $(seq 1 $KILLS); do
     grep -h 'journal .*replayed' "$work/server_$run.log" | sed 's/.*journal [^ ]*: /restart '$run': /; s/; resuming with \(.*keyframes [0-9]* encounters [0-9]*\).*/; \1/; s/^/crash_test: /'
   done

@@ -78,6 +78,7 @@ main() {
   export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   cat "$work/relay.log" | grep 'anchormap-relay [a-z]*:' | sed 's/^/loss_test: /'
   for f in "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"

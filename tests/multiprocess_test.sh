@@ -89,6 +89,7 @@ main() {
   export BIN URL ROBOTS DURATION_S SPEED TEST_NAME MAX_WAIT_S SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for f in "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"
   done

@@ -191,6 +191,15 @@ record() {
   "$BIN/anchormap-test-record" --lcm-url "$1" --channels "$2" --output "$3" >"$4" 2>&1 &
 }
 
+# recorders_said WORK_DIR: each recorder's closing line (WORK_DIR/logger*.log: what it wrote
+# per channel, its longest backlog, the kernel's drops on its socket), for a failure's reader.
+recorders_said() {
+  local f
+  for f in "$1"/logger*.log; do
+    [ -f "$f" ] && log "$(basename "$f"): $(grep 'recorded' "$f" | tail -1 | sed 's/^anchormap-test-record: //')"
+  done
+}
+
 # logger_url URL: URL (which has a query: ?ttl=0) for an lcm-logger, with a 4 MiB receive
 # buffer (the kernel caps it at net.core.rmem_max). A server publishes its final map in one
 # burst as it exits, beside ~1 MB of grid tiles that reach every socket on the bus (LCM
