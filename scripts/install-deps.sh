@@ -17,7 +17,7 @@ PACKAGES=(
   libpng-dev zlib1g-dev                                     # PNG maps, gzip'd CARMEN logs
   libssl-dev                                                # HMAC-SHA-256 of the auth layer (--key-file)
   libcairo2-dev fonts-dejavu-core                           # map and plot drawing (anchormap-render)
-  iproute2 util-linux                                       # ip / unshare for the network-namespace tests
+  iproute2 util-linux                                       # ip / unshare for the network-namespace tests; chrt / taskset (record_test)
   clang libclang-rt-dev                                     # the sanitizer pass: clang ASan + UBSan + libFuzzer
   lld                                                       # LLVM's linker: ~170 executables link 3x cheaper than with GNU ld
   time                                                      # GNU time: CPU of each process in tools/bench scripts

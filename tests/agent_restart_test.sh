@@ -4,7 +4,7 @@
 # trajectory is lost. In a private network namespace (multicast on loopback only, ttl=0):
 #   anchormap-sim (3 robots, 60 s) -> sim.lcmlog
 #   lcm-logplayer -> 3 x anchormap-agent, anchormap-server, one bus
-#   lcm-logger records what the agents published (agents.lcmlog) and the server's outputs
+#   anchormap-test-record records what the agents published (agents.lcmlog) and the server's outputs
 # KILL_AT_S seconds into the replay (data time KILL_AT_S x SPEED = 33 s: after R2's
 # encounters with R1 at 19-25 s, before those with R3 at 44-50 s) R2's agent is SIGKILLed
 # and started again at once with the same options (its trajectory id is drawn anew). The
@@ -61,12 +61,9 @@ resume_when_agents_stopping() {
 inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
-  # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
-    -f "$work/agents.lcmlog" >"$work/logger_agents.log" 2>&1 &
+  record "$URL" 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' "$work/agents.lcmlog" "$work/logger_agents.log"
   local logger_agents=$!
-  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
-    -f "$work/out.lcmlog" >"$work/logger_out.log" 2>&1 &
+  record "$URL" 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' "$work/out.lcmlog" "$work/logger_out.log"
   local logger_out=$!
   # shellcheck disable=SC2086 # the flags are words
   "$BIN/anchormap-server" --lcm-url "$URL" --status-period-s 1 --convergence-step $CONVERGENCE \
@@ -106,7 +103,8 @@ inside_namespace() {
 }
 
 main() {
-  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps
+  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps \
+    anchormap-test-record
   require_player_and_netns "the agent restart test needs a private network for its multicast bus"
   make_work_dir
   local work=$WORK
@@ -117,6 +115,7 @@ main() {
   export BIN URL ROBOTS DURATION_S SPEED KILL_AT_S PAUSE_AT_S CONVERGENCE TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for f in "$work"/killed_agent_R2.log "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //' | cut -c1-220)"
   done

@@ -3,7 +3,7 @@
 # namespace (multicast on loopback only, ttl=0: nothing leaves the namespace):
 #   anchormap-sim (3 robots, 60 s; scan mode 40 s) -> sim.lcmlog
 #   lcm-logplayer -> 3 x anchormap-agent, anchormap-server --journal DIR, one bus
-#   lcm-logger records what the agents published (agents.lcmlog) and the server's outputs
+#   anchormap-test-record records what the agents published (agents.lcmlog) and the server's outputs
 # While the replay runs (30 s; the kills may go on a few seconds longer), the server is SIGKILLed KILLS times, each after a random
 # 1.0-4.0 s of life (scan mode 2.0-3.5 s), and restarted with its journal after a random 0-0.7 s down (what the
 # agents publish meanwhile is lost and must be resent); seeded: ANCHORMAP_CRASH_SEED,
@@ -115,12 +115,9 @@ inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
   local agents=()
-  # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
-    -f "$work/agents.lcmlog" >"$work/logger_agents.log" 2>&1 &
+  record "$URL" 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' "$work/agents.lcmlog" "$work/logger_agents.log"
   local logger_agents=$!
-  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
-    -f "$work/out.lcmlog" >"$work/logger_out.log" 2>&1 &
+  record "$URL" 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' "$work/out.lcmlog" "$work/logger_out.log"
   local logger_out=$!
   local run=0
   local server
@@ -171,7 +168,8 @@ inside_namespace() {
 }
 
 main() {
-  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps
+  require_tools anchormap-sim anchormap-agent anchormap-server anchormap-test-compare-maps \
+    anchormap-test-record
   require_player_and_netns "the crash test needs a private network for its multicast bus"
   make_work_dir
   local work=$WORK
@@ -184,6 +182,7 @@ main() {
     SNAPSHOTS
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for run in $(seq 1 $KILLS); do
     grep -h 'journal .*replayed' "$work/server_$run.log" | sed 's/.*journal [^ ]*: /restart '$run': /; s/; resuming with \(.*keyframes [0-9]* encounters [0-9]*\).*/; \1/; s/^/crash_test: /'
   done

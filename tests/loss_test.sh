@@ -5,8 +5,8 @@
 #   lcm-logplayer -> 3 x anchormap-agent on bus A
 #   anchormap-relay: A -> B keyframes and encounters, 30 % dropped, 5 % duplicated, 10 %
 #     reordered (seeded); B -> A the server's acknowledgements and resend requests
-#   anchormap-server on bus B -> lcm-logger (out.lcmlog)
-#   lcm-logger on bus A records what the agents published (agents.lcmlog)
+#   anchormap-server on bus B -> anchormap-test-record (out.lcmlog)
+#   anchormap-test-record on bus A records what the agents published (agents.lcmlog)
 # After the replay, the test waits until every agent's outbox is empty (everything
 # acknowledged), stops the daemons (the server ends with a batch step), and compares the
 # server's final map with the lossless reference: anchormap-server --log agents.lcmlog
@@ -41,16 +41,12 @@ inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
   local agents=()
-  # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$(logger_url "$URL_A")" lcm-logger -c 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' \
-    -f "$work/agents.lcmlog" >"$work/logger_a.log" 2>&1 &
+  record "$URL_A" 'ANCHORMAP_KEYFRAMES|ANCHORMAP_ENCOUNTERS' "$work/agents.lcmlog" "$work/logger_a.log"
   local logger_a=$!
   # Only the channels compare-maps reads: LCM queues at most 30 messages of a subscription
   # between its receive thread and the handler, and the server's final burst also holds
   # ~60 grid tiles (one starved run lost part of the final map so: 251 of 277 keyframes).
-  LCM_DEFAULT_URL="$(logger_url "$URL_B")" \
-    lcm-logger -c 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' \
-    -f "$work/out.lcmlog" >"$work/logger_b.log" 2>&1 &
+  record "$URL_B" 'ANCHORMAP_MAP_HEADER|ANCHORMAP_MAP_CHUNKS|ANCHORMAP_ANCHOR_COVARIANCES|ANCHORMAP_SERVER_STATUS' "$work/out.lcmlog" "$work/logger_b.log"
   local logger_b=$!
   # shellcheck disable=SC2086 # the flags are words
   "$BIN/anchormap-server" --lcm-url "$URL_B" --status-period-s 2 --convergence-step $CONVERGENCE \
@@ -72,7 +68,7 @@ inside_namespace() {
 
 main() {
   require_tools anchormap-sim anchormap-agent anchormap-server anchormap-relay \
-    anchormap-test-compare-maps
+    anchormap-test-compare-maps anchormap-test-record
   require_player_and_netns "the loss test needs a private network for its two multicast buses"
   make_work_dir
   local work=$WORK
@@ -82,6 +78,7 @@ main() {
   export BIN URL_A URL_B ROBOTS DURATION_S SPEED CONVERGENCE MAX_WAIT_S TEST_NAME SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   cat "$work/relay.log" | grep 'anchormap-relay [a-z]*:' | sed 's/^/loss_test: /'
   for f in "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"

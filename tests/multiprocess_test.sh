@@ -2,7 +2,7 @@
 # Multi-process integration test (issue 3). In a private network namespace (multicast on
 # loopback only, ttl=0: nothing leaves the namespace):
 #   anchormap-sim (3 robots, direct encounters) -> sim.lcmlog
-#   lcm-logplayer --speed 5 -> 3 x anchormap-agent -> anchormap-server -> lcm-logger
+#   lcm-logplayer --speed 5 -> 3 x anchormap-agent -> anchormap-server -> anchormap-test-record
 # then anchormap-test-check-server-output reads the recording: every robot anchored after
 # (never before) its first encounter, merged keyframes within the bounds below of ground
 # truth after a rigid fit, anchor covariances published, not growing, and not rising at
@@ -41,8 +41,7 @@ inside_namespace() {
   local work=$1
   ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || return 3
   local pids=() status=0
-  # (Debian's lcm-logger 1.3.1 refuses -l although its help lists it: use the variable.)
-  LCM_DEFAULT_URL="$(logger_url "$URL")" lcm-logger -c 'ANCHORMAP_.*' -f "$work/out.lcmlog" >"$work/logger.log" 2>&1 &
+  record "$URL" 'ANCHORMAP_.*' "$work/out.lcmlog" "$work/logger.log"
   local logger=$!
   # shellcheck disable=SC2086 # the flags are words
   "$BIN/anchormap-server" --lcm-url "$URL" --status-period-s 2 $SOURCES >"$work/server.log" 2>&1 &
@@ -70,7 +69,7 @@ run_checks() {
 
 main() {
   require_tools anchormap-sim anchormap-agent anchormap-server anchormap-replay \
-    anchormap-test-check-server-output
+    anchormap-test-check-server-output anchormap-test-record
   make_work_dir
   local work=$WORK
   simulate $ROBOTS $DURATION_S
@@ -90,6 +89,7 @@ main() {
   export BIN URL ROBOTS DURATION_S SPEED TEST_NAME MAX_WAIT_S SOURCES
   unshare -n bash -c "inside_namespace '$work'"
   local status=$?
+  recorders_said "$work"
   for f in "$work"/agent_R*.log "$work/server.log"; do
     log "$(basename "$f"): $(grep -E 'final:' "$f" | tail -1 | sed 's/.*final: //')"
   done

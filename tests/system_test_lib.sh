@@ -34,12 +34,12 @@ netns_available() {
     >/dev/null 2>&1
 }
 
-# Exits with $SKIP, saying why, unless lcm-logplayer / lcm-logger and private network
-# namespaces are available; `what` names the test and why it needs its own network.
+# Exits with $SKIP, saying why, unless lcm-logplayer and private network namespaces are
+# available; `what` names the test and why it needs its own network.
 require_player_and_netns() {
   local what=$1
-  command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null ||
-    { log "lcm-logplayer / lcm-logger missing (liblcm-bin): skipped"; exit $SKIP; }
+  command -v lcm-logplayer >/dev/null ||
+    { log "lcm-logplayer missing (liblcm-bin): skipped"; exit $SKIP; }
   if ! netns_available; then
     log "SKIPPED: network namespaces are unavailable here (unshare -n refused); $what"
     exit $SKIP
@@ -155,7 +155,8 @@ lcmlog_sizes() {
 
 # wait_for_loggers MAX_S LOGGER_PIDS...: waits until the loggers have read every datagram
 # sent to them (no UDP socket in the namespace holds unread bytes) and their files have not
-# grown for 0.5 s (lcm-logger flushes every 0.1 s); false after MAX_S s. On a starved
+# grown for 0.5 s (anchormap-test-record flushes whenever nothing waits, lcm-logger every
+# 0.1 s); false after MAX_S s. On a starved
 # machine a logger can be seconds behind the daemon it records, and a logger stopped early
 # loses the final map the daemon published as it exited.
 wait_for_loggers() {
@@ -179,6 +180,26 @@ loggers_quiet_for_half_a_second() {
   [ $quiet -ge 5 ]
 }
 
+# record URL CHANNELS OUTPUT LOG: anchormap-test-record in the background ($! is its pid)
+# recording CHANNELS (an LCM regular expression) on URL into OUTPUT, its lines into LOG.
+# Not lcm-logger: LCM 1.3.1 queues at most 30 messages per subscription between a logger's
+# receive thread and its handler, and a server's final map is a burst of ~75 (grid tiles and
+# map chunks); a logger lagging on a loaded machine dropped part of it (crash_test: the log's
+# last map 269 of 272 keyframes). The recorder's queue is unbounded and its receive buffer
+# 4 MiB (tests/lcm_recorder.h; record_test.sh shows the difference).
+record() {
+  "$BIN/anchormap-test-record" --lcm-url "$1" --channels "$2" --output "$3" >"$4" 2>&1 &
+}
+
+# recorders_said WORK_DIR: each recorder's closing line (WORK_DIR/logger*.log: what it wrote
+# per channel, its longest backlog, the kernel's drops on its socket), for a failure's reader.
+recorders_said() {
+  local f
+  for f in "$1"/logger*.log; do
+    [ -f "$f" ] && log "$(basename "$f"): $(grep 'recorded' "$f" | tail -1 | sed 's/^anchormap-test-record: //')"
+  done
+}
+
 # logger_url URL: URL (which has a query: ?ttl=0) for an lcm-logger, with a 4 MiB receive
 # buffer (the kernel caps it at net.core.rmem_max). A server publishes its final map in one
 # burst as it exits, beside ~1 MB of grid tiles that reach every socket on the bus (LCM
@@ -188,5 +209,5 @@ loggers_quiet_for_half_a_second() {
 logger_url() { echo "$1&recv_buf_size=4194304"; }
 
 # The functions a test's namespace body (run by `bash -c`) calls.
-export -f log logger_url poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
+export -f log record logger_url poll_until stop_run outboxes_show outboxes_empty every_agent_said wait_for_outboxes \
   udp_bytes_unread lcmlog_sizes wait_for_loggers loggers_quiet_for_half_a_second

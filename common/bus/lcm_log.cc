@@ -3,6 +3,7 @@
 #include <lcm/eventlog.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 
 namespace anchormap {
@@ -60,6 +61,12 @@ Status LcmLogWriter::WriteRaw(const std::string& channel, int64_t utime, const v
   if (lcm_eventlog_write_event(file_->log, &event) != 0) {
     return Status::Error("write to LCM log failed");
   }
+  return Status::Ok();
+}
+
+Status LcmLogWriter::Flush() {
+  if (!file_->log) return Status::Error("LCM log is not open");
+  if (std::fflush(file_->log->f) != 0) return Status::Error("flushing the LCM log failed");
   return Status::Ok();
 }
 

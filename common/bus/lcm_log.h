@@ -31,6 +31,8 @@ class LcmLogWriter {
     message.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
     return WriteRaw(channel, utime, buffer.data(), buffer.size());
   }
+  // Hands what was written to the kernel (a reader following the file sees it).
+  Status Flush();
   void Close();
 
  private:

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -38,6 +39,25 @@ TEST(LcmLogTest, WritesAndReadsTypedEvents) {
   EXPECT_EQ(count, 3);
   std::filesystem::remove(path);
   EXPECT_FALSE(reader.Open("/nonexistent/dir/x.lcmlog").ok());
+}
+
+// Flush hands the events to the file while the writer stays open: a reader following the
+// file (a test waiting for a recorder to catch up, the viewer) sees them.
+TEST(LcmLogTest, FlushMakesEventsVisibleBeforeClose) {
+  const std::string path = ::anchormap::testing::ScratchPath("flush.lcmlog");
+  LcmLogWriter writer;
+  ASSERT_TRUE(writer.Open(path).ok());
+  const std::vector<uint8_t> payload(100, 7);
+  ASSERT_TRUE(writer.WriteRaw("CHANNEL", 5, payload.data(), payload.size()).ok());
+  ASSERT_TRUE(writer.Flush().ok());
+  LcmLogReader reader;
+  ASSERT_TRUE(reader.Open(path).ok());
+  auto event = reader.Next();
+  ASSERT_TRUE(event.has_value());
+  EXPECT_EQ(event->channel, "CHANNEL");
+  EXPECT_EQ(event->data, payload);
+  writer.Close();
+  EXPECT_FALSE(writer.Flush().ok());
 }
 
 // Five events; the third's sync word and the fourth's channel length are overwritten and
