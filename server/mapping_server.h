@@ -92,9 +92,10 @@ struct MappingServerOptions {
   double solve_period_s = 0.0;
   MatchSchedule match_schedule{0.0};
   // The reduced pose graph (server/keyframe_fold.h): a keyframe in an already mapped place
-  // folds onto an existing node instead of becoming a variable. Off by default. With it on
-  // the server never defers updates (the fold reads the estimate); its snapshots hold the
-  // aliases (graph edits) and the folder's node table and index (server/snapshot_codec.h).
+  // folds onto an existing node instead of becoming a variable. Off here, on in the daemons'
+  // defaults (server/node/server_options.h, DaemonDefaults). With it on the server never
+  // defers updates (the fold reads the estimate); its snapshots hold the aliases (graph
+  // edits) and the folder's node table and index (server/snapshot_codec.h).
   ReducedGraphOptions reduced_graph;
   MapPublisherOptions publish;
   DeliveryOptions delivery;

@@ -1,12 +1,12 @@
 // Real-data regression of the reduced graph's first join (docs/ARCHITECTURE.md, aces26): ACES
 // split in two robots one after the other (anchormap-import-carmen --split 2), replayed with
-// --reduced-graph true, then anchormap-eval. Before aces26 the two robots never joined (59
-// relations across frames): a fresh path folds every other keyframe onto its predecessor, and
-// with the match's floored covariance alone each robot's own estimate lost its odometry's
-// precision, so a wrong pair of candidates passed the pairwise test (refused by the free-space
-// check, but its support outvoted the true hypothesis); and a folded keyframe, solved at once,
-// was searched before the next keyframe came, so a true candidate's own maps fell short of the
-// map-verified bar (1871 points against 2000).
+// the daemons' defaults (the reduced graph, --reduced-graph true), then anchormap-eval. Before
+// aces26 the two robots never joined (59 relations across frames): a fresh path folds every other
+// keyframe onto its predecessor, and with the match's floored covariance alone each robot's own
+// estimate lost its odometry's precision, so a wrong pair of candidates passed the pairwise test
+// (refused by the free-space check, but its support outvoted the true hypothesis); and a folded
+// keyframe, solved at once, was searched before the next keyframe came, so a true candidate's own
+// maps fell short of the map-verified bar (1871 points against 2000).
 
 #include <cstdio>
 #include <string>
@@ -38,9 +38,7 @@ TEST(AcesReducedGraphTest, TwoRobotsOneAfterTheOtherJoinWithTheReducedGraph) {
   const std::string text = ScratchPath("aces2_reduced.txt");
   ASSERT_EQ(RunTool("anchormap-import-carmen", clf + " --output " + input + " --split 2", text), 0)
       << ::anchormap::testing::FileContents(text);
-  ASSERT_EQ(RunTool("anchormap-replay",
-                    "--log " + input + " --output " + output + " --reduced-graph true", text),
-            0)
+  ASSERT_EQ(RunTool("anchormap-replay", "--log " + input + " --output " + output, text), 0)
       << ::anchormap::testing::FileContents(text);
   const std::string status = ServerStatusLine(::anchormap::testing::FileContents(text));
   ASSERT_FALSE(status.empty()) << ::anchormap::testing::FileContents(text);
