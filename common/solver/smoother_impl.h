@@ -1,6 +1,8 @@
 #pragma once
 // Internal to common/solver: the smoother's state (Smoother::Impl), shared by its parts:
 //   smoother.cc            graph bookkeeping, anchors and merges, queries, the public API
+//   smoother_aliases.cc    the public API over pose aliases (folded keyframes): measurements
+//                          moved onto nodes, queries resolved through them
 //   smoother_update.cc     Update() and its steps: incremental (Givens), partial
 //                          relinearisation, batch; the policy is batch_policy.h
 //   smoother_nonlinear.cc  the iterations of a batch step: Gauss-Newton, dog-leg
