@@ -76,6 +76,9 @@ struct ReducedGraphOptions {
   // docs/ARCHITECTURE.md); degenerate directions still get the window prior, so the bar
   // above still refuses a corridor's sliding match.
   bool laplace_covariance = true;
+  // A chained fold's match (the predecessor is the node's keyframe or folded onto the node) is
+  // refined from the prediction without the lattice search (RefineFromGuess; cost28).
+  bool refine_chained_from_guess = true;
 
   Status Validate() const;
 };
@@ -115,6 +118,10 @@ struct KeyframeFoldWork {
   int64_t window_mm = 0;
   int64_t window_mrad = 0;
   int64_t lattice_scores = 0;
+  // Chained folds' matches refined from the prediction alone (RefineFromGuess), and those that
+  // fell back to the lattice search (weak, or the refinement left the window).
+  int64_t guess_refinements = 0;
+  int64_t guess_fallbacks = 0;
 
   std::string Summary() const;
 };

@@ -259,7 +259,8 @@ TEST_F(KeyframeFoldTest, ATrajectorysNextFoldOntoItsLastNodeReusesItsReference) 
 // floors hold, and the match finds the same offset as in the wider window on a fraction of
 // the lattice.
 TEST_F(KeyframeFoldTest, AFoldsMatchSearchesThreeSigmasOfItsPredictionAboveTheFloors) {
-  ReducedGraphOptions lattice;
+  ReducedGraphOptions lattice;  // the lattice search for this chained fold too
+  lattice.refine_chained_from_guess = false;
   ReducedGraphOptions wide = lattice;
   wide.min_window_m = 0.4;
   wide.min_window_rad = 0.2;
@@ -295,6 +296,47 @@ TEST_F(KeyframeFoldTest, AFoldsMatchSearchesThreeSigmasOfItsPredictionAboveTheFl
   EXPECT_EQ(wide_folder.work().window_mrad, 200);
   // Lattice scores: 217 against 3006.
   EXPECT_LT(work.lattice_scores, wide_folder.work().lattice_scores / 10);
+}
+
+// A chained fold (here onto its predecessor, the node) is refined from its prediction without
+// the lattice search, and lands where the lattice search's match lands.
+TEST_F(KeyframeFoldTest, AChainedFoldIsRefinedFromItsPredictionWithoutTheLattice) {
+  ReducedGraphOptions lattice;
+  lattice.refine_chained_from_guess = false;
+  KeyframeFolder lattice_folder(lattice);
+  for (int32_t i = 0; i <= 10; ++i) {
+    lattice_folder.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+  }
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(7.7, 2.0, 0.0));
+  std::vector<AdmittedKeyframe> admitted;
+  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
+  ASSERT_EQ(admitted.size(), 1u);
+  const AdmittedKeyframe& a = admitted.front();
+  const std::optional<KeyframeFold> fold = folder_.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  const std::optional<KeyframeFold> searched = lattice_folder.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  ASSERT_TRUE(fold.has_value());
+  ASSERT_TRUE(searched.has_value());
+  EXPECT_EQ(folder_.work().guess_refinements, 1);
+  EXPECT_EQ(folder_.work().guess_fallbacks, 0);
+  EXPECT_EQ(folder_.work().lattice_scores, 0);
+  EXPECT_GT(lattice_folder.work().lattice_scores, 0);
+  EXPECT_EQ(fold->node, searched->node);
+  EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
+  // The same optimum (measured 2e-9 m and 1.3e-9 rad apart: the refinement's stop).
+  EXPECT_NEAR(fold->T_node_keyframe.x(), searched->T_node_keyframe.x(), 1e-6);
+  EXPECT_NEAR(fold->T_node_keyframe.y(), searched->T_node_keyframe.y(), 1e-6);
+  EXPECT_NEAR(fold->T_node_keyframe.theta(), searched->T_node_keyframe.theta(), 1e-6);
+}
+
+// A revisit predicted through R (not chained) is searched on the lattice as before.
+TEST_F(KeyframeFoldTest, AFoldPredictedThroughTheSolverIsSearchedOnTheLattice) {
+  ASSERT_TRUE(Try(Revisit(Pose2(4.2, 2.0, 0.087))).has_value());
+  EXPECT_EQ(folder_.work().guess_refinements, 0);
+  EXPECT_EQ(folder_.work().guess_fallbacks, 0);
+  EXPECT_GT(folder_.work().lattice_scores, 0);
 }
 
 TEST(ReducedGraphOptionsTest, BadRadiusAndAngleAreRefusedByName) {
