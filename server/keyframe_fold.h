@@ -47,9 +47,9 @@ struct ReducedGraphOptions {
   // The verifying match's window: three sigmas of the predicted T_node_keyframe, within
   // these. The floors are a fifth and a quarter of the loop closures' (0.4 m, 0.2 rad): a
   // prediction from the keyframe's predecessor is tight (100 x 180 seed 2: sigma 3.8 cm and
-  // 0.017 rad at the median, the matched pose within 1 cell and 15 angle steps of it), and a
-  // window of a quarter the angles and a fifth the cells found the same lattice pose in all
-  // 20,423 of its matches at a fraction of the search (docs/ARCHITECTURE.md, cost28).
+  // 0.017 rad at the median, the lattice pose within 1 cell and 15 angle steps of it in all
+  // 20,423 matches), so a third the angles and a fifth the cells hold the same lattice pose:
+  // outputs byte-identical on seeds 1, 2, 3 and 5 (docs/ARCHITECTURE.md, cost28).
   double min_window_m = 0.1;
   double max_window_m = 2.0;
   double min_window_rad = 0.05;
