@@ -44,9 +44,15 @@ struct ReducedGraphOptions {
   double max_range_m = 15.0;
   double floor_sigma_m = 0.02;
   double floor_sigma_rad = 0.005;
-  double min_window_m = 0.4;
+  // The verifying match's window: three sigmas of the predicted T_node_keyframe, within
+  // these. The floors are a fifth and a quarter of the loop closures' (0.4 m, 0.2 rad): a
+  // prediction from the keyframe's predecessor is tight (100 x 180 seed 2: sigma 3.8 cm and
+  // 0.017 rad at the median, the lattice pose within 1 cell and 15 angle steps of it in all
+  // 20,423 matches), so a third the angles and a fifth the cells hold the same lattice pose:
+  // outputs byte-identical on seeds 1, 2, 3 and 5 (docs/ARCHITECTURE.md, cost28).
+  double min_window_m = 0.1;
   double max_window_m = 2.0;
-  double min_window_rad = 0.2;
+  double min_window_rad = 0.05;
   double max_window_rad = 0.6;
   // A fold needs a match localised in every direction, as a first join does
   // (ScanEncounterOptions::first_join_max_sigma_*): a corridor's match is free along it, and
@@ -57,15 +63,22 @@ struct ReducedGraphOptions {
   double max_sigma_rad = 0.05;
   // Node references kept built (a revisited place matches against the same node again).
   // A single scan's reference is several MB: 256 doubled a 100-robot replay's memory
-  // (0.85 -> 1.7 GB); 32 kept it at 0.86 GB with the same output.
+  // (0.85 -> 1.7 GB); 32 kept it at 0.86 GB with the same output. Besides these, each
+  // trajectory keeps the reference it last matched against (KeyframeFolder::NodeReference).
   int reference_cache = 32;
-  ScanReferenceOptions reference{0.05, 0.05, 0.5, 5};
+  // Three max-grid levels (blocks up to 4 cells): the window is a few cells wide, and branch
+  // and bound finds the same best lattice pose on any pyramid; the levels above were built
+  // for every reference and read by no search (cost28).
+  ScanReferenceOptions reference{0.05, 0.05, 0.5, 3};
   MatchOptions match;
   // The match's covariance by the Laplace approximation (MatchCovariance::kLaplace) instead of
   // the score distribution's 125 cost evaluations, half of the fold's match (foldcov26,
   // docs/ARCHITECTURE.md); degenerate directions still get the window prior, so the bar
   // above still refuses a corridor's sliding match.
   bool laplace_covariance = true;
+  // A chained fold's match (the predecessor is the node's keyframe or folded onto the node) is
+  // refined from the prediction without the lattice search (RefineFromGuess; cost28).
+  bool refine_chained_from_guess = true;
 
   Status Validate() const;
 };
@@ -99,11 +112,16 @@ struct KeyframeFoldWork {
   int64_t reference_builds = 0;    // node references built (the cache's misses)
   int64_t reference_rebuilds = 0;  // of those, of a node built before (evicted since)
   int64_t reference_hits = 0;
-  int64_t matches = 0;  // verifying matches run
+  int64_t reference_own_hits = 0;  // of those, the asking trajectory's last reference
+  int64_t matches = 0;             // verifying matches run
   // Their search windows (sums: mm and mrad of the half-widths) and lattice work.
   int64_t window_mm = 0;
   int64_t window_mrad = 0;
   int64_t lattice_scores = 0;
+  // Chained folds' matches refined from the prediction alone (RefineFromGuess), and those that
+  // fell back to the lattice search (weak, or the refinement left the window).
+  int64_t guess_refinements = 0;
+  int64_t guess_fallbacks = 0;
 
   std::string Summary() const;
 };
@@ -136,8 +154,9 @@ class KeyframeFolder {
  private:
   // The nodes' positions by frame, rebuilt once the estimate moved (a solver update).
   void RefreshIndex(const Smoother& smoother);
-  std::shared_ptr<const ScanReference> NodeReference(const TrajectoryTable& table,
-                                                     PoseKey keyframe);
+  // The reference of a node's scan (`keyframe`'s), for a fold of a keyframe of `asking`.
+  std::shared_ptr<const ScanReference> NodeReference(const TrajectoryTable& table, PoseKey keyframe,
+                                                     TrajectoryId asking);
 
   ReducedGraphOptions options_;
   struct Node {
@@ -150,6 +169,14 @@ class KeyframeFolder {
   std::map<std::pair<int64_t, int32_t>, std::shared_ptr<const ScanReference>> references_;
   std::vector<std::pair<int64_t, int32_t>> reference_order_;  // least recently used first
   std::set<std::pair<int64_t, int32_t>> ever_built_;          // KeyframeFoldWork's count
+  // Per trajectory, the node reference its last fold's match used: a robot's next keyframe
+  // usually asks for it again (a fresh path folds onto its own newest node), and among 100
+  // robots the shared least-recently-used cache had evicted it by then.
+  struct LastReference {
+    std::pair<int64_t, int32_t> id;
+    std::shared_ptr<const ScanReference> reference;
+  };
+  std::map<TrajectoryId, LastReference> last_reference_;
   KeyframeFoldStats stats_;
   KeyframeFoldWork work_;
 };

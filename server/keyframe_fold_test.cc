@@ -214,6 +214,131 @@ TEST_F(KeyframeFoldTest, WorkCountsCandidatesReferencesBuiltAndSolvedPredictions
       << work.Summary();
 }
 
+// Among many robots the shared cache has evicted a robot's node by its next keyframe (100 x 180
+// seed 2: 17,918 references built for 20,423 matches with 32 kept); each trajectory keeps the
+// reference it last matched against, so the robot's next fold onto that node builds nothing.
+TEST_F(KeyframeFoldTest, ATrajectorysNextFoldOntoItsLastNodeReusesItsReference) {
+  ReducedGraphOptions one_kept;
+  one_kept.reference_cache = 1;
+  folder_ = KeyframeFolder(one_kept);
+  for (int32_t i = 0; i <= 10; ++i) {
+    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+  }
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(4.2, 2.0, 0.087));  // keyframe 11: folds onto node 3 (x = 4.0)
+  path.push_back(Pose2(4.1, 2.0, 0.05));   // keyframe 12: again onto node 3
+  const std::vector<Keyframe> r1 = Drive(path, "R1", 1);
+  const std::optional<KeyframeFold> first = Try(r1[11]);
+  ASSERT_TRUE(first.has_value());
+  ASSERT_EQ(first->node, (PoseKey{TrajectoryId(0), 3}));
+  ASSERT_TRUE(
+      smoother_
+          .AddAlias({TrajectoryId(0), 11}, first->node, first->T_node_keyframe, first->covariance)
+          .ok());
+  // R2 (its own frame) folds onto its own node in between: the one cached reference is now its.
+  const std::vector<Keyframe> r2 = Drive({Pose2(2.5, 2.0, 0.0), Pose2(2.7, 2.0, 0.0)}, "R2", 2);
+  ASSERT_TRUE(AddNode(r2[0]));
+  const std::optional<KeyframeFold> other = Try(r2[1]);
+  ASSERT_TRUE(other.has_value());
+  EXPECT_EQ(other->node.trajectory, TrajectoryId(1));
+  const KeyframeFoldWork& work = folder_.work();
+  EXPECT_EQ(work.reference_builds, 2);
+  const std::optional<KeyframeFold> second = Try(r1[12]);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_EQ(second->node, first->node);
+  EXPECT_EQ(work.matches, 3);
+  EXPECT_EQ(work.reference_builds, 2);  // before: 3, node 3's evicted reference built again
+  EXPECT_EQ(work.reference_rebuilds, 0);
+  EXPECT_EQ(work.reference_hits, 1);
+  EXPECT_EQ(work.reference_own_hits, 1);
+}
+
+// The verifying match searches three sigmas of its prediction, at least 0.1 m and 0.05 rad
+// (the loop closures' 0.4 m and 0.2 rad before, cost28): a keyframe 0.2 m past its
+// predecessor, the node, is predicted within millimetres by the agent's constraint, so the
+// floors hold, and the match finds the same offset as in the wider window on a fraction of
+// the lattice.
+TEST_F(KeyframeFoldTest, AFoldsMatchSearchesThreeSigmasOfItsPredictionAboveTheFloors) {
+  ReducedGraphOptions lattice;  // the lattice search for this chained fold too
+  lattice.refine_chained_from_guess = false;
+  ReducedGraphOptions wide = lattice;
+  wide.min_window_m = 0.4;
+  wide.min_window_rad = 0.2;
+  folder_ = KeyframeFolder(lattice);
+  KeyframeFolder wide_folder(wide);
+  for (int32_t i = 0; i <= 10; ++i) {
+    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+    wide_folder.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+  }
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(7.7, 2.0, 0.0));
+  std::vector<AdmittedKeyframe> admitted;
+  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
+  ASSERT_EQ(admitted.size(), 1u);
+  const AdmittedKeyframe& a = admitted.front();
+  const std::optional<KeyframeFold> fold = folder_.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  const std::optional<KeyframeFold> wide_fold = wide_folder.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  ASSERT_TRUE(fold.has_value());
+  ASSERT_TRUE(wide_fold.has_value());
+  EXPECT_EQ(fold->node, (PoseKey{TrajectoryId(0), 10}));
+  EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
+  EXPECT_NEAR(fold->T_node_keyframe.y(), 0.0, 0.03);
+  // The same offset to the bit, the same covariance.
+  EXPECT_EQ(fold->node, wide_fold->node);
+  EXPECT_EQ(fold->T_node_keyframe.vector(), wide_fold->T_node_keyframe.vector());
+  EXPECT_EQ(fold->covariance, wide_fold->covariance);
+  const KeyframeFoldWork& work = folder_.work();
+  EXPECT_EQ(work.window_mm, 100);
+  EXPECT_EQ(work.window_mrad, 50);
+  EXPECT_EQ(wide_folder.work().window_mm, 400);
+  EXPECT_EQ(wide_folder.work().window_mrad, 200);
+  // Lattice scores: 217 against 3006.
+  EXPECT_LT(work.lattice_scores, wide_folder.work().lattice_scores / 10);
+}
+
+// A chained fold (here onto its predecessor, the node) is refined from its prediction without
+// the lattice search, and lands where the lattice search's match lands.
+TEST_F(KeyframeFoldTest, AChainedFoldIsRefinedFromItsPredictionWithoutTheLattice) {
+  ReducedGraphOptions lattice;
+  lattice.refine_chained_from_guess = false;
+  KeyframeFolder lattice_folder(lattice);
+  for (int32_t i = 0; i <= 10; ++i) {
+    lattice_folder.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+  }
+  std::vector<Pose2> path = path_;
+  path.push_back(Pose2(7.7, 2.0, 0.0));
+  std::vector<AdmittedKeyframe> admitted;
+  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
+  ASSERT_EQ(admitted.size(), 1u);
+  const AdmittedKeyframe& a = admitted.front();
+  const std::optional<KeyframeFold> fold = folder_.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  const std::optional<KeyframeFold> searched = lattice_folder.Decide(
+      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  ASSERT_TRUE(fold.has_value());
+  ASSERT_TRUE(searched.has_value());
+  EXPECT_EQ(folder_.work().guess_refinements, 1);
+  EXPECT_EQ(folder_.work().guess_fallbacks, 0);
+  EXPECT_EQ(folder_.work().lattice_scores, 0);
+  EXPECT_GT(lattice_folder.work().lattice_scores, 0);
+  EXPECT_EQ(fold->node, searched->node);
+  EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
+  // The same optimum (measured 2e-9 m and 1.3e-9 rad apart: the refinement's stop).
+  EXPECT_NEAR(fold->T_node_keyframe.x(), searched->T_node_keyframe.x(), 1e-6);
+  EXPECT_NEAR(fold->T_node_keyframe.y(), searched->T_node_keyframe.y(), 1e-6);
+  EXPECT_NEAR(fold->T_node_keyframe.theta(), searched->T_node_keyframe.theta(), 1e-6);
+}
+
+// A revisit predicted through R (not chained) is searched on the lattice as before.
+TEST_F(KeyframeFoldTest, AFoldPredictedThroughTheSolverIsSearchedOnTheLattice) {
+  ASSERT_TRUE(Try(Revisit(Pose2(4.2, 2.0, 0.087))).has_value());
+  EXPECT_EQ(folder_.work().guess_refinements, 0);
+  EXPECT_EQ(folder_.work().guess_fallbacks, 0);
+  EXPECT_GT(folder_.work().lattice_scores, 0);
+}
+
 TEST(ReducedGraphOptionsTest, BadRadiusAndAngleAreRefusedByName) {
   ReducedGraphOptions options;
   EXPECT_TRUE(options.Validate().ok());

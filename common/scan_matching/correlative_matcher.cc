@@ -193,6 +193,40 @@ std::optional<MatchResult> MatchLocal(const ScanReference& reference, const Poin
                                options.match, /*bytes=*/true, /*centre_first=*/true);
 }
 
+double MeanLikelihood(const ScanReference& reference, const PointCloud& query, const Pose2& pose) {
+  if (query.empty()) return 0.0;
+  const Eigen::Matrix2d R = pose.rotation();
+  const Eigen::Vector2d t = pose.translation();
+  const GridGeometry& g = reference.geometry();
+  const MaxGridPyramid& grid = reference.base();
+  double sum = 0.0;
+  for (const Eigen::Vector2d& p : query) {
+    const Eigen::Vector2i c = g.CellOf(R * p + t);
+    sum += grid.Value(0, c.x(), c.y());
+  }
+  return sum / static_cast<double>(query.size());
+}
+
+std::optional<MatchResult> RefineFromGuess(const ScanReference& reference, const PointCloud& query,
+                                           const Pose2& guess, const MatchOptions& options) {
+  if (reference.empty() || query.empty()) return std::nullopt;
+  MatchResult result;
+  result.window.center = guess;
+  result.window.angle_step_rad =
+      AngleStepForRange(reference.geometry().resolution, MaxPointRange(query));
+  result.lattice_pose = guess;
+  RefinementOptions refine;
+  refine.cutoff_m = RefinementCutoff(reference, options);
+  if (!options.refine) refine.max_iterations = 0;
+  result.refinement = RefinePose(reference.field(), query, guess, refine);
+  result.pose = result.refinement.pose;
+  result.score = MeanLikelihood(reference, query, result.pose);
+  result.lattice = LatticePose{0, 0, 0, result.score};
+  result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
+  if (options.covariance) AddCovariance(reference, query, options, &result);
+  return result;
+}
+
 std::optional<double> LocalLatticeScore(const ScanReference& reference, const PointCloud& query,
                                         const Pose2& guess, const LocalMatchOptions& options) {
   Require(options);

@@ -98,6 +98,18 @@ std::optional<MatchResult> MatchLocal(const ScanReference& reference, const Poin
 std::optional<double> LocalLatticeScore(const ScanReference& reference, const PointCloud& query,
                                         const Pose2& guess, const LocalMatchOptions& options);
 
+// MatchLocal without the lattice search, for a guess already within the refinement's reach
+// (a keyframe predicted from its predecessor's own match): the refinement starts at `guess`,
+// the score is the likelihood grid's mean over the query's points at the refined pose (the
+// lattice's measure at that pose), the overlap and covariance are FinishMatch's. The result's
+// window is `guess` alone. nullopt when the reference or the query is empty.
+std::optional<MatchResult> RefineFromGuess(const ScanReference& reference, const PointCloud& query,
+                                           const Pose2& guess, const MatchOptions& options);
+
+// The likelihood grid's mean over `query` at T_reference_query `pose` (a point's cell's value,
+// 0 outside the grid): a lattice pose's score, at any pose.
+double MeanLikelihood(const ScanReference& reference, const PointCloud& query, const Pose2& pose);
+
 // Steps 1-4 on a given window (MatchLocal's and GlobalSearch's common part); `bytes`: the
 // lattice search's inner bounds on reference.byte_bounds(); `centre_first`: the window's centre
 // scored first (BranchAndBound; the same match either way).

@@ -178,6 +178,10 @@ MappingServerFlags::MappingServerFlags(OptionsLoader* loader, MappingServerOptio
       &s.reduced_graph.laplace_covariance,
       "reduced graph: the fold's match covariance by the Laplace approximation (false: the "
       "score distribution's samples, as the loop closures')");
+  add("reduced_graph.refine_chained_from_guess", "reduced-graph-refine-chained",
+      &s.reduced_graph.refine_chained_from_guess,
+      "reduced graph: a fold predicted from its predecessor's own match is refined from the "
+      "prediction without the lattice search (false: searched as the others)");
   add("reduced_graph.reference_cache", "reduced-graph-reference-cache",
       &s.reduced_graph.reference_cache,
       "reduced graph: node references kept built, least recently used dropped beyond (a few MB "
