@@ -51,6 +51,31 @@ class KeyframeFoldTest : public ::testing::Test {
     return smoother_.Update().status.ok();
   }
 
+  // `folder` with R1's keyframes 0-10 as its nodes.
+  void AddPathNodes(KeyframeFolder* folder) {
+    for (int32_t i = 0; i <= 10; ++i) {
+      folder->AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
+    }
+  }
+
+  // R1's keyframe 11, 0.2 m past node 10 (its predecessor), admitted by the table.
+  std::optional<AdmittedKeyframe> PastTheLastNode() {
+    std::vector<Pose2> path = path_;
+    path.push_back(Pose2(7.7, 2.0, 0.0));
+    std::vector<AdmittedKeyframe> admitted;
+    if (!table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok() || admitted.size() != 1 ||
+        !admitted.front().previous) {
+      return std::nullopt;
+    }
+    return admitted.front();
+  }
+
+  // Where `folder` folds the admitted keyframe `a`.
+  std::optional<KeyframeFold> Decide(KeyframeFolder* folder, const AdmittedKeyframe& a) {
+    return folder->Decide(a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance,
+                          table_, &smoother_);
+  }
+
   // Offers `keyframe` and asks where it folds.
   std::optional<KeyframeFold> Try(const Keyframe& keyframe) {
     std::vector<AdmittedKeyframe> admitted;
@@ -100,14 +125,9 @@ TEST_F(KeyframeFoldTest, AFoldOntoItsPredecessorKeepsTheAgentsPrecision) {
   // enters no factor inside one node, so it is fused with the match. With the match alone the
   // offset had the floors' 2 cm and 0.005 rad, and a fresh path folding every other keyframe
   // lost its odometry's precision (ACES split in two, docs/ARCHITECTURE.md, aces26).
-  std::vector<Pose2> path = path_;
-  path.push_back(Pose2(7.7, 2.0, 0.0));
-  std::vector<AdmittedKeyframe> admitted;
-  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
-  ASSERT_EQ(admitted.size(), 1u);
-  const AdmittedKeyframe& a = admitted.front();
-  const std::optional<KeyframeFold> fold = folder_.Decide(
-      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  const std::optional<AdmittedKeyframe> a = PastTheLastNode();
+  ASSERT_TRUE(a.has_value());
+  const std::optional<KeyframeFold> fold = Decide(&folder_, *a);
   ASSERT_TRUE(fold.has_value());
   EXPECT_EQ(fold->node, (PoseKey{TrajectoryId(0), 10}));
   EXPECT_NEAR(fold->T_node_keyframe.x(), 0.2, 0.03);
@@ -116,8 +136,8 @@ TEST_F(KeyframeFoldTest, AFoldOntoItsPredecessorKeepsTheAgentsPrecision) {
   // The agent's own covariance (the prediction's: the node is the predecessor's keyframe), not
   // the match's with the floors.
   for (int i = 0; i < 3; ++i) {
-    EXPECT_NEAR(fold->covariance(i, i), a.T_previous_this_covariance(i, i),
-                1e-9 * a.T_previous_this_covariance(i, i))
+    EXPECT_NEAR(fold->covariance(i, i), a->T_previous_this_covariance(i, i),
+                1e-9 * a->T_previous_this_covariance(i, i))
         << i;
     EXPECT_GT(fold->covariance(i, i), 0.0) << i;
   }
@@ -167,9 +187,7 @@ TEST_F(KeyframeFoldTest, AMatchLessLocalisedThanTheBarsFoldsNothing) {
   ReducedGraphOptions strict;
   strict.max_sigma_m = 1e-4;
   folder_ = KeyframeFolder(strict);
-  for (int32_t i = 0; i <= 10; ++i) {
-    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
-  }
+  AddPathNodes(&folder_);
   EXPECT_FALSE(Try(Revisit(Pose2(4.2, 2.0, 0.087))).has_value());
   EXPECT_EQ(folder_.stats().degenerate, 1) << folder_.StatsLine();
   EXPECT_EQ(folder_.stats().gate_rejected + folder_.stats().weak_match, 0);
@@ -221,9 +239,7 @@ TEST_F(KeyframeFoldTest, ATrajectorysNextFoldOntoItsLastNodeReusesItsReference) 
   ReducedGraphOptions one_kept;
   one_kept.reference_cache = 1;
   folder_ = KeyframeFolder(one_kept);
-  for (int32_t i = 0; i <= 10; ++i) {
-    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
-  }
+  AddPathNodes(&folder_);
   std::vector<Pose2> path = path_;
   path.push_back(Pose2(4.2, 2.0, 0.087));  // keyframe 11: folds onto node 3 (x = 4.0)
   path.push_back(Pose2(4.1, 2.0, 0.05));   // keyframe 12: again onto node 3
@@ -266,20 +282,12 @@ TEST_F(KeyframeFoldTest, AFoldsMatchSearchesThreeSigmasOfItsPredictionAboveTheFl
   wide.min_window_rad = 0.2;
   folder_ = KeyframeFolder(lattice);
   KeyframeFolder wide_folder(wide);
-  for (int32_t i = 0; i <= 10; ++i) {
-    folder_.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
-    wide_folder.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
-  }
-  std::vector<Pose2> path = path_;
-  path.push_back(Pose2(7.7, 2.0, 0.0));
-  std::vector<AdmittedKeyframe> admitted;
-  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
-  ASSERT_EQ(admitted.size(), 1u);
-  const AdmittedKeyframe& a = admitted.front();
-  const std::optional<KeyframeFold> fold = folder_.Decide(
-      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
-  const std::optional<KeyframeFold> wide_fold = wide_folder.Decide(
-      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  AddPathNodes(&folder_);
+  AddPathNodes(&wide_folder);
+  const std::optional<AdmittedKeyframe> a = PastTheLastNode();
+  ASSERT_TRUE(a.has_value());
+  const std::optional<KeyframeFold> fold = Decide(&folder_, *a);
+  const std::optional<KeyframeFold> wide_fold = Decide(&wide_folder, *a);
   ASSERT_TRUE(fold.has_value());
   ASSERT_TRUE(wide_fold.has_value());
   EXPECT_EQ(fold->node, (PoseKey{TrajectoryId(0), 10}));
@@ -304,19 +312,11 @@ TEST_F(KeyframeFoldTest, AChainedFoldIsRefinedFromItsPredictionWithoutTheLattice
   ReducedGraphOptions lattice;
   lattice.refine_chained_from_guess = false;
   KeyframeFolder lattice_folder(lattice);
-  for (int32_t i = 0; i <= 10; ++i) {
-    lattice_folder.AddNode({TrajectoryId(0), i}, {TrajectoryId(0), i}, smoother_);
-  }
-  std::vector<Pose2> path = path_;
-  path.push_back(Pose2(7.7, 2.0, 0.0));
-  std::vector<AdmittedKeyframe> admitted;
-  ASSERT_TRUE(table_.Offer(Drive(path, "R1", 1).back(), &admitted).ok());
-  ASSERT_EQ(admitted.size(), 1u);
-  const AdmittedKeyframe& a = admitted.front();
-  const std::optional<KeyframeFold> fold = folder_.Decide(
-      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
-  const std::optional<KeyframeFold> searched = lattice_folder.Decide(
-      a.key, *a.previous, a.T_previous_this, a.T_previous_this_covariance, table_, &smoother_);
+  AddPathNodes(&lattice_folder);
+  const std::optional<AdmittedKeyframe> a = PastTheLastNode();
+  ASSERT_TRUE(a.has_value());
+  const std::optional<KeyframeFold> fold = Decide(&folder_, *a);
+  const std::optional<KeyframeFold> searched = Decide(&lattice_folder, *a);
   ASSERT_TRUE(fold.has_value());
   ASSERT_TRUE(searched.has_value());
   EXPECT_EQ(folder_.work().guess_refinements, 1);
