@@ -51,6 +51,15 @@ class KeyframeFoldTest : public ::testing::Test {
     return smoother_.Update().status.ok();
   }
 
+  // R1's drive on to keyframe 11, which folds onto node 3 (x = 4.0), and keyframe 12, again
+  // onto node 3.
+  std::vector<Keyframe> TwiceOntoNodeThree() const {
+    std::vector<Pose2> path = path_;
+    path.push_back(Pose2(4.2, 2.0, 0.087));
+    path.push_back(Pose2(4.1, 2.0, 0.05));
+    return Drive(path, "R1", 1);
+  }
+
   // `folder` with R1's keyframes 0-10 as its nodes.
   void AddPathNodes(KeyframeFolder* folder) {
     for (int32_t i = 0; i <= 10; ++i) {
@@ -197,10 +206,7 @@ TEST_F(KeyframeFoldTest, AMatchLessLocalisedThanTheBarsFoldsNothing) {
 // served from the cache; the prediction is solved through R unless the predecessor is the
 // node's keyframe or folded onto the node.
 TEST_F(KeyframeFoldTest, WorkCountsCandidatesReferencesBuiltAndSolvedPredictions) {
-  std::vector<Pose2> path = path_;
-  path.push_back(Pose2(4.2, 2.0, 0.087));  // keyframe 11: folds onto node 3 (x = 4.0)
-  path.push_back(Pose2(4.1, 2.0, 0.05));   // keyframe 12: again onto node 3
-  const std::vector<Keyframe> keyframes = Drive(path, "R1", 1);
+  const std::vector<Keyframe> keyframes = TwiceOntoNodeThree();
   const std::optional<KeyframeFold> first = Try(keyframes[11]);
   ASSERT_TRUE(first.has_value());
   ASSERT_EQ(first->node, (PoseKey{TrajectoryId(0), 3}));
@@ -240,10 +246,7 @@ TEST_F(KeyframeFoldTest, ATrajectorysNextFoldOntoItsLastNodeReusesItsReference) 
   one_kept.reference_cache = 1;
   folder_ = KeyframeFolder(one_kept);
   AddPathNodes(&folder_);
-  std::vector<Pose2> path = path_;
-  path.push_back(Pose2(4.2, 2.0, 0.087));  // keyframe 11: folds onto node 3 (x = 4.0)
-  path.push_back(Pose2(4.1, 2.0, 0.05));   // keyframe 12: again onto node 3
-  const std::vector<Keyframe> r1 = Drive(path, "R1", 1);
+  const std::vector<Keyframe> r1 = TwiceOntoNodeThree();
   const std::optional<KeyframeFold> first = Try(r1[11]);
   ASSERT_TRUE(first.has_value());
   ASSERT_EQ(first->node, (PoseKey{TrajectoryId(0), 3}));

@@ -121,6 +121,15 @@ double RefinementCutoff(const ScanReference& reference, const MatchOptions& opti
                   reference.field().options().max_distance_m);
 }
 
+// The refinement from `start` (its Hessian at `start` alone when options.refine is off).
+RefinementResult RefineMatch(const ScanReference& reference, const PointCloud& query,
+                             const Pose2& start, const MatchOptions& options) {
+  RefinementOptions refine;
+  refine.cutoff_m = RefinementCutoff(reference, options);
+  if (!options.refine) refine.max_iterations = 0;
+  return RefinePose(reference.field(), query, start, refine);
+}
+
 }  // namespace
 
 MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
@@ -131,15 +140,7 @@ MatchResult FinishMatch(const ScanReference& reference, const PointCloud& query,
   result.lattice = lattice;
   result.score = lattice.score;
   result.lattice_pose = LatticeToPose(window, reference.geometry().resolution, lattice);
-  result.pose = result.lattice_pose;
-  RefinementOptions refine;
-  refine.cutoff_m = RefinementCutoff(reference, options);
-  if (options.refine) {
-    result.refinement = RefinePose(reference.field(), query, result.lattice_pose, refine);
-  } else {
-    result.refinement = RefinePose(reference.field(), query, result.lattice_pose,
-                                   RefinementOptions{refine.cutoff_m, 0, 0.0});
-  }
+  result.refinement = RefineMatch(reference, query, result.lattice_pose, options);
   result.pose = result.refinement.pose;
   result.overlap = Overlap(reference.field(), query, result.pose, options.overlap_distance_m);
   if (options.covariance) AddCovariance(reference, query, options, &result);
@@ -215,10 +216,7 @@ std::optional<MatchResult> RefineFromGuess(const ScanReference& reference, const
   result.window.angle_step_rad =
       AngleStepForRange(reference.geometry().resolution, MaxPointRange(query));
   result.lattice_pose = guess;
-  RefinementOptions refine;
-  refine.cutoff_m = RefinementCutoff(reference, options);
-  if (!options.refine) refine.max_iterations = 0;
-  result.refinement = RefinePose(reference.field(), query, guess, refine);
+  result.refinement = RefineMatch(reference, query, guess, options);
   result.pose = result.refinement.pose;
   result.score = MeanLikelihood(reference, query, result.pose);
   result.lattice = LatticePose{0, 0, 0, result.score};
